@@ -1,0 +1,53 @@
+# SPDX-License-Identifier: BSD-3-Clause
+# The two set-up commands of the README: `make demo` and `make test`. Both install what is missing.
+JOBS        ?= $(shell nproc)
+BUILD       ?= build
+BUILD_ASAN  ?= build-asan
+BUILD_TYPE  ?= RelWithDebInfo
+DATA        ?= $(abspath ../shared/data)
+DEMO_INPUT  ?= $(DATA)/kitti_highway
+DEMO_OUT    ?= $(abspath demo-out)
+
+.PHONY: all deps build test test-asan demo benchmark install clean format
+
+all: build
+
+deps:
+	@./cmake/install-deps.sh
+
+$(BUILD)/CMakeCache.txt:
+	cmake -S . -B $(BUILD) -DCMAKE_BUILD_TYPE=$(BUILD_TYPE) -DCLEANMAP_BUILD_TESTS=ON \
+	  -DCLEANMAP_SHARED_DATA_DIR=$(DATA)
+
+build: deps $(BUILD)/CMakeCache.txt
+	cmake --build $(BUILD) -j $(JOBS)
+
+# Every test in the normal build, then the unit tests once more under ASan + UBSan.
+test: build
+	cd $(BUILD) && ctest --output-on-failure -j $(JOBS)
+	$(MAKE) --no-print-directory test-asan
+
+test-asan: deps
+	cmake -S . -B $(BUILD_ASAN) -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCLEANMAP_SANITIZE=ON \
+	  -DCLEANMAP_BUILD_TESTS=ON -DCLEANMAP_SHARED_DATA_DIR=$(DATA)
+	cmake --build $(BUILD_ASAN) -j $(JOBS)
+	cd $(BUILD_ASAN) && ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 \
+	  ctest --output-on-failure -j $(JOBS) -L unit
+
+demo: build
+	@./cmake/demo.sh "$(BUILD)" "$(DEMO_INPUT)" "$(DEMO_OUT)"
+
+benchmark: deps
+	cmake -S . -B build-release -DCMAKE_BUILD_TYPE=Release -DCLEANMAP_BUILD_BENCHMARKS=ON \
+	  -DCLEANMAP_BUILD_TESTS=OFF
+	cmake --build build-release -j $(JOBS)
+	./build-release/tests/benchmarks/cleanmap-bench-io --data $(DATA)
+
+install: build
+	cmake --install $(BUILD) --prefix $(or $(PREFIX),/usr/local)
+
+format:
+	clang-format -i $$(git ls-files '*.cpp' '*.h')
+
+clean:
+	rm -rf $(BUILD) $(BUILD_ASAN) build-release $(DEMO_OUT)

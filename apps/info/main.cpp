@@ -1,0 +1,82 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// cleanmap-info: what a KITTI folder or rawlog holds, as cleanmap reads it.
+#include <algorithm>
+#include <cstdio>
+#include <iostream>
+#include <string>
+#include <vector>
+
+#include "cleanmap/core/error.h"
+#include "cleanmap/io/kitti.h"
+#include "cleanmap/mrpt/input.h"
+
+namespace {
+
+constexpr const char* kUsage = R"(usage: cleanmap-info INPUT
+
+Summarises a KITTI folder (odometry, SemanticKITTI or raw) or an MRPT rawlog as cleanmap reads
+it: scans and points per scan, invalid points dropped, poses and trajectory length, images and
+camera, and, for labelled folders, the share of moving points.
+)";
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc != 2 || std::string(argv[1]) == "--help" || std::string(argv[1]) == "-h") {
+    std::cout << kUsage;
+    return argc == 2 ? 0 : 2;
+  }
+  const std::string input = argv[1];
+  try {
+    cleanmap::mrpt::InputOptions opts;
+    opts.allow_empty_scans = true;
+    auto src = cleanmap::mrpt::openInput(input, opts);
+    const auto* kitti = dynamic_cast<const cleanmap::io::KittiSequence*>(src.get());
+    std::vector<std::size_t> sizes;
+    std::size_t dropped = 0, posed = 0, images = 0, empty = 0, moving = 0, labelled = 0;
+    double length = 0, t0 = 0, t1 = 0;
+    std::optional<Eigen::Vector3d> last;
+    while (auto f = src->next()) {
+      const auto& s = f->scan;
+      if (sizes.empty()) t0 = s.timestamp;
+      t1 = s.timestamp;
+      sizes.push_back(s.size());
+      dropped += s.dropped_invalid;
+      empty += s.empty();
+      images += f->image.has_value();
+      if (s.has_pose) {
+        ++posed;
+        if (last) length += (s.pose.translation() - *last).norm();
+        last = s.pose.translation();
+      }
+      if (kitti && kitti->hasLabels()) {
+        for (uint32_t l : kitti->loadLabels(f->index, s.original_size)) {
+          labelled += 1;
+          moving += cleanmap::gtClass(l) == cleanmap::GtClass::kMoving;
+        }
+      }
+    }
+    std::vector<std::size_t> sorted = sizes;
+    std::sort(sorted.begin(), sorted.end());
+    std::printf("input:   %s (%s)\n", input.c_str(),
+                kitti ? (kitti->layout() == cleanmap::io::KittiLayout::kRaw ? "KITTI raw"
+                                                                            : "KITTI odometry")
+                      : "MRPT rawlog");
+    std::printf("scans:   %zu over %.2f s; points per scan min %zu / median %zu / max %zu\n",
+                sizes.size(), t1 - t0, sorted.front(), sorted[sorted.size() / 2], sorted.back());
+    std::printf("invalid: %zu NaN/inf points dropped, %zu empty scans\n", dropped, empty);
+    std::printf("poses:   %zu of %zu scans; trajectory %.2f m\n", posed, sizes.size(), length);
+    if (const auto cam = src->camera())
+      std::printf("images:  %zu; camera %s %dx%d, focal %.1f px\n", images, cam->name.c_str(),
+                  cam->width, cam->height, cam->focal());
+    else
+      std::printf("images:  %zu\n", images);
+    if (labelled)
+      std::printf("labels:  %zu points, %zu moving (%.2f %%)\n", labelled, moving,
+                  100.0 * static_cast<double>(moving) / static_cast<double>(labelled));
+  } catch (const std::exception& e) {
+    std::cerr << "cleanmap-info: error: " << e.what() << '\n';
+    return 1;
+  }
+  return 0;
+}

@@ -1,0 +1,42 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Low-level file formats: KITTI `.bin` scans, SemanticKITTI `.label` files, atomic writes.
+#pragma once
+#include <functional>
+#include <iosfwd>
+#include <string>
+#include <vector>
+
+#include "cleanmap/core/types.h"
+
+namespace cleanmap::io {
+
+struct ScanReadOptions {
+  bool allow_empty = false;  ///< an empty scan is an error unless allowed (then returned empty)
+};
+
+/// Reads a KITTI Velodyne `.bin` (float32 x, y, z, intensity per point, little-endian).
+/// Throws cleanmap::Error on a missing file, a size that is not a multiple of 16, or an empty scan
+/// (unless allowed). NaN / infinite points are dropped and counted in Scan::dropped_invalid.
+Scan readKittiBin(const std::string& path, const ScanReadOptions& opts = {});
+
+/// Writes a scan as KITTI `.bin` (valid points only), atomically.
+void writeKittiBin(const std::string& path, const std::vector<PointXYZI>& points);
+
+/// Reads a `.label` file (uint32 little-endian per point). If expected_count is given, a different
+/// count is an error naming both numbers.
+Labels readLabels(const std::string& path, std::optional<std::size_t> expected_count = {});
+
+/// Writes a `.label` file atomically.
+void writeLabels(const std::string& path, const Labels& labels);
+
+/// Writes `path` through a temporary sibling and a rename, so an interrupted run never leaves a
+/// half-written file. The writer gets a binary stream; any exception removes the temporary.
+void writeFileAtomic(const std::string& path, const std::function<void(std::ostream&)>& writer);
+
+/// Whole file as text; throws cleanmap::Error naming the file if it cannot be read.
+std::string readTextFile(const std::string& path);
+
+/// Throws cleanmap::Error(path, "directory does not exist") unless `path` is a directory.
+void requireDirectory(const std::string& path);
+
+}  // namespace cleanmap::io

@@ -1,0 +1,116 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#include "cleanmap/io/files.h"
+
+#include <unistd.h>
+
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "cleanmap/core/error.h"
+
+namespace fs = std::filesystem;
+
+namespace cleanmap::io {
+namespace {
+
+std::vector<char> readBinary(const std::string& path) {
+  std::error_code ec;
+  if (!fs::exists(path, ec)) throw Error(path, "file does not exist");
+  if (fs::is_directory(path, ec)) throw Error(path, "is a directory, expected a file");
+  std::ifstream f(path, std::ios::binary | std::ios::ate);
+  if (!f) throw Error(path, "cannot open for reading");
+  const auto size = static_cast<std::size_t>(f.tellg());
+  std::vector<char> bytes(size);
+  f.seekg(0);
+  if (size > 0 && !f.read(bytes.data(), static_cast<std::streamsize>(size)))
+    throw Error(path, "read error");
+  return bytes;
+}
+
+}  // namespace
+
+Scan readKittiBin(const std::string& path, const ScanReadOptions& opts) {
+  const std::vector<char> bytes = readBinary(path);
+  if (bytes.size() % sizeof(PointXYZI) != 0)
+    throw Error(path, "truncated scan: " + std::to_string(bytes.size()) +
+                          " bytes is not a multiple of 16 (float32 x, y, z, intensity)");
+  Scan scan;
+  scan.points.resize(bytes.size() / sizeof(PointXYZI));
+  if (!bytes.empty()) std::memcpy(scan.points.data(), bytes.data(), bytes.size());
+  scan.original_size = scan.points.size();
+  dropInvalidPoints(scan);
+  if (scan.points.empty() && !opts.allow_empty)
+    throw Error(path, scan.original_size == 0
+                          ? "empty scan (0 points)"
+                          : "empty scan: all " + std::to_string(scan.original_size) +
+                                " points are NaN or infinite");
+  return scan;
+}
+
+void writeKittiBin(const std::string& path, const std::vector<PointXYZI>& points) {
+  writeFileAtomic(path, [&](std::ostream& os) {
+    os.write(reinterpret_cast<const char*>(points.data()),
+             static_cast<std::streamsize>(points.size() * sizeof(PointXYZI)));
+  });
+}
+
+Labels readLabels(const std::string& path, std::optional<std::size_t> expected_count) {
+  const std::vector<char> bytes = readBinary(path);
+  if (bytes.size() % sizeof(uint32_t) != 0)
+    throw Error(path, "truncated label file: " + std::to_string(bytes.size()) +
+                          " bytes is not a multiple of 4 (uint32 per point)");
+  Labels labels(bytes.size() / sizeof(uint32_t));
+  if (!bytes.empty()) std::memcpy(labels.data(), bytes.data(), bytes.size());
+  if (expected_count && labels.size() != *expected_count)
+    throw Error(path, "has " + std::to_string(labels.size()) + " labels but the scan has " +
+                          std::to_string(*expected_count) + " points");
+  return labels;
+}
+
+void writeLabels(const std::string& path, const Labels& labels) {
+  writeFileAtomic(path, [&](std::ostream& os) {
+    os.write(reinterpret_cast<const char*>(labels.data()),
+             static_cast<std::streamsize>(labels.size() * sizeof(uint32_t)));
+  });
+}
+
+void writeFileAtomic(const std::string& path, const std::function<void(std::ostream&)>& writer) {
+  const fs::path target(path);
+  if (target.has_parent_path()) {
+    std::error_code ec;
+    fs::create_directories(target.parent_path(), ec);
+    if (ec) throw Error(target.parent_path().string(), "cannot create directory: " + ec.message());
+  }
+  const std::string tmp = path + ".tmp." + std::to_string(::getpid());
+  try {
+    {
+      std::ofstream os(tmp, std::ios::binary | std::ios::trunc);
+      if (!os) throw Error(path, "cannot open for writing");
+      writer(os);
+      os.flush();
+      if (!os) throw Error(path, "write failed (disk full?)");
+    }
+    std::error_code ec;
+    fs::rename(tmp, target, ec);
+    if (ec) throw Error(path, "cannot move the finished file into place: " + ec.message());
+  } catch (...) {
+    std::error_code ignored;
+    fs::remove(tmp, ignored);
+    throw;
+  }
+}
+
+std::string readTextFile(const std::string& path) {
+  const std::vector<char> bytes = readBinary(path);
+  return std::string(bytes.begin(), bytes.end());
+}
+
+void requireDirectory(const std::string& path) {
+  std::error_code ec;
+  if (!fs::exists(path, ec)) throw Error(path, "directory does not exist");
+  if (!fs::is_directory(path, ec)) throw Error(path, "is not a directory");
+}
+
+}  // namespace cleanmap::io

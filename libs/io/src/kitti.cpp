@@ -1,0 +1,330 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#include "cleanmap/io/kitti.h"
+
+#include <algorithm>
+#include <cmath>
+#include <ctime>
+#include <filesystem>
+#include <iomanip>
+#include <sstream>
+
+#include <opencv2/imgcodecs.hpp>
+
+#include "cleanmap/core/error.h"
+#include "cleanmap/io/calib.h"
+
+namespace fs = std::filesystem;
+
+namespace cleanmap::io {
+namespace {
+
+bool isDir(const fs::path& p) {
+  std::error_code ec;
+  return fs::is_directory(p, ec);
+}
+bool isFile(const fs::path& p) {
+  std::error_code ec;
+  return fs::is_regular_file(p, ec);
+}
+
+std::vector<std::string> stemsOf(const std::vector<std::string>& files) {
+  std::vector<std::string> s;
+  s.reserve(files.size());
+  for (const auto& f : files) s.push_back(fs::path(f).stem().string());
+  return s;
+}
+
+void requireCount(const std::string& path, const std::string& what, std::size_t n,
+                  std::size_t scans) {
+  if (n != scans)
+    throw Error(path, "has " + std::to_string(n) + " " + what + " but the sequence has " +
+                          std::to_string(scans) + " scans");
+}
+
+// Lines of numbers, one value per line (times.txt).
+std::vector<double> readNumberLines(const std::string& path) {
+  std::istringstream in(readTextFile(path));
+  std::vector<double> v;
+  std::string line;
+  std::size_t lineno = 0;
+  while (std::getline(in, line)) {
+    ++lineno;
+    if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
+    try {
+      v.push_back(std::stod(line));
+    } catch (const std::exception&) {
+      throw Error(path, "line " + std::to_string(lineno) + " is not a number");
+    }
+  }
+  return v;
+}
+
+std::vector<double> readTimestampLines(const std::string& path) {
+  std::istringstream in(readTextFile(path));
+  std::vector<double> v;
+  std::string line;
+  while (std::getline(in, line))
+    if (line.find_first_not_of(" \t\r") != std::string::npos)
+      v.push_back(parseKittiTimestamp(line, path));
+  return v;
+}
+
+// Image size without decoding the whole file would need a PNG parser; one decode at open is fine.
+std::pair<int, int> imageSize(const std::string& path) {
+  const cv::Mat img = cv::imread(path, cv::IMREAD_UNCHANGED);
+  if (img.empty()) throw Error(path, "cannot decode image");
+  return {img.cols, img.rows};
+}
+
+}  // namespace
+
+std::vector<std::string> listFiles(const std::string& dir, const std::string& ext) {
+  std::vector<std::string> files;
+  if (!isDir(dir)) return files;
+  for (const auto& e : fs::directory_iterator(dir))
+    if (e.is_regular_file() && e.path().extension() == ext) files.push_back(e.path().string());
+  std::sort(files.begin(), files.end());
+  return files;
+}
+
+std::vector<Eigen::Isometry3d> readPosesFile(const std::string& path) {
+  std::istringstream in(readTextFile(path));
+  std::vector<Eigen::Isometry3d> poses;
+  std::string line;
+  std::size_t lineno = 0;
+  while (std::getline(in, line)) {
+    ++lineno;
+    if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
+    std::istringstream ls(line);
+    Eigen::Matrix<double, 3, 4> m;
+    for (int k = 0; k < 12; ++k) {
+      if (!(ls >> m(k / 4, k % 4)))
+        throw Error(path, "line " + std::to_string(lineno) + " does not hold 12 numbers");
+    }
+    if (!m.allFinite()) throw Error(path, "line " + std::to_string(lineno) + " is not finite");
+    poses.push_back(isometryFrom3x4(m));
+  }
+  return poses;
+}
+
+void writePosesFile(const std::string& path, const std::vector<Eigen::Isometry3d>& poses) {
+  writeFileAtomic(path, [&](std::ostream& os) {
+    os << std::scientific << std::setprecision(12);
+    for (const auto& T : poses) {
+      for (int k = 0; k < 12; ++k) os << (k ? " " : "") << T.matrix()(k / 4, k % 4);
+      os << '\n';
+    }
+  });
+}
+
+Eigen::Isometry3d oxtsToMercatorPose(double lat, double lon, double alt, double roll, double pitch,
+                                     double yaw, double scale) {
+  constexpr double kEarthRadius = 6378137.0;  // WGS-84 equatorial radius, as in the KITTI devkit
+  const double tx = scale * lon * M_PI * kEarthRadius / 180.0;
+  const double ty = scale * kEarthRadius * std::log(std::tan((90.0 + lat) * M_PI / 360.0));
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = (Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()) *
+                Eigen::AngleAxisd(pitch, Eigen::Vector3d::UnitY()) *
+                Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitX()))
+                   .toRotationMatrix();
+  T.translation() = Eigen::Vector3d(tx, ty, alt);
+  return T;
+}
+
+double parseKittiTimestamp(const std::string& text, const std::string& file) {
+  std::tm tm{};
+  std::istringstream in(text);
+  in >> std::get_time(&tm, "%Y-%m-%d %H:%M:%S");
+  if (in.fail()) throw Error(file, "bad timestamp '" + text + "'");
+  double frac = 0.0;
+  std::string rest;
+  in >> rest;
+  if (!rest.empty()) {
+    if (rest[0] != '.') throw Error(file, "bad timestamp '" + text + "'");
+    frac = std::stod("0" + rest);
+  }
+  return static_cast<double>(timegm(&tm)) + frac;
+}
+
+KittiSequence KittiSequence::open(const std::string& dir, const KittiReadOptions& opts) {
+  requireDirectory(dir);
+  KittiSequence seq;
+  seq.dir_ = dir;
+  seq.opts_ = opts;
+  const fs::path d(dir);
+  if (isDir(d / "velodyne")) {
+    seq.layout_ = KittiLayout::kOdometry;
+    seq.openOdometry();
+  } else if (isDir(d / "velodyne_points" / "data")) {
+    seq.layout_ = KittiLayout::kRaw;
+    seq.openRaw();
+  } else {
+    throw Error(dir, "not a KITTI folder: neither velodyne/ nor velodyne_points/data/ found");
+  }
+  seq.listLabels();
+  return seq;
+}
+
+void KittiSequence::openOdometry() {
+  const fs::path d(dir_);
+  scan_files_ = listFiles((d / "velodyne").string(), ".bin");
+  if (scan_files_.empty()) throw Error((d / "velodyne").string(), "holds no .bin scans");
+  stems_ = stemsOf(scan_files_);
+  const std::size_t n = scan_files_.size();
+
+  const bool has_images = isDir(d / "image_2") && opts_.load_images;
+  const bool has_poses = isFile(d / "poses.txt");
+  std::optional<KeyValueFile> calib;
+  if (isFile(d / "calib.txt")) calib = KeyValueFile::load((d / "calib.txt").string());
+  if ((has_images || has_poses) && !calib)
+    throw Error((d / "calib.txt").string(),
+                "file does not exist (needed for the lidar-camera transform Tr)");
+
+  if (has_poses) {
+    // poses.txt is in the camera-0 frame: T_world_velo = Tr^-1 * P_i * Tr.
+    const Eigen::Isometry3d Tr = isometryFrom3x4(calib->matrix3x4("Tr"));
+    const std::string path = (d / "poses.txt").string();
+    const auto cam_poses = readPosesFile(path);
+    requireCount(path, "poses", cam_poses.size(), n);
+    poses_.reserve(n);
+    const Eigen::Isometry3d Tr_inv = exactInverse(Tr);
+    for (const auto& P : cam_poses) poses_.push_back(Tr_inv * P * Tr);
+  }
+
+  if (isFile(d / "times.txt")) {
+    const std::string path = (d / "times.txt").string();
+    times_ = readNumberLines(path);
+    requireCount(path, "timestamps", times_.size(), n);
+  } else {
+    for (std::size_t i = 0; i < n; ++i) times_.push_back(0.1 * static_cast<double>(i));
+  }
+
+  if (has_images) {
+    const std::string img_dir = (d / "image_2").string();
+    image_files_ = listFiles(img_dir, ".png");
+    requireCount(img_dir, "images", image_files_.size(), n);
+    PinholeCamera cam;
+    cam.name = "image_2";
+    cam.P = calib->matrix3x4("P2");
+    cam.T_cam_lidar = isometryFrom3x4(calib->matrix3x4("Tr"));
+    std::tie(cam.width, cam.height) = imageSize(image_files_.front());
+    camera_ = cam;
+  }
+}
+
+void KittiSequence::openRaw() {
+  const fs::path d(dir_);
+  const fs::path velo = d / "velodyne_points";
+  scan_files_ = listFiles((velo / "data").string(), ".bin");
+  if (scan_files_.empty()) throw Error((velo / "data").string(), "holds no .bin scans");
+  stems_ = stemsOf(scan_files_);
+  const std::size_t n = scan_files_.size();
+
+  // Calibration files live in the date folder above the drive (or beside the data).
+  auto findCalib = [&](const std::string& name) -> std::string {
+    for (const fs::path& c : {d / name, d.parent_path() / name})
+      if (isFile(c)) return c.string();
+    throw Error((d / name).string(), "file does not exist (nor in the parent folder)");
+  };
+
+  if (isFile(velo / "timestamps.txt")) {
+    const std::string path = (velo / "timestamps.txt").string();
+    times_ = readTimestampLines(path);
+    requireCount(path, "timestamps", times_.size(), n);
+  } else {
+    for (std::size_t i = 0; i < n; ++i) times_.push_back(0.1 * static_cast<double>(i));
+  }
+
+  const fs::path oxts = d / "oxts" / "data";
+  if (isDir(oxts)) {
+    const auto files = listFiles(oxts.string(), ".txt");
+    requireCount(oxts.string(), "OXTS records", files.size(), n);
+    const auto imu_to_velo = KeyValueFile::load(findCalib("calib_imu_to_velo.txt")).rigidRT();
+    const Eigen::Isometry3d velo_to_imu = exactInverse(imu_to_velo);
+    double scale = 0.0;
+    Eigen::Isometry3d first_inv = Eigen::Isometry3d::Identity();
+    for (std::size_t i = 0; i < n; ++i) {
+      std::istringstream in(readTextFile(files[i]));
+      double v[6];
+      for (double& x : v)
+        if (!(in >> x) || !std::isfinite(x))
+          throw Error(files[i], "OXTS record does not start with 6 finite numbers");
+      if (i == 0) scale = std::cos(v[0] * M_PI / 180.0);
+      const Eigen::Isometry3d T_imu = oxtsToMercatorPose(v[0], v[1], v[2], v[3], v[4], v[5], scale);
+      if (i == 0) first_inv = exactInverse(T_imu);
+      // Lidar pose with the first lidar frame as world origin.
+      poses_.push_back(imu_to_velo * first_inv * T_imu * velo_to_imu);
+    }
+  }
+
+  const fs::path img = d / "image_02" / "data";
+  if (isDir(img) && opts_.load_images) {
+    image_files_ = listFiles(img.string(), ".png");
+    requireCount(img.string(), "images", image_files_.size(), n);
+    const auto v2c = KeyValueFile::load(findCalib("calib_velo_to_cam.txt"));
+    const auto c2c = KeyValueFile::load(findCalib("calib_cam_to_cam.txt"));
+    PinholeCamera cam;
+    cam.name = "image_02";
+    cam.P = c2c.matrix3x4("P_rect_02");
+    Eigen::Isometry3d R_rect = Eigen::Isometry3d::Identity();
+    const auto& r = c2c.numbers("R_rect_00", 9);
+    for (int i = 0; i < 9; ++i) R_rect.matrix()(i / 3, i % 3) = r[static_cast<std::size_t>(i)];
+    cam.T_cam_lidar = R_rect * v2c.rigidRT();
+    const auto& s = c2c.numbers("S_rect_02", 2);
+    cam.width = static_cast<int>(s[0]);
+    cam.height = static_cast<int>(s[1]);
+    camera_ = cam;
+  }
+}
+
+void KittiSequence::listLabels() {
+  const std::string dir = (fs::path(dir_) / "labels").string();
+  label_files_ = listFiles(dir, ".label");
+  if (!label_files_.empty()) requireCount(dir, "label files", label_files_.size(), size());
+}
+
+std::optional<std::string> KittiSequence::objectsPath() const {
+  const fs::path p = fs::path(dir_) / "objects.json";
+  if (isFile(p)) return p.string();
+  return std::nullopt;
+}
+
+Scan KittiSequence::loadScan(std::size_t i) const {
+  Scan s = readKittiBin(scan_files_.at(i), opts_.scan);
+  s.timestamp = times_.at(i);
+  if (hasPoses()) {
+    s.pose = poses_[i];
+    s.has_pose = true;
+  }
+  return s;
+}
+
+std::optional<Image> KittiSequence::loadImage(std::size_t i) const {
+  if (!hasImages()) return std::nullopt;
+  Image img;
+  img.bgr = cv::imread(image_files_.at(i), cv::IMREAD_COLOR);
+  if (img.bgr.empty()) throw Error(image_files_[i], "cannot decode image");
+  img.timestamp = times_.at(i);
+  return img;
+}
+
+Labels KittiSequence::loadLabels(std::size_t i, std::optional<std::size_t> expected_count) const {
+  if (!hasLabels()) throw Error(dir_, "has no labels/ folder");
+  return readLabels(label_files_.at(i), expected_count);
+}
+
+Frame KittiSequence::frame(std::size_t i) const {
+  Frame f;
+  f.index = i;
+  f.stem = stems_.at(i);
+  f.scan = loadScan(i);
+  f.image = loadImage(i);
+  return f;
+}
+
+std::optional<Frame> KittiSequence::next() {
+  if (cursor_ >= size()) return std::nullopt;
+  return frame(cursor_++);
+}
+
+}  // namespace cleanmap::io

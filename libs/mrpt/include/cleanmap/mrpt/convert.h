@@ -1,0 +1,33 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Conversions between cleanmap core types and MRPT types (the only place both meet).
+#pragma once
+#include <mrpt/img/TCamera.h>
+#include <mrpt/maps/CPointsMapXYZI.h>
+#include <mrpt/obs/CObservation.h>
+#include <mrpt/poses/CPose3D.h>
+
+#include "cleanmap/core/types.h"
+
+namespace cleanmap::mrpt {
+
+::mrpt::poses::CPose3D toCPose3D(const Eigen::Isometry3d& T);
+Eigen::Isometry3d toIsometry(const ::mrpt::poses::CPose3D& p);
+
+/// Points (sensor frame) into an XYZI points map.
+::mrpt::maps::CPointsMapXYZI::Ptr toPointsMap(const std::vector<PointXYZI>& points);
+
+/// TCamera (intrinsics K, no distortion) of a rectified camera; `cameraPoseOnRobot` receives the
+/// pose of the camera's optical frame relative to the lidar (robot frame = lidar frame).
+::mrpt::img::TCamera toTCamera(const PinholeCamera& cam, ::mrpt::poses::CPose3D& cameraPoseOnRobot);
+/// Inverse of toTCamera given the lidar's pose on the robot. Throws cleanmap::Error (naming
+/// `source`) if the camera has lens distortion, which our pinhole model cannot represent.
+PinholeCamera fromTCamera(const ::mrpt::img::TCamera& cam,
+                          const ::mrpt::poses::CPose3D& cameraPoseOnRobot,
+                          const ::mrpt::poses::CPose3D& lidarPoseOnRobot, const std::string& source);
+
+/// Scan from a point-cloud-like observation (CObservationPointCloud, CObservationVelodyneScan,
+/// CObservation3DRangeScan), in the sensor frame, invalid points dropped. nullopt for other types.
+/// Loads lazy (externally stored) data first.
+std::optional<Scan> scanFromObservation(const ::mrpt::obs::CObservation& obs);
+
+}  // namespace cleanmap::mrpt

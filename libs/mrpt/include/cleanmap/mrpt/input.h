@@ -1,0 +1,20 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// One entry point for every input cleanmap accepts: a KITTI folder or an MRPT rawlog.
+#pragma once
+#include <memory>
+#include <string>
+
+#include "cleanmap/core/types.h"
+
+namespace cleanmap::mrpt {
+
+struct InputOptions {
+  bool allow_empty_scans = false;
+  bool load_images = true;
+};
+
+/// A directory opens as a KITTI sequence (odometry or raw), a file as a rawlog.
+/// Throws cleanmap::Error naming the path if it is neither.
+std::unique_ptr<FrameSource> openInput(const std::string& path, const InputOptions& opts = {});
+
+}  // namespace cleanmap::mrpt

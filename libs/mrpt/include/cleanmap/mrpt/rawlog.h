@@ -1,0 +1,81 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// MRPT rawlog I/O (observation-only format). Public header free of MRPT includes.
+#pragma once
+#include <memory>
+#include <optional>
+#include <string>
+
+#include "cleanmap/core/types.h"
+
+namespace cleanmap::mrpt {
+
+/// Calls MRPT's class registration for every observation type we read or write (Debian links with
+/// --as-needed, so registration must be reached by a call, not by link order).
+void registerClasses();
+
+struct RawlogWriteOptions {
+  /// Store scans as lazy `KittiBinFile` references (absolute paths) instead of embedding points,
+  /// and images as external files. Requires Frame::source paths and scans without dropped points.
+  bool external = false;
+  std::string lidar_label = "LIDAR";
+  std::string camera_label = "CAMERA";
+  std::string pose_label = "POSE";
+};
+
+/// Streams frames into a rawlog: per frame a CObservationRobotPose (when the scan has a pose),
+/// a CObservationPointCloud (XYZI, sensorPose = identity: the robot frame is the lidar frame) and
+/// a CObservationImage (with TCamera and camera pose), all with the scan's timestamp.
+/// Written to a temporary file and moved into place by close(): an interrupted run leaves nothing.
+class RawlogWriter {
+ public:
+  RawlogWriter(const std::string& path, const RawlogWriteOptions& opts = {});
+  ~RawlogWriter();
+  RawlogWriter(const RawlogWriter&) = delete;
+  RawlogWriter& operator=(const RawlogWriter&) = delete;
+
+  /// `camera` is required for frames with an image. `scan_source` / `image_source` are the files
+  /// the data came from (needed with `external`).
+  void write(const Frame& frame, const std::optional<PinholeCamera>& camera,
+             const std::string& scan_source = {}, const std::string& image_source = {});
+  void close();
+
+  std::size_t scans() const { return scans_; }
+  std::size_t images() const { return images_; }
+  std::size_t poses() const { return poses_; }
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+  std::string path_;
+  RawlogWriteOptions opts_;
+  std::size_t scans_ = 0, images_ = 0, poses_ = 0;
+};
+
+struct RawlogReadOptions {
+  bool allow_empty_scans = false;  ///< an empty scan is an error unless allowed
+  double pose_time_tolerance = 0.01;   ///< s; a robot pose this close to a scan is its pose
+  double image_time_tolerance = 0.05;  ///< s; an image this close to a scan goes with it
+};
+
+/// Reads a rawlog (either MRPT format) as a stream of frames. Scans come from
+/// CObservationPointCloud, CObservationVelodyneScan (point cloud generated), and
+/// CObservation3DRangeScan (unprojected); CObservationRobotPose gives the robot pose (scan pose =
+/// robot pose + sensor pose) and CObservationImage the image, each matched to the scan with the
+/// nearest timestamp within tolerance. Other observations are counted and skipped.
+class RawlogSource : public FrameSource {
+ public:
+  /// Throws cleanmap::Error if the file is missing or not a rawlog.
+  explicit RawlogSource(const std::string& path, const RawlogReadOptions& opts = {});
+  ~RawlogSource() override;
+
+  std::optional<Frame> next() override;
+  std::optional<PinholeCamera> camera() const override;
+
+  std::size_t skippedObservations() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace cleanmap::mrpt

@@ -1,0 +1,213 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#include <cmath>
+#include <cstdio>
+#include <deque>
+#include <filesystem>
+#include <sstream>
+
+#include <opencv2/imgproc.hpp>
+
+#include <mrpt/io/CFileGZInputStream.h>
+#include <mrpt/obs/CActionCollection.h>
+#include <mrpt/obs/CObservationImage.h>
+#include <mrpt/obs/CObservationRobotPose.h>
+#include <mrpt/obs/CSensoryFrame.h>
+#include <mrpt/serialization/CArchive.h>
+
+#include "cleanmap/core/error.h"
+#include "cleanmap/mrpt/convert.h"
+#include "cleanmap/mrpt/rawlog.h"
+
+namespace fs = std::filesystem;
+
+namespace cleanmap::mrpt {
+namespace {
+
+// MRPT exception texts span several lines (with call stacks): keep the most telling one.
+std::string briefMessage(const std::exception& e) {
+  std::istringstream in(e.what());
+  std::string line, last;
+  while (std::getline(in, line)) {
+    if (line.find_first_not_of(" \t=") == std::string::npos) continue;
+    if (line.find("MRPT exception") != std::string::npos) continue;
+    if (line.rfind("Message:", 0) == 0) return line.substr(9);
+    if (last.empty()) last = line;
+  }
+  return last.empty() ? std::string("unknown error") : last;
+}
+
+struct Item {
+  enum Kind { kScan, kPose, kImage } kind = kScan;
+  double t = 0;
+  Scan scan;                                // kScan
+  ::mrpt::poses::CPose3D sensor_pose;       // kScan: lidar on robot
+  ::mrpt::poses::CPose3D robot_pose;        // kPose
+  ::mrpt::obs::CObservationImage::Ptr img;  // kImage
+};
+
+}  // namespace
+
+struct RawlogSource::Impl {
+  std::string path;
+  RawlogReadOptions opts;
+  ::mrpt::io::CFileGZInputStream in;
+  std::size_t entry = 0, scans = 0, skipped = 0;
+  bool eof = false;
+  std::deque<Item> buf;
+  std::optional<PinholeCamera> camera;
+
+  void push(const ::mrpt::obs::CObservation::Ptr& obs) {
+    using namespace ::mrpt::obs;
+    if (!obs) return;
+    const double t = ::mrpt::Clock::toDouble(obs->timestamp);
+    if (auto scan = scanFromObservation(*obs)) {
+      Item it;
+      it.kind = Item::kScan;
+      it.t = t;
+      it.scan = std::move(*scan);
+      obs->getSensorPose(it.sensor_pose);
+      buf.push_back(std::move(it));
+    } else if (auto rp = std::dynamic_pointer_cast<CObservationRobotPose>(obs)) {
+      Item it;
+      it.kind = Item::kPose;
+      it.t = t;
+      it.robot_pose = rp->pose.mean;
+      buf.push_back(std::move(it));
+    } else if (auto im = std::dynamic_pointer_cast<CObservationImage>(obs)) {
+      Item it;
+      it.kind = Item::kImage;
+      it.t = t;
+      it.img = im;
+      buf.push_back(std::move(it));
+    } else {
+      ++skipped;
+    }
+  }
+
+  // Reads one rawlog entry; false at a clean end of file. We deserialize ourselves instead of
+  // CRawlog::getActionObservationPairOrObservation, which prints and swallows errors, so a
+  // truncated rawlog would look complete.
+  bool readEntry() {
+    if (eof) return false;
+    using namespace ::mrpt::obs;
+    auto arch = ::mrpt::serialization::archiveFrom(in);
+    const uint64_t before = in.getPosition();
+    ::mrpt::serialization::CSerializable::Ptr obj;
+    try {
+      obj = arch.ReadObject();
+    } catch (const ::mrpt::serialization::CExceptionEOF&) {
+      if (in.getPosition() == before) {
+        eof = true;
+        return false;
+      }
+      throw Error(path, "truncated rawlog at entry " + std::to_string(entry) +
+                            " (the file ends inside an object)");
+    } catch (const std::exception& e) {
+      throw Error(path, "truncated or corrupt rawlog at entry " + std::to_string(entry) + ": " +
+                            briefMessage(e));
+    }
+    ++entry;
+    if (auto sf = std::dynamic_pointer_cast<CSensoryFrame>(obj)) {
+      for (const auto& o : *sf) push(o);
+    } else if (auto obs = std::dynamic_pointer_cast<CObservation>(obj)) {
+      push(obs);
+    } else {
+      ++skipped;  // actions (odometry) and anything else
+    }
+    return true;
+  }
+
+  std::optional<std::size_t> findScan(std::size_t from) const {
+    for (std::size_t i = from; i < buf.size(); ++i)
+      if (buf[i].kind == Item::kScan) return i;
+    return std::nullopt;
+  }
+
+  // The item of `kind` in [0, end) nearest in time to t, within tol.
+  const Item* nearest(Item::Kind kind, double t, double tol, std::size_t end) const {
+    const Item* best = nullptr;
+    for (std::size_t i = 0; i < end; ++i) {
+      const Item& it = buf[i];
+      if (it.kind != kind || std::abs(it.t - t) > tol) continue;
+      if (!best || std::abs(it.t - t) < std::abs(best->t - t)) best = &it;
+    }
+    return best;
+  }
+
+  Image toImage(const Item& it) {
+    cv::Mat m;
+    try {
+      it.img->image.asCvMat(m, ::mrpt::img::DEEP_COPY);
+    } catch (const std::exception& e) {
+      throw Error(path, "cannot load image of entry near t=" + std::to_string(it.t) + ": " +
+                            briefMessage(e));
+    }
+    if (m.empty()) throw Error(path, "empty image at t=" + std::to_string(it.t));
+    Image img;
+    if (m.channels() == 1)
+      cv::cvtColor(m, img.bgr, cv::COLOR_GRAY2BGR);
+    else
+      img.bgr = m;
+    img.timestamp = it.t;
+    return img;
+  }
+};
+
+RawlogSource::RawlogSource(const std::string& path, const RawlogReadOptions& opts)
+    : impl_(std::make_unique<Impl>()) {
+  registerClasses();
+  impl_->path = path;
+  impl_->opts = opts;
+  std::error_code ec;
+  if (!fs::exists(path, ec)) throw Error(path, "file does not exist");
+  if (fs::is_directory(path, ec)) throw Error(path, "is a directory, expected a rawlog file");
+  if (!impl_->in.open(path)) throw Error(path, "cannot open for reading");
+  while (!impl_->findScan(0) && impl_->readEntry()) {
+  }
+  if (!impl_->findScan(0))
+    throw Error(path, "holds no point-cloud observations (CObservationPointCloud, "
+                      "CObservationVelodyneScan or CObservation3DRangeScan)");
+}
+
+RawlogSource::~RawlogSource() = default;
+
+std::optional<Frame> RawlogSource::next() {
+  auto& I = *impl_;
+  while (!I.findScan(0) && I.readEntry()) {
+  }
+  const auto s = I.findScan(0);
+  if (!s) return std::nullopt;
+  while (!I.findScan(*s + 1) && I.readEntry()) {
+  }
+  const std::size_t end = I.findScan(*s + 1).value_or(I.buf.size());
+
+  Item& cur = I.buf[*s];
+  Frame f;
+  f.index = I.scans++;
+  char stem[16];
+  std::snprintf(stem, sizeof stem, "%06zu", f.index);
+  f.stem = stem;
+  f.scan = std::move(cur.scan);
+  f.scan.timestamp = cur.t;
+  if (f.scan.empty() && !I.opts.allow_empty_scans)
+    throw Error(I.path, "scan " + f.stem + " is empty (0 valid points)");
+  if (const Item* p = I.nearest(Item::kPose, cur.t, I.opts.pose_time_tolerance, end)) {
+    f.scan.pose = toIsometry(p->robot_pose + cur.sensor_pose);  // robot pose (+) sensor pose
+    f.scan.has_pose = true;
+  } else {
+    f.scan.pose = toIsometry(cur.sensor_pose);
+  }
+  if (const Item* im = I.nearest(Item::kImage, cur.t, I.opts.image_time_tolerance, end)) {
+    f.image = I.toImage(*im);
+    if (!I.camera)
+      I.camera = fromTCamera(im->img->cameraParams, im->img->cameraPose, cur.sensor_pose, I.path);
+  }
+  I.buf.erase(I.buf.begin(), I.buf.begin() + static_cast<std::ptrdiff_t>(*s) + 1);
+  return f;
+}
+
+std::optional<PinholeCamera> RawlogSource::camera() const { return impl_->camera; }
+
+std::size_t RawlogSource::skippedObservations() const { return impl_->skipped; }
+
+}  // namespace cleanmap::mrpt

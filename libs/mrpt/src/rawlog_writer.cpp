@@ -1,0 +1,110 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#include <unistd.h>
+
+#include <cstdio>
+#include <filesystem>
+
+#include <mrpt/io/CFileGZOutputStream.h>
+#include <mrpt/obs/CObservationPointCloud.h>
+#include <mrpt/obs/CObservationImage.h>
+#include <mrpt/obs/CObservationRobotPose.h>
+#include <mrpt/serialization/CArchive.h>
+
+#include "cleanmap/core/error.h"
+#include "cleanmap/mrpt/convert.h"
+#include "cleanmap/mrpt/rawlog.h"
+
+namespace fs = std::filesystem;
+
+namespace cleanmap::mrpt {
+
+struct RawlogWriter::Impl {
+  std::string tmp;
+  ::mrpt::io::CFileGZOutputStream out;
+  bool open = false;
+};
+
+RawlogWriter::RawlogWriter(const std::string& path, const RawlogWriteOptions& opts)
+    : impl_(std::make_unique<Impl>()), path_(path), opts_(opts) {
+  registerClasses();
+  const fs::path target(path);
+  if (target.has_parent_path()) {
+    std::error_code ec;
+    fs::create_directories(target.parent_path(), ec);
+    if (ec) throw Error(target.parent_path().string(), "cannot create directory: " + ec.message());
+  }
+  impl_->tmp = path + ".tmp." + std::to_string(::getpid());
+  if (!impl_->out.open(impl_->tmp)) throw Error(path, "cannot open for writing");
+  impl_->open = true;
+  // Images are stored raw (bit-exact), not JPEG-compressed.
+  ::mrpt::img::CImage::DISABLE_JPEG_COMPRESSION(true);
+}
+
+RawlogWriter::~RawlogWriter() {
+  if (impl_ && impl_->open) {  // not closed: an error happened, leave nothing behind
+    impl_->out.close();
+    std::remove(impl_->tmp.c_str());
+  }
+}
+
+void RawlogWriter::write(const Frame& frame, const std::optional<PinholeCamera>& camera,
+                         const std::string& scan_source, const std::string& image_source) {
+  using namespace ::mrpt::obs;
+  auto arch = ::mrpt::serialization::archiveFrom(impl_->out);
+  const auto stamp = ::mrpt::Clock::fromDouble(frame.scan.timestamp);
+
+  if (frame.scan.has_pose) {
+    auto obs = CObservationRobotPose::Create();
+    obs->sensorLabel = opts_.pose_label;
+    obs->timestamp = stamp;
+    obs->pose.mean = toCPose3D(frame.scan.pose);
+    obs->pose.cov.setZero();
+    arch << *obs;
+    ++poses_;
+  }
+
+  auto pc = CObservationPointCloud::Create();
+  pc->sensorLabel = opts_.lidar_label;
+  pc->timestamp = stamp;
+  pc->sensorPose = ::mrpt::poses::CPose3D();  // robot frame == lidar frame
+  if (opts_.external) {
+    if (scan_source.empty())
+      throw Error(path_, "external storage needs the source .bin of scan " + frame.stem);
+    if (frame.scan.dropped_invalid > 0)
+      throw Error(scan_source, "has NaN/inf points; cannot be referenced externally, embed it");
+    pc->setAsExternalStorage(fs::absolute(scan_source).string(),
+                             CObservationPointCloud::ExternalStorageFormat::KittiBinFile);
+  } else {
+    pc->pointcloud = toPointsMap(frame.scan.points);
+  }
+  arch << *pc;
+  ++scans_;
+
+  if (frame.image) {
+    if (!camera) throw Error(path_, "frame " + frame.stem + " has an image but no camera");
+    auto img = CObservationImage::Create();
+    img->sensorLabel = opts_.camera_label;
+    img->timestamp = ::mrpt::Clock::fromDouble(frame.image->timestamp);
+    img->cameraParams = toTCamera(*camera, img->cameraPose);
+    if (opts_.external && !image_source.empty())
+      img->image.setExternalStorage(fs::absolute(image_source).string());
+    else
+      img->image = ::mrpt::img::CImage(frame.image->bgr, ::mrpt::img::DEEP_COPY);
+    arch << *img;
+    ++images_;
+  }
+}
+
+void RawlogWriter::close() {
+  if (!impl_->open) return;
+  impl_->out.close();
+  impl_->open = false;
+  std::error_code ec;
+  fs::rename(impl_->tmp, path_, ec);
+  if (ec) {
+    std::remove(impl_->tmp.c_str());
+    throw Error(path_, "cannot move the finished rawlog into place: " + ec.message());
+  }
+}
+
+}  // namespace cleanmap::mrpt
