@@ -1,0 +1,84 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// SPEC §2b / paper §II-C: Dempster-Shafer occupancy of a point from lidar beams.
+#pragma once
+#include <cmath>
+
+#include "cleanmap/core/params.h"
+
+namespace cleanmap::ds {
+
+/// Masses over {empty, occupied}: e + o + u = 1, u = unknown ({empty, occupied}).
+struct Mass {
+  double e = 0.0, o = 0.0, u = 1.0;
+};
+
+inline double Phi(double x) { return 0.5 * std::erfc(-x / M_SQRT2); }
+
+/// Precomputed constants of the noise model F = N(0, sigma^2), sigma^2 = sigma_m^2 + sigma_r^2.
+struct BeamModel {
+  double sigma, s1, inv_sqrt_s1, inv_two_lambda2;
+  explicit BeamModel(const DsParams& p)
+      : sigma(std::sqrt(p.sigma_m * p.sigma_m + p.sigma_r * p.sigma_r)),
+        s1(1.0 + sigma * sigma),
+        inv_sqrt_s1(1.0 / std::sqrt(s1)),
+        inv_two_lambda2(1.0 / (2.0 * p.lambda_theta * p.lambda_theta)) {}
+
+  /// m'(P, Q) for a beam at angle theta (rad) from O->P with r = |OP'| - |OQ| (m); Eq. (4)-(5)
+  /// with the Gaussian-convolved closed forms:
+  ///   e' = f_theta * Phi(-r / sigma)
+  ///   o' = exp(-r^2 / (2 (1 + sigma^2))) / sqrt(1 + sigma^2) * Phi(r / (sigma sqrt(1 + sigma^2)))
+  Mass beam(double r, double theta) const {
+    const double f_theta = std::exp(-theta * theta * inv_two_lambda2);
+    Mass m;
+    m.e = f_theta * Phi(-r / sigma);
+    m.o = std::exp(-r * r / (2.0 * s1)) * inv_sqrt_s1 * Phi(r * inv_sqrt_s1 / sigma);
+    m.u = 1.0 - m.e - m.o;
+    return m;
+  }
+};
+
+/// Dempster's rule (Eq. 6). K = o1 e2 + e1 o2. Total conflict (K = 1) is defined as unknown and
+/// reported through `total_conflict`.
+inline Mass combine(const Mass& a, const Mass& b, bool* total_conflict = nullptr) {
+  const double K = a.o * b.e + a.e * b.o;
+  const double norm = 1.0 - K;
+  if (norm <= 1e-12) {
+    if (total_conflict) *total_conflict = true;
+    return Mass{};
+  }
+  const double inv = 1.0 / norm;
+  Mass m;
+  m.e = (a.e * b.e + a.e * b.u + a.u * b.e) * inv;
+  m.o = (a.o * b.o + a.o * b.u + a.u * b.o) * inv;
+  m.u = a.u * b.u * inv;
+  return m;
+}
+
+/// Xiao et al.'s pairwise measures (Eq. 7).
+struct Consistency {
+  double conf, cons, unc;
+};
+inline Consistency xiao(const Mass& a, const Mass& b) {
+  return {a.e * b.o + a.o * b.e, a.e * b.e + a.o * b.o + a.u * b.u,
+          a.u * (b.e + b.o) + b.u * (a.e + a.o)};
+}
+
+/// l = r_sup - (r_sup - r_inf) |OP| / |OB| (Eq. 8): stronger belief near the sensor.
+inline double discreteBelief(double range_p, double range_farthest, const DsParams& p) {
+  const double ratio = range_farthest > 0 ? std::min(range_p / range_farthest, 1.0) : 1.0;
+  return p.r_sup - (p.r_sup - p.r_inf) * ratio;
+}
+
+/// Eq. (9)-(11): the prevailing state keeps mass l, the rest goes to unknown.
+inline Mass discretise(const Mass& m, double l) {
+  Mass d;
+  d.e = (m.e > m.o && m.e > m.u) ? l : 0.0;
+  d.o = (m.o > m.e && m.o > m.u) ? l : 0.0;
+  d.u = 1.0 - d.e - d.o;
+  return d;
+}
+
+/// Decision: moving iff empty is the largest mass of the window's combined evidence.
+inline bool isMoving(const Mass& m) { return m.e > m.o && m.e > m.u; }
+
+}  // namespace cleanmap::ds

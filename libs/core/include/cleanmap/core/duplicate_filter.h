@@ -1,0 +1,41 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// SPEC §2.3: a candidate is a duplicate if a static-map point contributed by the last W processed
+// scans lies within d_dup.
+#pragma once
+#include <Eigen/Core>
+#include <cstdint>
+#include <unordered_map>
+#include <vector>
+
+#include "cleanmap/core/params.h"
+
+namespace cleanmap {
+
+class DuplicateFilter {
+ public:
+  explicit DuplicateFilter(const FilterParams& p);
+
+  /// True if a point inserted by one of the scans [scan - W, scan) lies within d_dup of p.
+  bool isDuplicate(const Eigen::Vector3f& p, long scan) const;
+  /// Adds the static points that scan `scan` contributed to the map, and forgets scans older
+  /// than the window.
+  void insert(const std::vector<Eigen::Vector3f>& points, long scan);
+  std::size_t size() const { return count_; }
+
+ private:
+  struct Entry {
+    Eigen::Vector3f p;
+    long scan;
+  };
+  using Key = uint64_t;
+  Key key(int x, int y, int z) const;
+  Eigen::Vector3i cell(const Eigen::Vector3f& p) const;
+  void prune(long oldest);
+
+  FilterParams p_;
+  float inv_;
+  std::unordered_map<Key, std::vector<Entry>> grid_;
+  std::size_t count_ = 0;
+};
+
+}  // namespace cleanmap

@@ -1,0 +1,46 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// SPEC §2b: the moving-point test of one point against the scans of its window.
+#pragma once
+#include <Eigen/Geometry>
+#include <vector>
+
+#include "cleanmap/core/beam_index.h"
+#include "cleanmap/core/dempster_shafer.h"
+
+namespace cleanmap {
+
+/// What the test needs of a window scan: its beams and where it was taken.
+struct WindowScan {
+  const BeamIndex* beams = nullptr;
+  Eigen::Isometry3d world_to_sensor = Eigen::Isometry3d::Identity();
+};
+
+struct MovingTestStats {
+  std::size_t total_conflicts = 0;  ///< Dempster combinations with K = 1 (set to unknown)
+  std::size_t no_evidence = 0;      ///< points that no window scan saw (all unknown)
+};
+
+class MovingTest {
+ public:
+  explicit MovingTest(const DsParams& p);
+
+  /// m(P, S_i) = (+)_Q m'(P, Q) over the beams of S_i within search radius of O_i->P (Eq. 6).
+  ds::Mass scanMass(const Eigen::Vector3d& p_world, const WindowScan& s, double* range_p,
+                    MovingTestStats* stats) const;
+  /// Window decision: Dempster combination of the discretised scan masses (Eq. 8-11).
+  ds::Mass windowMass(const Eigen::Vector3d& p_world, const std::vector<WindowScan>& window,
+                      MovingTestStats* stats) const;
+  bool isMoving(const Eigen::Vector3d& p_world, const std::vector<WindowScan>& window,
+                MovingTestStats* stats) const {
+    return ds::isMoving(windowMass(p_world, window, stats));
+  }
+  double searchRadius() const { return radius_; }
+
+ private:
+  DsParams p_;
+  ds::BeamModel model_;
+  double radius_;
+  double r_far_;  // beyond this r (P far behind Q) a beam gives u = 1 to double precision
+};
+
+}  // namespace cleanmap

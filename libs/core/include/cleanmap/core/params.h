@@ -1,0 +1,50 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Every parameter of the laser pipeline (SPEC §2), with its default and unit. The one source of
+// truth: ini files and CLI flags are parsed into these structs at the boundary.
+#pragma once
+#include <cstdint>
+
+namespace cleanmap {
+
+/// SPEC §2.2-2.3: range crop and duplicate filter.
+struct FilterParams {
+  double crop_tau = 30.0;      ///< m; a point is a candidate iff |x|,|y|,|z| <= tau (sensor frame)
+  int dup_window = 10;         ///< W: scans whose static points the duplicate test looks at
+  double dup_distance = 0.10;  ///< m; d_dup
+};
+
+/// SPEC §2a: ground removal by height propagation.
+struct GroundParams {
+  double cell = 0.4;             ///< m; grid cell side
+  double step = 0.09;            ///< m; s, the largest rise within / between cells (22 % slope)
+  double sensor_height = -1.73;  ///< m; initial ground height h_G below the sensor origin
+};
+
+/// SPEC §2b: Dempster-Shafer beam model and window.
+struct DsParams {
+  double sigma_m = 0.05;          ///< m; range measurement noise
+  double sigma_r = 0.15;          ///< m; registration noise
+  double lambda_theta = 0.0035;   ///< rad; angular spread of a beam (default from doc/SWEEP.md)
+  double search_lambdas = 3.0;    ///< beams within search_lambdas * lambda_theta are considered
+  double r_sup = 0.8;             ///< discretised belief near the sensor
+  double r_inf = 0.6;             ///< discretised belief at the farthest range
+  int window_k = 10;              ///< K: scans before and after
+};
+
+/// SPEC §2c: octree leaf sampling.
+struct OctreeParams {
+  double leaf = 0.3;        ///< m; leaf size (OctoMap key resolution)
+  int tau_np = 6;           ///< leaves with fewer points test all of them
+  double fraction = 1.0 / 6.0;  ///< share of a dense leaf that is tested
+};
+
+struct PipelineParams {
+  FilterParams filter;
+  GroundParams ground;
+  DsParams ds;
+  OctreeParams octree;
+  uint64_t seed = 42;  ///< octree sampling; a run is reproducible bit for bit
+  int threads = 2;     ///< worker threads for the moving-point test (1 = serial)
+};
+
+}  // namespace cleanmap

@@ -1,0 +1,56 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#include "cleanmap/core/moving_test.h"
+
+#include <cmath>
+
+namespace cleanmap {
+
+MovingTest::MovingTest(const DsParams& p)
+    : p_(p),
+      model_(p),
+      radius_(p.search_lambdas * p.lambda_theta),
+      r_far_(std::sqrt(2.0 * model_.s1 * 40.0)) {}  // exp(-r^2 / 2(1+sigma^2)) < e^-40
+
+ds::Mass MovingTest::scanMass(const Eigen::Vector3d& p_world, const WindowScan& s,
+                              double* range_p, MovingTestStats* stats) const {
+  const Eigen::Vector3d pl = s.world_to_sensor * p_world;
+  const double d = pl.norm();
+  if (range_p) *range_p = d;
+  ds::Mass m;
+  if (d < 1e-3 || !s.beams) return m;
+  const Eigen::Vector3f dir = (pl / d).cast<float>();
+  const double r2max = radius_ * radius_;
+  bool conflict = false;
+  s.beams->forEachNear(dir, radius_, [&](const BeamIndex::Beam& q) {
+    // Small angles: theta = |a x b| to float precision (a dot product would lose it).
+    const double sin_t = static_cast<double>(dir.cross(q.dir).norm());
+    const double theta2 = sin_t * sin_t;
+    if (theta2 > r2max || dir.dot(q.dir) <= 0.0f) return;
+    const double r = d * std::sqrt(1.0 - theta2) - static_cast<double>(q.range);  // |OP'| - |OQ|
+    if (r > r_far_) return;  // far behind the hit: unknown, the identity of Dempster's rule
+    m = ds::combine(m, model_.beam(r, std::sqrt(theta2)), &conflict);
+  });
+  if (conflict && stats) ++stats->total_conflicts;
+  return m;
+}
+
+ds::Mass MovingTest::windowMass(const Eigen::Vector3d& p_world,
+                                const std::vector<WindowScan>& window,
+                                MovingTestStats* stats) const {
+  ds::Mass acc;
+  bool any = false, conflict = false;
+  for (const auto& s : window) {
+    double d = 0;
+    const ds::Mass m = scanMass(p_world, s, &d, stats);
+    const ds::Mass dm = ds::discretise(m, ds::discreteBelief(d, s.beams->farthest(), p_));
+    any = any || dm.u < 1.0;
+    acc = ds::combine(acc, dm, &conflict);
+  }
+  if (stats) {
+    stats->no_evidence += !any;
+    stats->total_conflicts += conflict;
+  }
+  return acc;
+}
+
+}  // namespace cleanmap

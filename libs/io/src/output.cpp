@@ -1,0 +1,168 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#include "cleanmap/io/output.h"
+
+#include <sys/resource.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <filesystem>
+#include <nlohmann/json.hpp>
+
+#include "cleanmap/core/error.h"
+#include "cleanmap/io/config.h"
+#include "cleanmap/io/files.h"
+#include "cleanmap/io/kitti.h"
+#include "cleanmap/io/ply.h"
+
+namespace cleanmap::io {
+namespace {
+
+struct Spread {
+  double median = 0, p95 = 0, mean = 0;
+};
+Spread spread(std::vector<double> v) {
+  Spread s;
+  if (v.empty()) return s;
+  std::sort(v.begin(), v.end());
+  s.median = v[v.size() / 2];
+  s.p95 = v[std::min(v.size() - 1, static_cast<std::size_t>(0.95 * static_cast<double>(v.size())))];
+  for (double x : v) s.mean += x / static_cast<double>(v.size());
+  return s;
+}
+
+nlohmann::json countsJson(const MosCounts& c) {
+  return {{"precision", c.precision()}, {"recall", c.recall()}, {"iou", c.iou()},
+          {"tp", c.tp}, {"fp", c.fp}, {"fn", c.fn}, {"tn", c.tn},
+          {"flagged_rate", c.flaggedRate()}, {"ignored", c.ignored},
+          {"out_of_range", c.out_of_range}};
+}
+
+}  // namespace
+
+double peakRssMiB() {
+  rusage ru{};
+  getrusage(RUSAGE_SELF, &ru);
+  return static_cast<double>(ru.ru_maxrss) / 1024.0;
+}
+
+OutputWriter::OutputWriter(const std::string& outdir, const std::string& input,
+                           const PipelineParams& params)
+    : dir_(outdir), input_(input), params_(params) {
+  std::error_code ec;
+  std::filesystem::create_directories(std::filesystem::path(dir_) / "labels", ec);
+  if (ec) throw Error(dir_, "cannot create the output folder: " + ec.message());
+  compact_ = std::make_unique<PlyStreamWriter>(dir_ + "/static_map.ply");
+  full_ = std::make_unique<PlyStreamWriter>(dir_ + "/static_map_full.ply");
+  moving_ = std::make_unique<PlyStreamWriter>(dir_ + "/dynamic.ply");
+}
+
+OutputWriter::~OutputWriter() = default;
+
+void OutputWriter::write(const ScanResult& r, const std::optional<MosCounts>& eval) {
+  writeLabels(dir_ + "/labels/" + r.stem + ".label", r.labels);
+  compact_->append(r.static_compact);
+  full_->append(r.static_full);
+  moving_->append(r.moving);
+  poses_.push_back(r.pose);
+  stats_.push_back(r.stats);
+  stems_.push_back(r.stem);
+  if (eval) {
+    has_eval_ = true;
+    eval_ += *eval;
+    scan_eval_.push_back(*eval);
+  }
+}
+
+void OutputWriter::finish(double wall_s) {
+  compact_->close();
+  full_->close();
+  moving_->close();
+  writePosesFile(dir_ + "/poses.txt", poses_);
+  writeFileAtomic(dir_ + "/params.ini", [&](std::ostream& os) { os << toIni(params_); });
+
+  ScanStats total;
+  std::vector<double> t_total, t_index, t_ground, t_dup, t_oct, t_cls;
+  std::size_t empty = 0;
+  for (const auto& s : stats_) {
+    total.points += s.points;
+    total.invalid += s.invalid;
+    total.in_crop += s.in_crop;
+    total.ground += s.ground;
+    total.duplicates += s.duplicates;
+    total.candidates += s.candidates;
+    total.tested += s.tested;
+    total.moving += s.moving;
+    total.static_points += s.static_points;
+    total.total_conflicts += s.total_conflicts;
+    total.no_evidence += s.no_evidence;
+    empty += s.empty;
+    t_total.push_back(s.ms.total);
+    t_index.push_back(s.ms.index);
+    t_ground.push_back(s.ms.ground);
+    t_dup.push_back(s.ms.duplicates);
+    t_oct.push_back(s.ms.octree);
+    t_cls.push_back(s.ms.classify);
+  }
+  nlohmann::json j;
+  j["input"] = input_;
+  j["scans"] = stats_.size();
+  j["counts"] = {{"points", total.points},       {"invalid_dropped", total.invalid},
+                 {"empty_scans", empty},         {"in_crop", total.in_crop},
+                 {"ground", total.ground},       {"duplicates", total.duplicates},
+                 {"candidates", total.candidates}, {"tested", total.tested},
+                 {"moving", total.moving},       {"static", total.static_points},
+                 {"total_conflicts", total.total_conflicts},
+                 {"no_evidence_points", total.no_evidence},
+                 {"static_map_points", compact_->count()},
+                 {"static_map_full_points", full_->count()}, {"dynamic_points", moving_->count()}};
+  nlohmann::json timing;
+  const std::pair<const char*, std::vector<double>*> stages[] = {
+      {"total", &t_total}, {"beam_index", &t_index}, {"crop_ground", &t_ground},
+      {"duplicates", &t_dup}, {"octree", &t_oct}, {"classify", &t_cls}};
+  for (const auto& [name, v] : stages) {
+    const Spread s = spread(*v);
+    timing[name] = {{"median_ms", s.median}, {"p95_ms", s.p95}, {"mean_ms", s.mean}};
+  }
+  j["timing_per_scan"] = timing;
+  j["wall_s"] = wall_s;
+  j["threads"] = params_.threads;
+  j["peak_rss_mib"] = peakRssMiB();
+  j["params_ini"] = toIni(params_);
+  if (has_eval_) {
+    j["evaluation"] = countsJson(eval_);
+    nlohmann::json per;
+    for (std::size_t i = 0; i < scan_eval_.size() && i < stems_.size(); ++i)
+      per[stems_[i]] = countsJson(scan_eval_[i]);
+    j["evaluation_per_scan"] = per;
+  }
+  writeFileAtomic(dir_ + "/report.json", [&](std::ostream& os) { os << j.dump(1) << '\n'; });
+
+  writeFileAtomic(dir_ + "/report.md", [&](std::ostream& os) {
+    char buf[512];
+    os << "# cleanmap run report\n\nInput: `" << input_ << "`, " << stats_.size() << " scans, "
+       << params_.threads << " threads, wall " << wall_s << " s, peak RSS " << peakRssMiB()
+       << " MiB.\n\n## Counts\n| points | in crop | ground | duplicates | tested | moving | static "
+          "| empty scans | total conflicts | no evidence |\n|---|---|---|---|---|---|---|---|---|---|\n";
+    std::snprintf(buf, sizeof buf, "| %zu | %zu | %zu | %zu | %zu | %zu | %zu | %zu | %zu | %zu |\n",
+                  total.points, total.in_crop, total.ground, total.duplicates, total.tested,
+                  total.moving, total.static_points, empty, total.total_conflicts,
+                  total.no_evidence);
+    os << buf << "\n## Time per scan (ms)\n| stage | median | p95 |\n|---|---|---|\n";
+    for (const auto& [name, v] : stages) {
+      const Spread s = spread(*v);
+      std::snprintf(buf, sizeof buf, "| %s | %.1f | %.1f |\n", name, s.median, s.p95);
+      os << buf;
+    }
+    if (has_eval_) {
+      std::snprintf(buf, sizeof buf,
+                    "\n## Moving-object segmentation (in-crop points, ignore labels excluded)\n"
+                    "| precision | recall | IoU | TP | FP | FN |\n|---|---|---|---|---|---|\n"
+                    "| %.3f | %.3f | %.3f | %llu | %llu | %llu |\n",
+                    eval_.precision(), eval_.recall(), eval_.iou(), (unsigned long long)eval_.tp,
+                    (unsigned long long)eval_.fp, (unsigned long long)eval_.fn);
+      os << buf;
+    }
+  });
+}
+
+}  // namespace cleanmap::io
