@@ -29,35 +29,49 @@ std::vector<uint8_t> segmentGround(const std::vector<PointXYZI>& points, const G
   }
 
   std::vector<float> hG(static_cast<std::size_t>(side * side), 0.0f);
+  std::vector<int> gap(static_cast<std::size_t>(side * side), 0);  // empty cells crossed
   std::vector<uint8_t> ground_cell(static_cast<std::size_t>(side * side), 0);
-  auto visit = [&](int i, int j, float hat_h) {
+  auto visit = [&](int i, int j, float hat_h, int hat_gap) {
     const auto c = static_cast<std::size_t>((i + n) * side + (j + n));
     const bool has_points = H[c] > -kInf;
-    const bool ground = has_points && H[c] - h[c] < p.step && H[c] < hat_h + p.step;  // Eq. (1)
+    // Eq. (1); across empty cells (the blind zone, shadows) the slope bound s per cell holds for
+    // every cell crossed, up to max_gap_cells (our addition: a car on a slope has its blind zone
+    // on the slope too).
+    const double rise = p.step * std::min(1 + hat_gap, std::max(1, p.max_gap_cells));
+    const bool ground = has_points && H[c] - h[c] < p.step && H[c] < hat_h + rise;
     ground_cell[c] = ground;
     hG[c] = ground ? H[c] : hat_h;
+    gap[c] = ground ? 0 : hat_gap + (has_points ? 0 : 1);
   };
-  visit(0, 0, static_cast<float>(p.sensor_height));
+  visit(0, 0, static_cast<float>(p.sensor_height), 0);
   for (int ring = 1; ring <= n; ++ring) {
     for (int i = -ring; i <= ring; ++i) {
       for (int j = -ring; j <= ring; ++j) {
         if (std::max(std::abs(i), std::abs(j)) != ring) continue;
         // Neighbours in the inner ring (Chebyshev distance ring-1) propagate to this cell.
         float hat_h = -kInf;
+        int hat_gap = 0;
         for (int di = -1; di <= 1; ++di)
           for (int dj = -1; dj <= 1; ++dj) {
             const int a = i + di, b = j + dj;
             if (std::max(std::abs(a), std::abs(b)) != ring - 1) continue;
-            hat_h = std::max(hat_h, hG[static_cast<std::size_t>((a + n) * side + (b + n))]);
+            const auto nb = static_cast<std::size_t>((a + n) * side + (b + n));
+            if (hG[nb] > hat_h) hat_h = hG[nb], hat_gap = gap[nb];
           }
-        visit(i, j, hat_h);
+        visit(i, j, hat_h, hat_gap);
       }
     }
   }
 
+  // Points of ground cells are ground (Eq. 1). In a cell that is not ground (an object stands
+  // in it), the returns within s of the propagated ground height are ground too: the road beside
+  // a car's wheel, the foot of a curb.
   std::vector<uint8_t> out(points.size(), 0);
-  for (std::size_t k = 0; k < points.size(); ++k)
-    out[k] = cell_of[k] >= 0 && ground_cell[static_cast<std::size_t>(cell_of[k])];
+  for (std::size_t k = 0; k < points.size(); ++k) {
+    if (cell_of[k] < 0) continue;
+    const auto c = static_cast<std::size_t>(cell_of[k]);
+    out[k] = ground_cell[c] || (p.point_refine && points[k].z < hG[c] + p.step);
+  }
   return out;
 }
 

@@ -1,0 +1,258 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// The streaming pipeline on synthetic scenes with known truth, and its degenerate inputs.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+
+#include "cleanmap/core/octree_sampling.h"
+#include "cleanmap/core/duplicate_filter.h"
+#include "cleanmap/core/moving_test.h"
+#include "cleanmap/core/error.h"
+#include "cleanmap/pipeline/laser_pipeline.h"
+
+using namespace cleanmap;
+
+namespace {
+
+// Ray-casts a scene seen by a sensor at (sx, 0, 0): flat ground at z = -1.73, a wall at y = 12,
+// and a 2 x 2 x 1.5 m box whose near corner is at (bx, 3). Returns the scan (sensor frame) and
+// for each point whether it lies on the box.
+Frame castScene(std::size_t index, double sx, double bx, std::vector<uint8_t>* on_box) {
+  Frame f;
+  f.index = index;
+  char stem[16];
+  std::snprintf(stem, sizeof stem, "%06zu", index);
+  f.stem = stem;
+  f.scan.pose = Eigen::Isometry3d::Identity();
+  f.scan.pose.translation() = Eigen::Vector3d(sx, 0, 0);
+  f.scan.has_pose = true;
+  f.scan.timestamp = 0.1 * double(index);
+  for (int ring = 0; ring < 32; ++ring) {
+    const double el = (-20.0 + ring * 0.7) * M_PI / 180.0;
+    for (int a = 0; a < 1800; ++a) {
+      const double az = a * 2 * M_PI / 1800;
+      const Eigen::Vector3d d(std::cos(el) * std::cos(az), std::cos(el) * std::sin(az), std::sin(el));
+      double t = 1e9;
+      bool box = false;
+      if (d.z() < 0) t = -1.73 / d.z();
+      if (d.y() > 0 && 12.0 / d.y() < t) t = 12.0 / d.y();
+      // Box: x in [bx, bx+2] (world), y in [3, 5], z in [-1.73, -0.23]; slab test in sensor frame.
+      const Eigen::Vector3d lo(bx - sx, 3, -1.73), hi(bx + 2 - sx, 5, -0.23);
+      double t0 = 0, t1 = 1e9;
+      for (int k = 0; k < 3; ++k) {
+        if (std::abs(d[k]) < 1e-12) {
+          if (0 < lo[k] || 0 > hi[k]) t0 = 1e10;
+          continue;
+        }
+        double a0 = lo[k] / d[k], a1 = hi[k] / d[k];
+        if (a0 > a1) std::swap(a0, a1);
+        t0 = std::max(t0, a0);
+        t1 = std::min(t1, a1);
+      }
+      if (t0 <= t1 && t0 < t) t = t0, box = true;
+      if (t > 80) continue;
+      const Eigen::Vector3d p = t * d;
+      f.scan.points.push_back({float(p.x()), float(p.y()), float(p.z()), 0.5f});
+      if (on_box) on_box->push_back(box);
+    }
+  }
+  f.scan.original_size = f.scan.points.size();
+  return f;
+}
+
+PipelineParams testParams() {
+  PipelineParams p;
+  p.ds.window_k = 4;
+  p.ds.lambda_theta = 0.0035;
+  return p;
+}
+
+// Runs the pipeline over a sequence: the ego drives +x at 1 m/scan, the box moves at `box_speed`.
+std::vector<ScanResult> run(double box_speed, std::size_t n, const PipelineParams& p,
+                            std::vector<std::vector<uint8_t>>* truth) {
+  std::vector<ScanResult> out;
+  LaserPipeline pl(p, [&](ScanResult&& r) { out.push_back(std::move(r)); });
+  for (std::size_t i = 0; i < n; ++i) {
+    std::vector<uint8_t> box;
+    pl.push(castScene(i, double(i) * 1.0, 10.0 + box_speed * double(i), &box));
+    if (truth) truth->push_back(box);
+  }
+  pl.finish();
+  return out;
+}
+
+double boxMovingShare(const std::vector<ScanResult>& res,
+                      const std::vector<std::vector<uint8_t>>& truth) {
+  std::size_t box = 0, mv = 0;
+  for (std::size_t k = 0; k < res.size(); ++k)
+    for (std::size_t i = 0; i < truth[k].size(); ++i)
+      if (truth[k][i] && res[k].labels[i] != kGround) {
+        ++box;
+        mv += res[k].labels[i] == kMoving;
+      }
+  return box ? double(mv) / double(box) : 0.0;
+}
+
+double staticFlagged(const std::vector<ScanResult>& res,
+                     const std::vector<std::vector<uint8_t>>& truth) {
+  std::size_t st = 0, mv = 0;
+  for (std::size_t k = 0; k < res.size(); ++k)
+    for (std::size_t i = 0; i < truth[k].size(); ++i)
+      if (!truth[k][i] && res[k].labels[i] != kUnclassified) {
+        ++st;
+        mv += res[k].labels[i] == kMoving;
+      }
+  return double(mv) / double(st);
+}
+
+}  // namespace
+
+TEST(Pipeline, CrossingBoxIsMovingWallStaysStatic) {
+  // The box drives across at 1.5 m/scan (15 m/s) relative to the world.
+  std::vector<std::vector<uint8_t>> truth;
+  const auto res = run(1.5, 14, testParams(), &truth);
+  ASSERT_EQ(res.size(), 14u);
+  EXPECT_GT(boxMovingShare(res, truth), 0.8);
+  EXPECT_LT(staticFlagged(res, truth), 0.002);
+}
+
+TEST(Pipeline, ParkedBoxStaysStatic) {
+  std::vector<std::vector<uint8_t>> truth;
+  const auto res = run(0.0, 12, testParams(), &truth);
+  EXPECT_LT(boxMovingShare(res, truth), 0.05);
+  EXPECT_LT(staticFlagged(res, truth), 0.002);
+}
+
+TEST(Pipeline, LabelsFollowTheOriginalOrderAndClasses) {
+  std::vector<std::vector<uint8_t>> truth;
+  const auto res = run(1.5, 6, testParams(), &truth);
+  for (std::size_t k = 0; k < res.size(); ++k) {
+    ASSERT_EQ(res[k].labels.size(), truth[k].size());
+    std::size_t ground = 0;
+    for (uint32_t l : res[k].labels) {
+      ASSERT_TRUE(l == kGround || l == kStatic || l == kMoving || l == kUnclassified);
+      ground += l == kGround;
+    }
+    EXPECT_GT(ground, res[k].labels.size() / 3);  // the flat ground is found
+    EXPECT_EQ(res[k].stats.moving + res[k].stats.static_points + res[k].stats.ground,
+              res[k].stats.in_crop);
+  }
+}
+
+TEST(Pipeline, ReproducibleWhateverTheThreadCount) {
+  PipelineParams a = testParams(), b = testParams();
+  a.threads = 1;
+  b.threads = 2;
+  const auto ra = run(1.5, 8, a, nullptr), rb = run(1.5, 8, b, nullptr);
+  ASSERT_EQ(ra.size(), rb.size());
+  for (std::size_t k = 0; k < ra.size(); ++k) EXPECT_EQ(ra[k].labels, rb[k].labels);
+}
+
+TEST(Pipeline, StreamsWithDelayKAndBoundedWindow) {
+  PipelineParams p = testParams();
+  std::vector<std::size_t> decided_after_push;
+  std::size_t decided = 0, max_window = 0;
+  LaserPipeline pl(p, [&](ScanResult&& r) {
+    ++decided;
+    max_window = std::max(max_window, r.stats.window);
+  });
+  for (std::size_t i = 0; i < 12; ++i) {
+    pl.push(castScene(i, double(i), 10.0, nullptr));
+    decided_after_push.push_back(decided);
+  }
+  // Scan k is decided once scan k + K has arrived.
+  for (std::size_t i = 0; i < 12; ++i)
+    EXPECT_EQ(decided_after_push[i], i + 1 > 4 ? i + 1 - 4 : 0u) << "after scan " << i;
+  pl.finish();
+  EXPECT_EQ(decided, 12u);
+  EXPECT_EQ(max_window, 8u);  // 2K scans, never more
+}
+
+TEST(Pipeline, DegenerateInputs) {
+  PipelineParams p = testParams();
+  std::vector<ScanResult> out;
+  {  // a single scan: no window, every candidate static, counted as no-evidence
+    LaserPipeline pl(p, [&](ScanResult&& r) { out.push_back(std::move(r)); });
+    pl.push(castScene(0, 0, 10, nullptr));
+    pl.finish();
+    ASSERT_EQ(out.size(), 1u);
+    EXPECT_EQ(out[0].stats.moving, 0u);
+    EXPECT_EQ(out[0].stats.window, 0u);
+    EXPECT_GT(out[0].stats.no_evidence, 0u);
+  }
+  out.clear();
+  {  // an empty scan in the middle: labelled nothing, counted, neighbours still decided
+    LaserPipeline pl(p, [&](ScanResult&& r) { out.push_back(std::move(r)); });
+    pl.push(castScene(0, 0, 10, nullptr));
+    Frame empty;
+    empty.index = 1;
+    empty.stem = "000001";
+    empty.scan.has_pose = true;
+    pl.push(std::move(empty));
+    pl.push(castScene(2, 2, 10, nullptr));
+    pl.finish();
+    ASSERT_EQ(out.size(), 3u);
+    EXPECT_TRUE(out[1].stats.empty);
+    EXPECT_TRUE(out[1].labels.empty());
+  }
+  {  // a scan without a pose is a clear error
+    LaserPipeline pl(p, [](ScanResult&&) {});
+    Frame f = castScene(0, 0, 10, nullptr);
+    f.scan.has_pose = false;
+    EXPECT_THROW(pl.push(std::move(f)), Error);
+  }
+  {  // windows with no overlap: scans 1 km apart see nothing of each other
+    out.clear();
+    LaserPipeline pl(p, [&](ScanResult&& r) { out.push_back(std::move(r)); });
+    for (std::size_t i = 0; i < 3; ++i) pl.push(castScene(i, 1000.0 * double(i), 1000.0 * double(i) + 10, nullptr));
+    pl.finish();
+    for (const auto& r : out) {
+      EXPECT_EQ(r.stats.moving, 0u);
+      EXPECT_EQ(r.stats.no_evidence, r.stats.tested);
+    }
+  }
+}
+
+TEST(MovingTest, PointInFrontOfAHitIsEmptyBehindIsNot) {
+  // One scan at the origin sees a wall at x = 10.
+  std::vector<PointXYZI> wall;
+  for (double y = -3; y <= 3; y += 0.02)
+    for (double z = -1; z <= 1; z += 0.05) wall.push_back({10, float(y), float(z), 0});
+  DsParams p;
+  const BeamIndex idx(wall, p.search_lambdas * p.lambda_theta);
+  const MovingTest t(p);
+  const std::vector<WindowScan> w = {{&idx, Eigen::Isometry3d::Identity()}};
+  EXPECT_TRUE(t.isMoving({5, 0.3, 0.1}, w, nullptr));    // the beams crossed it: empty
+  EXPECT_FALSE(t.isMoving({10, 0.3, 0.1}, w, nullptr));  // on the wall
+  EXPECT_FALSE(t.isMoving({15, 0.3, 0.1}, w, nullptr));  // hidden behind the wall: unknown
+  EXPECT_FALSE(t.isMoving({5, 0.3, 5.0}, w, nullptr));   // no beam went there
+}
+
+TEST(OctreeSampling, DenseLeavesTestASixthDeterministically) {
+  std::vector<Eigen::Vector3d> pts;
+  for (int i = 0; i < 60; ++i) pts.emplace_back(0.05 + 0.003 * i, 0.1, 0.1);  // one leaf
+  for (int i = 0; i < 3; ++i) pts.emplace_back(5.0 + 0.05 * i, 0.1, 0.1);    // sparse leaf
+  OctreeParams p;
+  std::mt19937_64 r1(9), r2(9);
+  const auto a = planLeaves(pts, p, r1), b = planLeaves(pts, p, r2);
+  ASSERT_EQ(a.size(), 2u);
+  EXPECT_EQ(a[0].members.size(), 60u);
+  EXPECT_EQ(a[0].tested.size(), 10u);
+  EXPECT_EQ(a[1].tested.size(), 3u);
+  EXPECT_EQ(a[0].tested, b[0].tested);
+  EXPECT_TRUE(leafIsMoving(5, 10));
+  EXPECT_FALSE(leafIsMoving(4, 10));
+}
+
+TEST(DuplicateFilter, RecentStaticPointsOnly) {
+  FilterParams p;
+  DuplicateFilter f(p);
+  f.insert({Eigen::Vector3f(1, 2, 3)}, 0);
+  EXPECT_TRUE(f.isDuplicate({1.05f, 2, 3}, 1));
+  EXPECT_FALSE(f.isDuplicate({1.2f, 2, 3}, 1));
+  EXPECT_TRUE(f.isDuplicate({1.05f, 2, 3}, 10));   // scan 0 is within the last W = 10
+  EXPECT_FALSE(f.isDuplicate({1.05f, 2, 3}, 11));  // too old
+  for (long s = 1; s <= 11; ++s) f.insert({}, s);
+  EXPECT_EQ(f.size(), 0u);  // forgotten
+}
