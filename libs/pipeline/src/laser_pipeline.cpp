@@ -109,21 +109,20 @@ void LaserPipeline::push(Frame&& frame) {
     throw Error("scan " + frame.stem, "arrives out of order");
   prev_index_ = static_cast<long>(frame.index);
   buf_.push_back(prepare(std::move(frame)));
-  const std::size_t K = static_cast<std::size_t>(p_.ds.window_k);
-  // Decide the scan K positions before the newest one.
-  while (next_ < buf_.size() && buf_.size() - 1 - next_ >= K) {
-    decide(next_);
-    ++next_;
-    while (next_ > K) {  // keep only K scans before the next one to decide
-      buf_.pop_front();
-      --next_;
-    }
-  }
+  decideReady(static_cast<std::size_t>(p_.ds.window_k));
 }
 
 void LaserPipeline::finish() {
+  decideReady(0);  // the windows shrink at the end
+  buf_.clear();
+  next_ = 0;
+}
+
+// Decides every buffered scan that has at least `future` scans after it, then keeps only the K
+// scans before the next one to decide.
+void LaserPipeline::decideReady(std::size_t future) {
   const std::size_t K = static_cast<std::size_t>(p_.ds.window_k);
-  while (next_ < buf_.size()) {
+  while (next_ < buf_.size() && buf_.size() - 1 - next_ >= future) {
     decide(next_);
     ++next_;
     while (next_ > K) {
@@ -131,8 +130,6 @@ void LaserPipeline::finish() {
       --next_;
     }
   }
-  buf_.clear();
-  next_ = 0;
 }
 
 void LaserPipeline::decide(std::size_t pos) {

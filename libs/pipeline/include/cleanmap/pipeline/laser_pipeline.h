@@ -64,6 +64,7 @@ class LaserPipeline {
   struct Prepared;
   std::unique_ptr<Prepared> prepare(Frame&& f);
   void decide(std::size_t pos);
+  void decideReady(std::size_t future);
 
   PipelineParams p_;
   Sink sink_;
