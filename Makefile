@@ -41,7 +41,7 @@ benchmark: deps
 	cmake -S . -B build-release -DCMAKE_BUILD_TYPE=Release -DCLEANMAP_BUILD_BENCHMARKS=ON \
 	  -DCLEANMAP_BUILD_TESTS=OFF
 	cmake --build build-release -j $(JOBS)
-	./build-release/tests/benchmarks/cleanmap-bench-io --data $(DATA)
+	./cmake/benchmark.sh build-release $(DATA) $(abspath build-release/benchmark) $(or $(ROC),1)
 
 install: build
 	cmake --install $(BUILD) --prefix $(or $(PREFIX),/usr/local)

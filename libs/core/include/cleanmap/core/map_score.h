@@ -1,0 +1,61 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// SPEC §5: clean-map scores of the DynamicMap benchmark (SA, DA, AA, HA). A ground-truth point is
+// kept if the scored map has a point within `radius` (0.05 m) of it.
+#pragma once
+#include <Eigen/Core>
+#include <cstdint>
+#include <unordered_map>
+#include <vector>
+
+namespace cleanmap {
+
+/// Exact fixed-radius neighbour test over a static cloud: points sorted into cubic cells of side
+/// `radius`, so a query looks at the 27 cells around it. Memory: the points plus one entry per cell.
+class RadiusIndex {
+ public:
+  RadiusIndex(std::vector<Eigen::Vector3f> points, double radius);
+  /// True iff some indexed point q has |q - p| <= radius.
+  bool hasNeighbour(const Eigen::Vector3f& p) const;
+  std::size_t size() const { return pts_.size(); }
+  const std::vector<Eigen::Vector3f>& points() const { return pts_; }  ///< finite input points, cell order
+
+ private:
+  uint64_t key(int64_t x, int64_t y, int64_t z) const;
+  std::vector<Eigen::Vector3f> pts_;  // sorted by cell
+  std::unordered_map<uint64_t, std::pair<uint32_t, uint32_t>> cells_;  // key -> [begin, end)
+  double radius_;
+  float r2_;
+};
+
+struct MapScore {
+  uint64_t static_total = 0, static_kept = 0;
+  uint64_t moving_total = 0, moving_removed = 0;
+  /// Static accuracy: share of ground-truth static points the map keeps.
+  double sa() const { return static_total ? double(static_kept) / double(static_total) : 0.0; }
+  /// Dynamic accuracy: share of ground-truth moving points the map does not contain.
+  double da() const { return moving_total ? double(moving_removed) / double(moving_total) : 0.0; }
+  double aa() const;  ///< sqrt(SA * DA)
+  double ha() const;  ///< 2 SA DA / (SA + DA), 0 when both are 0
+  MapScore& operator+=(const MapScore& o);
+};
+
+/// Scores ground-truth points (world frame) against the map index, one point at a time, so the
+/// ground-truth union never has to be held in memory.
+class MapScorer {
+ public:
+  explicit MapScorer(const RadiusIndex& map) : map_(map) {}
+  void add(const Eigen::Vector3f& p, bool moving);
+  const MapScore& score() const { return s_; }
+
+ private:
+  const RadiusIndex& map_;
+  MapScore s_;
+};
+
+/// Object-level grade of paper Table II: f = share of an object's moving points labelled moving.
+enum class ObjectGrade { kDetected, kPartial, kMissed };
+inline ObjectGrade gradeObject(double f) {
+  return f >= 0.9 ? ObjectGrade::kDetected : (f >= 0.1 ? ObjectGrade::kPartial : ObjectGrade::kMissed);
+}
+
+}  // namespace cleanmap

@@ -1,0 +1,54 @@
+#!/usr/bin/env bash
+# SPDX-License-Identifier: BSD-3-Clause
+# End-to-end checks of cleanmap + cleanmap-eval on a short stretch of kitti_city: --json keys,
+# the report folder with pictures, roc, summary, and one clear error line per bad input.
+# usage: eval_test.sh BIN_DIR DATA_DIR SCRATCH
+set -uo pipefail
+bin=$1 data=$2 scratch=$3
+rm -rf "$scratch" && mkdir -p "$scratch"
+fails=0
+fail() { echo "FAIL: $*"; fails=$((fails + 1)); }
+expect_error() {  # expect_error RC "<substring>" cmd...
+  local want_rc=$1 want=$2; shift 2
+  local err rc
+  err=$("$@" 2>&1 >/dev/null); rc=$?
+  [[ $rc -eq $want_rc ]] || fail "'$*' exited $rc, expected $want_rc"
+  [[ $(printf '%s\n' "$err" | wc -l) -eq 1 ]] || fail "'$*' printed more than one line: $err"
+  [[ "$err" == *"$want"* ]] || fail "'$*' said '$err', expected '$want'"
+}
+
+city=$data/kitti_city
+if [[ ! -d $city ]]; then
+  if [[ "${CI:-}" == true ]]; then echo "FAIL: dataset missing in CI: $city"; exit 1; fi
+  echo "SKIP: $city not found"; exit 0
+fi
+
+"$bin/cleanmap" "$city" -o "$scratch/run" --first 8 --last 14 --quiet >/dev/null || fail "cleanmap run failed"
+json=$("$bin/cleanmap-eval" "$city" "$scratch/run" --first 8 --last 14 --json --report "$scratch/report") ||
+  fail "cleanmap-eval failed"
+for k in precision recall iou SA DA AA HA runtime objects; do
+  grep -q "\"$k\"" <<<"$json" || fail "--json lacks $k"
+done
+# Sanity of the numbers: the moving car is mostly found, the static map mostly kept.
+sa=$(grep -o '"SA": [0-9.e-]*' <<<"$json" | cut -d' ' -f2)
+awk -v s="$sa" 'BEGIN { exit !(s > 0.9 && s <= 1) }' || fail "SA $sa not in (0.9, 1]"
+[[ -s $scratch/report/report.md && -s $scratch/report/bev_000010.png && -s $scratch/report/map_overview.png ]] ||
+  fail "report folder incomplete"
+printf '%s\n' "$json" >"$scratch/a.json"
+"$bin/cleanmap-eval" summary "$scratch/a.json" "$scratch/a.json" | grep -q "all (summed counts)" ||
+  fail "summary has no overall row"
+"$bin/cleanmap-eval" roc "$city" -o "$scratch/roc" --first 9 --last 11 --sigma-r 0.15 --sigma-theta 0.0035 >/dev/null 2>&1 ||
+  fail "roc failed"
+[[ -s $scratch/roc/roc.png && -s $scratch/roc/roc.md ]] || fail "roc outputs missing"
+
+# Bad inputs: exit 1 with one line naming the file, or exit 2 for the command line.
+expect_error 1 "no such result" "$bin/cleanmap-eval" "$city" "$scratch/missing"
+expect_error 1 "directory does not exist" "$bin/cleanmap-eval" "$scratch/nogt" "$scratch/run"
+printf 'garbage' >"$scratch/map.pcd"
+expect_error 1 "map.pcd" "$bin/cleanmap-eval" "$city" "$scratch/map.pcd"
+expect_error 2 "unknown option" "$bin/cleanmap-eval" "$city" "$scratch/run" --bogus
+expect_error 2 "--radius" "$bin/cleanmap-eval" "$city" "$scratch/run" --radius x
+expect_error 2 "--sigma-r" "$bin/cleanmap-eval" roc "$city" -o "$scratch/r2" --sigma-r 0.1,abc
+
+[[ $fails -eq 0 ]] && echo "eval_test: all checks passed"
+exit $((fails > 0))

@@ -1,0 +1,411 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// SPEC §5 measures on tiny hand-made inputs with known answers; the map score against brute force;
+// foreign .pcd / .ply maps; the summary table; bad inputs.
+#include <gtest/gtest.h>
+
+#include <cstring>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <random>
+
+#include "cleanmap/core/map_score.h"
+#include "cleanmap/eval/evaluate.h"
+#include "cleanmap/eval/pictures.h"
+#include "cleanmap/eval/roc.h"
+#include "cleanmap/io/files.h"
+#include "cleanmap/io/kitti.h"
+#include "cleanmap/io/pcd.h"
+#include "cleanmap/io/ply.h"
+#include "cleanmap/pipeline/laser_pipeline.h"
+#include "test_data.h"
+
+using namespace cleanmap;
+namespace fs = std::filesystem;
+
+namespace {
+
+void writeText(const fs::path& p, const std::string& text) {
+  fs::create_directories(p.parent_path());
+  std::ofstream(p) << text;
+}
+
+// A labelled sequence of 2 scans, sensor moving 1 m along x per scan. Each scan: a static wall
+// (100 points, label 9), a moving car of 50 points inside the box of object 7 (label 251), and
+// 10 ignored points (label 0). Truth and the world-frame points are returned for checking.
+struct Tiny {
+  fs::path dir;
+  std::vector<std::vector<PointXYZI>> scans;
+  std::vector<Labels> truth;
+};
+
+Tiny makeTiny(const std::string& name) {
+  Tiny t;
+  t.dir = test::scratchDir(name);
+  std::string poses, times;
+  for (int s = 0; s < 2; ++s) {
+    std::vector<PointXYZI> pts;
+    Labels l;
+    for (int i = 0; i < 100; ++i) {  // wall at x = 10 (sensor frame), 0.1 m apart
+      pts.push_back({10.f, -5.f + 0.1f * float(i), 0.5f, 0.f});
+      l.push_back(9);
+    }
+    for (int i = 0; i < 50; ++i) {  // car around (5, 3, 0): a 5 x 10 grid on its side
+      pts.push_back({4.f + 0.2f * float(i % 5), 3.f, -0.5f + 0.1f * float(i / 5), 0.f});
+      l.push_back(251);
+    }
+    for (int i = 0; i < 10; ++i) {
+      pts.push_back({-3.f, float(i), 0.f, 0.f});
+      l.push_back(0);
+    }
+    char name6[16];
+    std::snprintf(name6, sizeof name6, "%06d", s);
+    io::writeKittiBin((t.dir / "velodyne" / (std::string(name6) + ".bin")).string(), pts);
+    io::writeLabels((t.dir / "labels" / (std::string(name6) + ".label")).string(), l);
+    poses += "1 0 0 " + std::to_string(s) + " 0 1 0 0 0 0 1 0\n";
+    times += std::to_string(0.1 * s) + "\n";
+    t.scans.push_back(pts);
+    t.truth.push_back(l);
+  }
+  writeText(t.dir / "poses.txt", poses);
+  writeText(t.dir / "times.txt", times);
+  writeText(t.dir / "calib.txt", "Tr: 1 0 0 0 0 1 0 0 0 0 1 0\n");
+  writeText(t.dir / "objects.json",
+            R"([{"id": 7, "name": "car", "class": "car", "frames": {
+                 "0": {"center": [4.4, 3.0, -0.05], "size": [1.2, 0.4, 1.2], "yaw": 0.0, "moving": true, "n_points": 50},
+                 "1": {"center": [4.4, 3.0, -0.05], "size": [1.2, 0.4, 1.2], "yaw": 0.0, "moving": true, "n_points": 50}}}])");
+  return t;
+}
+
+// Writes predicted labels: truth with the first `wrong_moving` moving points labelled static and
+// the first `wrong_static` static points labelled moving, in each scan.
+fs::path predict(const Tiny& t, const std::string& name, int wrong_moving, int wrong_static) {
+  const auto dir = t.dir.parent_path() / (t.dir.filename().string() + "_" + name);
+  fs::remove_all(dir);
+  for (std::size_t s = 0; s < t.truth.size(); ++s) {
+    Labels p = t.truth[s];
+    int wm = wrong_moving, ws = wrong_static;
+    for (auto& x : p) {
+      if (x == 251 && wm > 0) x = 9, --wm;
+      else if (x == 9 && ws > 0) x = 251, --ws;
+      else if (x == 0) x = 9;  // a tool labels everything; ignore labels must not count
+    }
+    char name6[16];
+    std::snprintf(name6, sizeof name6, "%06d.label", int(s));
+    io::writeLabels((dir / "labels" / name6).string(), p);
+  }
+  return dir;
+}
+
+eval::EvalReport run(const Tiny& t, const fs::path& result, const std::optional<std::string>& labels = {}) {
+  return eval::evaluate(t.dir.string(), eval::ResultInput::fromPath(result.string(), labels), {});
+}
+
+}  // namespace
+
+TEST(EvalPoints, PerfectResult) {
+  const auto t = makeTiny("perfect");
+  const auto r = run(t, predict(t, "p", 0, 0));
+  ASSERT_TRUE(r.mos);
+  EXPECT_EQ(r.mos->tp, 100u);
+  EXPECT_EQ(r.mos->fp, 0u);
+  EXPECT_EQ(r.mos->fn, 0u);
+  EXPECT_EQ(r.mos->tn, 200u);
+  EXPECT_EQ(r.mos->ignored, 20u);  // ignore labels excluded even though the result labels them
+  EXPECT_DOUBLE_EQ(r.mos->precision(), 1.0);
+  EXPECT_DOUBLE_EQ(r.mos->recall(), 1.0);
+  EXPECT_DOUBLE_EQ(r.mos->iou(), 1.0);
+}
+
+TEST(EvalPoints, AllWrongResult) {
+  const auto t = makeTiny("allwrong");
+  const auto r = run(t, predict(t, "w", 50, 100));
+  EXPECT_EQ(r.mos->tp, 0u);
+  EXPECT_EQ(r.mos->fp, 200u);
+  EXPECT_EQ(r.mos->fn, 100u);
+  EXPECT_DOUBLE_EQ(r.mos->precision(), 0.0);
+  EXPECT_DOUBLE_EQ(r.mos->recall(), 0.0);
+  EXPECT_DOUBLE_EQ(r.mos->iou(), 0.0);
+}
+
+TEST(EvalPoints, KnownMixAndPerScanSum) {
+  const auto t = makeTiny("mix");
+  const auto r = run(t, predict(t, "m", 10, 20));  // per scan: TP 40, FN 10, FP 20, TN 80
+  EXPECT_NEAR(r.mos->precision(), 80.0 / 120.0, 1e-12);
+  EXPECT_NEAR(r.mos->recall(), 80.0 / 100.0, 1e-12);
+  EXPECT_NEAR(r.mos->iou(), 80.0 / 140.0, 1e-12);
+  ASSERT_EQ(r.per_scan.size(), 2u);
+  EXPECT_EQ(r.per_scan[0].second.tp + r.per_scan[1].second.tp, r.mos->tp);
+}
+
+TEST(EvalPoints, EmptyMovingClassGivesZerosNotNaN) {
+  const MosCounts c = compareLabels(Labels(5, 9), Labels(5, 9), "x");
+  EXPECT_EQ(c.tn, 5u);
+  EXPECT_EQ(c.precision(), 0.0);
+  EXPECT_EQ(c.recall(), 0.0);
+  EXPECT_EQ(c.iou(), 0.0);
+  const MosCounts ign = compareLabels(Labels(4, 251), Labels{0, 1, 0, 1}, "x");
+  EXPECT_EQ(ign.evaluated(), 0u);
+  EXPECT_EQ(ign.ignored, 4u);
+}
+
+TEST(EvalObjects, GradesByFractionOfMovingPoints) {
+  const auto t = makeTiny("objects");
+  auto grade = [&](int wrong) {
+    const auto r = run(t, predict(t, "o" + std::to_string(wrong), wrong, 0));
+    EXPECT_TRUE(r.objects);
+    EXPECT_EQ(r.objects->size(), 1u);
+    EXPECT_EQ(r.objects->front().moving_points, 100u);
+    return r.objects->front();
+  };
+  EXPECT_EQ(grade(2).grade(), ObjectGrade::kDetected);   // f = 0.96
+  EXPECT_EQ(grade(25).grade(), ObjectGrade::kPartial);   // f = 0.5
+  EXPECT_NEAR(grade(25).fraction(), 0.5, 1e-12);
+  EXPECT_EQ(grade(48).grade(), ObjectGrade::kMissed);    // f = 0.04
+  EXPECT_EQ(gradeObject(0.9), ObjectGrade::kDetected);
+  EXPECT_EQ(gradeObject(0.1), ObjectGrade::kPartial);
+  EXPECT_EQ(gradeObject(0.0999), ObjectGrade::kMissed);
+}
+
+TEST(MapScore, RadiusIndexMatchesBruteForce) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> u(-1.f, 1.f);
+  std::vector<Eigen::Vector3f> map(3000), queries(3000);
+  for (auto& p : map) p = {u(rng), u(rng), 0.2f * u(rng)};
+  for (auto& q : queries) q = {u(rng), u(rng), 0.2f * u(rng)};
+  for (const double radius : {0.02, 0.05, 0.08}) {
+    const RadiusIndex index(map, radius);
+    std::size_t found = 0;
+    for (const auto& q : queries) {
+      bool brute = false;
+      for (const auto& p : map) brute |= (p - q).squaredNorm() <= float(radius * radius);
+      ASSERT_EQ(index.hasNeighbour(q), brute) << "radius " << radius;
+      found += brute;
+    }
+    EXPECT_GT(found, 0u);
+    EXPECT_LT(found, queries.size());  // both outcomes exercised
+  }
+}
+
+TEST(MapScore, ScoresAgainstBruteForceAndFormulas) {
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> u(0.f, 4.f);
+  std::vector<Eigen::Vector3f> map(2000), gt(4000);
+  for (auto& p : map) p = {u(rng), u(rng), u(rng) * 0.1f};
+  for (auto& p : gt) p = {u(rng), u(rng), u(rng) * 0.1f};
+  const RadiusIndex index(map, 0.05);
+  MapScorer scorer(index);
+  MapScore brute;
+  for (std::size_t i = 0; i < gt.size(); ++i) {
+    const bool moving = i % 3 == 0;
+    scorer.add(gt[i], moving);
+    bool near = false;
+    for (const auto& p : map) near |= (p - gt[i]).norm() <= 0.05f;
+    (moving ? brute.moving_total : brute.static_total) += 1;
+    if (moving && !near) ++brute.moving_removed;
+    if (!moving && near) ++brute.static_kept;
+  }
+  const MapScore& s = scorer.score();
+  EXPECT_EQ(s.static_kept, brute.static_kept);
+  EXPECT_EQ(s.moving_removed, brute.moving_removed);
+  EXPECT_NEAR(s.aa(), std::sqrt(s.sa() * s.da()), 1e-12);
+  EXPECT_NEAR(s.ha(), 2 * s.sa() * s.da() / (s.sa() + s.da()), 1e-12);
+  MapScore zero;
+  EXPECT_EQ(zero.ha(), 0.0);
+}
+
+TEST(EvalMap, PerfectCleanMapScoresOne) {
+  // The map = every static ground-truth point in the world: SA = DA = 1; adding the moving
+  // points makes DA = 0. Also read back as .pcd (binary and ASCII): the same scores.
+  const auto t = makeTiny("map");
+  std::vector<PointXYZI> clean, dirty;
+  for (std::size_t s = 0; s < t.scans.size(); ++s)
+    for (std::size_t i = 0; i < t.scans[s].size(); ++i) {
+      PointXYZI w = t.scans[s][i];
+      w.x += float(s);  // pose: 1 m along x per scan
+      if (t.truth[s][i] == 9) clean.push_back(w);
+      if (t.truth[s][i] != 0) dirty.push_back(w);
+    }
+  const fs::path d = t.dir.parent_path();
+  io::writePly((d / "clean.ply").string(), clean);
+  io::writePcd((d / "clean.pcd").string(), clean);
+  io::writePcd((d / "clean_ascii.pcd").string(), clean, true);
+  io::writePly((d / "dirty.ply").string(), dirty);
+  for (const char* f : {"clean.ply", "clean.pcd", "clean_ascii.pcd"}) {
+    const auto r = run(t, d / f);
+    ASSERT_TRUE(r.map) << f;
+    EXPECT_FALSE(r.mos);
+    EXPECT_EQ(r.map->static_total, 200u) << f;
+    EXPECT_DOUBLE_EQ(r.map->sa(), 1.0) << f;
+    EXPECT_DOUBLE_EQ(r.map->da(), 1.0) << f;
+    EXPECT_DOUBLE_EQ(r.map->ha(), 1.0) << f;
+  }
+  const auto r = run(t, d / "dirty.ply");
+  EXPECT_DOUBLE_EQ(r.map->sa(), 1.0);
+  EXPECT_DOUBLE_EQ(r.map->da(), 0.0);
+  EXPECT_DOUBLE_EQ(r.map->aa(), 0.0);
+}
+
+TEST(EvalMap, CropLimitsTheGroundTruthUnion) {
+  const auto t = makeTiny("crop");
+  io::writePly((t.dir.parent_path() / "one.ply").string(), {{0.f, 0.f, 0.f, 0.f}});
+  eval::EvalOptions o;
+  o.crop_tau = 6.0;  // leaves out the wall at x = 10
+  const auto r = eval::evaluate(t.dir.string(), eval::ResultInput::fromPath((t.dir.parent_path() / "one.ply").string(), {}), o);
+  EXPECT_EQ(r.map->static_total, 0u);
+  EXPECT_EQ(r.map->moving_total, 100u);
+}
+
+TEST(Pcd, ReadsForeignLayouts) {
+  const auto d = test::scratchDir("pcd");
+  // ASCII with an extra rgb field and a NaN point of an organized cloud.
+  writeText(d / "a.pcd",
+            "# .PCD v0.7\nVERSION 0.7\nFIELDS x y z rgb\nSIZE 4 4 4 4\nTYPE F F F U\nCOUNT 1 1 1 1\n"
+            "WIDTH 3\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS 3\nDATA ascii\n1 2 3 255\nnan nan nan 0\n4 5 6 7\n");
+  auto a = io::readPcd((d / "a.pcd").string());
+  ASSERT_EQ(a.size(), 2u);
+  EXPECT_EQ(a[1].x, 4.f);
+  EXPECT_EQ(a[1].z, 6.f);
+  // binary with doubles and an intensity after a padding field
+  {
+    std::ofstream f(d / "b.pcd", std::ios::binary);
+    f << "VERSION 0.7\nFIELDS x y z _ intensity\nSIZE 8 8 8 1 4\nTYPE F F F U F\nCOUNT 1 1 1 3 1\n"
+         "WIDTH 2\nHEIGHT 1\nPOINTS 2\nDATA binary\n";
+    for (int i = 0; i < 2; ++i) {
+      const double xyz[3] = {1.5 + i, -2.5, 0.25};
+      const char pad[3] = {0, 0, 0};
+      const float in = 0.5f * float(i);
+      f.write(reinterpret_cast<const char*>(xyz), 24);
+      f.write(pad, 3);
+      f.write(reinterpret_cast<const char*>(&in), 4);
+    }
+  }
+  auto b = io::readPcd((d / "b.pcd").string());
+  ASSERT_EQ(b.size(), 2u);
+  EXPECT_EQ(b[1].x, 2.5f);
+  EXPECT_EQ(b[1].y, -2.5f);
+  EXPECT_EQ(b[1].intensity, 0.5f);
+  // binary_compressed (LZF), field-major: x x y y z z for 2 points of F4; the stream has a
+  // literal run and a back reference (the repeated z values).
+  {
+    const float xs[2] = {1.f, 2.f}, ys[2] = {3.f, 4.f}, zs[2] = {7.f, 7.f};
+    std::string raw;
+    raw.append(reinterpret_cast<const char*>(xs), 8).append(reinterpret_cast<const char*>(ys), 8);
+    raw.append(reinterpret_cast<const char*>(zs), 8);
+    std::string lzf;
+    lzf.push_back(char(19));  // literal run of 20 bytes: x, y, first z
+    lzf.append(raw, 0, 20);
+    lzf.push_back(char((2 << 5) | 0));  // back reference: length 2 + 2 = 4, distance 4
+    lzf.push_back(char(3));
+    std::ofstream f(d / "c.pcd", std::ios::binary);
+    f << "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 2\nHEIGHT 1\nPOINTS 2\n"
+         "DATA binary_compressed\n";
+    const uint32_t cs = uint32_t(lzf.size()), us = uint32_t(raw.size());
+    f.write(reinterpret_cast<const char*>(&cs), 4).write(reinterpret_cast<const char*>(&us), 4) << lzf;
+  }
+  auto c = io::readPcd((d / "c.pcd").string());
+  ASSERT_EQ(c.size(), 2u);
+  EXPECT_EQ(c[0].x, 1.f);
+  EXPECT_EQ(c[1].y, 4.f);
+  EXPECT_EQ(c[1].z, 7.f);
+}
+
+TEST(Pcd, BadFilesAreClearErrors) {
+  const auto d = test::scratchDir("pcdbad");
+  writeText(d / "trunc.pcd", "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 10\n"
+                             "HEIGHT 1\nPOINTS 10\nDATA binary\nabc");
+  test::expectError([&] { io::readPcd((d / "trunc.pcd").string()); }, "trunc.pcd", "truncated");
+  writeText(d / "noxyz.pcd", "VERSION 0.7\nFIELDS a b\nSIZE 4 4\nTYPE F F\nCOUNT 1 1\nPOINTS 0\nDATA ascii\n");
+  test::expectError([&] { io::readPcd((d / "noxyz.pcd").string()); }, "noxyz.pcd", "no x, y, z");
+  writeText(d / "map.xyz", "1 2 3\n");
+  test::expectError([&] { io::readCloud((d / "map.xyz").string()); }, "map.xyz", "unknown point-cloud format");
+  test::expectError([&] { io::readPcd((d / "missing.pcd").string()); }, "missing.pcd", "cannot open");
+}
+
+TEST(EvalErrors, BadInputsNameTheFile) {
+  const auto t = makeTiny("errors");
+  test::expectError([&] { eval::ResultInput::fromPath((t.dir / "nope").string(), {}); }, "nope",
+                    "no such result");
+  // A result folder with nothing to score.
+  const auto empty = t.dir.parent_path() / "errors_empty";
+  fs::create_directories(empty);
+  test::expectError([&] { eval::ResultInput::fromPath(empty.string(), {}); }, "errors_empty", "nothing to score");
+  // Label file with the wrong count.
+  const auto p = predict(t, "short", 0, 0);
+  io::writeLabels((p / "labels/000001.label").string(), Labels(3, 9));
+  test::expectError([&] { run(t, p); }, "000001.label", "160");
+  // Ground truth without labels.
+  fs::remove_all(t.dir / "labels");
+  test::expectError([&] { run(t, predict(makeTiny("errors2"), "x", 0, 0)); }, "errors", "");
+  test::expectError([&] { eval::evaluate(t.dir.string(), eval::ResultInput::fromPath(p.string(), {}), {}); },
+                    t.dir.string(), "no labels");
+}
+
+TEST(EvalReport, JsonKeysSummaryAndPictures) {
+  const auto t = makeTiny("report");
+  const auto p = predict(t, "r", 10, 20);
+  std::vector<PointXYZI> clean;
+  for (const auto& q : t.scans[0]) clean.push_back(q);
+  io::writePly((p / "static_map_full.ply").string(), clean);
+  eval::EvalOptions o;
+  o.pictures_dir = (p / "report").string();
+  const auto r = eval::evaluate(t.dir.string(), eval::ResultInput::fromPath(p.string(), {}), o);
+  eval::writeReport(o.pictures_dir, r);
+  const auto j = nlohmann::json::parse(io::readTextFile(o.pictures_dir + "/report.json"));
+  for (const char* k : {"precision", "recall", "iou", "SA", "DA", "AA", "HA"}) EXPECT_TRUE(j.contains(k)) << k;
+  EXPECT_NEAR(j["recall"].get<double>(), 0.8, 1e-12);
+  EXPECT_TRUE(fs::file_size(o.pictures_dir + "/bev_000000.png") > 1000);
+  EXPECT_TRUE(fs::file_size(o.pictures_dir + "/map_overview.png") > 1000);
+  EXPECT_TRUE(fs::exists(o.pictures_dir + "/report.md"));
+  // Summary over two copies: the overall row sums the counts, so the ratios are unchanged.
+  const auto table = eval::summaryTable({o.pictures_dir + "/report.json", o.pictures_dir + "/report.json"});
+  EXPECT_NE(table.find("| **all (summed counts)** | 4 | 0.667 | 0.800 | 0.571 |"), std::string::npos) << table;
+  writeText(p / "bad.json", "{\"x\": 1}");
+  test::expectError([&] { eval::summaryTable({(p / "bad.json").string()}); }, "bad.json", "not an evaluation report");
+}
+
+TEST(EvalPictures, OutcomeColoursFollowTheLabels) {
+  EXPECT_EQ(eval::outcome(251, 251), eval::Outcome::kTruePositive);
+  EXPECT_EQ(eval::outcome(251, 9), eval::Outcome::kFalsePositive);
+  EXPECT_EQ(eval::outcome(40, 252), eval::Outcome::kFalseNegative);
+  EXPECT_EQ(eval::outcome(9, 40), eval::Outcome::kTrueNegative);
+  EXPECT_EQ(eval::outcome(0, 251), eval::Outcome::kNotScored);
+  EXPECT_EQ(eval::outcome(251, 0), eval::Outcome::kNotScored);
+  const cv::Mat img = eval::birdsEyeView({{1.f, 0.f, 0.f, 0.f}}, {251}, {251}, 5.0, "t");
+  // x forward is up: the TP point 1 m ahead is drawn 10 px above the centre, in red.
+  const cv::Vec3b px = img.at<cv::Vec3b>(28 + 50 - 10 - 1 + 1, 50);
+  EXPECT_GT(px[2], 200);
+  EXPECT_LT(px[0], 100);
+}
+
+TEST(Roc, SweepMatchesADirectRunAtEachSetting) {
+  CLEANMAP_REQUIRE_DATASET("kitti_city");
+  const std::string gt = test::dataDir() + "/kitti_city";
+  PipelineParams base;
+  base.ds.window_k = 2;  // small window: a quick test
+  eval::RocOptions o;
+  o.sigma_r = {0.10, 0.45};
+  o.lambda_theta = {0.0035};
+  o.first = 8;
+  o.last = 12;
+  const auto res = eval::rocSweep(gt, base, o);
+  ASSERT_EQ(res.size(), 2u);
+  for (const auto& s : res) {
+    PipelineParams p = base;
+    p.ds.sigma_r = s.sigma_r;
+    MosCounts direct;
+    auto seq = io::KittiSequence::open(gt);
+    LaserPipeline pipe(p, [&](ScanResult&& r) {
+      direct += compareLabels(r.labels, seq.loadLabels(r.index, r.labels.size()), "x");
+    });
+    for (std::size_t i = 8; i <= 12; ++i) pipe.push(seq.frame(i));
+    pipe.finish();
+    EXPECT_EQ(s.counts.tp, direct.tp);
+    EXPECT_EQ(s.counts.fp, direct.fp);
+    EXPECT_GE(s.tpr(), 0.0);
+    EXPECT_LE(s.fpr(), 1.0);
+  }
+  const auto d = test::scratchDir("roc");
+  eval::writeRoc(d.string(), "kitti_city", res, base);
+  EXPECT_TRUE(fs::file_size(d / "roc.png") > 1000);
+  EXPECT_NE(io::readTextFile((d / "roc.md").string()).find("| 0.0035 |"), std::string::npos);
+}
