@@ -5,7 +5,7 @@ BUILD       ?= build
 BUILD_ASAN  ?= build-asan
 BUILD_TYPE  ?= RelWithDebInfo
 DATA        ?= $(abspath ../shared/data)
-DEMO_INPUT  ?= $(DATA)/kitti_highway
+DEMO_INPUT  ?=
 DEMO_OUT    ?= $(abspath demo-out)
 
 .PHONY: all deps build test test-asan demo benchmark install clean format

@@ -9,6 +9,7 @@ threads=${THREADS:-2}
 mkdir -p "$out"
 echo "== machine: $(nproc) cores, $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs)"
 "$build/tests/benchmarks/cleanmap-bench-io" --data "$data"
+"$build/tests/benchmarks/cleanmap-bench-sim"
 jsons=()
 for set in kitti_city kitti_highway kitti_residential; do
   [[ -d $data/$set ]] || { echo "benchmark: $data/$set not found, skipped"; continue; }

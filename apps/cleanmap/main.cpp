@@ -2,6 +2,7 @@
 // cleanmap: moving-object removal over a KITTI folder or an MRPT rawlog (SPEC §2, §4).
 #include <chrono>
 #include <cstdio>
+#include <filesystem>
 #include <iostream>
 #include <string>
 
@@ -58,7 +59,7 @@ int main(int argc, char** argv) {
   std::string input, outdir, config, poses = "given";
   long threads = -1, first = 0, last = -1;
   long long seed = -1;
-  bool quiet = false;
+  bool quiet = false, progress_shown = false;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     auto value = [&]() -> std::string {
@@ -89,6 +90,11 @@ int main(int argc, char** argv) {
     if (poses == "gicp")
       throw cleanmap::Error(input, "--poses gicp: GICP registration is not implemented yet; "
                                    "use an input with poses (--poses given)");
+    {  // never write into the input: its labels/ would be replaced by ours
+      std::error_code ec;
+      if (std::filesystem::exists(outdir, ec) && std::filesystem::equivalent(outdir, input, ec))
+        throw cleanmap::Error(outdir, "the output folder is the input folder; choose another -o");
+    }
     cleanmap::PipelineParams params;
     if (!config.empty()) cleanmap::io::loadParams(config, params);
     if (threads > 0) params.threads = static_cast<int>(threads);
@@ -111,6 +117,7 @@ int main(int argc, char** argv) {
                                        kitti->labelPath(r.index));
       out.write(r, eval);
       if (!quiet) {
+        progress_shown = true;
         const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
         const double rate = static_cast<double>(out.scans()) / std::max(s, 1e-9);
         long todo = -1;
@@ -132,13 +139,13 @@ int main(int argc, char** argv) {
     if (out.scans() == 0) throw cleanmap::Error(input, "no scans in the requested range");
     const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     out.finish(wall);
-    if (!quiet) std::fprintf(stderr, "\n");
+    if (progress_shown) std::fprintf(stderr, "\n");
     std::printf("cleanmap: %zu scans in %.1f s; results in %s\n", out.scans(), wall, outdir.c_str());
     if (const auto e = out.evaluation())
       std::printf("cleanmap: moving class: precision %.3f, recall %.3f, IoU %.3f (%llu points evaluated)\n",
                   e->precision(), e->recall(), e->iou(), (unsigned long long)e->evaluated());
   } catch (const std::exception& e) {
-    if (!quiet) std::fprintf(stderr, "\n");
+    if (progress_shown) std::fprintf(stderr, "\n");
     std::cerr << "cleanmap: error: " << e.what() << '\n';
     return 1;
   }

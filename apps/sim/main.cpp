@@ -12,6 +12,8 @@
 
 namespace {
 
+bool g_progress_shown = false;
+
 constexpr const char* kUsage = R"(usage: cleanmap-sim [SCENARIO.ini] -o OUTDIR [options]
 
 Generates a street scene seen by a moving Velodyne HDL-64E (64 rings, 10 Hz) and a KITTI-calibrated
@@ -81,6 +83,7 @@ int main(int argc, char** argv) {
     opt.threads = static_cast<int>(threads);
     opt.images = images;
     const auto sum = cleanmap::sim::generateSequence(sc, out, opt, [](int d, int t) {
+      g_progress_shown = true;
       std::fprintf(stderr, "\rcleanmap-sim: frame %d/%d   ", d, t);
     });
     std::fprintf(stderr, "\n");
@@ -100,7 +103,7 @@ int main(int argc, char** argv) {
                 sum.frames, sum.points, sum.moving_points, sum.images, rawlog ? ", sequence.rawlog" : "",
                 out.c_str());
   } catch (const std::exception& e) {
-    std::cerr << "\ncleanmap-sim: error: " << e.what() << '\n';
+    std::cerr << (g_progress_shown ? "\n" : "") << "cleanmap-sim: error: " << e.what() << '\n';
     return 1;
   }
   return 0;

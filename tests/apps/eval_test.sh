@@ -50,5 +50,6 @@ expect_error 2 "unknown option" "$bin/cleanmap-eval" "$city" "$scratch/run" --bo
 expect_error 2 "--radius" "$bin/cleanmap-eval" "$city" "$scratch/run" --radius x
 expect_error 2 "--sigma-r" "$bin/cleanmap-eval" roc "$city" -o "$scratch/r2" --sigma-r 0.1,abc
 
+expect_error 1 "output folder is the input folder" "$bin/cleanmap" "$scratch/run" -o "$scratch/run/"
 [[ $fails -eq 0 ]] && echo "eval_test: all checks passed"
 exit $((fails > 0))

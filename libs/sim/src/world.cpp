@@ -183,7 +183,7 @@ bool World::intersectGround(const Eigen::Vector3d& o, const Eigen::Vector3d& d, 
       const Eigen::Vector3d q = o + t * d;
       if (q.x() > x1 && q.x() <= x2 && q.y() >= y0 && q.y() <= y1) accept(t, n_road, Surface::kGround, q.head<2>());
     }
-    // Sides and end: vertical faces, static structure (not ground).
+    // Sides and end: vertical step faces of the ground, like curbs.
     for (const double yy : {y0, y1}) {
       t = planeT(o, d, Eigen::Vector3d(0, 1, 0), yy);
       if (!std::isfinite(t)) continue;
@@ -192,7 +192,7 @@ bool World::intersectGround(const Eigen::Vector3d& o, const Eigen::Vector3d& d, 
       const double base = slope * q.x(), top = base + (q.x() < x1 ? k * (q.x() - x0) : h);
       if (q.z() >= base && q.z() <= top) {
         const double before = hit.t;
-        accept(t, Eigen::Vector3d(0, 1, 0), Surface::kStatic, {q.x(), q.z()});
+        accept(t, Eigen::Vector3d(0, 1, 0), Surface::kCurb, {q.x(), q.z()});
         if (hit.t < before) hit.object = -2;
       }
     }
@@ -202,7 +202,7 @@ bool World::intersectGround(const Eigen::Vector3d& o, const Eigen::Vector3d& d, 
       const double base = slope * q.x();
       if (q.y() >= y0 && q.y() <= y1 && q.z() >= base && q.z() <= base + h) {
         const double before = hit.t;
-        accept(t, Eigen::Vector3d(1, 0, 0), Surface::kStatic, {q.y(), q.z()});
+        accept(t, Eigen::Vector3d(1, 0, 0), Surface::kCurb, {q.y(), q.z()});
         if (hit.t < before) hit.object = -2;
       }
     }

@@ -12,6 +12,7 @@
 namespace cleanmap::sim {
 
 /// What a ray hit.
+/// kCurb: vertical step faces of the ground (curbs, ramp sides); neither ground nor object.
 enum class Surface { kNone, kGround, kCurb, kStatic, kMover };
 
 struct Hit {

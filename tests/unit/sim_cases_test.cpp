@@ -1,0 +1,143 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// The laser pipeline on cleanmap-sim scenes with exact truth (issue #4): the default scenario's
+// IoU bar, one named test per hard case with its own bound, ground removal on the slope / curb /
+// ramp scenes. Bounds sit a little below the values measured (doc/BENCHMARK.md, "Simulated").
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <map>
+
+#include "cleanmap/core/ground.h"
+#include "cleanmap/core/metrics.h"
+#include "cleanmap/pipeline/laser_pipeline.h"
+#include "cleanmap/sim/world.h"
+
+using namespace cleanmap;
+namespace fs = std::filesystem;
+
+namespace {
+
+sim::Scenario scenario(const std::string& name) {
+  return sim::loadScenario((fs::path(CLEANMAP_SOURCE_DIR) / "datasets/scenarios" / (name + ".ini")).string());
+}
+
+struct CaseResult {
+  MosCounts all;
+  std::map<std::string, MosCounts> per_mover;  // over the points that hit each mover
+};
+
+// Simulates every frame and runs the laser pipeline with default parameters and true poses.
+CaseResult runCase(const sim::Scenario& sc) {
+  std::vector<sim::SimScan> truth(sc.frames);
+  CaseResult res;
+  LaserPipeline pipe(PipelineParams{}, [&](ScanResult&& r) {
+    const auto& t = truth[r.index];
+    res.all += compareLabels(r.labels, t.labels, "frame " + std::to_string(r.index));
+    const sim::World w(sc, t.time);
+    for (std::size_t i = 0; i < t.labels.size(); ++i) {
+      if (t.solid[i] < 0 || w.solids()[t.solid[i]].surface != sim::Surface::kMover) continue;
+      res.per_mover[w.solids()[t.solid[i]].name] += compareLabels({r.labels[i]}, {t.labels[i]}, "x");
+    }
+    truth[r.index] = {};  // memory bounded by the window, as the app
+  });
+  for (int k = 0; k < sc.frames; ++k) {
+    truth[k] = sim::simulateScan(sc, k, 2);
+    Frame f;
+    f.index = static_cast<std::size_t>(k);
+    f.stem = std::to_string(k);
+    f.scan.points = truth[k].points;
+    f.scan.pose = truth[k].pose;
+    f.scan.has_pose = true;
+    f.scan.timestamp = truth[k].time;
+    f.scan.original_size = truth[k].points.size();
+    pipe.push(std::move(f));
+  }
+  pipe.finish();
+  for (const auto& [name, c] : res.per_mover)
+    std::printf("  %s: %s recall %.3f precision %.3f (%llu moving points)\n", sc.name.c_str(), name.c_str(),
+                c.recall(), c.precision(), (unsigned long long)(c.tp + c.fn));
+  std::printf("  %s: all: precision %.3f recall %.3f IoU %.3f\n", sc.name.c_str(), res.all.precision(),
+              res.all.recall(), res.all.iou());
+  return res;
+}
+
+}  // namespace
+
+TEST(SimCases, DefaultScenarioIoUAtLeast0_8) {
+  const auto r = runCase(sim::defaultScenario());
+  EXPECT_GE(r.all.iou(), 0.8);  // issue #4 bar; measured 0.90
+  EXPECT_GE(r.all.precision(), 0.95);
+}
+
+TEST(SimCases, CarFollowingTheEgoAtTheSameSpeed) {
+  const auto r = runCase(scenario("following_car"));
+  EXPECT_GE(r.per_mover.at("follower").recall(), 0.80);  // measured 0.86
+  EXPECT_GE(r.all.precision(), 0.97);
+}
+
+TEST(SimCases, CarThatStopsAndStartsAgain) {
+  // Moving along its own length at 6 m/s next to a slow ego: the DS test sees its sides occupied
+  // in most scans of the window (the highway tanker's failure, issue #3). The bound records
+  // today's behaviour so a change is seen; while it stands it must not be flagged.
+  const auto r = runCase(scenario("stop_and_go"));
+  EXPECT_GE(r.per_mover.at("stop_go_car").recall(), 0.35);  // measured 0.39
+  EXPECT_GE(r.all.precision(), 0.97);
+}
+
+TEST(SimCases, PedestrianWalkingAlongAWall) {
+  const auto r = runCase(scenario("pedestrian_wall"));
+  EXPECT_GE(r.per_mover.at("walker").recall(), 0.80);  // measured 0.86
+  EXPECT_GE(r.all.precision(), 0.95);  // the wall behind must stay static
+}
+
+TEST(SimCases, MoverEnteringTheCropFromFarAway) {
+  const auto r = runCase(scenario("entering_far"));
+  EXPECT_GE(r.per_mover.at("far_car").recall(), 0.90);  // measured 0.96
+  EXPECT_GE(r.all.precision(), 0.97);
+}
+
+TEST(SimCases, CyclistOccludedForPartOfTheWindow) {
+  const auto r = runCase(scenario("occluded"));
+  EXPECT_GE(r.per_mover.at("hidden_cyclist").recall(), 0.88);  // measured 0.94
+  EXPECT_GE(r.all.precision(), 0.97);
+}
+
+namespace {
+
+struct GroundScore {
+  double ground_recall = 0, object_kept = 0;
+};
+
+GroundScore groundScore(const std::string& name) {
+  const auto sc = scenario(name);
+  std::size_t g = 0, g_found = 0, o = 0, o_kept = 0;
+  for (int k = 0; k < sc.frames; ++k) {
+    const auto s = sim::simulateScan(sc, k, 2);
+    const auto flags = segmentGround(s.points, GroundParams{}, 30.0);
+    for (std::size_t i = 0; i < s.points.size(); ++i) {
+      const auto& p = s.points[i];
+      if (std::abs(p.x) > 30 || std::abs(p.y) > 30) continue;
+      if (s.surface[i] == sim::Surface::kGround) ++g, g_found += flags[i];
+      if (s.surface[i] == sim::Surface::kStatic || s.surface[i] == sim::Surface::kMover) ++o, o_kept += !flags[i];
+    }
+  }
+  const GroundScore r{double(g_found) / double(g), double(o_kept) / double(o)};
+  std::printf("  %s: ground recall %.3f, object points kept %.3f\n", name.c_str(), r.ground_recall, r.object_kept);
+  return r;
+}
+
+}  // namespace
+
+TEST(SimGround, RoadClimbingAt20Percent) {
+  const auto r = groundScore("ground_slope");
+  EXPECT_GE(r.ground_recall, 0.95);  // measured 1.000
+  EXPECT_GE(r.object_kept, 0.97);    // measured 0.988
+}
+
+TEST(SimGround, CurbsSidewalksAndADrivewayRamp) {
+  // 12 cm curbs stop the propagation by design (step > s = 9 cm): parts of the raised
+  // sidewalks stay unfound. Curb and ramp faces count as neither ground nor object.
+  const auto r = groundScore("ground_curb_ramp");
+  EXPECT_GE(r.ground_recall, 0.80);  // measured 0.841
+  EXPECT_GE(r.object_kept, 0.94);    // measured 0.961
+}
