@@ -141,3 +141,10 @@ TEST(SimGround, CurbsSidewalksAndADrivewayRamp) {
   EXPECT_GE(r.ground_recall, 0.80);  // measured 0.841
   EXPECT_GE(r.object_kept, 0.94);    // measured 0.961
 }
+
+TEST(SimCases, MoversOnCurvedPaths) {
+  const auto r = runCase(scenario("curved_path"));
+  EXPECT_GE(r.per_mover.at("turning_car").recall(), 0.60);  // measured 0.673
+  EXPECT_GE(r.per_mover.at("arc_cyclist").recall(), 0.75);  // measured 0.817
+  EXPECT_GE(r.all.precision(), 0.97);
+}

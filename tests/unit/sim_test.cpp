@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
+#include <map>
 #include <opencv2/imgcodecs.hpp>
 
 #include "cleanmap/io/kitti.h"
@@ -172,4 +173,51 @@ TEST(SimOutput, FolderReadsBackWithPosesLabelsObjectsAndCamera) {
   }
   ASSERT_GT(seen, 100u);
   EXPECT_GT(double(blue) / double(seen), 0.9);
+}
+
+TEST(SimLidar, MotionDuringTheSweepDistortsOnlyAwayFromTheFront) {
+  // Walls across the road 20 m ahead and behind; the ego drives at 10 m/s. The sweep passes the
+  // front (azimuth 0) at the frame's time: the front wall is where it is without sweep motion.
+  // Behind, the sweep starts 0.05 s early and ends 0.05 s late: the rear wall is up to 0.5 m off.
+  auto sc = sim::parseScenario(R"(
+[sensor]
+range_noise = 0
+dropout = 0
+camera = false
+[ego]
+path = 0 0  100 0
+speed = 10
+[box]
+center = 25 0
+size = 2 40 6
+[box]
+center = -25 0
+size = 2 40 6
+)", "walls");
+  const auto still = sim::simulateScan(sc, 0, 2);
+  sc.sensor.sweep_motion = true;
+  const auto moving = sim::simulateScan(sc, 0, 2);
+  // Match the same ray in both scans by its direction (no noise: a point lies on its ray).
+  auto key = [](const PointXYZI& p) {
+    const double r = p.xyz().norm();
+    return std::make_pair(std::lround(std::atan2(p.y, p.x) * 1e4), std::lround(std::asin(p.z / r) * 1e4));
+  };
+  std::map<std::pair<long, long>, std::size_t> index;
+  for (std::size_t j = 0; j < moving.points.size(); ++j) index[key(moving.points[j])] = j;
+  double front = 0, rear = 0;
+  std::size_t nf = 0, nr = 0;
+  for (std::size_t i = 0; i < still.points.size(); ++i) {
+    if (still.surface[i] != sim::Surface::kStatic) continue;
+    const auto& p = still.points[i];
+    const auto it = index.find(key(p));
+    if (it == index.end()) continue;
+    const double d = (moving.points[it->second].xyz() - p.xyz()).norm(), az = std::atan2(p.y, p.x);
+    if (std::abs(az) < 0.02) front = std::max(front, d), ++nf;
+    if (std::abs(az) > M_PI - 0.05) rear = std::max(rear, d), ++nr;
+  }
+  ASSERT_GT(nf, 20u);
+  ASSERT_GT(nr, 20u);
+  EXPECT_LT(front, 0.02);  // the front slice's time is within 0.7 ms of the frame time
+  EXPECT_GT(rear, 0.4);
+  EXPECT_LT(rear, 0.55);
 }
