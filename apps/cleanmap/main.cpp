@@ -6,6 +6,7 @@
 #include <iostream>
 #include <string>
 
+#include "../common/cli.h"
 #include "cleanmap/core/error.h"
 #include "cleanmap/io/config.h"
 #include "cleanmap/io/kitti.h"
@@ -38,21 +39,6 @@ INPUT                a KITTI odometry/SemanticKITTI or raw folder, or an MRPT .r
 --help               this text
 )";
 
-[[noreturn]] void usageError(const std::string& msg) {
-  std::cerr << "cleanmap: " << msg << " (see --help)\n";
-  std::exit(2);
-}
-
-long toLong(const std::string& flag, const std::string& v) {
-  try {
-    std::size_t used = 0;
-    const long x = std::stol(v, &used);
-    if (used == v.size() && x >= 0) return x;
-  } catch (const std::exception&) {
-  }
-  usageError(flag + " needs a non-negative integer, got '" + v + "'");
-}
-
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -60,31 +46,26 @@ int main(int argc, char** argv) {
   long threads = -1, first = 0, last = -1;
   long long seed = -1;
   bool quiet = false, progress_shown = false;
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    auto value = [&]() -> std::string {
-      if (i + 1 >= argc) usageError(a + " needs a value");
-      return argv[++i];
-    };
+  cleanmap::cli::Args args("cleanmap", argc, argv);
+  while (!args.done()) {
+    const std::string a = args.next();
     if (a == "--help" || a == "-h") {
       std::cout << kUsage;
       return 0;
-    } else if (a == "-o" || a == "--output") outdir = value();
-    else if (a == "-c" || a == "--config") config = value();
-    else if (a == "--threads") threads = toLong(a, value());
-    else if (a == "--seed") seed = toLong(a, value());
-    else if (a == "--first") first = toLong(a, value());
-    else if (a == "--last") last = toLong(a, value());
-    else if (a == "--poses") poses = value();
+    } else if (a == "-o" || a == "--output") outdir = args.value(a);
+    else if (a == "-c" || a == "--config") config = args.value(a);
+    else if (a == "--threads") threads = args.integer(a, 1);
+    else if (a == "--seed") seed = args.integer(a);
+    else if (a == "--first") first = args.integer(a);
+    else if (a == "--last") last = args.integer(a);
+    else if (a == "--poses") poses = args.value(a);
     else if (a == "--quiet") quiet = true;
-    else if (!a.empty() && a[0] == '-') usageError("unknown option '" + a + "'");
-    else if (input.empty()) input = a;
-    else usageError("unexpected argument '" + a + "'");
+    else if (!a.empty() && a[0] != '-' && input.empty()) input = a;
+    else args.unexpected(a);
   }
-  if (input.empty() || outdir.empty()) usageError("need INPUT and -o OUTDIR");
-  if (poses != "given" && poses != "gicp") usageError("--poses is 'given' or 'gicp'");
-  if (threads == 0) usageError("--threads must be >= 1");
-  if (last >= 0 && last < first) usageError("--last must be >= --first");
+  if (input.empty() || outdir.empty()) args.fail("need INPUT and -o OUTDIR");
+  if (poses != "given" && poses != "gicp") args.fail("--poses is 'given' or 'gicp'");
+  if (last >= 0 && last < first) args.fail("--last must be >= --first");
 
   try {
     if (poses == "gicp")

@@ -6,6 +6,7 @@
 #include <sstream>
 #include <string>
 
+#include "../common/cli.h"
 #include "cleanmap/core/error.h"
 #include "cleanmap/eval/evaluate.h"
 #include "cleanmap/eval/roc.h"
@@ -45,43 +46,10 @@ summary        one Markdown table of evaluation report.json / --json files, with
 Exit status: 0 ok, 1 error (one line on stderr), 2 bad command line.
 )";
 
-[[noreturn]] void usageError(const std::string& msg) {
-  std::cerr << "cleanmap-eval: " << msg << " (see --help)\n";
-  std::exit(2);
-}
-
-double toDouble(const std::string& flag, const std::string& v) {
-  try {
-    std::size_t used = 0;
-    const double x = std::stod(v, &used);
-    if (used == v.size() && x >= 0) return x;
-  } catch (const std::exception&) {
-  }
-  usageError(flag + " needs a non-negative number, got '" + v + "'");
-}
-
-long toLong(const std::string& flag, const std::string& v) {
-  try {
-    std::size_t used = 0;
-    const long x = std::stol(v, &used);
-    if (used == v.size() && x >= 0) return x;
-  } catch (const std::exception&) {
-  }
-  usageError(flag + " needs a non-negative integer, got '" + v + "'");
-}
-
-std::vector<double> toList(const std::string& flag, const std::string& v) {
-  std::vector<double> out;
-  std::stringstream ss(v);
-  for (std::string item; std::getline(ss, item, ',');) out.push_back(toDouble(flag, item));
-  if (out.empty()) usageError(flag + " needs a comma-separated list");
-  return out;
-}
-
 int runSummary(int argc, char** argv) {
   std::vector<std::string> files;
   for (int i = 2; i < argc; ++i) files.emplace_back(argv[i]);
-  if (files.empty()) usageError("summary needs report JSON files");
+  if (files.empty()) cleanmap::cli::Args("cleanmap-eval", argc, argv).fail("summary needs report JSON files");
   std::cout << cleanmap::eval::summaryTable(files);
   return 0;
 }
@@ -90,29 +58,24 @@ int runRoc(int argc, char** argv) {
   std::string gt, out, config;
   cleanmap::eval::RocOptions opt;
   long threads = -1;
-  for (int i = 2; i < argc; ++i) {
-    const std::string a = argv[i];
-    auto value = [&]() -> std::string {
-      if (i + 1 >= argc) usageError(a + " needs a value");
-      return argv[++i];
-    };
+  cleanmap::cli::Args args("cleanmap-eval", argc, argv, 2);
+  while (!args.done()) {
+    const std::string a = args.next();
     if (a == "--help" || a == "-h") {
       std::cout << kUsage;
       return 0;
-    } else if (a == "-o" || a == "--output") out = value();
-    else if (a == "-c" || a == "--config") config = value();
-    else if (a == "--sigma-r") opt.sigma_r = toList(a, value());
-    else if (a == "--sigma-theta") opt.lambda_theta = toList(a, value());
-    else if (a == "--threads") threads = toLong(a, value());
-    else if (a == "--first") opt.first = toLong(a, value());
-    else if (a == "--last") opt.last = toLong(a, value());
-    else if (!a.empty() && a[0] == '-') usageError("unknown option '" + a + "'");
-    else if (gt.empty()) gt = a;
-    else usageError("unexpected argument '" + a + "'");
+    } else if (a == "-o" || a == "--output") out = args.value(a);
+    else if (a == "-c" || a == "--config") config = args.value(a);
+    else if (a == "--sigma-r") opt.sigma_r = args.numbers(a);
+    else if (a == "--sigma-theta") opt.lambda_theta = args.numbers(a);
+    else if (a == "--threads") threads = args.integer(a, 1);
+    else if (a == "--first") opt.first = args.integer(a);
+    else if (a == "--last") opt.last = args.integer(a);
+    else if (!a.empty() && a[0] != '-' && gt.empty()) gt = a;
+    else args.unexpected(a);
   }
-  if (gt.empty() || out.empty()) usageError("roc needs GT_DIR and -o DIR");
-  if (threads == 0) usageError("--threads must be >= 1");
-  if (opt.last >= 0 && opt.last < opt.first) usageError("--last must be >= --first");
+  if (gt.empty() || out.empty()) args.fail("roc needs GT_DIR and -o DIR");
+  if (opt.last >= 0 && opt.last < opt.first) args.fail("--last must be >= --first");
   cleanmap::PipelineParams base;
   if (!config.empty()) cleanmap::io::loadParams(config, base);
   if (threads > 0) base.threads = static_cast<int>(threads);
@@ -133,31 +96,27 @@ int runEval(int argc, char** argv) {
   std::optional<std::string> labels;
   cleanmap::eval::EvalOptions opt;
   bool json = false;
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    auto value = [&]() -> std::string {
-      if (i + 1 >= argc) usageError(a + " needs a value");
-      return argv[++i];
-    };
+  cleanmap::cli::Args args("cleanmap-eval", argc, argv);
+  while (!args.done()) {
+    const std::string a = args.next();
     if (a == "--help" || a == "-h") {
       std::cout << kUsage;
       return 0;
-    } else if (a == "--first") opt.first = toLong(a, value());
-    else if (a == "--last") opt.last = toLong(a, value());
-    else if (a == "--labels") labels = value();
-    else if (a == "--report") report = value();
+    } else if (a == "--first") opt.first = args.integer(a);
+    else if (a == "--last") opt.last = args.integer(a);
+    else if (a == "--labels") labels = args.value(a);
+    else if (a == "--report") report = args.value(a);
     else if (a == "--json") json = true;
     else if (a == "--radius") {
-      opt.radius = toDouble(a, value());
-      if (opt.radius <= 0) usageError("--radius must be > 0");
-    } else if (a == "--crop") opt.crop_tau = toDouble(a, value());
-    else if (!a.empty() && a[0] == '-') usageError("unknown option '" + a + "'");
-    else if (gt.empty()) gt = a;
-    else if (result.empty()) result = a;
-    else usageError("unexpected argument '" + a + "'");
+      opt.radius = args.number(a);
+      if (opt.radius <= 0) args.fail("--radius must be > 0");
+    } else if (a == "--crop") opt.crop_tau = args.number(a);
+    else if (!a.empty() && a[0] != '-' && gt.empty()) gt = a;
+    else if (!a.empty() && a[0] != '-' && result.empty()) result = a;
+    else args.unexpected(a);
   }
-  if (gt.empty() || result.empty()) usageError("need GT_DIR and RESULT");
-  if (opt.last >= 0 && opt.last < opt.first) usageError("--last must be >= --first");
+  if (gt.empty() || result.empty()) args.fail("need GT_DIR and RESULT");
+  if (opt.last >= 0 && opt.last < opt.first) args.fail("--last must be >= --first");
   opt.pictures_dir = report;
   const auto in = cleanmap::eval::ResultInput::fromPath(result, labels);
   const auto rep = cleanmap::eval::evaluate(gt, in, opt);
@@ -171,15 +130,8 @@ int runEval(int argc, char** argv) {
     std::printf("  moving class: precision %.3f, recall %.3f, IoU %.3f (%llu points scored)\n",
                 rep.mos->precision(), rep.mos->recall(), rep.mos->iou(), (unsigned long long)rep.mos->evaluated());
   if (rep.objects) {
-    int d = 0, p = 0, m = 0;
-    for (const auto& o : *rep.objects) {
-      if (!o.moving_points) continue;
-      const auto g = o.grade();
-      d += g == cleanmap::ObjectGrade::kDetected;
-      p += g == cleanmap::ObjectGrade::kPartial;
-      m += g == cleanmap::ObjectGrade::kMissed;
-    }
-    std::printf("  objects: %d detected, %d partially detected, %d missed\n", d, p, m);
+    const auto g = rep.gradeCounts();
+    std::printf("  objects: %d detected, %d partially detected, %d missed\n", g.detected, g.partial, g.missed);
   }
   if (rep.map)
     std::printf("  clean map: SA %.4f, DA %.4f, AA %.4f, HA %.4f\n", rep.map->sa(), rep.map->da(), rep.map->aa(),

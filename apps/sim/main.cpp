@@ -4,6 +4,7 @@
 #include <iostream>
 #include <string>
 
+#include "../common/cli.h"
 #include "cleanmap/core/error.h"
 #include "cleanmap/io/files.h"
 #include "cleanmap/io/kitti.h"
@@ -33,49 +34,30 @@ Scenario format: doc/SIMULATOR.md; examples in datasets/scenarios/.
 --help             this text
 )";
 
-[[noreturn]] void usageError(const std::string& msg) {
-  std::cerr << "cleanmap-sim: " << msg << " (see --help)\n";
-  std::exit(2);
-}
-
-long toLong(const std::string& flag, const std::string& v) {
-  try {
-    std::size_t used = 0;
-    const long x = std::stol(v, &used);
-    if (used == v.size() && x > 0) return x;
-  } catch (const std::exception&) {
-  }
-  usageError(flag + " needs a positive integer, got '" + v + "'");
-}
-
 }  // namespace
 
 int main(int argc, char** argv) {
   std::string scenario, out;
   long frames = -1, threads = 2;
   bool images = true, rawlog = true;
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    auto value = [&]() -> std::string {
-      if (i + 1 >= argc) usageError(a + " needs a value");
-      return argv[++i];
-    };
+  cleanmap::cli::Args args("cleanmap-sim", argc, argv);
+  while (!args.done()) {
+    const std::string a = args.next();
     if (a == "--help" || a == "-h") {
       std::cout << kUsage;
       return 0;
     } else if (a == "--print-default") {
       std::cout << cleanmap::sim::defaultScenarioText();
       return 0;
-    } else if (a == "-o" || a == "--output") out = value();
-    else if (a == "--frames") frames = toLong(a, value());
-    else if (a == "--threads") threads = toLong(a, value());
+    } else if (a == "-o" || a == "--output") out = args.value(a);
+    else if (a == "--frames") frames = args.integer(a, 1);
+    else if (a == "--threads") threads = args.integer(a, 1);
     else if (a == "--no-images") images = false;
     else if (a == "--no-rawlog") rawlog = false;
-    else if (!a.empty() && a[0] == '-') usageError("unknown option '" + a + "'");
-    else if (scenario.empty()) scenario = a;
-    else usageError("unexpected argument '" + a + "'");
+    else if (!a.empty() && a[0] != '-' && scenario.empty()) scenario = a;
+    else args.unexpected(a);
   }
-  if (out.empty()) usageError("need -o OUTDIR");
+  if (out.empty()) args.fail("need -o OUTDIR");
   try {
     auto sc = scenario.empty() ? cleanmap::sim::defaultScenario() : cleanmap::sim::loadScenario(scenario);
     if (frames > 0) sc.frames = static_cast<int>(std::min<long>(frames, sc.frames));

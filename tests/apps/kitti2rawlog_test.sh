@@ -6,19 +6,7 @@
 set -uo pipefail
 bin=$1 data=$2 scratch=$3
 rm -rf "$scratch" && mkdir -p "$scratch"
-fails=0
-fail() { echo "FAIL: $*"; fails=$((fails + 1)); }
-
-# expect_error "<substring>" cmd...: exit code 1, stderr exactly one line holding the substring,
-# and no output file left behind.
-expect_error() {
-  local want=$1; shift
-  local err rc
-  err=$("$@" 2>&1 >/dev/null); rc=$?
-  [[ $rc -eq 1 ]] || fail "'$*' exited $rc, expected 1"
-  [[ $(printf '%s\n' "$err" | wc -l) -eq 1 ]] || fail "'$*' printed more than one line: $err"
-  [[ "$err" == *"$want"* ]] || fail "'$*' said '$err', expected '$want'"
-}
+source "$(dirname "$0")/common.sh"
 
 city=$data/kitti_city
 if [[ ! -d $city ]]; then
@@ -42,15 +30,15 @@ mk() {  # mk NAME: a 3-scan copy of kitti_city (links) to spoil
   head -3 "$city/poses.txt" >"$d/poses.txt"; cp "$city/calib.txt" "$d/calib.txt"
   echo "$d"
 }
-expect_error "directory does not exist" "$bin/cleanmap-kitti2rawlog" "$scratch/nope" "$scratch/o.rawlog"
+expect_error 1 "directory does not exist" "$bin/cleanmap-kitti2rawlog" "$scratch/nope" "$scratch/o.rawlog"
 d=$(mk truncated); rm "$d/velodyne/000001.bin"; head -c 1000 "$city/velodyne/000001.bin" >"$d/velodyne/000001.bin"
-expect_error "000001.bin: truncated scan" "$bin/cleanmap-kitti2rawlog" "$d" "$scratch/o.rawlog"
+expect_error 1 "000001.bin: truncated scan" "$bin/cleanmap-kitti2rawlog" "$d" "$scratch/o.rawlog"
 d=$(mk empty); rm "$d/velodyne/000002.bin"; : >"$d/velodyne/000002.bin"
-expect_error "000002.bin: empty scan" "$bin/cleanmap-kitti2rawlog" "$d" "$scratch/o.rawlog"
+expect_error 1 "000002.bin: empty scan" "$bin/cleanmap-kitti2rawlog" "$d" "$scratch/o.rawlog"
 d=$(mk posecount); head -2 "$city/poses.txt" >"$d/poses.txt"
-expect_error "has 2 poses but the sequence has 3 scans" "$bin/cleanmap-kitti2rawlog" "$d" "$scratch/o.rawlog"
+expect_error 1 "has 2 poses but the sequence has 3 scans" "$bin/cleanmap-kitti2rawlog" "$d" "$scratch/o.rawlog"
 d=$(mk calibkey); echo "P0: 1 0 0 0 0 1 0 0 0 0 1 0" >"$d/calib.txt"
-expect_error "missing calibration key 'Tr'" "$bin/cleanmap-kitti2rawlog" "$d" "$scratch/o.rawlog"
+expect_error 1 "missing calibration key 'Tr'" "$bin/cleanmap-kitti2rawlog" "$d" "$scratch/o.rawlog"
 [[ -e $scratch/o.rawlog ]] && fail "a failed conversion left $scratch/o.rawlog"
 ls "$scratch" | grep -q '\.tmp\.' && fail "a temporary file was left behind"
 
@@ -69,7 +57,7 @@ info=$("$bin/cleanmap-info" "$scratch/nan.rawlog") || fail "cleanmap-info failed
 
 # A truncated rawlog is reported by the reader.
 cp "$scratch/city.rawlog" "$scratch/cut.rawlog"; truncate -s 3000000 "$scratch/cut.rawlog"
-expect_error "truncated" "$bin/cleanmap-info" "$scratch/cut.rawlog"
+expect_error 1 "truncated" "$bin/cleanmap-info" "$scratch/cut.rawlog"
 
 # Usage errors exit 2.
 "$bin/cleanmap-kitti2rawlog" >/dev/null 2>&1; [[ $? -eq 2 ]] || fail "no arguments should exit 2"

@@ -6,16 +6,7 @@
 set -uo pipefail
 bin=$1 scratch=$2
 rm -rf "$scratch" && mkdir -p "$scratch"
-fails=0
-fail() { echo "FAIL: $*"; fails=$((fails + 1)); }
-expect_error() {  # expect_error RC "<substring>" cmd...
-  local want_rc=$1 want=$2; shift 2
-  local err rc
-  err=$("$@" 2>&1 >/dev/null); rc=$?
-  [[ $rc -eq $want_rc ]] || fail "'$*' exited $rc, expected $want_rc"
-  [[ $(printf '%s\n' "$err" | wc -l) -eq 1 ]] || fail "'$*' printed more than one line: $err"
-  [[ "$err" == *"$want"* ]] || fail "'$*' said '$err', expected '$want'"
-}
+source "$(dirname "$0")/common.sh"
 
 "$bin/cleanmap-sim" -o "$scratch/a" --frames 3 --threads 2 >/dev/null 2>&1 || fail "generation failed"
 "$bin/cleanmap-sim" -o "$scratch/b" --frames 3 --threads 1 --no-rawlog >/dev/null 2>&1 || fail "generation failed"

@@ -24,11 +24,6 @@ namespace fs = std::filesystem;
 
 namespace {
 
-void writeText(const fs::path& p, const std::string& text) {
-  fs::create_directories(p.parent_path());
-  std::ofstream(p) << text;
-}
-
 // A labelled sequence of 2 scans, sensor moving 1 m along x per scan. Each scan: a static wall
 // (100 points, label 9), a moving car of 50 points inside the box of object 7 (label 251), and
 // 10 ignored points (label 0). Truth and the world-frame points are returned for checking.
@@ -66,10 +61,10 @@ Tiny makeTiny(const std::string& name) {
     t.scans.push_back(pts);
     t.truth.push_back(l);
   }
-  writeText(t.dir / "poses.txt", poses);
-  writeText(t.dir / "times.txt", times);
-  writeText(t.dir / "calib.txt", "Tr: 1 0 0 0 0 1 0 0 0 0 1 0\n");
-  writeText(t.dir / "objects.json",
+  test::writeText(t.dir / "poses.txt", poses);
+  test::writeText(t.dir / "times.txt", times);
+  test::writeText(t.dir / "calib.txt", "Tr: 1 0 0 0 0 1 0 0 0 0 1 0\n");
+  test::writeText(t.dir / "objects.json",
             R"([{"id": 7, "name": "car", "class": "car", "frames": {
                  "0": {"center": [4.4, 3.0, -0.05], "size": [1.2, 0.4, 1.2], "yaw": 0.0, "moving": true, "n_points": 50},
                  "1": {"center": [4.4, 3.0, -0.05], "size": [1.2, 0.4, 1.2], "yaw": 0.0, "moving": true, "n_points": 50}}}])");
@@ -258,7 +253,7 @@ TEST(EvalMap, CropLimitsTheGroundTruthUnion) {
 TEST(Pcd, ReadsForeignLayouts) {
   const auto d = test::scratchDir("pcd");
   // ASCII with an extra rgb field and a NaN point of an organized cloud.
-  writeText(d / "a.pcd",
+  test::writeText(d / "a.pcd",
             "# .PCD v0.7\nVERSION 0.7\nFIELDS x y z rgb\nSIZE 4 4 4 4\nTYPE F F F U\nCOUNT 1 1 1 1\n"
             "WIDTH 3\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS 3\nDATA ascii\n1 2 3 255\nnan nan nan 0\n4 5 6 7\n");
   auto a = io::readPcd((d / "a.pcd").string());
@@ -311,12 +306,12 @@ TEST(Pcd, ReadsForeignLayouts) {
 
 TEST(Pcd, BadFilesAreClearErrors) {
   const auto d = test::scratchDir("pcdbad");
-  writeText(d / "trunc.pcd", "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 10\n"
+  test::writeText(d / "trunc.pcd", "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 10\n"
                              "HEIGHT 1\nPOINTS 10\nDATA binary\nabc");
   test::expectError([&] { io::readPcd((d / "trunc.pcd").string()); }, "trunc.pcd", "truncated");
-  writeText(d / "noxyz.pcd", "VERSION 0.7\nFIELDS a b\nSIZE 4 4\nTYPE F F\nCOUNT 1 1\nPOINTS 0\nDATA ascii\n");
+  test::writeText(d / "noxyz.pcd", "VERSION 0.7\nFIELDS a b\nSIZE 4 4\nTYPE F F\nCOUNT 1 1\nPOINTS 0\nDATA ascii\n");
   test::expectError([&] { io::readPcd((d / "noxyz.pcd").string()); }, "noxyz.pcd", "no x, y, z");
-  writeText(d / "map.xyz", "1 2 3\n");
+  test::writeText(d / "map.xyz", "1 2 3\n");
   test::expectError([&] { io::readCloud((d / "map.xyz").string()); }, "map.xyz", "unknown point-cloud format");
   test::expectError([&] { io::readPcd((d / "missing.pcd").string()); }, "missing.pcd", "cannot open");
 }
@@ -359,7 +354,7 @@ TEST(EvalReport, JsonKeysSummaryAndPictures) {
   // Summary over two copies: the overall row sums the counts, so the ratios are unchanged.
   const auto table = eval::summaryTable({o.pictures_dir + "/report.json", o.pictures_dir + "/report.json"});
   EXPECT_NE(table.find("| **all (summed counts)** | 4 | 0.667 | 0.800 | 0.571 |"), std::string::npos) << table;
-  writeText(p / "bad.json", "{\"x\": 1}");
+  test::writeText(p / "bad.json", "{\"x\": 1}");
   test::expectError([&] { eval::summaryTable({(p / "bad.json").string()}); }, "bad.json", "not an evaluation report");
 }
 

@@ -16,11 +16,6 @@ namespace fs = std::filesystem;
 
 namespace {
 
-void writeText(const fs::path& p, const std::string& text) {
-  fs::create_directories(p.parent_path());
-  std::ofstream(p) << text;
-}
-
 // A 3-scan odometry folder made of links to kitti_city's scans, with the given poses/calib text.
 fs::path miniOdometry(const std::string& name, const std::string& poses, const std::string& calib) {
   const auto dir = test::scratchDir(name);
@@ -28,8 +23,8 @@ fs::path miniOdometry(const std::string& name, const std::string& poses, const s
   for (const char* s : {"000000", "000001", "000002"})
     fs::create_symlink(fs::path(test::dataDir()) / "kitti_city/velodyne" / (std::string(s) + ".bin"),
                        dir / "velodyne" / (std::string(s) + ".bin"));
-  if (!poses.empty()) writeText(dir / "poses.txt", poses);
-  if (!calib.empty()) writeText(dir / "calib.txt", calib);
+  if (!poses.empty()) test::writeText(dir / "poses.txt", poses);
+  if (!calib.empty()) test::writeText(dir / "calib.txt", calib);
   return dir;
 }
 
@@ -126,7 +121,7 @@ TEST(KittiOdometry, MissingCalibrationKeyIsAnError) {
 TEST(KittiOdometry, TimesCountMismatchIsAnError) {
   CLEANMAP_REQUIRE_DATASET("kitti_city");
   const auto dir = miniOdometry("times", "", "");
-  writeText(dir / "times.txt", "0.0\n0.1\n");
+  test::writeText(dir / "times.txt", "0.0\n0.1\n");
   test::expectError([&] { io::KittiSequence::open(dir.string()); }, "times.txt",
                     "has 2 timestamps but the sequence has 3 scans");
 }
@@ -151,14 +146,14 @@ constexpr double kLat0 = 49.0, kLon0 = 8.4;
 fs::path rawDrive(const std::string& name, double yaw, double step) {
   const auto date = test::scratchDir(name);
   const auto drive = date / "2011_09_26_drive_0001_sync";
-  writeText(date / "calib_imu_to_velo.txt",
+  test::writeText(date / "calib_imu_to_velo.txt",
             "calib_time: 25-May-2012 16:47:16\n"
             "R: 0.99875 -0.04998 0 0.04998 0.99875 0 0 0 1\n"  // Rz(0.05)
             "T: -0.81 0.32 -0.80\n");
-  writeText(date / "calib_velo_to_cam.txt",
+  test::writeText(date / "calib_velo_to_cam.txt",
             "calib_time: 15-Mar-2012 11:37:16\n"
             "R: 0 -1 0 0 0 -1 1 0 0\nT: 0 -0.08 -0.27\n");
-  writeText(date / "calib_cam_to_cam.txt",
+  test::writeText(date / "calib_cam_to_cam.txt",
             "calib_time: 09-Jan-2012 13:57:47\n"
             "R_rect_00: 1 0 0 0 1 0 0 0 1\n"
             "P_rect_02: 721.5 0 609.6 44.86 0 721.5 172.9 0.2164 0 0 1 0.0027\n"
@@ -179,7 +174,7 @@ fs::path rawDrive(const std::string& name, double yaw, double step) {
     std::snprintf(line, sizeof line, "%.14f %.14f 110.0 0 0 %.14f", lat, lon, yaw);
     std::string rec = line;
     for (int k = 6; k < 30; ++k) rec += " 0";
-    writeText(drive / "oxts/data" / (std::string(stem) + ".txt"), rec + "\n");
+    test::writeText(drive / "oxts/data" / (std::string(stem) + ".txt"), rec + "\n");
     char ts[64];
     std::snprintf(ts, sizeof ts, "2011-09-26 13:02:25.%09d\n", 64389445 + i * 100000000);
     stamps += ts;
@@ -187,7 +182,7 @@ fs::path rawDrive(const std::string& name, double yaw, double step) {
     cv::imwrite((drive / "image_02/data" / (std::string(stem) + ".png")).string(),
                 cv::Mat(375, 1242, CV_8UC3, cv::Scalar(10 * i, 20, 30)));
   }
-  writeText(drive / "velodyne_points/timestamps.txt", stamps);
+  test::writeText(drive / "velodyne_points/timestamps.txt", stamps);
   return drive;
 }
 

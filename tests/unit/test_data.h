@@ -5,6 +5,7 @@
 
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
 #include <string>
 
 #include "cleanmap/core/error.h"
@@ -28,6 +29,12 @@ inline std::filesystem::path scratchDir(const std::string& name) {
   std::filesystem::remove_all(p);
   std::filesystem::create_directories(p);
   return p;
+}
+
+/// Writes `text` to `p`, creating its folder.
+inline void writeText(const std::filesystem::path& p, const std::string& text) {
+  std::filesystem::create_directories(p.parent_path());
+  std::ofstream(p) << text;
 }
 
 /// Runs f and expects a cleanmap::Error whose one-line message names `file` and holds `what`.

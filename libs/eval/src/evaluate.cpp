@@ -57,6 +57,23 @@ nlohmann::json countsJson(const MosCounts& c) {
 
 }  // namespace
 
+const char* gradeName(ObjectGrade g) {
+  return g == ObjectGrade::kDetected ? "detected" : g == ObjectGrade::kPartial ? "partial" : "missed";
+}
+
+GradeCounts EvalReport::gradeCounts() const {
+  GradeCounts c;
+  if (objects)
+    for (const auto& o : *objects) {
+      if (!o.scored()) continue;
+      const auto g = o.grade();
+      c.detected += g == ObjectGrade::kDetected;
+      c.partial += g == ObjectGrade::kPartial;
+      c.missed += g == ObjectGrade::kMissed;
+    }
+  return c;
+}
+
 ResultInput ResultInput::fromPath(const std::string& result, const std::optional<std::string>& labels_dir) {
   ResultInput in;
   std::error_code ec;
@@ -235,19 +252,14 @@ std::string toJson(const EvalReport& r) {
     j["per_scan"] = per;
   }
   if (r.objects) {
-    int det = 0, part = 0, miss = 0;
     nlohmann::json list = nlohmann::json::array();
-    for (const auto& o : *r.objects) {
-      if (o.moving_points == 0) continue;  // never inside the crop
-      const auto g = o.grade();
-      det += g == ObjectGrade::kDetected;
-      part += g == ObjectGrade::kPartial;
-      miss += g == ObjectGrade::kMissed;
-      list.push_back({{"id", o.id}, {"name", o.name}, {"class", o.cls}, {"moving_points", o.moving_points},
-                      {"labelled_moving", o.labelled_moving}, {"fraction", o.fraction()},
-                      {"grade", g == ObjectGrade::kDetected ? "detected" : g == ObjectGrade::kPartial ? "partial" : "missed"}});
-    }
-    j["objects"] = {{"detected", det}, {"partial", part}, {"missed", miss}, {"list", list}};
+    for (const auto& o : *r.objects)
+      if (o.scored())
+        list.push_back({{"id", o.id}, {"name", o.name}, {"class", o.cls}, {"moving_points", o.moving_points},
+                        {"labelled_moving", o.labelled_moving}, {"fraction", o.fraction()},
+                        {"grade", gradeName(o.grade())}});
+    const GradeCounts g = r.gradeCounts();
+    j["objects"] = {{"detected", g.detected}, {"partial", g.partial}, {"missed", g.missed}, {"list", list}};
   }
   if (r.map) {
     j["SA"] = r.map->sa();
@@ -291,19 +303,15 @@ void writeReport(const std::string& dir, const EvalReport& r) {
     if (r.objects) {
       os << "\n## Objects (paper Table II: detected f >= 0.9, partially 0.1 <= f < 0.9)\n"
             "| id | class | moving points | labelled moving | f | grade |\n|---|---|---|---|---|---|\n";
-      int det = 0, part = 0, miss = 0;
       for (const auto& o : *r.objects) {
-        if (o.moving_points == 0) continue;
-        const auto g = o.grade();
-        det += g == ObjectGrade::kDetected;
-        part += g == ObjectGrade::kPartial;
-        miss += g == ObjectGrade::kMissed;
+        if (!o.scored()) continue;
         std::snprintf(b, sizeof b, "| %d | %s | %llu | %llu | %.3f | %s |\n", o.id, o.cls.c_str(),
                       (unsigned long long)o.moving_points, (unsigned long long)o.labelled_moving, o.fraction(),
-                      g == ObjectGrade::kDetected ? "detected" : g == ObjectGrade::kPartial ? "partial" : "missed");
+                      gradeName(o.grade()));
         os << b;
       }
-      os << "\nDetected " << det << ", partially detected " << part << ", missed " << miss << ".\n";
+      const GradeCounts g = r.gradeCounts();
+      os << "\nDetected " << g.detected << ", partially detected " << g.partial << ", missed " << g.missed << ".\n";
     }
     if (r.map) {
       const auto& m = *r.map;

@@ -38,6 +38,14 @@ struct ObjectResult {
   uint64_t labelled_moving = 0;  ///< of those, labelled moving by the result
   double fraction() const { return moving_points ? double(labelled_moving) / double(moving_points) : 0.0; }
   ObjectGrade grade() const { return gradeObject(fraction()); }
+  bool scored() const { return moving_points > 0; }  ///< false: never inside the crop
+};
+
+/// "detected", "partial", "missed".
+const char* gradeName(ObjectGrade g);
+
+struct GradeCounts {
+  int detected = 0, partial = 0, missed = 0;
 };
 
 struct StageTime {
@@ -62,6 +70,9 @@ struct EvalReport {
   std::optional<MapScore> map;
   std::optional<RunTime> runtime;
   std::vector<std::string> pictures;  ///< file names written into pictures_dir
+
+  /// Paper Table II counts over the scored objects (zeros without objects).
+  GradeCounts gradeCounts() const;
 };
 
 /// Throws cleanmap::Error (one line, naming the file) on missing or inconsistent inputs.

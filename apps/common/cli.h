@@ -1,0 +1,74 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Command-line walking shared by the apps: one usage error format ("prog: what (see --help)",
+// exit 2) and checked number parsing.
+#pragma once
+#include <cstdlib>
+#include <iostream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+namespace cleanmap::cli {
+
+class Args {
+ public:
+  Args(std::string prog, int argc, char** argv, int start = 1)
+      : prog_(std::move(prog)), argc_(argc), argv_(argv), i_(start) {}
+
+  bool done() const { return i_ >= argc_; }
+  /// The next argument.
+  std::string next() { return argv_[i_++]; }
+  /// The argument after `flag`; a usage error if there is none.
+  std::string value(const std::string& flag) {
+    if (done()) fail(flag + " needs a value");
+    return next();
+  }
+  /// An integer >= min (0 or 1 in practice) after `flag`.
+  long integer(const std::string& flag, long min = 0) {
+    const std::string v = value(flag);
+    try {
+      std::size_t used = 0;
+      const long x = std::stol(v, &used);
+      if (used == v.size() && x >= min) return x;
+    } catch (const std::exception&) {
+    }
+    fail(flag + " needs a " + (min == 1 ? std::string("positive") : min == 0 ? "non-negative" : ">= " + std::to_string(min)) +
+         " integer, got '" + v + "'");
+  }
+  /// A number >= 0 after `flag`.
+  double number(const std::string& flag) { return toNumber(flag, value(flag)); }
+  /// A comma-separated list of numbers >= 0 after `flag`.
+  std::vector<double> numbers(const std::string& flag) {
+    std::vector<double> out;
+    std::stringstream ss(value(flag));
+    for (std::string item; std::getline(ss, item, ',');) out.push_back(toNumber(flag, item));
+    if (out.empty()) fail(flag + " needs a comma-separated list");
+    return out;
+  }
+  [[noreturn]] void fail(const std::string& msg) const {
+    std::cerr << prog_ << ": " << msg << " (see --help)\n";
+    std::exit(2);
+  }
+  /// "unknown option" for a dash argument, "unexpected argument" otherwise.
+  [[noreturn]] void unexpected(const std::string& a) const {
+    fail(!a.empty() && a[0] == '-' ? "unknown option '" + a + "'" : "unexpected argument '" + a + "'");
+  }
+
+ private:
+  double toNumber(const std::string& flag, const std::string& v) const {
+    try {
+      std::size_t used = 0;
+      const double x = std::stod(v, &used);
+      if (used == v.size() && x >= 0) return x;
+    } catch (const std::exception&) {
+    }
+    fail(flag + " needs a non-negative number, got '" + v + "'");
+  }
+
+  std::string prog_;
+  int argc_;
+  char** argv_;
+  int i_;
+};
+
+}  // namespace cleanmap::cli

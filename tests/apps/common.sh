@@ -1,0 +1,14 @@
+# SPDX-License-Identifier: BSD-3-Clause
+# Shared by the app tests (sourced): failure counting and the one-line-error check.
+fails=0
+fail() { echo "FAIL: $*"; fails=$((fails + 1)); }
+
+# expect_error RC "<substring>" cmd...: exit code RC, stderr exactly one line holding the substring.
+expect_error() {
+  local want_rc=$1 want=$2; shift 2
+  local err rc
+  err=$("$@" 2>&1 >/dev/null); rc=$?
+  [[ $rc -eq $want_rc ]] || fail "'$*' exited $rc, expected $want_rc"
+  [[ $(printf '%s\n' "$err" | wc -l) -eq 1 ]] || fail "'$*' printed more than one line: $err"
+  [[ "$err" == *"$want"* ]] || fail "'$*' said '$err', expected '$want'"
+}
