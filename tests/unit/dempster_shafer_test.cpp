@@ -147,3 +147,19 @@ TEST(Decision, MajorityOfScansDecides) {
   EXPECT_FALSE(ds::isMoving(b));
   EXPECT_FALSE(ds::isMoving(Mass{}));  // no evidence: static
 }
+
+TEST(BeamModel, TailShortcutEqualsTheClosedForm) {
+  // Past 8.5 sigma the Phi factors are skipped; the masses equal the full closed forms.
+  const DsParams p;
+  const ds::BeamModel m(p);
+  for (double r = -5.0; r <= 5.0; r += 0.01) {
+    const double theta = 0.002;
+    const ds::Mass got = m.beam(r, theta);
+    const double f = std::exp(-theta * theta / (2 * p.lambda_theta * p.lambda_theta));
+    const double e = f * ds::Phi(-r / m.sigma);
+    const double o = std::exp(-r * r / (2 * m.s1)) / std::sqrt(m.s1) * ds::Phi(r / (m.sigma * std::sqrt(m.s1)));
+    EXPECT_NEAR(got.e, e, 1e-15) << r;
+    EXPECT_NEAR(got.o, o, 1e-15) << r;
+    EXPECT_NEAR(got.e + got.o + got.u, 1.0, 1e-15);
+  }
+}

@@ -2,6 +2,8 @@
 // The streaming pipeline on synthetic scenes with known truth, and its degenerate inputs.
 #include <gtest/gtest.h>
 
+#include <random>
+
 #include <cmath>
 #include <limits>
 
@@ -255,4 +257,32 @@ TEST(DuplicateFilter, RecentStaticPointsOnly) {
   EXPECT_FALSE(f.isDuplicate({1.05f, 2, 3}, 11));  // too old
   for (long s = 1; s <= 11; ++s) f.insert({}, s);
   EXPECT_EQ(f.size(), 0u);  // forgotten
+}
+
+TEST(DuplicateFilter, MatchesBruteForceOverAStreamOfScans) {
+  // Random points in a 2 m cube (negative coordinates included), 25 scans of 400 points: every
+  // query answers as a brute-force search over the points of scans [s - W, s) does.
+  FilterParams p;
+  DuplicateFilter f(p);
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> u(-1.f, 1.f);
+  std::vector<std::vector<Eigen::Vector3f>> scans;
+  std::size_t dup = 0, queries = 0;
+  for (long s = 0; s < 25; ++s) {
+    std::vector<Eigen::Vector3f> pts(400);
+    for (auto& q : pts) q = {u(rng), u(rng), 0.3f * u(rng)};
+    for (const auto& q : pts) {
+      bool brute = false;
+      for (long o = std::max(0L, s - p.dup_window); o < s; ++o)
+        for (const auto& r : scans[o]) brute |= (r - q).norm() <= float(p.dup_distance);
+      ASSERT_EQ(f.isDuplicate(q, s), brute) << "scan " << s;
+      dup += brute;
+      ++queries;
+    }
+    f.insert(pts, s);
+    scans.push_back(pts);
+    EXPECT_EQ(f.size(), std::min<std::size_t>(scans.size(), std::size_t(p.dup_window)) * 400u);
+  }
+  EXPECT_GT(dup, queries / 10);  // both answers exercised
+  EXPECT_LT(dup, queries);
 }

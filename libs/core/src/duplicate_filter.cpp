@@ -7,27 +7,29 @@
 namespace cleanmap {
 
 DuplicateFilter::DuplicateFilter(const FilterParams& p)
-    : p_(p), inv_(static_cast<float>(1.0 / p.dup_distance)) {}
+    : p_(p), inv_(static_cast<float>(0.5 / p.dup_distance)) {}
 
 DuplicateFilter::Key DuplicateFilter::key(int x, int y, int z) const {
   auto u = [](int v) { return static_cast<uint64_t>(static_cast<uint32_t>(v) & 0x1FFFFFu); };
   return (u(x) << 42) | (u(y) << 21) | u(z);
 }
 
-Eigen::Vector3i DuplicateFilter::cell(const Eigen::Vector3f& p) const {
-  return {static_cast<int>(std::floor(p.x() * inv_)), static_cast<int>(std::floor(p.y() * inv_)),
-          static_cast<int>(std::floor(p.z() * inv_))};
-}
-
 bool DuplicateFilter::isDuplicate(const Eigen::Vector3f& p, long scan) const {
   if (grid_.empty()) return false;
-  const Eigen::Vector3i c = cell(p);
+  // With cells of side 2d, the ball of radius d around p reaches one neighbour per axis: the one
+  // on the side of the cell's half that p lies in.
+  int lo[3];
+  for (int a = 0; a < 3; ++a) {
+    const float u = p[a] * inv_;
+    const float c = std::floor(u);
+    lo[a] = static_cast<int>(c) - (u - c < 0.5f ? 1 : 0);
+  }
   const float d2 = static_cast<float>(p_.dup_distance * p_.dup_distance);
   const long oldest = scan - p_.dup_window;
-  for (int dx = -1; dx <= 1; ++dx)
-    for (int dy = -1; dy <= 1; ++dy)
-      for (int dz = -1; dz <= 1; ++dz) {
-        const auto it = grid_.find(key(c.x() + dx, c.y() + dy, c.z() + dz));
+  for (int dx = 0; dx <= 1; ++dx)
+    for (int dy = 0; dy <= 1; ++dy)
+      for (int dz = 0; dz <= 1; ++dz) {
+        const auto it = grid_.find(key(lo[0] + dx, lo[1] + dy, lo[2] + dz));
         if (it == grid_.end()) continue;
         for (const Entry& e : it->second)
           if (e.scan >= oldest && e.scan < scan && (e.p - p).squaredNorm() <= d2) return true;
@@ -36,22 +38,34 @@ bool DuplicateFilter::isDuplicate(const Eigen::Vector3f& p, long scan) const {
 }
 
 void DuplicateFilter::insert(const std::vector<Eigen::Vector3f>& points, long scan) {
+  std::vector<Key> keys;
+  keys.reserve(points.size());
   for (const auto& p : points) {
-    const Eigen::Vector3i c = cell(p);
-    grid_[key(c.x(), c.y(), c.z())].push_back({p, scan});
+    const Key k = key(static_cast<int>(std::floor(p.x() * inv_)), static_cast<int>(std::floor(p.y() * inv_)),
+                      static_cast<int>(std::floor(p.z() * inv_)));
+    grid_[k].push_back({p, static_cast<int32_t>(scan)});
+    keys.push_back(k);
   }
+  std::sort(keys.begin(), keys.end());
+  keys.erase(std::unique(keys.begin(), keys.end()), keys.end());
+  touched_.emplace_back(scan, std::move(keys));
   count_ += points.size();
   prune(scan + 1 - p_.dup_window);
 }
 
 void DuplicateFilter::prune(long oldest) {
-  for (auto it = grid_.begin(); it != grid_.end();) {
-    auto& v = it->second;
-    const std::size_t before = v.size();
-    v.erase(std::remove_if(v.begin(), v.end(), [&](const Entry& e) { return e.scan < oldest; }),
-            v.end());
-    count_ -= before - v.size();
-    it = v.empty() ? grid_.erase(it) : std::next(it);
+  // Only the cells the expiring scans filled can hold expired entries: O(expired points).
+  while (!touched_.empty() && touched_.front().first < oldest) {
+    for (const Key k : touched_.front().second) {
+      const auto it = grid_.find(k);
+      if (it == grid_.end()) continue;
+      auto& v = it->second;
+      const auto keep = std::find_if(v.begin(), v.end(), [&](const Entry& e) { return e.scan >= oldest; });
+      count_ -= static_cast<std::size_t>(keep - v.begin());
+      v.erase(v.begin(), keep);
+      if (v.empty()) grid_.erase(it);
+    }
+    touched_.pop_front();
   }
 }
 

@@ -28,7 +28,7 @@ ds::Mass MovingTest::scanMass(const Eigen::Vector3d& p_world, const WindowScan& 
     if (theta2 > r2max || dir.dot(q.dir) <= 0.0f) return;
     const double r = d * std::sqrt(1.0 - theta2) - static_cast<double>(q.range);  // |OP'| - |OQ|
     if (r > r_far_) return;  // far behind the hit: unknown, the identity of Dempster's rule
-    m = ds::combine(m, model_.beam(r, std::sqrt(theta2)), &conflict);
+    m = ds::combine(m, model_.beamFromTheta2(r, theta2), &conflict);
   });
   if (conflict && stats) ++stats->total_conflicts;
   return m;

@@ -27,11 +27,23 @@ struct BeamModel {
   /// with the Gaussian-convolved closed forms:
   ///   e' = f_theta * Phi(-r / sigma)
   ///   o' = exp(-r^2 / (2 (1 + sigma^2))) / sqrt(1 + sigma^2) * Phi(r / (sigma sqrt(1 + sigma^2)))
-  Mass beam(double r, double theta) const {
-    const double f_theta = std::exp(-theta * theta * inv_two_lambda2);
+  Mass beam(double r, double theta) const { return beamFromTheta2(r, theta * theta); }
+
+  /// The same with theta^2 given. Past |r| > 8.5 sigma the Phi factors are 0 or 1 to below
+  /// 1e-16 and are not evaluated (most beams of a window pass far in front of or behind P).
+  Mass beamFromTheta2(double r, double theta2) const {
+    constexpr double kTail = 8.5;
+    const double f_theta = std::exp(-theta2 * inv_two_lambda2);
+    const double z = r / sigma;
     Mass m;
-    m.e = f_theta * Phi(-r / sigma);
-    m.o = std::exp(-r * r / (2.0 * s1)) * inv_sqrt_s1 * Phi(r * inv_sqrt_s1 / sigma);
+    if (z < -kTail) {
+      m.e = f_theta;
+    } else if (z > kTail) {
+      m.o = std::exp(-r * r / (2.0 * s1)) * inv_sqrt_s1;
+    } else {
+      m.e = f_theta * Phi(-z);
+      m.o = std::exp(-r * r / (2.0 * s1)) * inv_sqrt_s1 * Phi(z * inv_sqrt_s1);
+    }
     m.u = 1.0 - m.e - m.o;
     return m;
   }
