@@ -163,3 +163,16 @@ TEST(BeamModel, TailShortcutEqualsTheClosedForm) {
     EXPECT_NEAR(got.e + got.o + got.u, 1.0, 1e-15);
   }
 }
+
+TEST(BeamModel, SinglePrecisionPathAgreesWithTheClosedForm) {
+  const DsParams p;
+  const ds::BeamModel m(p);
+  for (double r = -5.0; r <= 5.0; r += 0.0037)
+    for (const double theta : {0.0, 0.003, 0.009}) {
+      const ds::Mass a = m.beam(r, theta);
+      const ds::Mass b = m.beamFloat(static_cast<float>(r), static_cast<float>(theta * theta));
+      EXPECT_NEAR(a.e, b.e, 2e-6) << r;
+      EXPECT_NEAR(a.o, b.o, 2e-6) << r;
+      EXPECT_NEAR(b.e + b.o + b.u, 1.0, 1e-12);
+    }
+}

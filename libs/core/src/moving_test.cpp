@@ -19,16 +19,16 @@ ds::Mass MovingTest::scanMass(const Eigen::Vector3d& p_world, const WindowScan& 
   ds::Mass m;
   if (d < 1e-3 || !s.beams) return m;
   const Eigen::Vector3f dir = (pl / d).cast<float>();
-  const double r2max = radius_ * radius_;
+  const float r2max = static_cast<float>(radius_ * radius_);
+  const float df = static_cast<float>(d), r_far = static_cast<float>(r_far_);
   bool conflict = false;
   s.beams->forEachNear(dir, radius_, [&](const BeamIndex::Beam& q) {
     // Small angles: theta = |a x b| to float precision (a dot product would lose it).
-    const double sin_t = static_cast<double>(dir.cross(q.dir).norm());
-    const double theta2 = sin_t * sin_t;
+    const float theta2 = dir.cross(q.dir).squaredNorm();
     if (theta2 > r2max || dir.dot(q.dir) <= 0.0f) return;
-    const double r = d * std::sqrt(1.0 - theta2) - static_cast<double>(q.range);  // |OP'| - |OQ|
-    if (r > r_far_) return;  // far behind the hit: unknown, the identity of Dempster's rule
-    m = ds::combine(m, model_.beamFromTheta2(r, theta2), &conflict);
+    const float r = df * std::sqrt(1.0f - theta2) - q.range;  // |OP'| - |OQ|
+    if (r > r_far) return;  // far behind the hit: unknown, the identity of Dempster's rule
+    m = ds::combine(m, model_.beamFloat(r, theta2), &conflict);
   });
   if (conflict && stats) ++stats->total_conflicts;
   return m;

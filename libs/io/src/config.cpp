@@ -45,6 +45,14 @@ std::map<std::string, Key> table(PipelineParams& p) {
       {"octree.leaf", d(p.octree.leaf)},
       {"octree.tau_np", i(p.octree.tau_np)},
       {"octree.fraction", d(p.octree.fraction)},
+      {"object.enabled", Key{[&p](double v) { p.object.enabled = v != 0; },
+                             [&p] { return p.object.enabled ? 1.0 : 0.0; }, true}},
+      {"object.voxel", d(p.object.voxel)},
+      {"object.moving_fraction", d(p.object.moving_fraction)},
+      {"object.static_fraction", d(p.object.static_fraction)},
+      {"object.min_moving", i(p.object.min_moving)},
+      {"object.max_length", d(p.object.max_length)},
+      {"object.max_height", d(p.object.max_height)},
       {"run.seed", Key{[&p](double v) { p.seed = static_cast<uint64_t>(v); },
                        [&p] { return double(p.seed); }, true}},
       {"run.threads", i(p.threads)},
@@ -140,6 +148,12 @@ void validate(const PipelineParams& p, const std::string& name) {
   require(p.octree.leaf > 0, "octree.leaf must be > 0");
   require(p.octree.tau_np >= 1, "octree.tau_np must be >= 1");
   require(p.octree.fraction > 0 && p.octree.fraction <= 1, "octree.fraction must be in (0, 1]");
+  require(p.object.voxel > 0, "object.voxel must be > 0");
+  require(0 <= p.object.static_fraction && p.object.static_fraction <= p.object.moving_fraction &&
+              p.object.moving_fraction <= 1,
+          "need 0 <= object.static_fraction <= object.moving_fraction <= 1");
+  require(p.object.min_moving >= 1, "object.min_moving must be >= 1");
+  require(p.object.max_length > 0 && p.object.max_height > 0, "object.max_length and max_height must be > 0");
   require(p.threads >= 1, "run.threads must be >= 1");
 }
 

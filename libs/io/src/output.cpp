@@ -81,7 +81,7 @@ void OutputWriter::finish(double wall_s) {
   writeFileAtomic(dir_ + "/params.ini", [&](std::ostream& os) { os << toIni(params_); });
 
   ScanStats total;
-  std::vector<double> t_total, t_index, t_ground, t_dup, t_oct, t_cls;
+  std::vector<double> t_total, t_index, t_ground, t_dup, t_oct, t_cls, t_obj;
   std::size_t empty = 0;
   for (const auto& s : stats_) {
     total.points += s.points;
@@ -95,6 +95,9 @@ void OutputWriter::finish(double wall_s) {
     total.static_points += s.static_points;
     total.total_conflicts += s.total_conflicts;
     total.no_evidence += s.no_evidence;
+    total.objects_moving += s.objects_moving;
+    total.consensus_points += s.consensus_points;
+    total.consensus_removed += s.consensus_removed;
     empty += s.empty;
     t_total.push_back(s.ms.total);
     t_index.push_back(s.ms.index);
@@ -102,6 +105,7 @@ void OutputWriter::finish(double wall_s) {
     t_dup.push_back(s.ms.duplicates);
     t_oct.push_back(s.ms.octree);
     t_cls.push_back(s.ms.classify);
+    t_obj.push_back(s.ms.objects);
   }
   nlohmann::json j;
   j["input"] = input_;
@@ -112,13 +116,16 @@ void OutputWriter::finish(double wall_s) {
                  {"candidates", total.candidates}, {"tested", total.tested},
                  {"moving", total.moving},       {"static", total.static_points},
                  {"total_conflicts", total.total_conflicts},
+                 {"objects_turned_moving", total.objects_moving},
+                 {"consensus_points_added", total.consensus_points},
+                 {"consensus_points_removed", total.consensus_removed},
                  {"no_evidence_points", total.no_evidence},
                  {"static_map_points", compact_->count()},
                  {"static_map_full_points", full_->count()}, {"dynamic_points", moving_->count()}};
   nlohmann::json timing;
   const std::pair<const char*, std::vector<double>*> stages[] = {
       {"total", &t_total}, {"beam_index", &t_index}, {"crop_ground", &t_ground},
-      {"duplicates", &t_dup}, {"octree", &t_oct}, {"classify", &t_cls}};
+      {"duplicates", &t_dup}, {"octree", &t_oct}, {"classify", &t_cls}, {"objects", &t_obj}};
   for (const auto& [name, v] : stages) {
     const Spread s = spread(*v);
     timing[name] = {{"median_ms", s.median}, {"p95_ms", s.p95}, {"mean_ms", s.mean}};

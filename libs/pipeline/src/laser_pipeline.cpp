@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: BSD-3-Clause
 #include "cleanmap/pipeline/laser_pipeline.h"
 
+#include "cleanmap/core/object_consensus.h"
+
 #include <chrono>
 #include <cmath>
 #include <thread>
@@ -48,6 +50,7 @@ StageTimes& StageTimes::operator+=(const StageTimes& o) {
   duplicates += o.duplicates;
   octree += o.octree;
   classify += o.classify;
+  objects += o.objects;
   total += o.total;
   return *this;
 }
@@ -200,6 +203,17 @@ void LaserPipeline::decide(std::size_t pos) {
     for (uint32_t c : leaf.tested) mv += moving_tested[c];
     if (leafIsMoving(mv, leaf.tested.size()))
       for (uint32_t c : leaf.members) moving[cand[c]] = 1;
+  }
+  // Object consensus (doc/OBJECTS.md): duplicates included, they belong to the same objects.
+  {
+    t0 = Clock::now();
+    std::vector<uint8_t> member(pts.size(), 0);
+    for (uint32_t i = 0; i < pts.size(); ++i) member[i] = s.in_crop[i] && !s.ground[i];
+    const auto oc = objectConsensus(pts, member, moving, p_.object);
+    st.objects_moving = oc.moving_objects;
+    st.consensus_points = oc.points_added;
+    st.consensus_removed = oc.points_removed;
+    st.ms.objects = msSince(t0);
   }
   std::vector<Eigen::Vector3f> inserted;
   for (uint32_t i = 0; i < pts.size(); ++i) {

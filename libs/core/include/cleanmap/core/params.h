@@ -44,11 +44,24 @@ struct OctreeParams {
   double fraction = 1.0 / 6.0;  ///< share of a dense leaf that is tested
 };
 
+/// Object consensus (our addition to the paper, doc/OBJECTS.md): non-ground points are grouped
+/// into connected objects; a rigid object whose points are partly moving is moving as a whole.
+struct ObjectParams {
+  bool enabled = true;
+  double voxel = 0.3;           ///< m; connectivity cell (26-neighbours)
+  double moving_fraction = 0.2; ///< an object with at least this share of moving points moves
+  int min_moving = 20;          ///< ... and at least this many moving points
+  double static_fraction = 0.1; ///< an object with a smaller share of moving points is static
+  double max_length = 25.0;     ///< m; larger horizontal extents are structures, left alone
+  double max_height = 5.0;      ///< m; taller objects are structures, left alone
+};
+
 struct PipelineParams {
   FilterParams filter;
   GroundParams ground;
   DsParams ds;
   OctreeParams octree;
+  ObjectParams object;
   uint64_t seed = 42;  ///< octree sampling; a run is reproducible bit for bit
   int threads = 2;     ///< worker threads for the moving-point test (1 = serial)
 };

@@ -19,7 +19,7 @@ namespace cleanmap {
 
 /// Per-stage wall time of one scan, milliseconds.
 struct StageTimes {
-  double index = 0, ground = 0, duplicates = 0, octree = 0, classify = 0, total = 0;
+  double index = 0, ground = 0, duplicates = 0, octree = 0, classify = 0, objects = 0, total = 0;
   StageTimes& operator+=(const StageTimes& o);
 };
 
@@ -30,6 +30,7 @@ struct ScanStats {
   std::size_t moving = 0, static_points = 0;
   std::size_t window = 0;         ///< scans in the window
   std::size_t total_conflicts = 0, no_evidence = 0;
+  std::size_t objects_moving = 0, consensus_points = 0, consensus_removed = 0;  ///< doc/OBJECTS.md
   bool empty = false;
   StageTimes ms;
 };

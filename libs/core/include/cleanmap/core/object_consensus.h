@@ -1,0 +1,28 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Object consensus (our addition, doc/OBJECTS.md): the per-point test of SPEC §2b sees only the
+// parts of a vehicle whose space becomes empty in other scans; a long vehicle moving along its
+// own length keeps its sides occupied. A rigid object moves as a whole: if enough of a connected,
+// vehicle-sized group of non-ground points is moving, all of it is.
+#pragma once
+#include <cstdint>
+#include <vector>
+
+#include "cleanmap/core/params.h"
+#include "cleanmap/core/types.h"
+
+namespace cleanmap {
+
+struct ObjectConsensusStats {
+  std::size_t objects = 0;         ///< connected groups of non-ground points
+  std::size_t moving_objects = 0;  ///< groups turned moving as a whole
+  std::size_t points_added = 0;    ///< points turned moving by the consensus
+  std::size_t points_removed = 0;  ///< moving points turned static (a few in a static object)
+};
+
+/// Groups `points[i]` with `member[i]` (in crop, not ground) into 26-connected voxel components
+/// and sets `moving[i]` = 1 for every point of a component that passes the rule of `p`.
+/// Deterministic; O(points).
+ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points, const std::vector<uint8_t>& member,
+                                     std::vector<uint8_t>& moving, const ObjectParams& p);
+
+}  // namespace cleanmap

@@ -1,0 +1,133 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#include "cleanmap/core/object_consensus.h"
+
+#include <Eigen/Core>
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <unordered_map>
+
+namespace cleanmap {
+namespace {
+
+struct UnionFind {
+  std::vector<uint32_t> parent;
+  explicit UnionFind(std::size_t n) : parent(n) { std::iota(parent.begin(), parent.end(), 0u); }
+  uint32_t find(uint32_t x) {
+    while (parent[x] != x) x = parent[x] = parent[parent[x]];
+    return x;
+  }
+  void unite(uint32_t a, uint32_t b) {
+    a = find(a), b = find(b);
+    if (a != b) parent[std::max(a, b)] = std::min(a, b);
+  }
+};
+
+uint64_t voxelKey(int x, int y, int z) {
+  auto u = [](int v) { return static_cast<uint64_t>(static_cast<uint32_t>(v) & 0x1FFFFFu); };
+  return (u(x) << 42) | (u(y) << 21) | u(z);
+}
+
+}  // namespace
+
+ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points, const std::vector<uint8_t>& member,
+                                     std::vector<uint8_t>& moving, const ObjectParams& p) {
+  ObjectConsensusStats st;
+  if (!p.enabled) return st;
+  const float inv = static_cast<float>(1.0 / p.voxel);
+  // Voxels of the member points.
+  std::unordered_map<uint64_t, uint32_t> voxel_of;
+  std::vector<Eigen::Vector3i> voxels;
+  std::vector<uint32_t> point_voxel(points.size(), UINT32_MAX);
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    if (!member[i]) continue;
+    const Eigen::Vector3i c(static_cast<int>(std::floor(points[i].x * inv)), static_cast<int>(std::floor(points[i].y * inv)),
+                            static_cast<int>(std::floor(points[i].z * inv)));
+    const auto [it, fresh] = voxel_of.emplace(voxelKey(c.x(), c.y(), c.z()), static_cast<uint32_t>(voxels.size()));
+    if (fresh) voxels.push_back(c);
+    point_voxel[i] = it->second;
+  }
+  // 26-connected components of the voxels.
+  UnionFind uf(voxels.size());
+  for (uint32_t v = 0; v < voxels.size(); ++v) {
+    const Eigen::Vector3i& c = voxels[v];
+    for (int dx = -1; dx <= 1; ++dx)
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dz = -1; dz <= 1; ++dz) {
+          if (dx == 0 && dy == 0 && dz == 0) continue;
+          const auto it = voxel_of.find(voxelKey(c.x() + dx, c.y() + dy, c.z() + dz));
+          if (it != voxel_of.end() && it->second < v) uf.unite(v, it->second);
+        }
+  }
+  // Per component: point counts and extent.
+  struct Comp {
+    std::size_t n = 0, moving = 0;
+    Eigen::Vector3f lo = Eigen::Vector3f::Constant(1e30f), hi = Eigen::Vector3f::Constant(-1e30f);
+  };
+  std::vector<Comp> comps(voxels.size());
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    if (point_voxel[i] == UINT32_MAX) continue;
+    Comp& c = comps[uf.find(point_voxel[i])];
+    ++c.n;
+    c.moving += moving[i] != 0;
+    c.lo = c.lo.cwiseMin(points[i].xyz());
+    c.hi = c.hi.cwiseMax(points[i].xyz());
+  }
+  std::vector<uint8_t> turn(voxels.size(), 0);  // 1: all moving, 2: all static
+  for (uint32_t v = 0; v < voxels.size(); ++v) {
+    const Comp& c = comps[v];
+    if (c.n == 0) continue;
+    ++st.objects;
+    const Eigen::Vector3f ext = c.hi - c.lo;
+    const bool vehicle_sized = ext.head<2>().norm() <= p.max_length && ext.z() <= p.max_height;
+    if (vehicle_sized && static_cast<int>(c.moving) >= p.min_moving &&
+        static_cast<double>(c.moving) >= p.moving_fraction * static_cast<double>(c.n) && c.moving < c.n) {
+      turn[v] = 1;
+      ++st.moving_objects;
+    } else if (vehicle_sized && c.moving > 0 &&
+               (static_cast<int>(c.moving) < p.min_moving ||
+                static_cast<double>(c.moving) < p.static_fraction * static_cast<double>(c.n))) {
+      turn[v] = 2;
+    }
+  }
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    if (point_voxel[i] == UINT32_MAX) continue;
+    const uint8_t t = turn[uf.find(point_voxel[i])];
+    if (t == 1 && !moving[i]) {
+      moving[i] = 1;
+      ++st.points_added;
+    } else if (t == 2 && moving[i]) {
+      moving[i] = 0;
+      ++st.points_removed;
+    }
+  }
+  // Inside structures (too large for the rule above), moving points count only in groups: a
+  // connected group of moving points smaller than min_moving is static.
+  UnionFind muf(voxels.size());
+  std::vector<uint32_t> moving_in(voxels.size(), 0);
+  for (std::size_t i = 0; i < points.size(); ++i)
+    if (point_voxel[i] != UINT32_MAX && moving[i]) ++moving_in[point_voxel[i]];
+  for (uint32_t v = 0; v < voxels.size(); ++v) {
+    if (!moving_in[v]) continue;
+    const Eigen::Vector3i& c = voxels[v];
+    for (int dx = -1; dx <= 1; ++dx)
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dz = -1; dz <= 1; ++dz) {
+          const auto it = voxel_of.find(voxelKey(c.x() + dx, c.y() + dy, c.z() + dz));
+          if (it != voxel_of.end() && it->second < v && moving_in[it->second]) muf.unite(v, it->second);
+        }
+  }
+  std::vector<uint32_t> group(voxels.size(), 0);
+  for (uint32_t v = 0; v < voxels.size(); ++v)
+    if (moving_in[v]) group[muf.find(v)] += moving_in[v];
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    if (point_voxel[i] == UINT32_MAX || !moving[i]) continue;
+    if (static_cast<int>(group[muf.find(point_voxel[i])]) < p.min_moving) {
+      moving[i] = 0;
+      ++st.points_removed;
+    }
+  }
+  return st;
+}
+
+}  // namespace cleanmap

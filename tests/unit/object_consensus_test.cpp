@@ -1,0 +1,97 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Object consensus (doc/OBJECTS.md) on hand-made point sets with a known answer.
+#include <gtest/gtest.h>
+
+#include "cleanmap/core/object_consensus.h"
+
+using namespace cleanmap;
+
+namespace {
+
+// A box surface sampled every `step` metres on its four sides (x from x0 to x1, y from y0 to y1,
+// z from 0 to h).
+void addBox(std::vector<PointXYZI>& pts, float x0, float x1, float y0, float y1, float h, float step = 0.1f) {
+  for (float z = 0; z <= h; z += step) {
+    for (float x = x0; x <= x1; x += step) {
+      pts.push_back({x, y0, z, 0});
+      pts.push_back({x, y1, z, 0});
+    }
+    for (float y = y0 + step; y < y1; y += step) {
+      pts.push_back({x0, y, z, 0});
+      pts.push_back({x1, y, z, 0});
+    }
+  }
+}
+
+}  // namespace
+
+TEST(ObjectConsensus, LongVehicleWithMovingEndsMovesAsAWhole) {
+  // A 16 m truck whose leading and trailing 2 m tested moving (the per-point test's view of a
+  // vehicle moving along its length): the whole truck is moving.
+  std::vector<PointXYZI> pts;
+  addBox(pts, 0, 16, 2, 4.5f, 3.5f);
+  std::vector<uint8_t> member(pts.size(), 1), moving(pts.size(), 0);
+  std::size_t ends = 0;
+  for (std::size_t i = 0; i < pts.size(); ++i)
+    if (pts[i].x < 2.5f || pts[i].x > 13.5f) moving[i] = 1, ++ends;
+  ASSERT_GT(double(ends) / double(pts.size()), 0.2);
+  const auto st = objectConsensus(pts, member, moving, ObjectParams{});
+  EXPECT_EQ(st.moving_objects, 1u);
+  for (uint8_t m : moving) ASSERT_EQ(m, 1);
+}
+
+TEST(ObjectConsensus, AFewFalseAlarmsOnAParkedCarAreDropped) {
+  std::vector<PointXYZI> pts;
+  addBox(pts, 0, 4.5f, -1, 1, 1.5f);
+  std::vector<uint8_t> member(pts.size(), 1), moving(pts.size(), 0);
+  for (std::size_t i = 0; i < pts.size(); i += 20) moving[i] = 1;  // 5 %
+  objectConsensus(pts, member, moving, ObjectParams{});
+  for (uint8_t m : moving) ASSERT_EQ(m, 0);
+}
+
+TEST(ObjectConsensus, PedestrianBesideAWallKeepsItsLabels) {
+  // A 40 m wall (a structure: the object rules do not apply) with a pedestrian 5 cm in front of
+  // it, moving, and a few scattered false alarms on the wall: the pedestrian stays moving, the
+  // isolated alarms go.
+  std::vector<PointXYZI> pts;
+  addBox(pts, 0, 40, -0.3f, 0, 3);
+  const std::size_t wall = pts.size();
+  addBox(pts, 10, 10.5f, 0.05f, 0.65f, 1.7f, 0.05f);
+  std::vector<uint8_t> member(pts.size(), 1), moving(pts.size(), 0);
+  for (std::size_t i = wall; i < pts.size(); ++i) moving[i] = 1;
+  for (std::size_t i = 0; i < wall; i += 997) moving[i] = 1;  // isolated single points
+  objectConsensus(pts, member, moving, ObjectParams{});
+  for (std::size_t i = wall; i < pts.size(); ++i) ASSERT_EQ(moving[i], 1);
+  std::size_t wall_moving = 0;
+  for (std::size_t i = 0; i < wall; ++i) wall_moving += moving[i];
+  EXPECT_EQ(wall_moving, 0u);
+}
+
+TEST(ObjectConsensus, SeparateObjectsDoNotInfectEachOther) {
+  // Two cars 1 m apart: one moving, one parked. Only the moving one is moving.
+  std::vector<PointXYZI> pts;
+  addBox(pts, 0, 4.5f, 0, 1.8f, 1.5f);
+  const std::size_t first = pts.size();
+  addBox(pts, 5.5f, 10, 0, 1.8f, 1.5f);
+  std::vector<uint8_t> member(pts.size(), 1), moving(pts.size(), 0);
+  for (std::size_t i = 0; i < first; i += 2) moving[i] = 1;  // 50 % of the first car
+  objectConsensus(pts, member, moving, ObjectParams{});
+  for (std::size_t i = 0; i < first; ++i) ASSERT_EQ(moving[i], 1);
+  for (std::size_t i = first; i < pts.size(); ++i) ASSERT_EQ(moving[i], 0);
+}
+
+TEST(ObjectConsensus, DisabledOrNonMembersUnchanged) {
+  std::vector<PointXYZI> pts;
+  addBox(pts, 0, 4.5f, 0, 1.8f, 1.5f);
+  std::vector<uint8_t> member(pts.size(), 1), moving(pts.size(), 0);
+  for (std::size_t i = 0; i < pts.size(); i += 2) moving[i] = 1;
+  const auto before = moving;
+  ObjectParams off;
+  off.enabled = false;
+  objectConsensus(pts, member, moving, off);
+  EXPECT_EQ(moving, before);
+  std::fill(member.begin(), member.end(), 0);  // e.g. all ground
+  objectConsensus(pts, member, moving, ObjectParams{});
+  EXPECT_EQ(moving, before);
+  EXPECT_EQ(objectConsensus({}, {}, moving, ObjectParams{}).objects, 0u);
+}
