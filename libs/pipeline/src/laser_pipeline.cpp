@@ -3,6 +3,7 @@
 
 #include "cleanmap/core/object_consensus.h"
 
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <thread>
@@ -28,11 +29,17 @@ void parallelFor(std::size_t n, int threads, F&& f) {
     for (std::size_t i = 0; i < n; ++i) f(i);
     return;
   }
+  // Chunks handed out from a counter: balanced load, no two threads writing the same cache line
+  // (each index's result does not depend on which thread computes it).
+  constexpr std::size_t kChunk = 512;
+  std::atomic<std::size_t> next{0};
+  auto work = [&] {
+    for (std::size_t b; (b = next.fetch_add(kChunk)) < n;)
+      for (std::size_t i = b; i < std::min(n, b + kChunk); ++i) f(i);
+  };
   std::vector<std::thread> pool;
-  for (std::size_t w = 0; w < t; ++w)
-    pool.emplace_back([&, w] {
-      for (std::size_t i = w; i < n; i += t) f(i);
-    });
+  for (std::size_t w = 1; w < t; ++w) pool.emplace_back(work);
+  work();
   for (auto& th : pool) th.join();
 }
 
@@ -153,16 +160,18 @@ void LaserPipeline::decide(std::size_t pos) {
   std::vector<uint32_t> cand;
   std::vector<Eigen::Vector3d> cand_world;
   std::vector<uint8_t> duplicate(pts.size(), 0);
+  parallelFor(pts.size(), p_.threads, [&](std::size_t i) {  // read-only queries
+    if (s.in_crop[i] && !s.ground[i])
+      duplicate[i] = dup_.isDuplicate((s.scan.pose * pts[i].xyz().cast<double>()).cast<float>(), k);
+  });
   for (uint32_t i = 0; i < pts.size(); ++i) {
     if (!s.in_crop[i] || s.ground[i]) continue;
-    const Eigen::Vector3d w = s.scan.pose * pts[i].xyz().cast<double>();
-    if (dup_.isDuplicate(w.cast<float>(), k)) {
-      duplicate[i] = 1;
+    if (duplicate[i]) {
       ++st.duplicates;
       continue;
     }
     cand.push_back(i);
-    cand_world.push_back(w);
+    cand_world.push_back(s.scan.pose * pts[i].xyz().cast<double>());
   }
   st.candidates = cand.size();
   st.ms.duplicates = msSince(t0);
