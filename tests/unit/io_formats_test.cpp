@@ -78,6 +78,8 @@ TEST(Config, BadIniIsAClearError) {
                     "needs an integer");
   test::expectError([&] { io::parseParams("[ds]\nr_sup = 0.5\n", "x.ini", p); }, "x.ini",
                     "r_inf <= ds.r_sup");
+  test::expectError([] { PipelineParams q; io::parseParams("[ds]\nscan_conflict = 0\n", "x.ini", q); }, "x.ini",
+                    "ds.scan_conflict must be in (0, 1]");
   test::expectError([&] { io::loadParams("/nonexistent.ini", p); }, "/nonexistent.ini",
                     "does not exist");
 }

@@ -231,6 +231,75 @@ TEST(MovingTest, PointInFrontOfAHitIsEmptyBehindIsNot) {
   EXPECT_FALSE(t.isMoving({5, 0.3, 5.0}, w, nullptr));   // no beam went there
 }
 
+namespace {
+// Beams of a scan at the origin on a 0.002 rad grid around +x; `hit(y, z)` at x = 10 says
+// whether the beam returns there (a hedge) or passes to a wall at x = 20.
+template <class Hit>
+std::vector<PointXYZI> hedgeScan(Hit hit) {
+  std::vector<PointXYZI> pts;
+  for (int iy = -100; iy <= 100; ++iy)
+    for (int iz = -50; iz <= 50; ++iz) {
+      const double ay = 0.002 * iy, az = 0.002 * iz;
+      const double x = hit(iy, iz) ? 10.0 : 20.0;
+      pts.push_back({float(x), float(x * std::tan(ay)), float(x * std::tan(az)), 0});
+    }
+  return pts;
+}
+}  // namespace
+
+TEST(MovingTest, PorousSurfaceDoesNotVoteEmpty) {
+  // doc/SCAN_CONFLICT.md: foliage. A third of the beams return from the hedge at x = 10, the rest
+  // pass through it. A point of the hedge seen by another scan gets strong empty masses from the
+  // beams beside it and strong occupied masses from the beams that hit; the paper's rule lets
+  // Dempster's normalisation pick empty, our scan-conflict rule makes the vote unknown.
+  const auto scan = hedgeScan([](int iy, int iz) { return (iy + 2 * iz) % 3 == 0; });
+  DsParams paper;
+  paper.scan_conflict = 1.0;
+  const DsParams ours;
+  const BeamIndex idx(scan, ours.search_lambdas * ours.lambda_theta);
+  const std::vector<WindowScan> w = {{&idx, Eigen::Isometry3d::Identity()}};
+  const Eigen::Vector3d p(10.0, 10.0 * std::tan(0.003), 10.0 * std::tan(0.001));  // between beams
+  MovingTestStats st_paper, st_ours;
+  EXPECT_TRUE(MovingTest(paper).isMoving(p, w, &st_paper));
+  EXPECT_FALSE(MovingTest(ours).isMoving(p, w, &st_ours));
+  EXPECT_EQ(st_paper.conflicting_scans, 0u);
+  EXPECT_EQ(st_ours.conflicting_scans, 1u);
+  double d = 0;
+  const ds::Mass m = MovingTest(ours).scanMass(p, w[0], &d, nullptr);
+  EXPECT_DOUBLE_EQ(m.u, 1.0);
+}
+
+TEST(MovingTest, VacatedSpaceStillVotesEmpty) {
+  // The same place with every beam passing (the object has left): empty under both rules, so the
+  // rule costs nothing where the scan agrees with itself.
+  const auto scan = hedgeScan([](int, int) { return false; });
+  const DsParams ours;
+  const BeamIndex idx(scan, ours.search_lambdas * ours.lambda_theta);
+  const std::vector<WindowScan> w = {{&idx, Eigen::Isometry3d::Identity()}};
+  MovingTestStats st;
+  EXPECT_TRUE(MovingTest(ours).isMoving({10.0, 0.03, 0.01}, w, &st));
+  EXPECT_EQ(st.conflicting_scans, 0u);
+  // And a solid surface there stays occupied.
+  const auto solid = hedgeScan([](int, int) { return true; });
+  const BeamIndex idx2(solid, ours.search_lambdas * ours.lambda_theta);
+  EXPECT_FALSE(MovingTest(ours).isMoving({10.0, 0.03, 0.01}, {{&idx2, Eigen::Isometry3d::Identity()}},
+                                         nullptr));
+}
+
+TEST(MovingTest, ThinPoleWithRegistrationErrorStaysStatic) {
+  // A 12 cm pole at x = 10 m; another scan measured a point of its edge 4 cm off to the side
+  // (a pose error along the track). Some beams near that direction hit the pole, others pass it.
+  const auto scan = hedgeScan([](int iy, int) { return std::abs(0.02 * iy) <= 0.06; });
+  DsParams paper;
+  paper.scan_conflict = 1.0;
+  const DsParams ours;
+  const BeamIndex idx(scan, ours.search_lambdas * ours.lambda_theta);
+  const std::vector<WindowScan> w = {{&idx, Eigen::Isometry3d::Identity()}};
+  const Eigen::Vector3d p(10.0, 0.06 + 0.04, 0.0);
+  EXPECT_TRUE(MovingTest(paper).isMoving(p, w, nullptr));
+  EXPECT_FALSE(MovingTest(ours).isMoving(p, w, nullptr));
+}
+
 TEST(OctreeSampling, DenseLeavesTestASixthDeterministically) {
   std::vector<Eigen::Vector3d> pts;
   for (int i = 0; i < 60; ++i) pts.emplace_back(0.05 + 0.003 * i, 0.1, 0.1);  // one leaf

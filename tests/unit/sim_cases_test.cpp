@@ -86,7 +86,7 @@ TEST(SimCases, CarThatStopsAndStartsAgain) {
 
 TEST(SimCases, PedestrianWalkingAlongAWall) {
   const auto r = runCase(scenario("pedestrian_wall"));
-  EXPECT_GE(r.per_mover.at("walker").recall(), 0.80);  // measured 0.86
+  EXPECT_GE(r.per_mover.at("walker").recall(), 0.80);  // measured 0.84 (0.86 without scan_conflict)
   EXPECT_GE(r.all.precision(), 0.95);  // the wall behind must stay static
 }
 

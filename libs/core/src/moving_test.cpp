@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: BSD-3-Clause
 #include "cleanmap/core/moving_test.h"
 
+#include <algorithm>
 #include <cmath>
 
 namespace cleanmap {
@@ -22,14 +23,28 @@ ds::Mass MovingTest::scanMass(const Eigen::Vector3d& p_world, const WindowScan& 
   const float r2max = static_cast<float>(radius_ * radius_);
   const float df = static_cast<float>(d), r_far = static_cast<float>(r_far_);
   bool conflict = false;
+  float e_max = 0.0f, o_max = 0.0f;  // the scan's most-empty beam, most-occupied return at P
+  const float band = static_cast<float>(2.0 * model_.sigma);  // not an occluder in front of P
   s.beams->forEachNear(dir, radius_, [&](const BeamIndex::Beam& q) {
     // Small angles: theta = |a x b| to float precision (a dot product would lose it).
     const float theta2 = dir.cross(q.dir).squaredNorm();
     if (theta2 > r2max || dir.dot(q.dir) <= 0.0f) return;
     const float r = df * std::sqrt(1.0f - theta2) - q.range;  // |OP'| - |OQ|
     if (r > r_far) return;  // far behind the hit: unknown, the identity of Dempster's rule
-    m = ds::combine(m, model_.beamFloat(r, theta2), &conflict);
+    const ds::Mass b = model_.beamFloat(r, theta2);
+    e_max = std::max(e_max, static_cast<float>(b.e));
+    if (r <= band) o_max = std::max(o_max, static_cast<float>(b.o));  // a return at P's range
+    m = ds::combine(m, b, &conflict);
   });
+  // doc/SCAN_CONFLICT.md: an empty vote needs a scan whose beams agree. Beams that pass P and
+  // beams that return at P's range (|r| <= 2 sigma) in the same scan mean a porous or thin
+  // surface (foliage, a fence, a pole), not a vacated space; Dempster's normalisation would hide
+  // that conflict.
+  if (p_.scan_conflict < 1.0 && m.e > m.o && m.e > m.u &&
+      static_cast<double>(e_max) * o_max >= p_.scan_conflict) {
+    m = ds::Mass{};
+    if (stats) ++stats->conflicting_scans;
+  }
   if (conflict && stats) ++stats->total_conflicts;
   return m;
 }

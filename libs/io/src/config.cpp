@@ -42,6 +42,7 @@ std::map<std::string, Key> table(PipelineParams& p) {
       {"ds.r_sup", d(p.ds.r_sup)},
       {"ds.r_inf", d(p.ds.r_inf)},
       {"ds.window_k", i(p.ds.window_k)},
+      {"ds.scan_conflict", d(p.ds.scan_conflict)},
       {"octree.leaf", d(p.octree.leaf)},
       {"octree.tau_np", i(p.octree.tau_np)},
       {"octree.fraction", d(p.octree.fraction)},
@@ -145,6 +146,8 @@ void validate(const PipelineParams& p, const std::string& name) {
   require(0 <= p.ds.r_inf && p.ds.r_inf <= p.ds.r_sup && p.ds.r_sup < 1,
           "need 0 <= ds.r_inf <= ds.r_sup < 1");
   require(p.ds.window_k >= 0, "ds.window_k must be >= 0");
+  require(p.ds.scan_conflict > 0 && p.ds.scan_conflict <= 1,
+          "ds.scan_conflict must be in (0, 1] (1 = off)");
   require(p.octree.leaf > 0, "octree.leaf must be > 0");
   require(p.octree.tau_np >= 1, "octree.tau_np must be >= 1");
   require(p.octree.fraction > 0 && p.octree.fraction <= 1, "octree.fraction must be in (0, 1]");

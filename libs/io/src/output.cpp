@@ -95,6 +95,7 @@ void OutputWriter::finish(double wall_s) {
     total.static_points += s.static_points;
     total.total_conflicts += s.total_conflicts;
     total.no_evidence += s.no_evidence;
+    total.conflicting_scans += s.conflicting_scans;
     total.objects_moving += s.objects_moving;
     total.consensus_points += s.consensus_points;
     total.consensus_removed += s.consensus_removed;
@@ -116,6 +117,7 @@ void OutputWriter::finish(double wall_s) {
                  {"candidates", total.candidates}, {"tested", total.tested},
                  {"moving", total.moving},       {"static", total.static_points},
                  {"total_conflicts", total.total_conflicts},
+                 {"conflicting_scan_votes", total.conflicting_scans},
                  {"objects_turned_moving", total.objects_moving},
                  {"consensus_points_added", total.consensus_points},
                  {"consensus_points_removed", total.consensus_removed},
@@ -149,11 +151,13 @@ void OutputWriter::finish(double wall_s) {
     os << "# cleanmap run report\n\nInput: `" << input_ << "`, " << stats_.size() << " scans, "
        << params_.threads << " threads, wall " << wall_s << " s, peak RSS " << peakRssMiB()
        << " MiB.\n\n## Counts\n| points | in crop | ground | duplicates | tested | moving | static "
-          "| empty scans | total conflicts | no evidence |\n|---|---|---|---|---|---|---|---|---|---|\n";
-    std::snprintf(buf, sizeof buf, "| %zu | %zu | %zu | %zu | %zu | %zu | %zu | %zu | %zu | %zu |\n",
+          "| empty scans | total conflicts | conflicting scan votes | no evidence |\n"
+          "|---|---|---|---|---|---|---|---|---|---|---|\n";
+    std::snprintf(buf, sizeof buf,
+                  "| %zu | %zu | %zu | %zu | %zu | %zu | %zu | %zu | %zu | %zu | %zu |\n",
                   total.points, total.in_crop, total.ground, total.duplicates, total.tested,
                   total.moving, total.static_points, empty, total.total_conflicts,
-                  total.no_evidence);
+                  total.conflicting_scans, total.no_evidence);
     os << buf << "\n## Time per scan (ms)\n| stage | median | p95 |\n|---|---|---|\n";
     for (const auto& [name, v] : stages) {
       const Spread s = spread(*v);

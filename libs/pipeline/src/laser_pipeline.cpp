@@ -196,6 +196,7 @@ void LaserPipeline::decide(std::size_t pos) {
   for (const auto& m : per_point) {
     st.total_conflicts += m.total_conflicts;
     st.no_evidence += m.no_evidence;
+    st.conflicting_scans += m.conflicting_scans;
   }
   st.ms.classify = msSince(t0);
 

@@ -18,13 +18,15 @@ struct WindowScan {
 struct MovingTestStats {
   std::size_t total_conflicts = 0;  ///< Dempster combinations with K = 1 (set to unknown)
   std::size_t no_evidence = 0;      ///< points that no window scan saw (all unknown)
+  std::size_t conflicting_scans = 0;  ///< empty scan votes made unknown (DsParams::scan_conflict)
 };
 
 class MovingTest {
  public:
   explicit MovingTest(const DsParams& p);
 
-  /// m(P, S_i) = (+)_Q m'(P, Q) over the beams of S_i within search radius of O_i->P (Eq. 6).
+  /// m(P, S_i) = (+)_Q m'(P, Q) over the beams of S_i within search radius of O_i->P (Eq. 6);
+  /// unknown where that is empty but the scan's own beams conflict (DsParams::scan_conflict).
   ds::Mass scanMass(const Eigen::Vector3d& p_world, const WindowScan& s, double* range_p,
                     MovingTestStats* stats) const;
   /// Window decision: Dempster combination of the discretised scan masses (Eq. 8-11).

@@ -35,6 +35,11 @@ struct DsParams {
   double r_sup = 0.8;             ///< discretised belief near the sensor
   double r_inf = 0.6;             ///< discretised belief at the farthest range
   int window_k = 10;              ///< K: scans before and after
+  /// Our addition (doc/SCAN_CONFLICT.md): a scan votes empty only if its own beams agree. When
+  /// its most-empty and most-occupied beams conflict by K = e_max * o_max >= scan_conflict
+  /// (foliage, fences, thin poles: some beams pass P, some return at P), the scan's empty vote
+  /// becomes unknown. 1 = off (the paper's rule alone).
+  double scan_conflict = 0.3;
 };
 
 /// SPEC §2c: octree leaf sampling.

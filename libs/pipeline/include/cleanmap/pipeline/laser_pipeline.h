@@ -30,6 +30,7 @@ struct ScanStats {
   std::size_t moving = 0, static_points = 0;
   std::size_t window = 0;         ///< scans in the window
   std::size_t total_conflicts = 0, no_evidence = 0;
+  std::size_t conflicting_scans = 0;  ///< empty scan votes made unknown (doc/SCAN_CONFLICT.md)
   std::size_t objects_moving = 0, consensus_points = 0, consensus_removed = 0;  ///< doc/OBJECTS.md
   bool empty = false;
   StageTimes ms;
