@@ -300,6 +300,37 @@ TEST(MovingTest, ThinPoleWithRegistrationErrorStaysStatic) {
   EXPECT_FALSE(MovingTest(ours).isMoving(p, w, nullptr));
 }
 
+TEST(MovingTest, EarlyDecisionEqualsTheFullWindow) {
+  // isMoving stops visiting scans once the rest cannot change the outcome; it must agree with
+  // Dempster's rule over the whole window (windowMass) on every point, moving or not.
+  const DsParams p;
+  const MovingTest t(p);
+  std::vector<Frame> frames;
+  std::vector<BeamIndex> idx;
+  for (std::size_t i = 0; i < 9; ++i) frames.push_back(castScene(i, double(i), 10.0 + 0.8 * double(i), nullptr));
+  for (const auto& f : frames) idx.emplace_back(f.scan.points, t.searchRadius());
+  std::vector<WindowScan> w;
+  for (std::size_t i = 0; i < frames.size(); ++i)
+    if (i != 4) w.push_back({&idx[i], frames[i].scan.pose.inverse()});
+  std::size_t moving = 0, fixed = 0, n = 0;
+  std::mt19937 rng(5);
+  for (std::size_t j = 0; j < frames[4].scan.points.size(); j += 7) {
+    const auto& q = frames[4].scan.points[j];
+    if (q.z < -1.6) continue;  // ground
+    const Eigen::Vector3d pw = frames[4].scan.pose * q.xyz().cast<double>();
+    const Eigen::Vector3d jitter(std::uniform_real_distribution<double>(-0.3, 0.3)(rng), 0, 0);
+    for (const Eigen::Vector3d& x : {pw, Eigen::Vector3d(pw + jitter)}) {
+      const bool full = ds::isMoving(t.windowMass(x, w, nullptr));
+      ASSERT_EQ(t.isMoving(x, w, nullptr), full) << x.transpose();
+      moving += full;
+      fixed += !full;
+      ++n;
+    }
+  }
+  EXPECT_GT(moving, n / 50);  // both outcomes occur, so the comparison means something
+  EXPECT_GT(fixed, n / 2);
+}
+
 TEST(OctreeSampling, DenseLeavesTestASixthDeterministically) {
   std::vector<Eigen::Vector3d> pts;
   for (int i = 0; i < 60; ++i) pts.emplace_back(0.05 + 0.003 * i, 0.1, 0.1);  // one leaf

@@ -32,10 +32,10 @@ class MovingTest {
   /// Window decision: Dempster combination of the discretised scan masses (Eq. 8-11).
   ds::Mass windowMass(const Eigen::Vector3d& p_world, const std::vector<WindowScan>& window,
                       MovingTestStats* stats) const;
+  /// ds::isMoving(windowMass(...)), but stops visiting scans once the rest of the window cannot
+  /// change the decision (see the .cpp); the statistics then cover the scans visited.
   bool isMoving(const Eigen::Vector3d& p_world, const std::vector<WindowScan>& window,
-                MovingTestStats* stats) const {
-    return ds::isMoving(windowMass(p_world, window, stats));
-  }
+                MovingTestStats* stats) const;
   double searchRadius() const { return radius_; }
 
  private:
