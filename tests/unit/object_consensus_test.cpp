@@ -95,3 +95,43 @@ TEST(ObjectConsensus, DisabledOrNonMembersUnchanged) {
   EXPECT_EQ(moving, before);
   EXPECT_EQ(objectConsensus({}, {}, moving, ObjectParams{}).objects, 0u);
 }
+
+TEST(ObjectConsensus, HysteresisKeepsAPartlyMovingObjectThatMovedBefore) {
+  // A 14 m truck with its leading 2 m tested moving: ~15 %, between static_fraction (10 %) and
+  // moving_fraction (20 %). Alone it is undecided and keeps its labels; next to the previous
+  // scan's moving points (the same truck one scan earlier) it stays moving as a whole.
+  std::vector<PointXYZI> pts;
+  addBox(pts, 0, 14, 2, 4.5f, 3.5f);
+  std::vector<uint8_t> member(pts.size(), 1), moving(pts.size(), 0);
+  std::size_t front = 0;
+  for (std::size_t i = 0; i < pts.size(); ++i)
+    if (pts[i].x > 12.0f) moving[i] = 1, ++front;
+  const double share = double(front) / double(pts.size());
+  ASSERT_GT(share, 0.1);
+  ASSERT_LT(share, 0.2);
+  const auto before = moving;
+  auto alone = moving;
+  EXPECT_EQ(objectConsensus(pts, member, alone, ObjectParams{}).moving_objects, 0u);
+  EXPECT_EQ(alone, before);
+
+  std::vector<uint8_t> near_all(pts.size(), 1), near_few(pts.size(), 0);
+  for (std::size_t i = 0; i < pts.size(); i += 3) near_few[i] = 1;  // a third: not the same object
+  auto kept = moving;
+  const auto st = objectConsensus(pts, member, kept, ObjectParams{}, &near_all);
+  EXPECT_EQ(st.persisted, 1u);
+  for (uint8_t m : kept) ASSERT_EQ(m, 1);
+  auto few = moving;
+  EXPECT_EQ(objectConsensus(pts, member, few, ObjectParams{}, &near_few).persisted, 0u);
+  EXPECT_EQ(few, before);
+
+  // Below static_fraction (a car that has stopped) the hysteresis does not hold it.
+  std::vector<uint8_t> stopped(pts.size(), 0);
+  for (std::size_t i = 0; i < pts.size(); i += 25) stopped[i] = 1;  // 4 %
+  objectConsensus(pts, member, stopped, ObjectParams{}, &near_all);
+  for (uint8_t m : stopped) ASSERT_EQ(m, 0);
+  // And persist_radius = 0 turns it off.
+  ObjectParams off;
+  off.persist_radius = 0;
+  auto unchanged = moving;
+  EXPECT_EQ(objectConsensus(pts, member, unchanged, off, &near_all).persisted, 0u);
+}

@@ -126,8 +126,11 @@ TEST(SimLidar, MoverLabelsFollowItsMotion) {
   EXPECT_GT(moving, 100u);
   sc.movers[0].start = 10;  // still waiting at t = 0
   s = sim::simulateScan(sc, 0, 2);
-  for (std::size_t i = 0; i < s.labels.size(); ++i)
-    if (s.surface[i] == sim::Surface::kMover) EXPECT_EQ(s.labels[i], 9u);
+  for (std::size_t i = 0; i < s.labels.size(); ++i) {
+    if (s.surface[i] == sim::Surface::kMover) {
+      EXPECT_EQ(s.labels[i], 9u);
+    }
+  }
   sc.movers[0].start = 0;
   sc.movers[0].speed = 0.35;  // 0.35 m in +-0.5 s: between the static and moving thresholds
   EXPECT_EQ(sim::World(sc, 2.0).solids().back().motion, -1);

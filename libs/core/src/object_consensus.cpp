@@ -31,7 +31,8 @@ uint64_t voxelKey(int x, int y, int z) {
 }  // namespace
 
 ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points, const std::vector<uint8_t>& member,
-                                     std::vector<uint8_t>& moving, const ObjectParams& p) {
+                                     std::vector<uint8_t>& moving, const ObjectParams& p,
+                                     const std::vector<uint8_t>* near_previous) {
   ObjectConsensusStats st;
   if (!p.enabled) return st;
   const float inv = static_cast<float>(1.0 / p.voxel);
@@ -61,7 +62,7 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points, const
   }
   // Per component: point counts and extent.
   struct Comp {
-    std::size_t n = 0, moving = 0;
+    std::size_t n = 0, moving = 0, near_prev = 0;
     Eigen::Vector3f lo = Eigen::Vector3f::Constant(1e30f), hi = Eigen::Vector3f::Constant(-1e30f);
   };
   std::vector<Comp> comps(voxels.size());
@@ -70,6 +71,7 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points, const
     Comp& c = comps[uf.find(point_voxel[i])];
     ++c.n;
     c.moving += moving[i] != 0;
+    if (near_previous) c.near_prev += (*near_previous)[i] != 0;
     c.lo = c.lo.cwiseMin(points[i].xyz());
     c.hi = c.hi.cwiseMax(points[i].xyz());
   }
@@ -84,6 +86,12 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points, const
         static_cast<double>(c.moving) >= p.moving_fraction * static_cast<double>(c.n) && c.moving < c.n) {
       turn[v] = 1;
       ++st.moving_objects;
+    } else if (p.persist_radius > 0 && vehicle_sized && static_cast<int>(c.moving) >= p.min_moving &&
+               static_cast<double>(c.moving) >= p.static_fraction * static_cast<double>(c.n) &&
+               c.moving < c.n && 2 * c.near_prev >= c.n) {
+      turn[v] = 1;  // hysteresis: it moved in the previous scan and is still partly moving
+      ++st.moving_objects;
+      ++st.persisted;
     } else if (vehicle_sized && c.moving > 0 &&
                (static_cast<int>(c.moving) < p.min_moving ||
                 static_cast<double>(c.moving) < p.static_fraction * static_cast<double>(c.n))) {

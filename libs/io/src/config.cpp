@@ -54,6 +54,7 @@ std::map<std::string, Key> table(PipelineParams& p) {
       {"object.min_moving", i(p.object.min_moving)},
       {"object.max_length", d(p.object.max_length)},
       {"object.max_height", d(p.object.max_height)},
+      {"object.persist_radius", d(p.object.persist_radius)},
       {"run.seed", Key{[&p](double v) { p.seed = static_cast<uint64_t>(v); },
                        [&p] { return double(p.seed); }, true}},
       {"run.threads", i(p.threads)},
@@ -157,6 +158,8 @@ void validate(const PipelineParams& p, const std::string& name) {
           "need 0 <= object.static_fraction <= object.moving_fraction <= 1");
   require(p.object.min_moving >= 1, "object.min_moving must be >= 1");
   require(p.object.max_length > 0 && p.object.max_height > 0, "object.max_length and max_height must be > 0");
+  require(p.object.persist_radius >= 0 && p.object.persist_radius <= 10,
+          "object.persist_radius must be in [0, 10] m (0 = off)");
   require(p.threads >= 1, "run.threads must be >= 1");
 }
 

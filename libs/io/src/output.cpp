@@ -99,6 +99,7 @@ void OutputWriter::finish(double wall_s) {
     total.objects_moving += s.objects_moving;
     total.consensus_points += s.consensus_points;
     total.consensus_removed += s.consensus_removed;
+    total.objects_persisted += s.objects_persisted;
     empty += s.empty;
     t_total.push_back(s.ms.total);
     t_index.push_back(s.ms.index);
@@ -119,6 +120,7 @@ void OutputWriter::finish(double wall_s) {
                  {"total_conflicts", total.total_conflicts},
                  {"conflicting_scan_votes", total.conflicting_scans},
                  {"objects_turned_moving", total.objects_moving},
+                 {"objects_kept_moving_by_hysteresis", total.objects_persisted},
                  {"consensus_points_added", total.consensus_points},
                  {"consensus_points_removed", total.consensus_removed},
                  {"no_evidence_points", total.no_evidence},

@@ -43,6 +43,12 @@ void parallelFor(std::size_t n, int threads, F&& f) {
   for (auto& th : pool) th.join();
 }
 
+// 21-bit cell coordinates packed in a key (cells of a few metres: +-1000 km of range).
+uint64_t packCell(int64_t x, int64_t y, int64_t z) {
+  auto u = [](int64_t v) { return static_cast<uint64_t>(v) & 0x1FFFFFu; };
+  return (u(x) << 42) | (u(y) << 21) | u(z);
+}
+
 PointXYZI toWorld(const Eigen::Isometry3d& T, const PointXYZI& p) {
   const Eigen::Vector3d w = T * Eigen::Vector3d(p.x, p.y, p.z);
   return {static_cast<float>(w.x()), static_cast<float>(w.y()), static_cast<float>(w.z()),
@@ -71,6 +77,17 @@ struct LaserPipeline::Prepared {
   Eigen::Isometry3d world_to_sensor;
   ScanStats stats;
 };
+
+uint64_t LaserPipeline::persistCell(const Eigen::Vector3d& w) const {
+  const double inv = 1.0 / p_.object.persist_radius;
+  return packCell(static_cast<int64_t>(std::floor(w.x() * inv)), static_cast<int64_t>(std::floor(w.y() * inv)),
+                  static_cast<int64_t>(std::floor(w.z() * inv)));
+}
+
+uint64_t LaserPipeline::shiftCell(uint64_t c, int dx, int dy, int dz) {
+  auto get = [&](int s) { return static_cast<int64_t>((c >> s) & 0x1FFFFFu); };
+  return packCell(get(42) + dx, get(21) + dy, get(0) + dz);
+}
 
 LaserPipeline::LaserPipeline(const PipelineParams& params, Sink sink)
     : p_(params), sink_(std::move(sink)), test_(params.ds), dup_(params.filter) {}
@@ -219,7 +236,15 @@ void LaserPipeline::decide(std::size_t pos) {
     t0 = Clock::now();
     std::vector<uint8_t> member(pts.size(), 0);
     for (uint32_t i = 0; i < pts.size(); ++i) member[i] = s.in_crop[i] && !s.ground[i];
-    const auto oc = objectConsensus(pts, member, moving, p_.object);
+    std::vector<uint8_t> near_prev;
+    if (!prev_moving_cells_.empty()) {
+      near_prev.assign(pts.size(), 0);
+      for (uint32_t i = 0; i < pts.size(); ++i)
+        if (member[i])
+          near_prev[i] = prev_moving_cells_.count(persistCell(s.scan.pose * pts[i].xyz().cast<double>())) > 0;
+    }
+    const auto oc = objectConsensus(pts, member, moving, p_.object, near_prev.empty() ? nullptr : &near_prev);
+    st.objects_persisted = oc.persisted;
     st.objects_moving = oc.moving_objects;
     st.consensus_points = oc.points_added;
     st.consensus_removed = oc.points_removed;
@@ -248,6 +273,15 @@ void LaserPipeline::decide(std::size_t pos) {
     }
   }
   dup_.insert(inserted, k);
+  // This scan's moving points, dilated by one cell, for the next scan's hysteresis.
+  prev_moving_cells_.clear();
+  if (p_.object.enabled && p_.object.persist_radius > 0)
+    for (const auto& w : r.moving) {
+      const uint64_t c = persistCell(w.xyz().cast<double>());
+      for (int dx = -1; dx <= 1; ++dx)
+        for (int dy = -1; dy <= 1; ++dy)
+          for (int dz = -1; dz <= 1; ++dz) prev_moving_cells_.insert(shiftCell(c, dx, dy, dz));
+    }
   st.ms.total = msSince(t_start) + st.ms.index + st.ms.ground;
   r.stats = st;
   ++decided_;

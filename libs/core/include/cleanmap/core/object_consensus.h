@@ -17,12 +17,16 @@ struct ObjectConsensusStats {
   std::size_t moving_objects = 0;  ///< groups turned moving as a whole
   std::size_t points_added = 0;    ///< points turned moving by the consensus
   std::size_t points_removed = 0;  ///< moving points turned static (a few in a static object)
+  std::size_t persisted = 0;       ///< of moving_objects, those kept moving by the hysteresis
 };
 
 /// Groups `points[i]` with `member[i]` (in crop, not ground) into 26-connected voxel components
 /// and sets `moving[i]` = 1 for every point of a component that passes the rule of `p`.
+/// `near_previous[i]` (optional): point i lies within p.persist_radius of a moving point of the
+/// previous scan (world frame); it lets a partly moving object stay moving (hysteresis).
 /// Deterministic; O(points).
 ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points, const std::vector<uint8_t>& member,
-                                     std::vector<uint8_t>& moving, const ObjectParams& p);
+                                     std::vector<uint8_t>& moving, const ObjectParams& p,
+                                     const std::vector<uint8_t>* near_previous = nullptr);
 
 }  // namespace cleanmap

@@ -59,6 +59,10 @@ struct ObjectParams {
   double static_fraction = 0.1; ///< an object with a smaller share of moving points is static
   double max_length = 25.0;     ///< m; larger horizontal extents are structures, left alone
   double max_height = 5.0;      ///< m; taller objects are structures, left alone
+  /// Hysteresis over time: a vehicle-sized object with a share of moving points between
+  /// static_fraction and moving_fraction stays moving if most of its points lie within
+  /// `persist_radius` of the previous scan's moving points (0 = off).
+  double persist_radius = 1.5;  ///< m
 };
 
 struct PipelineParams {

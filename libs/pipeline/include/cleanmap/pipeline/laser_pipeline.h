@@ -7,6 +7,7 @@
 #include <memory>
 #include <random>
 #include <string>
+#include <unordered_set>
 #include <vector>
 
 #include "cleanmap/core/beam_index.h"
@@ -32,6 +33,7 @@ struct ScanStats {
   std::size_t total_conflicts = 0, no_evidence = 0;
   std::size_t conflicting_scans = 0;  ///< empty scan votes made unknown (doc/SCAN_CONFLICT.md)
   std::size_t objects_moving = 0, consensus_points = 0, consensus_removed = 0;  ///< doc/OBJECTS.md
+  std::size_t objects_persisted = 0;  ///< of objects_moving, kept moving by the hysteresis
   bool empty = false;
   StageTimes ms;
 };
@@ -67,6 +69,8 @@ class LaserPipeline {
   std::unique_ptr<Prepared> prepare(Frame&& f);
   void decide(std::size_t pos);
   void decideReady(std::size_t future);
+  uint64_t persistCell(const Eigen::Vector3d& w) const;
+  static uint64_t shiftCell(uint64_t c, int dx, int dy, int dz);
 
   PipelineParams p_;
   Sink sink_;
@@ -76,6 +80,7 @@ class LaserPipeline {
   std::size_t next_ = 0;                       // position in buf_ of the next scan to decide
   std::size_t decided_ = 0;
   long prev_index_ = -1;
+  std::unordered_set<uint64_t> prev_moving_cells_;  // last decided scan's moving cells, dilated
 };
 
 }  // namespace cleanmap
