@@ -275,13 +275,14 @@ void LaserPipeline::decide(std::size_t pos) {
   dup_.insert(inserted, k);
   // This scan's moving points, dilated by one cell, for the next scan's hysteresis.
   prev_moving_cells_.clear();
-  if (p_.object.enabled && p_.object.persist_radius > 0)
-    for (const auto& w : r.moving) {
-      const uint64_t c = persistCell(w.xyz().cast<double>());
+  if (p_.object.enabled && p_.object.persist_radius > 0) {
+    std::unordered_set<uint64_t> cells;
+    for (const auto& w : r.moving) cells.insert(persistCell(w.xyz().cast<double>()));
+    for (const uint64_t c : cells)
       for (int dx = -1; dx <= 1; ++dx)
         for (int dy = -1; dy <= 1; ++dy)
           for (int dz = -1; dz <= 1; ++dz) prev_moving_cells_.insert(shiftCell(c, dx, dy, dz));
-    }
+  }
   st.ms.total = msSince(t_start) + st.ms.index + st.ms.ground;
   r.stats = st;
   ++decided_;
