@@ -67,7 +67,31 @@ TEST(SimScenario, BadFilesAreOneLineErrorsWithTheLine) {
   test::expectError([] { sim::parseScenario("[box]\nsize = 1 -2 3\n", "s.ini"); }, "s.ini:2", "must be > 0");
   test::expectError([] { sim::parseScenario("[mover]\nspeed = 3\n", "s.ini"); }, "s.ini", "no path");
   test::expectError([] { sim::parseScenario("[ground]\nslope = 0.5\n", "s.ini"); }, "s.ini:2", "outside");
+  test::expectError([] { sim::parseScenario("[ego]\npose_drift = 0.5\n", "s.ini"); }, "s.ini:2", "outside");
   test::expectError([] { sim::loadScenario("/nonexistent/x.ini"); }, "x.ini", "");
+}
+
+TEST(SimScenario, PoseDriftIsASeededRandomWalkOfTheRequestedSize) {
+  auto sc = sim::parseScenario("[ego]\npath = 0 0  1000 0\nspeed = 10\n", "s.ini");
+  for (int k : {0, 7, 30}) EXPECT_TRUE(sim::reportedPose(sc, k).isApprox(sim::egoPose(sc, k / sc.rate_hz)));
+  sc.ego_pose_drift = 0.01;  // 1 cm per frame (1 m travelled) and axis
+  EXPECT_TRUE(sim::reportedPose(sc, 0).isApprox(sim::egoPose(sc, 0)));  // no distance, no error
+  double sq = 0;
+  const int n = 400;
+  for (int k = 1; k <= n; ++k) {
+    const Eigen::Isometry3d r = sim::reportedPose(sc, k), t = sim::egoPose(sc, k / sc.rate_hz);
+    EXPECT_TRUE(r.linear().isApprox(t.linear()));
+    EXPECT_NEAR(r.translation().z(), t.translation().z(), 1e-12);  // horizontal only
+    const Eigen::Vector2d step = (r.translation() - t.translation()).head<2>() -
+                                 (sim::reportedPose(sc, k - 1).translation() -
+                                  sim::egoPose(sc, (k - 1) / sc.rate_hz).translation()).head<2>();
+    sq += step.squaredNorm();
+  }
+  EXPECT_NEAR(std::sqrt(sq / (2 * n)), 0.01, 0.0015);  // per-axis sigma of a step
+  EXPECT_TRUE(sim::reportedPose(sc, 50).isApprox(sim::reportedPose(sc, 50)));  // deterministic
+  sc.seed = 2;
+  EXPECT_FALSE(sim::reportedPose(sc, 50).isApprox(sim::reportedPose(sim::parseScenario(
+      "[ego]\npath = 0 0  1000 0\nspeed = 10\npose_drift = 0.01\n", "s.ini"), 50)));
 }
 
 TEST(SimLidar, RangesAreExactOnABoxAndTheGround) {

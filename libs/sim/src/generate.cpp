@@ -53,7 +53,7 @@ GenerateSummary generateSequence(const Scenario& sc, const std::string& dir, con
     const SimScan s = simulateScan(sc, k, opt.threads);
     io::writeKittiBin(dir + "/velodyne/" + stem + ".bin", s.points);
     io::writeLabels(dir + "/labels/" + stem + ".label", s.labels);
-    cam_poses.push_back(Tr * s.pose * Tr.inverse());
+    cam_poses.push_back(Tr * s.reported_pose * Tr.inverse());
     char t[32];
     std::snprintf(t, sizeof t, "%.6e\n", s.time);
     times += t;

@@ -113,6 +113,7 @@ Scenario parseScenario(const std::string& text, const std::string& name) {
   handlers["ego"] = [&](const std::string& k, const std::string& v) {
     if (k == "path") sc.ego_path = r.path(k, v), ego_path_set = true;
     else if (k == "speed") sc.ego_speed = r.number(k, v, 0, 60);
+    else if (k == "pose_drift") sc.ego_pose_drift = r.number(k, v, 0, 0.1);
     else return false;
     return true;
   };

@@ -61,6 +61,21 @@ std::vector<int> cull(const World& w, const Eigen::Isometry3d& pose, double a_lo
 
 }  // namespace
 
+Eigen::Isometry3d reportedPose(const Scenario& sc, int k) {
+  Eigen::Isometry3d T = egoPose(sc, k / sc.rate_hz);
+  if (sc.ego_pose_drift <= 0) return T;
+  const double step = sc.ego_pose_drift * sc.ego_speed / sc.rate_hz;  // sigma per frame, m
+  Eigen::Vector2d e = Eigen::Vector2d::Zero();
+  for (int j = 1; j <= k; ++j)
+    for (int a = 0; a < 2; ++a) {
+      const uint64_t h = splitmix(sc.seed * 0x9E3779B97F4A7C15ull ^ (0xD1F7ull << 40) ^ (uint64_t(j) * 2 + a));
+      const double g = std::sqrt(-2 * std::log(uniform(splitmix(h ^ 1)))) * std::cos(2 * M_PI * uniform(splitmix(h ^ 2)));
+      e[a] += step * g;
+    }
+  T.translation().head<2>() += e;
+  return T;
+}
+
 SimScan simulateScan(const Scenario& sc, int k, int threads) {
   const auto& elev = hdl64Elevations();
   const int rings = static_cast<int>(elev.size());
@@ -69,6 +84,7 @@ SimScan simulateScan(const Scenario& sc, int k, int threads) {
   SimScan out;
   out.time = t_k;
   out.pose = egoPose(sc, t_k);
+  out.reported_pose = reportedPose(sc, k);
   const std::optional<World> shared = sc.sensor.sweep_motion ? std::nullopt : std::optional<World>(World(sc, t_k));
 
   struct Part {

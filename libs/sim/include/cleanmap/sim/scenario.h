@@ -73,6 +73,9 @@ struct Scenario {
   GroundSpec ground;
   std::vector<Eigen::Vector2d> ego_path{{0, 0}, {100, 0}};
   double ego_speed = 5.0;
+  /// Pose error of the written poses (the scans are cast from the true pose): a seeded random
+  /// walk, per horizontal axis, of this standard deviation per metre travelled (0.01 = 1 %).
+  double ego_pose_drift = 0.0;
   std::vector<BoxSpec> boxes;
   std::vector<CylinderSpec> cylinders;
   std::vector<MoverSpec> movers;

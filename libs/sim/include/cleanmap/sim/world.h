@@ -63,6 +63,9 @@ class World {
 double groundHeight(const GroundSpec& g, double x, double y);
 /// Ego sensor pose at time t (lidar frame in the world: x forward, z up, pitched with the road).
 Eigen::Isometry3d egoPose(const Scenario& sc, double t);
+/// The pose of frame k as a localisation system would report it: egoPose plus a random walk of
+/// Scenario::ego_pose_drift per metre travelled on x and y (seeded; 0 drift = egoPose).
+Eigen::Isometry3d reportedPose(const Scenario& sc, int k);
 /// Position and heading along a polyline after arc length s (clamped to the ends).
 Eigen::Vector3d alongPath(const std::vector<Eigen::Vector2d>& path, double s);  // x, y, yaw
 /// Arc length a mover has covered by time t (start delay and stop interval applied).
@@ -73,7 +76,9 @@ const std::vector<double>& hdl64Elevations();
 
 struct SimScan {
   double time = 0;
-  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();  ///< lidar pose at `time`
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();  ///< lidar pose at `time` (truth)
+  /// The pose written to poses.txt: `pose` plus the scenario's pose drift (reportedPose).
+  Eigen::Isometry3d reported_pose = Eigen::Isometry3d::Identity();
   std::vector<PointXYZI> points;  ///< sensor frame at each point's capture time (not de-skewed)
   Labels labels;                  ///< ground truth: 9 static, 251 moving, 0 ignore (SPEC §5)
   std::vector<Surface> surface;   ///< per point
