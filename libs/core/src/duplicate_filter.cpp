@@ -4,14 +4,15 @@
 #include <algorithm>
 #include <cmath>
 
+#include "cleanmap/core/cell_key.h"
+
 namespace cleanmap {
 
 DuplicateFilter::DuplicateFilter(const FilterParams& p)
     : p_(p), inv_(static_cast<float>(0.5 / p.dup_distance)) {}
 
 DuplicateFilter::Key DuplicateFilter::key(int x, int y, int z) const {
-  auto u = [](int v) { return static_cast<uint64_t>(static_cast<uint32_t>(v) & 0x1FFFFFu); };
-  return (u(x) << 42) | (u(y) << 21) | u(z);
+  return cellKey(x, y, z);
 }
 
 bool DuplicateFilter::isDuplicate(const Eigen::Vector3f& p, long scan) const {

@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 
 namespace cleanmap {
 
@@ -49,42 +50,25 @@ ds::Mass MovingTest::scanMass(const Eigen::Vector3d& p_world, const WindowScan& 
   return m;
 }
 
-ds::Mass MovingTest::windowMass(const Eigen::Vector3d& p_world,
-                                const std::vector<WindowScan>& window,
-                                MovingTestStats* stats) const {
-  ds::Mass acc;
-  bool any = false, conflict = false;
-  for (const auto& s : window) {
-    double d = 0;
-    const ds::Mass m = scanMass(p_world, s, &d, stats);
-    const ds::Mass dm = ds::discretise(m, ds::discreteBelief(d, s.beams->farthest(), p_));
-    any = any || dm.u < 1.0;
-    acc = ds::combine(acc, dm, &conflict);
-  }
-  if (stats) {
-    stats->no_evidence += !any;
-    stats->total_conflicts += conflict;
-  }
-  return acc;
-}
-
 // The discretised votes are simple supports of mass l on {empty} or {occupied}. Combined, the
 // empty votes give E = 1 - prod(1 - l) and the occupied ones O likewise, and the result is moving
 // iff E > O (empty then also beats unknown, as l > 0.5). So the decision is a weighted vote:
 // S_e = sum of -ln(1 - l) over empty votes against S_o over occupied ones, and a scan weighs at
 // most w_max = -ln(1 - r_sup). Once |S_e - S_o| exceeds what the unvisited scans can add, the
-// decision is final. The result is still Dempster's rule over the visited scans, so a point that
-// is close to a tie is decided exactly as windowMass does.
-bool MovingTest::isMoving(const Eigen::Vector3d& p_world, const std::vector<WindowScan>& window,
-                          MovingTestStats* stats) const {
+// decision is final. Otherwise the result is Dempster's rule over the whole window, so a point
+// close to a tie is decided exactly as without the shortcut.
+std::optional<bool> MovingTest::combineWindow(const Eigen::Vector3d& p_world,
+                                              const std::vector<WindowScan>& window,
+                                              MovingTestStats* stats, bool stop_early,
+                                              ds::Mass& acc) const {
   const double w_max = -std::log1p(-p_.r_sup);
   constexpr double kSafety = 1e-6;  // far above the rounding of the sums
-  ds::Mass acc;
+  acc = ds::Mass{};
   bool any = false, conflict = false;
   double lead = 0.0;  // S_e - S_o
   for (std::size_t i = 0; i < window.size(); ++i) {
     const double rest = static_cast<double>(window.size() - i) * w_max + kSafety;
-    if (lead > rest || -lead > rest) return lead > 0;  // votes were cast: evidence was found
+    if (stop_early && (lead > rest || -lead > rest)) return lead > 0;  // votes were cast
     double d = 0;
     const ds::Mass m = scanMass(p_world, window[i], &d, stats);
     const ds::Mass dm = ds::discretise(m, ds::discreteBelief(d, window[i].beams->farthest(), p_));
@@ -97,6 +81,20 @@ bool MovingTest::isMoving(const Eigen::Vector3d& p_world, const std::vector<Wind
     stats->no_evidence += !any;
     stats->total_conflicts += conflict;
   }
+  return std::nullopt;
+}
+
+ds::Mass MovingTest::windowMass(const Eigen::Vector3d& p_world, const std::vector<WindowScan>& window,
+                                MovingTestStats* stats) const {
+  ds::Mass acc;
+  combineWindow(p_world, window, stats, false, acc);
+  return acc;
+}
+
+bool MovingTest::isMoving(const Eigen::Vector3d& p_world, const std::vector<WindowScan>& window,
+                          MovingTestStats* stats) const {
+  ds::Mass acc;
+  if (const auto early = combineWindow(p_world, window, stats, true, acc)) return *early;
   return ds::isMoving(acc);
 }
 

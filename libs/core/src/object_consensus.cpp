@@ -7,6 +7,8 @@
 #include <numeric>
 #include <unordered_map>
 
+#include "cleanmap/core/cell_key.h"
+
 namespace cleanmap {
 namespace {
 
@@ -24,8 +26,7 @@ struct UnionFind {
 };
 
 uint64_t voxelKey(int x, int y, int z) {
-  auto u = [](int v) { return static_cast<uint64_t>(static_cast<uint32_t>(v) & 0x1FFFFFu); };
-  return (u(x) << 42) | (u(y) << 21) | u(z);
+  return cellKey(x, y, z);
 }
 
 }  // namespace

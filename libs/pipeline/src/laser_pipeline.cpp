@@ -8,6 +8,7 @@
 #include <cmath>
 #include <thread>
 
+#include "cleanmap/core/cell_key.h"
 #include "cleanmap/core/error.h"
 #include "cleanmap/core/ground.h"
 #include "cleanmap/core/octree_sampling.h"
@@ -43,12 +44,6 @@ void parallelFor(std::size_t n, int threads, F&& f) {
   for (auto& th : pool) th.join();
 }
 
-// 21-bit cell coordinates packed in a key (cells of a few metres: +-1000 km of range).
-uint64_t packCell(int64_t x, int64_t y, int64_t z) {
-  auto u = [](int64_t v) { return static_cast<uint64_t>(v) & 0x1FFFFFu; };
-  return (u(x) << 42) | (u(y) << 21) | u(z);
-}
-
 PointXYZI toWorld(const Eigen::Isometry3d& T, const PointXYZI& p) {
   const Eigen::Vector3d w = T * Eigen::Vector3d(p.x, p.y, p.z);
   return {static_cast<float>(w.x()), static_cast<float>(w.y()), static_cast<float>(w.z()),
@@ -79,14 +74,7 @@ struct LaserPipeline::Prepared {
 };
 
 uint64_t LaserPipeline::persistCell(const Eigen::Vector3d& w) const {
-  const double inv = 1.0 / p_.object.persist_radius;
-  return packCell(static_cast<int64_t>(std::floor(w.x() * inv)), static_cast<int64_t>(std::floor(w.y() * inv)),
-                  static_cast<int64_t>(std::floor(w.z() * inv)));
-}
-
-uint64_t LaserPipeline::shiftCell(uint64_t c, int dx, int dy, int dz) {
-  auto get = [&](int s) { return static_cast<int64_t>((c >> s) & 0x1FFFFFu); };
-  return packCell(get(42) + dx, get(21) + dy, get(0) + dz);
+  return cellKeyOf(w.x(), w.y(), w.z(), 1.0 / p_.object.persist_radius);
 }
 
 LaserPipeline::LaserPipeline(const PipelineParams& params, Sink sink)
@@ -281,7 +269,7 @@ void LaserPipeline::decide(std::size_t pos) {
     for (const uint64_t c : cells)
       for (int dx = -1; dx <= 1; ++dx)
         for (int dy = -1; dy <= 1; ++dy)
-          for (int dz = -1; dz <= 1; ++dz) prev_moving_cells_.insert(shiftCell(c, dx, dy, dz));
+          for (int dz = -1; dz <= 1; ++dz) prev_moving_cells_.insert(cellKeyShift(c, dx, dy, dz));
   }
   st.ms.total = msSince(t_start) + st.ms.index + st.ms.ground;
   r.stats = st;

@@ -2,6 +2,7 @@
 // SPEC §2b: the moving-point test of one point against the scans of its window.
 #pragma once
 #include <Eigen/Geometry>
+#include <optional>
 #include <vector>
 
 #include "cleanmap/core/beam_index.h"
@@ -39,6 +40,10 @@ class MovingTest {
   double searchRadius() const { return radius_; }
 
  private:
+  // The window's combined mass in `acc`; with stop_early, the decision once it cannot change
+  // (acc is then partial).
+  std::optional<bool> combineWindow(const Eigen::Vector3d& p_world, const std::vector<WindowScan>& window,
+                                    MovingTestStats* stats, bool stop_early, ds::Mass& acc) const;
   DsParams p_;
   ds::BeamModel model_;
   double radius_;

@@ -70,7 +70,6 @@ class LaserPipeline {
   void decide(std::size_t pos);
   void decideReady(std::size_t future);
   uint64_t persistCell(const Eigen::Vector3d& w) const;
-  static uint64_t shiftCell(uint64_t c, int dx, int dy, int dz);
 
   PipelineParams p_;
   Sink sink_;
