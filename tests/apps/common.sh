@@ -12,3 +12,10 @@ expect_error() {
   [[ $(printf '%s\n' "$err" | wc -l) -eq 1 ]] || fail "'$*' printed more than one line: $err"
   [[ "$err" == *"$want"* ]] || fail "'$*' said '$err', expected '$want'"
 }
+
+# require_dataset DIR: skip the script when DIR is absent, fail when CI=true (DEVELOPERS.md).
+require_dataset() {
+  [[ -d $1 ]] && return 0
+  if [[ "${CI:-}" == true ]]; then echo "FAIL: dataset missing in CI: $1"; exit 1; fi
+  echo "SKIP: $1 not found"; exit 0
+}

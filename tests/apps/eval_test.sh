@@ -9,10 +9,7 @@ rm -rf "$scratch" && mkdir -p "$scratch"
 source "$(dirname "$0")/common.sh"
 
 city=$data/kitti_city
-if [[ ! -d $city ]]; then
-  if [[ "${CI:-}" == true ]]; then echo "FAIL: dataset missing in CI: $city"; exit 1; fi
-  echo "SKIP: $city not found"; exit 0
-fi
+require_dataset "$city"
 
 "$bin/cleanmap" "$city" -o "$scratch/run" --first 8 --last 14 --quiet >/dev/null || fail "cleanmap run failed"
 json=$("$bin/cleanmap-eval" "$city" "$scratch/run" --first 8 --last 14 --json --report "$scratch/report") ||

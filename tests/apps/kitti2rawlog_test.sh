@@ -9,10 +9,7 @@ rm -rf "$scratch" && mkdir -p "$scratch"
 source "$(dirname "$0")/common.sh"
 
 city=$data/kitti_city
-if [[ ! -d $city ]]; then
-  if [[ "${CI:-}" == true ]]; then echo "FAIL: dataset missing in CI: $city"; exit 1; fi
-  echo "SKIP: $city not found"; exit 0
-fi
+require_dataset "$city"
 
 # A good conversion, checked by MRPT's rawlog-edit.
 "$bin/cleanmap-kitti2rawlog" "$city" "$scratch/city.rawlog" >/dev/null || fail "conversion failed"
