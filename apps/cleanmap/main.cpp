@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: BSD-3-Clause
-// cleanmap: moving-object removal over a KITTI folder or an MRPT rawlog (SPEC §2, §4).
+// cleanmap: moving-object removal over a KITTI folder or an MRPT rawlog (DESIGN §2, §4).
+#include <csignal>
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
@@ -16,10 +17,23 @@
 
 namespace {
 
+volatile std::sig_atomic_t g_signal = 0;
+void onSignal(int sig) {
+  g_signal = sig;
+  std::signal(sig, SIG_DFL);  // a second Ctrl-C kills at once
+}
+
+struct Interrupted {
+  int sig;
+};
+void checkSignal() {
+  if (g_signal) throw Interrupted{static_cast<int>(g_signal)};
+}
+
 constexpr const char* kUsage = R"(usage: cleanmap INPUT -o OUTDIR [options]
 
 Finds the moving points in a sequence of lidar scans (Dempster-Shafer occupancy over a window of
-K past and K future scans, after ground removal; SPEC.md §2) and writes, into OUTDIR:
+K past and K future scans, after ground removal; doc/DESIGN.md §2) and writes, into OUTDIR:
   labels/<stem>.label   uint32 per original point: 251 moving, 9 static, 40 ground, 0 not classified
   static_map.ply        compact static map (duplicates of the recent map left out), world frame
   static_map_full.ply   every static point (ground included), world frame
@@ -28,7 +42,10 @@ K past and K future scans, after ground removal; SPEC.md §2) and writes, into O
   report.json, report.md  counts, time per stage, and precision/recall/IoU when INPUT has labels
 
 INPUT                a KITTI odometry/SemanticKITTI or raw folder, or an MRPT .rawlog
--o, --output DIR     output folder (created; files are replaced atomically)
+-o, --output DIR     output folder. The run is written beside it and moved into place when
+                     complete: an earlier cleanmap run there is replaced as a whole; an
+                     interrupted or failed run leaves DIR as it was
+--force              replace DIR even if it is a non-empty folder that holds no cleanmap run
 -c, --config FILE    ini file of parameters (see config/cleanmap.ini; unknown keys are errors)
 --threads N          worker threads for the moving-point test (default 2; results do not depend on it)
 --seed S             seed of the octree sampling (default 42; same seed, same output bit for bit)
@@ -36,6 +53,10 @@ INPUT                a KITTI odometry/SemanticKITTI or raw folder, or an MRPT .r
 --poses given        use the input's poses (default; KITTI poses.txt / OXTS, rawlog
                      CObservationRobotPose). `gicp` (registration) is not available yet.
 --quiet              no progress line
+Scans without any valid point (0-byte .bin, all NaN) are kept as empty scans: labelled 0,
+counted in report.json (empty_scans) and in one warning line.
+Exit status: 0 done, 1 error (one line naming the file), 2 bad command line, 130 / 143
+interrupted by SIGINT / SIGTERM (nothing written to DIR).
 --help               this text
 )";
 
@@ -45,7 +66,7 @@ int main(int argc, char** argv) {
   std::string input, outdir, config, poses = "given";
   long threads = -1, first = 0, last = -1;
   long long seed = -1;
-  bool quiet = false, progress_shown = false;
+  bool quiet = false, progress_shown = false, force = false;
   cleanmap::cli::Args args("cleanmap", argc, argv);
   while (!args.done()) {
     const std::string a = args.next();
@@ -60,6 +81,7 @@ int main(int argc, char** argv) {
     else if (a == "--last") last = args.integer(a);
     else if (a == "--poses") poses = args.value(a);
     else if (a == "--quiet") quiet = true;
+    else if (a == "--force") force = true;
     else if (!a.empty() && a[0] != '-' && input.empty()) input = a;
     else args.unexpected(a);
   }
@@ -67,6 +89,8 @@ int main(int argc, char** argv) {
   if (poses != "given" && poses != "gicp") args.fail("--poses is 'given' or 'gicp'");
   if (last >= 0 && last < first) args.fail("--last must be >= --first");
 
+  std::signal(SIGINT, onSignal);
+  std::signal(SIGTERM, onSignal);
   try {
     if (poses == "gicp")
       throw cleanmap::Error(input, "--poses gicp: GICP registration is not implemented yet; "
@@ -88,10 +112,17 @@ int main(int argc, char** argv) {
     const auto* kitti = dynamic_cast<const cleanmap::io::KittiSequence*>(src.get());
     const bool evaluate = kitti && kitti->hasLabels();
 
-    cleanmap::io::OutputWriter out(outdir, input, params);
+    if (const auto n = src->sizeHint(); n && first >= static_cast<long>(*n))
+      throw cleanmap::Error(input, "--first " + std::to_string(first) + " is beyond the end: the input has " +
+                                       std::to_string(*n) + " scans (0.." + std::to_string(long(*n) - 1) + ")");
+    cleanmap::io::OutputOptions out_opts;
+    out_opts.force = force;
+    cleanmap::io::OutputWriter out(outdir, input, params, out_opts);
+    std::size_t seen = 0, empty = 0;
     const auto t0 = std::chrono::steady_clock::now();
     const auto total = src->sizeHint();
     cleanmap::LaserPipeline pipeline(params, [&](cleanmap::ScanResult&& r) {
+      checkSignal();
       std::optional<cleanmap::MosCounts> eval;
       if (evaluate)
         eval = cleanmap::compareLabels(r.labels, kitti->loadLabels(r.index, r.labels.size()),
@@ -111,20 +142,34 @@ int main(int argc, char** argv) {
       }
     });
     while (auto f = src->next()) {
+      checkSignal();
       const long idx = static_cast<long>(f->index);
+      ++seen;
       if (idx < first) continue;
       if (last >= 0 && idx > last) break;
+      empty += f->scan.empty();
       pipeline.push(std::move(*f));
     }
     pipeline.finish();
-    if (out.scans() == 0) throw cleanmap::Error(input, "no scans in the requested range");
+    checkSignal();
+    if (out.scans() == 0)
+      throw cleanmap::Error(input, "no scans in the requested range: the input has " + std::to_string(seen) +
+                                       " scans (--first " + std::to_string(first) + ")");
     const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     out.finish(wall);
     if (progress_shown) std::fprintf(stderr, "\n");
+    if (empty)
+      std::fprintf(stderr, "cleanmap: warning: %zu empty scans (no valid point) kept, labelled 0 (report.json: empty_scans)\n",
+                   empty);
     std::printf("cleanmap: %zu scans in %.1f s; results in %s\n", out.scans(), wall, outdir.c_str());
     if (const auto e = out.evaluation())
       std::printf("cleanmap: moving class: precision %.3f, recall %.3f, IoU %.3f (%llu points evaluated)\n",
                   e->precision(), e->recall(), e->iou(), (unsigned long long)e->evaluated());
+  } catch (const Interrupted& i) {
+    if (progress_shown) std::fprintf(stderr, "\n");
+    std::fprintf(stderr, "cleanmap: interrupted by %s; nothing written to %s\n",
+                 i.sig == SIGINT ? "SIGINT" : "SIGTERM", outdir.c_str());
+    return 128 + i.sig;
   } catch (const std::exception& e) {
     if (progress_shown) std::fprintf(stderr, "\n");
     std::cerr << "cleanmap: error: " << e.what() << '\n';

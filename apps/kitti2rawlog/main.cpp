@@ -55,13 +55,16 @@ int main(int argc, char** argv) {
     return 2;
   }
   try {
-    auto seq = cleanmap::io::KittiSequence::open(in);
+    cleanmap::io::KittiReadOptions ro;
+    ro.scan.allow_empty = true;  // the rule of every app: empty scans are kept and counted
+    auto seq = cleanmap::io::KittiSequence::open(in, ro);
     cleanmap::mrpt::RawlogWriter writer(out, wopts);
     const auto camera = seq.camera();
-    std::size_t dropped = 0;
+    std::size_t dropped = 0, empty = 0;
     for (std::size_t i = 0; i < seq.size(); ++i) {
       const cleanmap::Frame f = seq.frame(i);
       dropped += f.scan.dropped_invalid;
+      empty += f.scan.empty();
       writer.write(f, camera, seq.scanPath(i), seq.hasImages() ? seq.imagePath(i) : std::string());
     }
     writer.close();
@@ -69,6 +72,7 @@ int main(int argc, char** argv) {
               << writer.poses() << " poses, " << writer.images() << " images"
               << (wopts.external ? " (external references)" : "");
     if (dropped) std::cout << "; dropped " << dropped << " NaN/inf points";
+    if (empty) std::cout << "; " << empty << " empty scans kept (no valid point)";
     std::cout << '\n';
   } catch (const std::exception& e) {
     std::cerr << "cleanmap-kitti2rawlog: error: " << e.what() << '\n';

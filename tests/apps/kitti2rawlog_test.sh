@@ -30,14 +30,17 @@ mk() {  # mk NAME: a 3-scan copy of kitti_city (links) to spoil
 expect_error 1 "directory does not exist" "$bin/cleanmap-kitti2rawlog" "$scratch/nope" "$scratch/o.rawlog"
 d=$(mk truncated); rm "$d/velodyne/000001.bin"; head -c 1000 "$city/velodyne/000001.bin" >"$d/velodyne/000001.bin"
 expect_error 1 "000001.bin: truncated scan" "$bin/cleanmap-kitti2rawlog" "$d" "$scratch/o.rawlog"
-d=$(mk empty); rm "$d/velodyne/000002.bin"; : >"$d/velodyne/000002.bin"
-expect_error 1 "000002.bin: empty scan" "$bin/cleanmap-kitti2rawlog" "$d" "$scratch/o.rawlog"
 d=$(mk posecount); head -2 "$city/poses.txt" >"$d/poses.txt"
 expect_error 1 "has 2 poses but the sequence has 3 scans" "$bin/cleanmap-kitti2rawlog" "$d" "$scratch/o.rawlog"
 d=$(mk calibkey); echo "P0: 1 0 0 0 0 1 0 0 0 0 1 0" >"$d/calib.txt"
 expect_error 1 "missing calibration key 'Tr'" "$bin/cleanmap-kitti2rawlog" "$d" "$scratch/o.rawlog"
 [[ -e $scratch/o.rawlog ]] && fail "a failed conversion left $scratch/o.rawlog"
 ls "$scratch" | grep -q '\.tmp\.' && fail "a temporary file was left behind"
+
+# Empty scans (0 bytes) are kept and counted, as in every app (README, "Bad input").
+d=$(mk empty); rm "$d/velodyne/000002.bin"; : >"$d/velodyne/000002.bin"
+out=$("$bin/cleanmap-kitti2rawlog" "$d" "$scratch/empty.rawlog") || fail "an empty scan stopped the conversion"
+[[ "$out" == *"3 scans"*"1 empty scans kept"* ]] || fail "empty scan not reported: $out"
 
 # NaN points: dropped, counted, reported; the rawlog holds only finite points.
 d=$(mk nan); rm "$d/velodyne/000000.bin"

@@ -88,6 +88,8 @@ fs::path predict(const Tiny& t, const std::string& name, int wrong_moving, int w
     std::snprintf(name6, sizeof name6, "%06d.label", int(s));
     io::writeLabels((dir / "labels" / name6).string(), p);
   }
+  test::writeText(dir / "report.json",  // a finished run
+                  R"({"generator": "cleanmap", "scans": 2, "timing_per_scan": {"total": {"median_ms": 50, "p95_ms": 60}}})");
   return dir;
 }
 
@@ -320,10 +322,18 @@ TEST(EvalErrors, BadInputsNameTheFile) {
   const auto t = makeTiny("errors");
   test::expectError([&] { eval::ResultInput::fromPath((t.dir / "nope").string(), {}); }, "nope",
                     "no such result");
-  // A result folder with nothing to score.
+  // A folder that is no finished cleanmap run: empty, or labels without report.json (a run that
+  // was interrupted), is refused.
   const auto empty = t.dir.parent_path() / "errors_empty";
   fs::create_directories(empty);
-  test::expectError([&] { eval::ResultInput::fromPath(empty.string(), {}); }, "errors_empty", "nothing to score");
+  test::expectError([&] { eval::ResultInput::fromPath(empty.string(), {}); }, "errors_empty", "no cleanmap report.json");
+  const auto unfinished = predict(t, "unfinished", 0, 0);
+  fs::remove(unfinished / "report.json");
+  test::expectError([&] { run(t, unfinished); }, "errors_unfinished", "not a finished cleanmap run");
+  // A finished run with nothing to score.
+  const auto nothing = t.dir.parent_path() / "errors_nothing";
+  test::writeText(nothing / "report.json", R"({"generator": "cleanmap"})");
+  test::expectError([&] { eval::ResultInput::fromPath(nothing.string(), {}); }, "errors_nothing", "nothing to score");
   // Label file with the wrong count.
   const auto p = predict(t, "short", 0, 0);
   io::writeLabels((p / "labels/000001.label").string(), Labels(3, 9));

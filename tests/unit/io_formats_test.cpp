@@ -1,11 +1,15 @@
 // SPDX-License-Identifier: BSD-3-Clause
-// PLY maps and ini parameters: round trips and clear errors.
+// PLY maps, the binary field decoder and ini parameters: round trips and clear errors.
 #include <gtest/gtest.h>
 
+#include <cstring>
 #include <fstream>
+#include <set>
 
 #include "cleanmap/io/config.h"
+#include "cleanmap/io/binary_field.h"
 #include "cleanmap/io/files.h"
+#include "cleanmap/io/ini.h"
 #include "cleanmap/io/ply.h"
 #include "test_data.h"
 
@@ -82,4 +86,153 @@ TEST(Config, BadIniIsAClearError) {
                     "ds.scan_conflict must be in (0, 1]");
   test::expectError([&] { io::loadParams("/nonexistent.ini", p); }, "/nonexistent.ini",
                     "does not exist");
+}
+
+namespace {
+
+// Appends `v` as the bytes of type T, little- or big-endian.
+template <class T>
+void put(std::string& out, double v, bool big) {
+  const T x = static_cast<T>(v);
+  char b[sizeof(T)];
+  std::memcpy(b, &x, sizeof(T));
+  if (big) std::reverse(b, b + sizeof(T));
+  out.append(b, sizeof(T));
+}
+
+void putTyped(std::string& out, const std::string& type, double v, bool big) {
+  if (type == "char" || type == "int8") put<int8_t>(out, v, big);
+  else if (type == "uchar" || type == "uint8") put<uint8_t>(out, v, big);
+  else if (type == "short" || type == "int16") put<int16_t>(out, v, big);
+  else if (type == "ushort" || type == "uint16") put<uint16_t>(out, v, big);
+  else if (type == "int" || type == "int32") put<int32_t>(out, v, big);
+  else if (type == "uint" || type == "uint32") put<uint32_t>(out, v, big);
+  else if (type == "float" || type == "float32") put<float>(out, v, big);
+  else put<double>(out, v, big);
+}
+
+}  // namespace
+
+// Every PLY scalar type, as coordinates and as intensity, in the three formats: the values come
+// back exactly (they are small integers, representable in every type), and a record narrower than
+// 4 bytes is never read past (ASan checks the last vertex).
+TEST(Ply, EveryPropertyTypeInEveryFormat) {
+  const auto dir = test::scratchDir("ply_types");
+  const std::vector<std::string> types = {"char", "uchar", "short", "ushort", "int", "uint", "float", "double",
+                                          "int8", "uint8", "int16", "uint16", "int32", "uint32", "float32",
+                                          "float64"};
+  for (const auto& type : types)
+    for (const std::string format : {"ascii", "binary_little_endian", "binary_big_endian"}) {
+      const bool big = format == "binary_big_endian";
+      const bool is_signed = type.find('u') != 0;  // uchar, ushort, uint, uint8...
+      const std::vector<std::array<double, 4>> v = {{1, 2, 3, 100}, {is_signed ? -7.0 : 7.0, 5, 6, 120}};
+      std::string text = "ply\nformat " + format + " 1.0\ncomment t\nelement vertex 2\n";
+      for (const char* n : {"x", "y", "z", "intensity"}) text += "property " + type + " " + n + "\n";
+      text += "end_header\n";
+      for (const auto& r : v)
+        for (std::size_t k = 0; k < 4; ++k) {
+          if (format == "ascii") text += std::to_string(int(r[k])) + (k == 3 ? "\n" : " ");
+          else putTyped(text, type, r[k], big);
+        }
+      const auto path = (dir / (type + "_" + format + ".ply")).string();
+      test::writeText(path, text);
+      const auto pts = io::readPly(path);
+      ASSERT_EQ(pts.size(), 2u) << path;
+      for (std::size_t i = 0; i < 2; ++i) {
+        EXPECT_EQ(pts[i].x, float(v[i][0])) << path;
+        EXPECT_EQ(pts[i].y, float(v[i][1])) << path;
+        EXPECT_EQ(pts[i].z, float(v[i][2])) << path;
+        EXPECT_EQ(pts[i].intensity, float(v[i][3])) << path;  // a uchar 120 is 120, not 1.7e-43
+      }
+    }
+}
+
+TEST(Ply, SkipsElementsBeforeVerticesAndRefusesAbsurdHeaders) {
+  const auto dir = test::scratchDir("ply_elements");
+  std::string b = "ply\nformat binary_little_endian 1.0\nelement camera 1\nproperty float fx\nproperty uchar id\n"
+                  "element vertex 1\nproperty double x\nproperty double y\nproperty double z\nproperty uchar intensity\n"
+                  "element face 1\nproperty list uchar int vertex_indices\nend_header\n";
+  putTyped(b, "float", 700.0, false);
+  putTyped(b, "uchar", 3, false);
+  for (double x : {1.25, -2.5, 3.75}) putTyped(b, "double", x, false);
+  putTyped(b, "uchar", 200, false);
+  test::writeText(dir / "e.ply", b);
+  const auto pts = io::readPly((dir / "e.ply").string());
+  ASSERT_EQ(pts.size(), 1u);
+  EXPECT_EQ(pts[0].x, 1.25f);
+  EXPECT_EQ(pts[0].z, 3.75f);
+  EXPECT_EQ(pts[0].intensity, 200.f);
+  // A header promising 10^12 vertices: one clear error, no allocation attempt.
+  test::writeText(dir / "huge.ply", "ply\nformat binary_little_endian 1.0\nelement vertex 1000000000000\n"
+                                    "property float x\nproperty float y\nproperty float z\nend_header\n0000");
+  test::expectError([&] { io::readPly((dir / "huge.ply").string()); }, "huge.ply", "promises 1000000000000 vertices");
+  test::writeText(dir / "list.ply", "ply\nformat binary_little_endian 1.0\nelement vertex 1\nproperty float x\n"
+                                    "property float y\nproperty list uchar float z\nend_header\n");
+  test::expectError([&] { io::readPly((dir / "list.ply").string()); }, "list.ply", "is a list");
+  test::writeText(dir / "type.ply", "ply\nformat ascii 1.0\nelement vertex 1\nproperty half x\nend_header\n");
+  test::expectError([&] { io::readPly((dir / "type.ply").string()); }, "type.ply", "unsupported PLY property type 'half'");
+  test::writeText(dir / "nohdr.ply", "ply\nformat ascii 1.0\nelement vertex 1\n");
+  test::expectError([&] { io::readPly((dir / "nohdr.ply").string()); }, "nohdr.ply", "no end_header");
+}
+
+TEST(BinaryField, DecodesEveryTypeBothEndians) {
+  EXPECT_EQ(io::fieldSize(*io::plyFieldType("ushort")), 2u);
+  EXPECT_EQ(io::pcdFieldType('F', 2), std::nullopt);
+  EXPECT_EQ(io::pcdFieldType('X', 4), std::nullopt);
+  EXPECT_EQ(*io::pcdFieldType('U', 1), io::FieldType::kU8);
+  EXPECT_EQ(*io::pcdFieldType('I', 8), io::FieldType::kI64);
+  for (bool big : {false, true}) {
+    std::string b;
+    putTyped(b, "int16", -1234, big);
+    EXPECT_EQ(io::decodeField(b.data(), io::FieldType::kI16, big), -1234.0);
+    b.clear();
+    putTyped(b, "double", 0.1, big);
+    EXPECT_EQ(io::decodeField(b.data(), io::FieldType::kF64, big), 0.1);
+    b.clear();
+    put<uint64_t>(b, 1ull << 40, big);
+    EXPECT_EQ(io::decodeField(b.data(), io::FieldType::kU64, big), double(1ull << 40));
+  }
+}
+
+TEST(Ini, CommentsSectionsAndRepeatedKeys) {
+  std::vector<std::string> seen;
+  io::IniHandlers on;
+  on.section = [&](const std::string& s, int) { seen.push_back("[" + s + "]"); };
+  on.entry = [&](const io::IniLine& e) { seen.push_back(e.section + "." + e.key + "=" + e.value + "@" + std::to_string(e.line)); };
+  io::parseIni("# top\n[a]  ; note\nk = 1 2; 3 # tail\n\n[b]\nk = x#y\n[a]\nk = again\n", "t.ini", on);
+  const std::vector<std::string> want = {"[a]", "a.k=1 2; 3@3", "[b]", "b.k=x#y@6", "[a]", "a.k=again@8"};
+  EXPECT_EQ(seen, want);
+  test::expectError([&] { io::parseIni("[a]\nk = 1\nk = 2\n", "t.ini", on); }, "t.ini:3", "'k' given twice in [a]");
+  test::expectError([&] { io::parseIni("k = 1\n", "t.ini", on); }, "t.ini:1", "outside any section");
+  test::expectError([&] { io::parseIni("[a]\nk =\n", "t.ini", on); }, "t.ini:2", "empty value");
+  test::expectError([&] { io::parseIni("[a\n", "t.ini", on); }, "t.ini:1", "malformed section header");
+  test::expectError([&] { io::parseIni("[a]\njust text\n", "t.ini", on); }, "t.ini:2", "expected 'key = value'");
+}
+
+TEST(Config, ShippedIniListsEveryKeyOfTheTable) {
+  // The shipped file documents every parameter: its key set equals the parameter table's.
+  std::set<std::string> in_file;
+  io::IniHandlers on;
+  on.entry = [&](const io::IniLine& e) { in_file.insert(e.section + "." + e.key); };
+  io::parseIni(io::readTextFile(CLEANMAP_SOURCE_DIR "/config/cleanmap.ini"), "cleanmap.ini", on);
+  const auto keys = io::paramKeys();
+  EXPECT_EQ(in_file, std::set<std::string>(keys.begin(), keys.end()));
+}
+
+TEST(Config, RepeatedKeysAndEmptyWindowAreErrors) {
+  PipelineParams p;
+  test::expectError([&] { io::parseParams("[ds]\nsigma_r = 0.2\nsigma_r = 0.3\n", "x.ini", p); }, "x.ini:3",
+                    "'sigma_r' given twice in [ds]");
+  test::expectError([&] { io::parseParams("[ds]\nsigma_r = 0.2\n[filter]\ncrop_tau = 20\n[ds]\nsigma_r = 0.3\n", "x.ini", p); },
+                    "x.ini:6", "'sigma_r' given twice in [ds]");
+  test::expectError([&] { io::parseParams("[ds]\nwindow_k = 0\n", "x.ini", p); }, "x.ini", "ds.window_k must be >= 1");
+}
+
+TEST(Config, PrintsTheShortestExactForm) {
+  EXPECT_EQ(io::shortestDouble(0.15), "0.15");
+  EXPECT_EQ(io::shortestDouble(30), "30");
+  EXPECT_EQ(io::shortestDouble(-1.73), "-1.73");
+  EXPECT_EQ(io::shortestDouble(1.0 / 6.0), "0.16666666666666666");
+  EXPECT_NE(io::toIni(PipelineParams{}).find("sigma_r = 0.15\n"), std::string::npos);
+  for (double v : {0.1, 1.0 / 3.0, 6.02e23, 2.2250738585072014e-308, 0.0035}) EXPECT_EQ(std::stod(io::shortestDouble(v)), v);
 }

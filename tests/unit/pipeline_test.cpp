@@ -12,6 +12,7 @@
 #include "cleanmap/core/moving_test.h"
 #include "cleanmap/core/error.h"
 #include "cleanmap/pipeline/laser_pipeline.h"
+#include "test_data.h"
 
 using namespace cleanmap;
 
@@ -198,11 +199,20 @@ TEST(Pipeline, DegenerateInputs) {
     EXPECT_TRUE(out[1].stats.empty);
     EXPECT_TRUE(out[1].labels.empty());
   }
-  {  // a scan without a pose is a clear error
+  {  // a scan without a pose is a clear error naming where the scan came from
     LaserPipeline pl(p, [](ScanResult&&) {});
     Frame f = castScene(0, 0, 10, nullptr);
     f.scan.has_pose = false;
-    EXPECT_THROW(pl.push(std::move(f)), Error);
+    f.source = "drive.rawlog entry 17";
+    test::expectError([&] { pl.push(std::move(f)); }, "drive.rawlog entry 17", "has no pose");
+  }
+  {  // parameters are validated by the pipeline itself, not only when read from a file
+    PipelineParams bad = p;
+    bad.ds.window_k = 0;
+    test::expectError([&] { LaserPipeline(bad, [](ScanResult&&) {}); }, "parameters", "ds.window_k must be >= 1");
+    bad = p;
+    bad.octree.leaf = -1;
+    test::expectError([&] { LaserPipeline(bad, [](ScanResult&&) {}); }, "parameters", "octree.leaf must be > 0");
   }
   {  // windows with no overlap: scans 1 km apart see nothing of each other
     out.clear();

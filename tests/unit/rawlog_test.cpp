@@ -130,7 +130,7 @@ TEST(RawlogSource, MissingEmptyAndGarbageFilesAreErrors) {
                     "holds no point-cloud observations");
   std::ofstream(dir / "text.rawlog") << "this is not a rawlog, just some text that goes on\n";
   test::expectError([&] { mrpt::RawlogSource((dir / "text.rawlog").string()); }, "text.rawlog",
-                    "corrupt rawlog");
+                    "is not an MRPT rawlog");
 }
 
 TEST(RawlogSource, TruncatedRawlogIsAnError) {

@@ -1,9 +1,15 @@
 // SPDX-License-Identifier: BSD-3-Clause
 #include <gtest/gtest.h>
 
+#include <atomic>
+#include <numeric>
+#include <set>
+
 #include <cmath>
 #include <limits>
 
+#include "cleanmap/core/cell_key.h"
+#include "cleanmap/core/parallel.h"
 #include "cleanmap/core/types.h"
 
 using namespace cleanmap;
@@ -80,4 +86,41 @@ TEST(PinholeCamera, OpticalFrameReproducesProjection) {
   const Eigen::Vector3d uvw = c.lidarToPixel() * p.homogeneous();
   EXPECT_NEAR(uvw_opt.x() / uvw_opt.z(), uvw.x() / uvw.z(), 1e-6);
   EXPECT_NEAR(uvw_opt.y() / uvw_opt.z(), uvw.y() / uvw.z(), 1e-6);
+}
+
+// The one parallel loop: every index exactly once, worker ids in range, whatever the split.
+TEST(ParallelFor, EveryIndexOnceWorkersInRange) {
+  for (int threads : {1, 2, 3, 8})
+    for (std::size_t chunk : {std::size_t(1), std::size_t(7), std::size_t(512)})
+      for (std::size_t n : {std::size_t(0), std::size_t(1), std::size_t(100), std::size_t(5000)}) {
+        std::vector<std::atomic<int>> hits(n);
+        std::atomic<bool> bad_worker{false};
+        parallelFor(n, threads, [&](std::size_t i, int w) {
+          hits[i].fetch_add(1);
+          if (w < 0 || w >= threads) bad_worker = true;
+        }, chunk);
+        for (std::size_t i = 0; i < n; ++i) ASSERT_EQ(hits[i].load(), 1) << "n " << n << " i " << i;
+        EXPECT_FALSE(bad_worker);
+      }
+  // Per-worker accumulators sum to the serial result.
+  std::vector<long> acc(4, 0);
+  parallelFor(10000, 4, [&](std::size_t i, int w) { acc[std::size_t(w)] += long(i); }, 64);
+  EXPECT_EQ(std::accumulate(acc.begin(), acc.end(), 0L), 10000L * 9999L / 2);
+}
+
+TEST(CellKey, FloorNeighboursAndShift) {
+  EXPECT_EQ(floorToCell(-0.01, 10.0), -1);
+  EXPECT_EQ(floorToCell(0.0, 10.0), 0);
+  EXPECT_EQ(floorToCell(0.299f, 1.0f / 0.3f), 0);
+  EXPECT_EQ(floorToCell(-2.5, 1.0), -3);
+  std::set<uint64_t> around;
+  const uint64_t c = cellKeyOf(-3.2, 7.9, 0.05, 2.0);
+  forEachNeighbour27([&](int dx, int dy, int dz) { around.insert(cellKeyShift(c, dx, dy, dz)); });
+  EXPECT_EQ(around.size(), 27u);
+  EXPECT_TRUE(around.count(c));
+  EXPECT_EQ(cellKeyShift(c, 1, -1, 0), cellKey(-7 + 1, 15 - 1, 0));
+  EXPECT_EQ(cellKeyShift(cellKeyShift(c, 5, -9, 2), -5, 9, -2), c);
+  // Negative and positive cells never collide within +-2^20.
+  EXPECT_NE(cellKey(-1, 0, 0), cellKey(1, 0, 0));
+  EXPECT_NE(cellKey(0, -(1 << 20), 0), cellKey(0, (1 << 20) - 1, 0));
 }

@@ -11,10 +11,6 @@ namespace cleanmap {
 DuplicateFilter::DuplicateFilter(const FilterParams& p)
     : p_(p), inv_(static_cast<float>(0.5 / p.dup_distance)) {}
 
-DuplicateFilter::Key DuplicateFilter::key(int x, int y, int z) const {
-  return cellKey(x, y, z);
-}
-
 bool DuplicateFilter::isDuplicate(const Eigen::Vector3f& p, long scan) const {
   if (grid_.empty()) return false;
   // With cells of side 2d, the ball of radius d around p reaches one neighbour per axis: the one
@@ -30,7 +26,7 @@ bool DuplicateFilter::isDuplicate(const Eigen::Vector3f& p, long scan) const {
   for (int dx = 0; dx <= 1; ++dx)
     for (int dy = 0; dy <= 1; ++dy)
       for (int dz = 0; dz <= 1; ++dz) {
-        const auto it = grid_.find(key(lo[0] + dx, lo[1] + dy, lo[2] + dz));
+        const auto it = grid_.find(cellKey(lo[0] + dx, lo[1] + dy, lo[2] + dz));
         if (it == grid_.end()) continue;
         for (const Entry& e : it->second)
           if (e.scan >= oldest && e.scan < scan && (e.p - p).squaredNorm() <= d2) return true;
@@ -42,8 +38,7 @@ void DuplicateFilter::insert(const std::vector<Eigen::Vector3f>& points, long sc
   std::vector<Key> keys;
   keys.reserve(points.size());
   for (const auto& p : points) {
-    const Key k = key(static_cast<int>(std::floor(p.x() * inv_)), static_cast<int>(std::floor(p.y() * inv_)),
-                      static_cast<int>(std::floor(p.z() * inv_)));
+    const Key k = cellKeyOf(p.x(), p.y(), p.z(), inv_);
     grid_[k].push_back({p, static_cast<int32_t>(scan)});
     keys.push_back(k);
   }

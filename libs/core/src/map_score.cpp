@@ -6,32 +6,33 @@
 #include <numeric>
 #include <string>
 
+#include "cleanmap/core/cell_key.h"
 #include "cleanmap/core/error.h"
 
 namespace cleanmap {
 namespace {
-constexpr int64_t kBias = int64_t(1) << 20;  // 21 bits per axis: +-1M cells (+-50 km at 5 cm)
+// Beyond this many cells from the origin a coordinate no longer converts to an integer cell
+// safely; masked keys make anything nearer exact (aliased cells only share a bucket).
+constexpr double kMaxCells = 1e15;
+}  // namespace
+
+bool RadiusIndex::indexable(const Eigen::Vector3f& p) const {
+  return p.allFinite() && (p.cast<double>().cwiseAbs() * inv_).maxCoeff() < kMaxCells;
 }
 
-uint64_t RadiusIndex::key(int64_t x, int64_t y, int64_t z) const {
-  return (uint64_t(x + kBias) << 42) | (uint64_t(y + kBias) << 21) | uint64_t(z + kBias);
+uint64_t RadiusIndex::cellOf(const Eigen::Vector3f& p) const {
+  return cellKeyOf(double(p.x()), double(p.y()), double(p.z()), inv_);
 }
 
 RadiusIndex::RadiusIndex(std::vector<Eigen::Vector3f> points, double radius)
-    : radius_(radius), r2_(static_cast<float>(radius * radius)) {
+    : radius_(radius), inv_(1.0 / radius), r2_(static_cast<float>(radius * radius)) {
   if (!(radius > 0)) throw Error("RadiusIndex", "radius must be > 0");
-  const auto cellOf = [&](const Eigen::Vector3f& p) {
-    return key(static_cast<int64_t>(std::floor(p.x() / radius_)),
-               static_cast<int64_t>(std::floor(p.y() / radius_)),
-               static_cast<int64_t>(std::floor(p.z() / radius_)));
-  };
   points.erase(std::remove_if(points.begin(), points.end(),
                               [](const Eigen::Vector3f& p) { return !p.allFinite(); }),
                points.end());
   for (const auto& p : points)
-    if ((p.cwiseAbs().array() / float(radius_) >= float(kBias - 2)).any())
-      throw Error("RadiusIndex", "a map point lies more than " +
-                                     std::to_string(int(radius_ * double(kBias) / 1000)) +
+    if (!indexable(p))
+      throw Error("RadiusIndex", "a map point lies " + std::to_string(p.norm() / 1000) +
                                      " km from the origin; the index cannot hold it");
   std::vector<uint64_t> keys(points.size());
   for (std::size_t i = 0; i < points.size(); ++i) keys[i] = cellOf(points[i]);
@@ -48,19 +49,17 @@ RadiusIndex::RadiusIndex(std::vector<Eigen::Vector3f> points, double radius)
 }
 
 bool RadiusIndex::hasNeighbour(const Eigen::Vector3f& p) const {
-  if (!p.allFinite() || (p.cwiseAbs().array() / float(radius_) >= float(kBias - 2)).any()) return false;
-  const int64_t cx = static_cast<int64_t>(std::floor(p.x() / radius_));
-  const int64_t cy = static_cast<int64_t>(std::floor(p.y() / radius_));
-  const int64_t cz = static_cast<int64_t>(std::floor(p.z() / radius_));
-  for (int64_t dx = -1; dx <= 1; ++dx)
-    for (int64_t dy = -1; dy <= 1; ++dy)
-      for (int64_t dz = -1; dz <= 1; ++dz) {
-        const auto it = cells_.find(key(cx + dx, cy + dy, cz + dz));
-        if (it == cells_.end()) continue;
-        for (uint32_t i = it->second.first; i < it->second.second; ++i)
-          if ((pts_[i] - p).squaredNorm() <= r2_) return true;
-      }
-  return false;
+  if (!indexable(p)) return false;
+  const uint64_t centre = cellOf(p);
+  bool found = false;
+  forEachNeighbour27([&](int dx, int dy, int dz) {
+    if (found) return;
+    const auto it = cells_.find(cellKeyShift(centre, dx, dy, dz));
+    if (it == cells_.end()) return;
+    for (uint32_t i = it->second.first; i < it->second.second && !found; ++i)
+      found = (pts_[i] - p).squaredNorm() <= r2_;
+  });
+  return found;
 }
 
 double MapScore::aa() const { return std::sqrt(sa() * da()); }

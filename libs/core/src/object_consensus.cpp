@@ -25,10 +25,6 @@ struct UnionFind {
   }
 };
 
-uint64_t voxelKey(int x, int y, int z) {
-  return cellKey(x, y, z);
-}
-
 }  // namespace
 
 ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points, const std::vector<uint8_t>& member,
@@ -43,9 +39,9 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points, const
   std::vector<uint32_t> point_voxel(points.size(), UINT32_MAX);
   for (std::size_t i = 0; i < points.size(); ++i) {
     if (!member[i]) continue;
-    const Eigen::Vector3i c(static_cast<int>(std::floor(points[i].x * inv)), static_cast<int>(std::floor(points[i].y * inv)),
-                            static_cast<int>(std::floor(points[i].z * inv)));
-    const auto [it, fresh] = voxel_of.emplace(voxelKey(c.x(), c.y(), c.z()), static_cast<uint32_t>(voxels.size()));
+    const Eigen::Vector3i c(static_cast<int>(floorToCell(points[i].x, inv)), static_cast<int>(floorToCell(points[i].y, inv)),
+                            static_cast<int>(floorToCell(points[i].z, inv)));
+    const auto [it, fresh] = voxel_of.emplace(cellKey(c.x(), c.y(), c.z()), static_cast<uint32_t>(voxels.size()));
     if (fresh) voxels.push_back(c);
     point_voxel[i] = it->second;
   }
@@ -53,13 +49,10 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points, const
   UnionFind uf(voxels.size());
   for (uint32_t v = 0; v < voxels.size(); ++v) {
     const Eigen::Vector3i& c = voxels[v];
-    for (int dx = -1; dx <= 1; ++dx)
-      for (int dy = -1; dy <= 1; ++dy)
-        for (int dz = -1; dz <= 1; ++dz) {
-          if (dx == 0 && dy == 0 && dz == 0) continue;
-          const auto it = voxel_of.find(voxelKey(c.x() + dx, c.y() + dy, c.z() + dz));
-          if (it != voxel_of.end() && it->second < v) uf.unite(v, it->second);
-        }
+    forEachNeighbour27([&](int dx, int dy, int dz) {  // the centre finds v itself: not < v
+      const auto it = voxel_of.find(cellKey(c.x() + dx, c.y() + dy, c.z() + dz));
+      if (it != voxel_of.end() && it->second < v) uf.unite(v, it->second);
+    });
   }
   // Per component: point counts and extent.
   struct Comp {
@@ -119,12 +112,10 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points, const
   for (uint32_t v = 0; v < voxels.size(); ++v) {
     if (!moving_in[v]) continue;
     const Eigen::Vector3i& c = voxels[v];
-    for (int dx = -1; dx <= 1; ++dx)
-      for (int dy = -1; dy <= 1; ++dy)
-        for (int dz = -1; dz <= 1; ++dz) {
-          const auto it = voxel_of.find(voxelKey(c.x() + dx, c.y() + dy, c.z() + dz));
-          if (it != voxel_of.end() && it->second < v && moving_in[it->second]) muf.unite(v, it->second);
-        }
+    forEachNeighbour27([&](int dx, int dy, int dz) {
+      const auto it = voxel_of.find(cellKey(c.x() + dx, c.y() + dy, c.z() + dz));
+      if (it != voxel_of.end() && it->second < v && moving_in[it->second]) muf.unite(v, it->second);
+    });
   }
   std::vector<uint32_t> group(voxels.size(), 0);
   for (uint32_t v = 0; v < voxels.size(); ++v)

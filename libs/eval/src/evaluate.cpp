@@ -14,6 +14,7 @@
 #include "cleanmap/io/files.h"
 #include "cleanmap/io/kitti.h"
 #include "cleanmap/io/objects.h"
+#include "cleanmap/io/output.h"
 #include "cleanmap/io/pcd.h"
 
 namespace fs = std::filesystem;
@@ -79,6 +80,9 @@ ResultInput ResultInput::fromPath(const std::string& result, const std::optional
   std::error_code ec;
   if (fs::is_directory(result, ec)) {
     const fs::path d(result);
+    if (!io::isCleanmapRun(result))
+      throw Error(result, "has no cleanmap report.json: not a finished cleanmap run (interrupted, or another "
+                          "tool's folder: give its map file as RESULT and its labels with --labels)");
     if (fs::is_directory(d / "labels")) in.labels_dir = (d / "labels").string();
     for (const char* name : {"static_map_full.ply", "static_map_full.pcd"})
       if (fs::is_regular_file(d / name)) {

@@ -317,6 +317,7 @@ Frame KittiSequence::frame(std::size_t i) const {
   Frame f;
   f.index = i;
   f.stem = stems_.at(i);
+  f.source = scanPath(i);
   f.scan = loadScan(i);
   f.image = loadImage(i);
   return f;

@@ -1,7 +1,13 @@
 // SPDX-License-Identifier: BSD-3-Clause
 #include "cleanmap/io/output.h"
 
+#include <fcntl.h>
 #include <sys/resource.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <csignal>
+#include <cstdlib>
 
 #include <algorithm>
 #include <cstdio>
@@ -15,6 +21,7 @@
 #include "cleanmap/io/ply.h"
 
 namespace cleanmap::io {
+namespace fs = std::filesystem;
 namespace {
 
 struct Spread {
@@ -45,21 +52,75 @@ double peakRssMiB() {
   return static_cast<double>(ru.ru_maxrss) / 1024.0;
 }
 
-OutputWriter::OutputWriter(const std::string& outdir, const std::string& input,
-                           const PipelineParams& params)
-    : dir_(outdir), input_(input), params_(params) {
+bool isCleanmapRun(const std::string& dir) {
+  const fs::path report = fs::path(dir) / "report.json";
   std::error_code ec;
-  std::filesystem::create_directories(std::filesystem::path(dir_) / "labels", ec);
-  if (ec) throw Error(dir_, "cannot create the output folder: " + ec.message());
-  compact_ = std::make_unique<PlyStreamWriter>(dir_ + "/static_map.ply");
-  full_ = std::make_unique<PlyStreamWriter>(dir_ + "/static_map_full.ply");
-  moving_ = std::make_unique<PlyStreamWriter>(dir_ + "/dynamic.ply");
+  if (!fs::is_regular_file(report, ec)) return false;
+  try {
+    const auto j = nlohmann::json::parse(readTextFile(report.string()));
+    return j.is_object() && (j.value("generator", "") == "cleanmap" || j.contains("params_ini"));
+  } catch (const std::exception&) {
+    return false;
+  }
 }
 
-OutputWriter::~OutputWriter() = default;
+void checkOutputFolder(const std::string& outdir, const OutputOptions& opts) {
+  std::error_code ec;
+  const auto st = fs::status(outdir, ec);
+  if (!fs::exists(st)) return;
+  if (!fs::is_directory(st)) throw Error(outdir, "exists and is not a folder; choose another -o");
+  if (fs::is_empty(outdir, ec) || isCleanmapRun(outdir) || opts.force) return;
+  throw Error(outdir, "is a non-empty folder that holds no cleanmap run (no cleanmap report.json); "
+                      "choose another -o, or pass --force to replace it and everything in it");
+}
+
+namespace {
+
+// Staging folders of runs that were killed (SIGKILL, power loss) are removed by the next run.
+void removeStaleStaging(const fs::path& parent, const std::string& prefix) {
+  std::error_code ec;
+  for (const auto& e : fs::directory_iterator(parent.empty() ? "." : parent, ec)) {
+    const std::string n = e.path().filename().string();
+    if (n.rfind(prefix, 0) != 0) continue;
+    const long pid = std::atol(n.c_str() + prefix.size());
+    if (pid > 0 && ::kill(static_cast<pid_t>(pid), 0) != 0 && errno == ESRCH) fs::remove_all(e.path(), ec);
+  }
+}
+
+}  // namespace
+
+OutputWriter::OutputWriter(const std::string& outdir, const std::string& input,
+                           const PipelineParams& params, const OutputOptions& opts)
+    : dir_(outdir), input_(input), params_(params) {
+  while (dir_.size() > 1 && dir_.back() == '/') dir_.pop_back();
+  checkOutputFolder(dir_, opts);
+  const fs::path out(dir_);
+  const std::string prefix = "." + out.filename().string() + ".cleanmap-staging-";
+  std::error_code ec;
+  if (!out.parent_path().empty()) fs::create_directories(out.parent_path(), ec);
+  if (ec) throw Error(dir_, "cannot create the parent folder: " + ec.message());
+  removeStaleStaging(out.parent_path(), prefix);
+  staging_ = (out.parent_path() / (prefix + std::to_string(::getpid()))).string();
+  fs::remove_all(staging_, ec);
+  fs::create_directories(fs::path(staging_) / "labels", ec);
+  if (ec) throw Error(dir_, "cannot create the staging folder " + staging_ + ": " + ec.message());
+  compact_ = std::make_unique<PlyStreamWriter>(staging_ + "/static_map.ply");
+  full_ = std::make_unique<PlyStreamWriter>(staging_ + "/static_map_full.ply");
+  moving_ = std::make_unique<PlyStreamWriter>(staging_ + "/dynamic.ply");
+}
+
+OutputWriter::~OutputWriter() {
+  compact_.reset();  // closes and removes the temporaries first
+  full_.reset();
+  moving_.reset();
+  if (!published_ && !staging_.empty()) {
+    std::error_code ec;
+    fs::remove_all(staging_, ec);
+  }
+}
 
 void OutputWriter::write(const ScanResult& r, const std::optional<MosCounts>& eval) {
-  writeLabels(dir_ + "/labels/" + r.stem + ".label", r.labels);
+  writeLabels(staging_ + "/labels/" + r.stem + ".label", r.labels);
   compact_->append(r.static_compact);
   full_->append(r.static_full);
   moving_->append(r.moving);
@@ -73,34 +134,38 @@ void OutputWriter::write(const ScanResult& r, const std::optional<MosCounts>& ev
   }
 }
 
+// The staging folder becomes OUTDIR in one step: renameat2(RENAME_EXCHANGE) swaps it with an
+// earlier run atomically; where the file system cannot swap, two renames leave OUTDIR missing
+// for an instant, never half-written.
+void OutputWriter::publish() {
+  std::error_code ec;
+  if (!fs::exists(dir_, ec)) {
+    fs::rename(staging_, dir_, ec);
+    if (ec) throw Error(dir_, "cannot move the finished run into place: " + ec.message());
+  } else if (::renameat2(AT_FDCWD, staging_.c_str(), AT_FDCWD, dir_.c_str(), RENAME_EXCHANGE) != 0) {
+    const std::string old = staging_ + ".old";
+    fs::rename(dir_, old, ec);
+    if (!ec) fs::rename(staging_, dir_, ec);
+    if (ec) throw Error(dir_, "cannot replace the earlier run: " + ec.message());
+    fs::remove_all(old, ec);
+    published_ = true;
+    return;
+  }
+  published_ = true;
+  fs::remove_all(staging_, ec);  // after a swap: the earlier run
+}
+
 void OutputWriter::finish(double wall_s) {
   compact_->close();
   full_->close();
   moving_->close();
-  writePosesFile(dir_ + "/poses.txt", poses_);
-  writeFileAtomic(dir_ + "/params.ini", [&](std::ostream& os) { os << toIni(params_); });
+  writePosesFile(staging_ + "/poses.txt", poses_);
+  writeFileAtomic(staging_ + "/params.ini", [&](std::ostream& os) { os << toIni(params_); });
 
   ScanStats total;
   std::vector<double> t_total, t_index, t_ground, t_dup, t_oct, t_cls, t_obj;
-  std::size_t empty = 0;
   for (const auto& s : stats_) {
-    total.points += s.points;
-    total.invalid += s.invalid;
-    total.in_crop += s.in_crop;
-    total.ground += s.ground;
-    total.duplicates += s.duplicates;
-    total.candidates += s.candidates;
-    total.tested += s.tested;
-    total.moving += s.moving;
-    total.static_points += s.static_points;
-    total.total_conflicts += s.total_conflicts;
-    total.no_evidence += s.no_evidence;
-    total.conflicting_scans += s.conflicting_scans;
-    total.objects_moving += s.objects_moving;
-    total.consensus_points += s.consensus_points;
-    total.consensus_removed += s.consensus_removed;
-    total.objects_persisted += s.objects_persisted;
-    empty += s.empty;
+    total += s;
     t_total.push_back(s.ms.total);
     t_index.push_back(s.ms.index);
     t_ground.push_back(s.ms.ground);
@@ -109,7 +174,9 @@ void OutputWriter::finish(double wall_s) {
     t_cls.push_back(s.ms.classify);
     t_obj.push_back(s.ms.objects);
   }
+  const std::size_t empty = total.empty;
   nlohmann::json j;
+  j["generator"] = "cleanmap";
   j["input"] = input_;
   j["scans"] = stats_.size();
   j["counts"] = {{"points", total.points},       {"invalid_dropped", total.invalid},
@@ -146,9 +213,8 @@ void OutputWriter::finish(double wall_s) {
       per[stems_[i]] = countsJson(scan_eval_[i]);
     j["evaluation_per_scan"] = per;
   }
-  writeFileAtomic(dir_ + "/report.json", [&](std::ostream& os) { os << j.dump(1) << '\n'; });
 
-  writeFileAtomic(dir_ + "/report.md", [&](std::ostream& os) {
+  writeFileAtomic(staging_ + "/report.md", [&](std::ostream& os) {
     char buf[512];
     os << "# cleanmap run report\n\nInput: `" << input_ << "`, " << stats_.size() << " scans, "
        << params_.threads << " threads, wall " << wall_s << " s, peak RSS " << peakRssMiB()
@@ -176,6 +242,9 @@ void OutputWriter::finish(double wall_s) {
       os << buf;
     }
   });
+  // Last: report.json marks a finished run (cleanmap-eval refuses a folder without it).
+  writeFileAtomic(staging_ + "/report.json", [&](std::ostream& os) { os << j.dump(1) << '\n'; });
+  publish();
 }
 
 }  // namespace cleanmap::io

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: BSD-3-Clause
 #include "cleanmap/io/pcd.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <fstream>
@@ -8,6 +9,7 @@
 #include <sstream>
 
 #include "cleanmap/core/error.h"
+#include "cleanmap/io/binary_field.h"
 #include "cleanmap/io/files.h"
 #include "cleanmap/io/ply.h"
 
@@ -18,6 +20,7 @@ struct Field {
   std::string name;
   int size = 4, count = 1;
   char type = 'F';
+  FieldType decoded = FieldType::kF32;
   std::size_t offset = 0;  // within a point record
 };
 
@@ -55,23 +58,7 @@ std::string lzfDecompress(const std::string& in, std::size_t out_size, const std
   return out;
 }
 
-double readValue(const char* p, const Field& f) {
-  switch (f.type) {
-    case 'F':
-      if (f.size == 4) { float v; std::memcpy(&v, p, 4); return v; }
-      { double v; std::memcpy(&v, p, 8); return v; }
-    case 'U':
-      if (f.size == 1) return static_cast<unsigned char>(*p);
-      if (f.size == 2) { uint16_t v; std::memcpy(&v, p, 2); return v; }
-      if (f.size == 4) { uint32_t v; std::memcpy(&v, p, 4); return v; }
-      { uint64_t v; std::memcpy(&v, p, 8); return double(v); }
-    default:
-      if (f.size == 1) return static_cast<signed char>(*p);
-      if (f.size == 2) { int16_t v; std::memcpy(&v, p, 2); return v; }
-      if (f.size == 4) { int32_t v; std::memcpy(&v, p, 4); return v; }
-      { int64_t v; std::memcpy(&v, p, 8); return double(v); }
-  }
-}
+double readValue(const char* p, const Field& f) { return decodeField(p, f.decoded); }
 
 }  // namespace
 
@@ -126,10 +113,9 @@ std::vector<PointXYZI> readPcd(const std::string& path) {
     f.size = sizes[k];
     f.type = types[k];
     f.count = counts[k];
-    if ((f.type != 'F' && f.type != 'U' && f.type != 'I') ||
-        (f.size != 1 && f.size != 2 && f.size != 4 && f.size != 8) || (f.type == 'F' && f.size < 4) ||
-        f.count < 1)
-      throw Error(path, "field '" + f.name + "' has an unsupported TYPE/SIZE/COUNT");
+    const auto decoded = pcdFieldType(f.type, f.size);
+    if (!decoded || f.count < 1) throw Error(path, "field '" + f.name + "' has an unsupported TYPE/SIZE/COUNT");
+    f.decoded = *decoded;
     f.offset = record;
     record += std::size_t(f.size) * std::size_t(f.count);
     if (f.name == "x") ix = int(k);
@@ -140,7 +126,7 @@ std::vector<PointXYZI> readPcd(const std::string& path) {
   if (ix < 0 || iy < 0 || iz < 0) throw Error(path, "PCD has no x, y, z fields");
 
   std::vector<PointXYZI> out;
-  out.reserve(points);
+  out.reserve(std::min<std::size_t>(points, 1u << 20));  // grows with the data, not with the header
   auto emit = [&](double x, double y, double z, double i) {
     if (std::isfinite(x) && std::isfinite(y) && std::isfinite(z))
       out.push_back({float(x), float(y), float(z), std::isfinite(i) ? float(i) : 0.f});
@@ -167,7 +153,7 @@ std::vector<PointXYZI> readPcd(const std::string& path) {
   }
   const std::string rest((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
   if (data == "binary") {
-    if (rest.size() < points * record)
+    if (rest.size() / record < points)
       throw Error(path, "truncated: binary data hold " + std::to_string(rest.size()) +
                             " bytes, " + std::to_string(points) + " points need " +
                             std::to_string(points * record));
@@ -187,7 +173,7 @@ std::vector<PointXYZI> readPcd(const std::string& path) {
     if (rest.size() < 8 + std::size_t(csize))
       throw Error(path, "truncated: compressed data shorter than the " + std::to_string(csize) +
                             " bytes announced");
-    if (usize != points * record)
+    if (record == 0 || usize / record != points || usize % record != 0)
       throw Error(path, "binary_compressed size " + std::to_string(usize) + " does not match " +
                             std::to_string(points) + " points of " + std::to_string(record) + " bytes");
     const std::string raw = lzfDecompress(rest.substr(8, csize), usize, path);

@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "cleanmap/core/error.h"
+#include "cleanmap/io/binary_field.h"
 #include "cleanmap/io/files.h"
 
 namespace cleanmap::io {
@@ -60,15 +61,30 @@ void writePly(const std::string& path, const std::vector<PointXYZI>& points) {
   w.close();
 }
 
-std::vector<PointXYZI> readPly(const std::string& path) {
-  const std::string data = readTextFile(path);
+namespace {
+
+struct PlyProperty {
+  std::string name;
+  FieldType type = FieldType::kF32;
+  bool list = false;
+};
+struct PlyElement {
+  std::string name;
+  std::size_t count = 0;
+  std::vector<PlyProperty> props;
+};
+struct PlyHeader {
+  enum class Format { kAscii, kLittle, kBig } format = Format::kAscii;
+  std::vector<PlyElement> elements;
+  std::size_t data_start = 0;  // byte offset of the first element's data
+};
+
+PlyHeader readPlyHeader(const std::string& data, const std::string& path) {
   std::istringstream in(data);
   std::string line;
   if (!std::getline(in, line) || line.rfind("ply", 0) != 0) throw Error(path, "not a PLY file");
-  bool binary = false, ascii = false, in_vertex = false;
-  std::size_t n = 0;
-  std::vector<std::string> props;
-  std::vector<int> sizes;
+  PlyHeader h;
+  bool have_format = false;
   while (std::getline(in, line)) {
     if (!line.empty() && line.back() == '\r') line.pop_back();
     std::istringstream ls(line);
@@ -77,70 +93,103 @@ std::vector<PointXYZI> readPly(const std::string& path) {
     if (w == "format") {
       std::string f;
       ls >> f;
-      binary = f == "binary_little_endian";
-      ascii = f == "ascii";
-      if (!binary && !ascii) throw Error(path, "unsupported PLY format '" + f + "'");
+      if (f == "ascii") h.format = PlyHeader::Format::kAscii;
+      else if (f == "binary_little_endian") h.format = PlyHeader::Format::kLittle;
+      else if (f == "binary_big_endian") h.format = PlyHeader::Format::kBig;
+      else throw Error(path, "unsupported PLY format '" + f + "'");
+      have_format = true;
     } else if (w == "element") {
-      std::string name;
-      ls >> name;
-      in_vertex = name == "vertex";
-      if (in_vertex) ls >> n;
-    } else if (w == "property" && in_vertex) {
-      std::string type, name;
-      ls >> type >> name;
-      const int size = (type == "float" || type == "float32" || type == "int" || type == "uint") ? 4
-                       : (type == "double" || type == "float64")                              ? 8
-                       : (type == "uchar" || type == "uint8" || type == "char")               ? 1
-                       : (type == "short" || type == "ushort")                                ? 2
-                                                                                               : 0;
-      if (size == 0) throw Error(path, "unsupported vertex property type '" + type + "'");
-      props.push_back(type + " " + name);
-      sizes.push_back(size);
+      PlyElement e;
+      if (!(ls >> e.name >> e.count)) throw Error(path, "malformed PLY element line '" + line + "'");
+      h.elements.push_back(e);
+    } else if (w == "property") {
+      if (h.elements.empty()) throw Error(path, "PLY property before any element");
+      PlyProperty prop;
+      std::string type;
+      ls >> type;
+      if (type == "list") {
+        prop.list = true;
+        std::string count_type;
+        ls >> count_type >> type;
+      }
+      const auto t = plyFieldType(type);
+      if (!t) throw Error(path, "unsupported PLY property type '" + type + "'");
+      prop.type = *t;
+      ls >> prop.name;
+      h.elements.back().props.push_back(prop);
     } else if (w == "end_header") {
-      break;
+      if (!have_format) throw Error(path, "PLY header has no format line");
+      const auto pos = in.tellg();
+      h.data_start = pos < 0 ? data.size() : static_cast<std::size_t>(pos);
+      return h;
     }
   }
-  auto find = [&](const std::string& name) {
-    for (std::size_t i = 0; i < props.size(); ++i)
-      if (props[i].substr(props[i].find(' ') + 1) == name) return static_cast<int>(i);
-    return -1;
-  };
-  const int ix = find("x"), iy = find("y"), iz = find("z"), ii = find("intensity");
+  throw Error(path, "PLY header has no end_header");
+}
+
+}  // namespace
+
+std::vector<PointXYZI> readPly(const std::string& path) {
+  const std::string data = readTextFile(path);
+  const PlyHeader h = readPlyHeader(data, path);
+  // Elements before "vertex" are skipped: whole lines in ASCII, fixed-size records in binary.
+  std::size_t skip_records = 0, skip_bytes = 0;
+  const PlyElement* vertex = nullptr;
+  for (const auto& e : h.elements) {
+    if (e.name == "vertex") {
+      vertex = &e;
+      break;
+    }
+    skip_records += e.count;
+    for (const auto& prop : e.props) {
+      if (prop.list && h.format != PlyHeader::Format::kAscii)
+        throw Error(path, "PLY element '" + e.name + "' before the vertices has list properties");
+      skip_bytes += e.count * fieldSize(prop.type);
+    }
+  }
+  if (!vertex) throw Error(path, "PLY has no vertex element");
+  int ix = -1, iy = -1, iz = -1, ii = -1;
+  std::vector<std::size_t> off;  // byte offset of each property within a binary record
+  std::size_t stride = 0;
+  for (std::size_t k = 0; k < vertex->props.size(); ++k) {
+    const auto& prop = vertex->props[k];
+    if (prop.list) throw Error(path, "PLY vertex property '" + prop.name + "' is a list");
+    const int idx = static_cast<int>(k);
+    if (prop.name == "x") ix = idx;
+    if (prop.name == "y") iy = idx;
+    if (prop.name == "z") iz = idx;
+    if (prop.name == "intensity") ii = idx;
+    off.push_back(stride);
+    stride += fieldSize(prop.type);
+  }
   if (ix < 0 || iy < 0 || iz < 0) throw Error(path, "PLY vertices lack x, y or z");
+  const std::size_t n = vertex->count;
+  const std::size_t body = data.size() - h.data_start;
+  // Check the count against the file size before allocating anything.
+  const std::size_t min_bytes = h.format == PlyHeader::Format::kAscii ? 2 * vertex->props.size() : stride;
+  if (n > 0 && (body < skip_bytes || (body - skip_bytes) / min_bytes < n))
+    throw Error(path, "truncated PLY: header promises " + std::to_string(n) + " vertices, the file is too short");
   std::vector<PointXYZI> pts(n);
-  if (ascii) {
+  if (h.format == PlyHeader::Format::kAscii) {
+    std::istringstream in(data.substr(h.data_start));
+    std::string line;
+    for (std::size_t k = 0; k < skip_records; ++k) std::getline(in, line);
+    std::vector<double> v(vertex->props.size());
     for (std::size_t k = 0; k < n; ++k) {
-      std::vector<double> v(props.size());
       for (auto& x : v)
-        if (!(in >> x)) throw Error(path, "truncated PLY: " + std::to_string(k) + " of " +
-                                              std::to_string(n) + " vertices");
+        if (!(in >> x)) throw Error(path, "truncated PLY: " + std::to_string(k) + " of " + std::to_string(n) + " vertices");
       pts[k] = {float(v[std::size_t(ix)]), float(v[std::size_t(iy)]), float(v[std::size_t(iz)]),
                 ii >= 0 ? float(v[std::size_t(ii)]) : 0.f};
     }
     return pts;
   }
-  std::size_t stride = 0;
-  std::vector<std::size_t> off;
-  for (int s : sizes) {
-    off.push_back(stride);
-    stride += static_cast<std::size_t>(s);
-  }
-  const std::size_t start = static_cast<std::size_t>(in.tellg());
-  if (data.size() < start + n * stride)
-    throw Error(path, "truncated PLY: header promises " + std::to_string(n) + " vertices");
-  auto get = [&](std::size_t k, int p) -> float {
-    const char* b = data.data() + start + k * stride + off[std::size_t(p)];
-    if (sizes[std::size_t(p)] == 8) {
-      double d;
-      std::memcpy(&d, b, 8);
-      return static_cast<float>(d);
-    }
-    float f;
-    std::memcpy(&f, b, 4);
-    return f;
+  const bool big = h.format == PlyHeader::Format::kBig;
+  const char* base = data.data() + h.data_start + skip_bytes;
+  auto get = [&](std::size_t k, int prop) {
+    const auto q = static_cast<std::size_t>(prop);
+    return static_cast<float>(decodeField(base + k * stride + off[q], vertex->props[q].type, big));
   };
-  for (std::size_t k = 0; k < n; ++k)
-    pts[k] = {get(k, ix), get(k, iy), get(k, iz), ii >= 0 ? get(k, ii) : 0.f};
+  for (std::size_t k = 0; k < n; ++k) pts[k] = {get(k, ix), get(k, iy), get(k, iz), ii >= 0 ? get(k, ii) : 0.f};
   return pts;
 }
 

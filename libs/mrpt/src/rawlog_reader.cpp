@@ -23,6 +23,15 @@ namespace fs = std::filesystem;
 namespace cleanmap::mrpt {
 namespace {
 
+// Bytes of a corrupt file end up in MRPT's messages (class names read from the stream): keep
+// printable ASCII only, and not too much of it.
+std::string printable(const std::string& s) {
+  std::string out;
+  for (const char c : s)
+    if (c >= 32 && c < 127) out += c;
+  return out.size() > 120 ? out.substr(0, 120) + "..." : out;
+}
+
 // MRPT exception texts span several lines (with call stacks): keep the most telling one.
 std::string briefMessage(const std::exception& e) {
   std::istringstream in(e.what());
@@ -30,15 +39,16 @@ std::string briefMessage(const std::exception& e) {
   while (std::getline(in, line)) {
     if (line.find_first_not_of(" \t=") == std::string::npos) continue;
     if (line.find("MRPT exception") != std::string::npos) continue;
-    if (line.rfind("Message:", 0) == 0) return line.substr(9);
+    if (line.rfind("Message:", 0) == 0) return printable(line.substr(9));
     if (last.empty()) last = line;
   }
-  return last.empty() ? std::string("unknown error") : last;
+  return last.empty() ? std::string("unknown error") : printable(last);
 }
 
 struct Item {
   enum Kind { kScan, kPose, kImage } kind = kScan;
   double t = 0;
+  std::size_t entry = 0;                    // 0-based rawlog entry it came from
   Scan scan;                                // kScan
   ::mrpt::poses::CPose3D sensor_pose;       // kScan: lidar on robot
   ::mrpt::poses::CPose3D robot_pose;        // kPose
@@ -65,6 +75,7 @@ struct RawlogSource::Impl {
       it.kind = Item::kScan;
       it.t = t;
       it.scan = std::move(*scan);
+      it.entry = entry - 1;
       obs->getSensorPose(it.sensor_pose);
       buf.push_back(std::move(it));
     } else if (auto rp = std::dynamic_pointer_cast<CObservationRobotPose>(obs)) {
@@ -100,9 +111,12 @@ struct RawlogSource::Impl {
         eof = true;
         return false;
       }
+      if (entry == 0) throw Error(path, "is not an MRPT rawlog, or is truncated inside its first entry");
       throw Error(path, "truncated rawlog at entry " + std::to_string(entry) +
                             " (the file ends inside an object)");
     } catch (const std::exception& e) {
+      if (entry == 0)
+        throw Error(path, "is not an MRPT rawlog (its first entry is not a serialized MRPT object)");
       throw Error(path, "truncated or corrupt rawlog at entry " + std::to_string(entry) + ": " +
                             briefMessage(e));
     }
@@ -187,10 +201,11 @@ std::optional<Frame> RawlogSource::next() {
   char stem[16];
   std::snprintf(stem, sizeof stem, "%06zu", f.index);
   f.stem = stem;
+  f.source = I.path + " entry " + std::to_string(cur.entry);
   f.scan = std::move(cur.scan);
   f.scan.timestamp = cur.t;
   if (f.scan.empty() && !I.opts.allow_empty_scans)
-    throw Error(I.path, "scan " + f.stem + " is empty (0 valid points)");
+    throw Error(f.source, "scan " + f.stem + " is empty (0 valid points)");
   if (const Item* p = I.nearest(Item::kPose, cur.t, I.opts.pose_time_tolerance, end)) {
     f.scan.pose = toIsometry(p->robot_pose + cur.sensor_pose);  // robot pose (+) sensor pose
     f.scan.has_pose = true;

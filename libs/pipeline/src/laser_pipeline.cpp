@@ -1,17 +1,17 @@
 // SPDX-License-Identifier: BSD-3-Clause
 #include "cleanmap/pipeline/laser_pipeline.h"
 
-#include "cleanmap/core/object_consensus.h"
-
-#include <atomic>
 #include <chrono>
 #include <cmath>
-#include <thread>
+#include <random>
 
+#include "cleanmap/core/beam_index.h"
 #include "cleanmap/core/cell_key.h"
 #include "cleanmap/core/error.h"
 #include "cleanmap/core/ground.h"
+#include "cleanmap/core/object_consensus.h"
 #include "cleanmap/core/octree_sampling.h"
+#include "cleanmap/core/parallel.h"
 
 namespace cleanmap {
 namespace {
@@ -21,97 +21,71 @@ double msSince(Clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
 }
 
-// Runs f(i) for i in [0, n) on `threads` threads (serial path for 1); results must not depend on
-// the split, so runs are identical whatever the thread count.
-template <class F>
-void parallelFor(std::size_t n, int threads, F&& f) {
-  const std::size_t t = std::max(1, threads);
-  if (t == 1 || n < 256) {
-    for (std::size_t i = 0; i < n; ++i) f(i);
-    return;
-  }
-  // Chunks handed out from a counter: balanced load, no two threads writing the same cache line
-  // (each index's result does not depend on which thread computes it).
-  constexpr std::size_t kChunk = 512;
-  std::atomic<std::size_t> next{0};
-  auto work = [&] {
-    for (std::size_t b; (b = next.fetch_add(kChunk)) < n;)
-      for (std::size_t i = b; i < std::min(n, b + kChunk); ++i) f(i);
-  };
-  std::vector<std::thread> pool;
-  for (std::size_t w = 1; w < t; ++w) pool.emplace_back(work);
-  work();
-  for (auto& th : pool) th.join();
-}
-
-PointXYZI toWorld(const Eigen::Isometry3d& T, const PointXYZI& p) {
-  const Eigen::Vector3d w = T * Eigen::Vector3d(p.x, p.y, p.z);
-  return {static_cast<float>(w.x()), static_cast<float>(w.y()), static_cast<float>(w.z()),
-          p.intensity};
-}
-
 }  // namespace
-
-StageTimes& StageTimes::operator+=(const StageTimes& o) {
-  index += o.index;
-  ground += o.ground;
-  duplicates += o.duplicates;
-  octree += o.octree;
-  classify += o.classify;
-  objects += o.objects;
-  total += o.total;
-  return *this;
-}
 
 struct LaserPipeline::Prepared {
   std::size_t index;
-  std::string stem;
+  std::string stem, source;
   Scan scan;
   BeamIndex beams;
-  std::vector<uint8_t> in_crop, ground;
+  std::vector<uint8_t> in_crop;    // DESIGN §2.2
+  std::vector<uint8_t> ground;     // DESIGN §2a, within the crop
+  std::vector<uint8_t> candidate;  // in the crop and not ground: what the stages decide
   Eigen::Isometry3d world_to_sensor;
   ScanStats stats;
 };
 
-uint64_t LaserPipeline::persistCell(const Eigen::Vector3d& w) const {
-  return cellKeyOf(w.x(), w.y(), w.z(), 1.0 / p_.object.persist_radius);
-}
+/// The scan being decided, computed once and passed down the stages.
+struct LaserPipeline::Work {
+  std::vector<Eigen::Vector3d> world;  // candidates' world coordinates (others left zero)
+  std::vector<uint8_t> duplicate;      // DESIGN §2.3
+  std::vector<uint32_t> cand;          // candidates that are not duplicates: what is tested
+  std::vector<Eigen::Vector3d> cand_world;
+  std::vector<Leaf> leaves;            // DESIGN §2c, over `cand`
+  std::vector<uint32_t> tested;        // indices into `cand`
+  std::vector<uint8_t> moving_tested;  // per `cand` entry, the test's answer where tested
+  std::vector<uint8_t> moving;         // per scan point, the final decision
+};
 
 LaserPipeline::LaserPipeline(const PipelineParams& params, Sink sink)
-    : p_(params), sink_(std::move(sink)), test_(params.ds), dup_(params.filter) {}
+    : p_((validate(params, "parameters"), params)),
+      sink_(std::move(sink)),
+      test_(params.ds),
+      dup_(params.filter) {}
 
 LaserPipeline::~LaserPipeline() = default;
 
 std::unique_ptr<LaserPipeline::Prepared> LaserPipeline::prepare(Frame&& f) {
   if (!f.scan.has_pose)
-    throw Error("scan " + f.stem,
+    throw Error(f.source.empty() ? "scan " + f.stem : f.source,
                 "has no pose: give a posed input (KITTI poses.txt / OXTS, rawlog "
                 "CObservationRobotPose); GICP registration (--poses gicp) is not available yet");
   auto s = std::make_unique<Prepared>();
   s->index = f.index;
-  s->stem = f.stem;
+  s->stem = std::move(f.stem);
+  s->source = std::move(f.source);
   s->scan = std::move(f.scan);
   s->world_to_sensor = s->scan.pose.inverse();
   auto& st = s->stats;
   st.points = s->scan.original_size ? s->scan.original_size : s->scan.size();
   st.invalid = s->scan.dropped_invalid;
-  st.empty = s->scan.empty();
+  st.empty = s->scan.empty() ? 1 : 0;
 
   auto t0 = Clock::now();
-  // Every valid point is a beam (ground and far points included, SPEC §2.4).
+  // Every valid point is a beam (ground and far points included, DESIGN §2.4).
   s->beams = BeamIndex(s->scan.points, test_.searchRadius());
   st.ms.index = msSince(t0);
 
   t0 = Clock::now();
   const auto& pts = s->scan.points;
   const float tau = static_cast<float>(p_.filter.crop_tau);
-  s->in_crop.resize(pts.size());
-  for (std::size_t i = 0; i < pts.size(); ++i)  // SPEC §2.2: per-axis crop in the sensor frame
-    s->in_crop[i] = std::abs(pts[i].x) <= tau && std::abs(pts[i].y) <= tau &&
-                    std::abs(pts[i].z) <= tau;
   s->ground = segmentGround(pts, p_.ground, p_.filter.crop_tau);
-  for (std::size_t i = 0; i < pts.size(); ++i) {
+  s->in_crop.resize(pts.size());
+  s->candidate.resize(pts.size());
+  for (std::size_t i = 0; i < pts.size(); ++i) {  // DESIGN §2.2: per-axis crop, sensor frame
+    s->in_crop[i] = std::abs(pts[i].x) <= tau && std::abs(pts[i].y) <= tau && std::abs(pts[i].z) <= tau;
     s->ground[i] = s->ground[i] && s->in_crop[i];
+    s->candidate[i] = s->in_crop[i] && !s->ground[i];
     st.in_crop += s->in_crop[i];
     st.ground += s->ground[i];
   }
@@ -121,7 +95,7 @@ std::unique_ptr<LaserPipeline::Prepared> LaserPipeline::prepare(Frame&& f) {
 
 void LaserPipeline::push(Frame&& frame) {
   if (static_cast<long>(frame.index) <= prev_index_)
-    throw Error("scan " + frame.stem, "arrives out of order");
+    throw Error(frame.source.empty() ? "scan " + frame.stem : frame.source, "arrives out of order");
   prev_index_ = static_cast<long>(frame.index);
   buf_.push_back(prepare(std::move(frame)));
   decideReady(static_cast<std::size_t>(p_.ds.window_k));
@@ -147,134 +121,169 @@ void LaserPipeline::decideReady(std::size_t future) {
   }
 }
 
+// One scan, as a list of named stages (DESIGN §2.3-2.7).
 void LaserPipeline::decide(std::size_t pos) {
   Prepared& s = *buf_[pos];
-  ScanStats& st = s.stats;
   const auto t_start = Clock::now();
-  const auto& pts = s.scan.points;
-  const auto k = static_cast<long>(s.index);
+  const std::vector<WindowScan> window = windowAround(pos);
+  s.stats.window = window.size();
+  Work w;
+  findDuplicates(s, w);          // §2.3
+  sampleLeaves(s, w);            // §2c
+  classify(window, s, w);        // §2b
+  decideLeaves(s, w);            // §2c
+  objectConsensus(s, w);         // doc/OBJECTS.md
+  ScanResult r = collect(s, w);  // §2.7: labels, static map, dynamic layer
+  remember(r, static_cast<long>(s.index));
+  r.stats.ms.total = msSince(t_start) + s.stats.ms.index + s.stats.ms.ground;
+  ++decided_;
+  sink_(std::move(r));
+}
 
+// W_k: the other buffered scans that have beams.
+std::vector<WindowScan> LaserPipeline::windowAround(std::size_t pos) const {
   std::vector<WindowScan> window;
   for (std::size_t j = 0; j < buf_.size(); ++j)
-    if (j != pos && !buf_[j]->beams.empty())
-      window.push_back({&buf_[j]->beams, buf_[j]->world_to_sensor});
-  st.window = window.size();
+    if (j != pos && !buf_[j]->beams.empty()) window.push_back({&buf_[j]->beams, buf_[j]->world_to_sensor});
+  return window;
+}
 
-  // SPEC §2.3: duplicates of the recent static map are static, neither tested nor inserted.
-  auto t0 = Clock::now();
-  std::vector<uint32_t> cand;
-  std::vector<Eigen::Vector3d> cand_world;
-  std::vector<uint8_t> duplicate(pts.size(), 0);
+// DESIGN §2.3: duplicates of the recent static map are static, neither tested nor inserted. The
+// candidates' world coordinates are computed here, once for every later stage.
+void LaserPipeline::findDuplicates(Prepared& s, Work& w) const {
+  const auto t0 = Clock::now();
+  const auto& pts = s.scan.points;
+  const long k = static_cast<long>(s.index);
+  w.world.assign(pts.size(), Eigen::Vector3d::Zero());
+  w.duplicate.assign(pts.size(), 0);
   parallelFor(pts.size(), p_.threads, [&](std::size_t i) {  // read-only queries
-    if (s.in_crop[i] && !s.ground[i])
-      duplicate[i] = dup_.isDuplicate((s.scan.pose * pts[i].xyz().cast<double>()).cast<float>(), k);
+    if (!s.candidate[i]) return;
+    w.world[i] = s.scan.pose * pts[i].xyz().cast<double>();
+    w.duplicate[i] = dup_.isDuplicate(w.world[i].cast<float>(), k);
   });
   for (uint32_t i = 0; i < pts.size(); ++i) {
-    if (!s.in_crop[i] || s.ground[i]) continue;
-    if (duplicate[i]) {
-      ++st.duplicates;
+    if (!s.candidate[i]) continue;
+    if (w.duplicate[i]) {
+      ++s.stats.duplicates;
       continue;
     }
-    cand.push_back(i);
-    cand_world.push_back(s.scan.pose * pts[i].xyz().cast<double>());
+    w.cand.push_back(i);
+    w.cand_world.push_back(w.world[i]);
   }
-  st.candidates = cand.size();
-  st.ms.duplicates = msSince(t0);
+  s.stats.candidates = w.cand.size();
+  s.stats.ms.duplicates = msSince(t0);
+}
 
-  // SPEC §2c: octree leaves, a seeded random subset of each dense leaf is tested.
-  t0 = Clock::now();
-  std::mt19937_64 rng(p_.seed * 0x9E3779B97F4A7C15ull + static_cast<uint64_t>(k));
-  const std::vector<Leaf> leaves = planLeaves(cand_world, p_.octree, rng);
-  std::vector<uint32_t> tested;
-  for (const auto& leaf : leaves) tested.insert(tested.end(), leaf.tested.begin(), leaf.tested.end());
-  st.tested = tested.size();
-  st.ms.octree = msSince(t0);
+// DESIGN §2c: octree leaves; a seeded random subset of each dense leaf is tested.
+void LaserPipeline::sampleLeaves(Prepared& s, Work& w) const {
+  const auto t0 = Clock::now();
+  std::mt19937_64 rng(p_.seed * 0x9E3779B97F4A7C15ull + static_cast<uint64_t>(s.index));
+  w.leaves = planLeaves(w.cand_world, p_.octree, rng);
+  for (const auto& leaf : w.leaves) w.tested.insert(w.tested.end(), leaf.tested.begin(), leaf.tested.end());
+  s.stats.tested = w.tested.size();
+  s.stats.ms.octree = msSince(t0);
+}
 
-  // SPEC §2b: the moving-point test against the window.
-  t0 = Clock::now();
-  std::vector<uint8_t> moving_tested(cand.size(), 0);
-  std::vector<MovingTestStats> per_point(tested.size());
-  parallelFor(tested.size(), p_.threads, [&](std::size_t t) {
-    const uint32_t c = tested[t];
-    moving_tested[c] = test_.isMoving(cand_world[c], window, &per_point[t]);
+// DESIGN §2b: the moving-point test of the sampled candidates against the window; statistics
+// go into one accumulator per worker.
+void LaserPipeline::classify(const std::vector<WindowScan>& window, Prepared& s, Work& w) const {
+  const auto t0 = Clock::now();
+  w.moving_tested.assign(w.cand.size(), 0);
+  std::vector<MovingTestStats> acc(static_cast<std::size_t>(std::max(p_.threads, 1)));
+  parallelFor(w.tested.size(), p_.threads, [&](std::size_t t, int worker) {
+    const uint32_t c = w.tested[t];
+    w.moving_tested[c] = test_.isMoving(w.cand_world[c], window, &acc[static_cast<std::size_t>(worker)]);
   });
-  for (const auto& m : per_point) {
-    st.total_conflicts += m.total_conflicts;
-    st.no_evidence += m.no_evidence;
-    st.conflicting_scans += m.conflicting_scans;
+  for (const auto& a : acc) {
+    s.stats.total_conflicts += a.total_conflicts;
+    s.stats.no_evidence += a.no_evidence;
+    s.stats.conflicting_scans += a.conflicting_scans;
   }
-  st.ms.classify = msSince(t0);
+  s.stats.ms.classify = msSince(t0);
+}
 
-  // Leaf decision, labels, maps.
+// DESIGN §2c: a leaf is moving iff at least half of its tested points are.
+void LaserPipeline::decideLeaves(const Prepared& s, Work& w) const {
+  w.moving.assign(s.scan.size(), 0);
+  for (const auto& leaf : w.leaves) {
+    std::size_t mv = 0;
+    for (uint32_t c : leaf.tested) mv += w.moving_tested[c];
+    if (leafIsMoving(mv, leaf.tested.size()))
+      for (uint32_t c : leaf.members) w.moving[w.cand[c]] = 1;
+  }
+}
+
+// doc/OBJECTS.md: connected objects move as a whole; duplicates take part, they belong to the
+// same objects. Rule 4 (hysteresis) looks at the previous scan's moving cells.
+void LaserPipeline::objectConsensus(Prepared& s, Work& w) const {
+  const auto t0 = Clock::now();
+  std::vector<uint8_t> near_prev;
+  if (!prev_moving_cells_.empty()) {
+    near_prev.assign(s.scan.size(), 0);
+    const double inv = 1.0 / p_.object.persist_radius;
+    for (uint32_t i = 0; i < s.scan.size(); ++i)
+      if (s.candidate[i])
+        near_prev[i] = prev_moving_cells_.count(cellKeyOf(w.world[i].x(), w.world[i].y(), w.world[i].z(), inv)) > 0;
+  }
+  const auto oc = cleanmap::objectConsensus(s.scan.points, s.candidate, w.moving, p_.object,
+                                            near_prev.empty() ? nullptr : &near_prev);
+  s.stats.objects_persisted = oc.persisted;
+  s.stats.objects_moving = oc.moving_objects;
+  s.stats.consensus_points = oc.points_added;
+  s.stats.consensus_removed = oc.points_removed;
+  s.stats.ms.objects = msSince(t0);
+}
+
+// DESIGN §2.7 and §4: labels in the original order; static points to the map (the compact map
+// without duplicates), moving points to the dynamic layer, all in the world frame.
+ScanResult LaserPipeline::collect(Prepared& s, const Work& w) const {
   ScanResult r;
   r.index = s.index;
   r.stem = s.stem;
+  r.source = s.source;
   r.timestamp = s.scan.timestamp;
   r.pose = s.scan.pose;
-  r.labels.assign(st.points, kUnclassified);
-  std::vector<uint8_t> moving(pts.size(), 0);
-  for (const auto& leaf : leaves) {
-    std::size_t mv = 0;
-    for (uint32_t c : leaf.tested) mv += moving_tested[c];
-    if (leafIsMoving(mv, leaf.tested.size()))
-      for (uint32_t c : leaf.members) moving[cand[c]] = 1;
-  }
-  // Object consensus (doc/OBJECTS.md): duplicates included, they belong to the same objects.
-  {
-    t0 = Clock::now();
-    std::vector<uint8_t> member(pts.size(), 0);
-    for (uint32_t i = 0; i < pts.size(); ++i) member[i] = s.in_crop[i] && !s.ground[i];
-    std::vector<uint8_t> near_prev;
-    if (!prev_moving_cells_.empty()) {
-      near_prev.assign(pts.size(), 0);
-      for (uint32_t i = 0; i < pts.size(); ++i)
-        if (member[i])
-          near_prev[i] = prev_moving_cells_.count(persistCell(s.scan.pose * pts[i].xyz().cast<double>())) > 0;
-    }
-    const auto oc = objectConsensus(pts, member, moving, p_.object, near_prev.empty() ? nullptr : &near_prev);
-    st.objects_persisted = oc.persisted;
-    st.objects_moving = oc.moving_objects;
-    st.consensus_points = oc.points_added;
-    st.consensus_removed = oc.points_removed;
-    st.ms.objects = msSince(t0);
-  }
-  std::vector<Eigen::Vector3f> inserted;
+  r.labels.assign(s.stats.points, kUnclassified);
+  const auto& pts = s.scan.points;
   for (uint32_t i = 0; i < pts.size(); ++i) {
     if (!s.in_crop[i]) continue;
     const uint32_t orig = s.scan.originalIndex(i);
-    const PointXYZI w = toWorld(s.scan.pose, pts[i]);
+    // Ground points were never transformed by the stages above.
+    const Eigen::Vector3d wd = s.ground[i] ? Eigen::Vector3d(s.scan.pose * pts[i].xyz().cast<double>()) : w.world[i];
+    const PointXYZI p{static_cast<float>(wd.x()), static_cast<float>(wd.y()), static_cast<float>(wd.z()),
+                      pts[i].intensity};
     if (s.ground[i]) {
       r.labels[orig] = kGround;
-      r.static_full.push_back(w);
-    } else if (moving[i]) {
+      r.static_full.push_back(p);
+    } else if (w.moving[i]) {
       r.labels[orig] = kMoving;
-      r.moving.push_back(w);
-      ++st.moving;
+      r.moving.push_back(p);
+      ++s.stats.moving;
     } else {
       r.labels[orig] = kStatic;
-      r.static_full.push_back(w);
-      ++st.static_points;
-      if (!duplicate[i]) {
-        r.static_compact.push_back(w);
-        inserted.emplace_back(w.x, w.y, w.z);
-      }
+      r.static_full.push_back(p);
+      ++s.stats.static_points;
+      if (!w.duplicate[i]) r.static_compact.push_back(p);
     }
   }
-  dup_.insert(inserted, k);
-  // This scan's moving points, dilated by one cell, for the next scan's hysteresis.
+  r.stats = s.stats;
+  return r;
+}
+
+// State for the next scans: the compact static points feed the duplicate filter; this scan's
+// moving points, dilated by one cell, feed the next scan's hysteresis.
+void LaserPipeline::remember(const ScanResult& r, long index) {
+  std::vector<Eigen::Vector3f> inserted;
+  inserted.reserve(r.static_compact.size());
+  for (const auto& p : r.static_compact) inserted.push_back(p.xyz());
+  dup_.insert(inserted, index);
   prev_moving_cells_.clear();
-  if (p_.object.enabled && p_.object.persist_radius > 0) {
-    std::unordered_set<uint64_t> cells;
-    for (const auto& w : r.moving) cells.insert(persistCell(w.xyz().cast<double>()));
-    for (const uint64_t c : cells)
-      for (int dx = -1; dx <= 1; ++dx)
-        for (int dy = -1; dy <= 1; ++dy)
-          for (int dz = -1; dz <= 1; ++dz) prev_moving_cells_.insert(cellKeyShift(c, dx, dy, dz));
-  }
-  st.ms.total = msSince(t_start) + st.ms.index + st.ms.ground;
-  r.stats = st;
-  ++decided_;
-  sink_(std::move(r));
+  if (!p_.object.enabled || p_.object.persist_radius <= 0) return;
+  const double inv = 1.0 / p_.object.persist_radius;
+  std::unordered_set<uint64_t> cells;
+  for (const auto& p : r.moving) cells.insert(cellKeyOf(double(p.x), double(p.y), double(p.z), inv));
+  for (const uint64_t c : cells)
+    forEachNeighbour27([&](int dx, int dy, int dz) { prev_moving_cells_.insert(cellKeyShift(c, dx, dy, dz)); });
 }
 
 }  // namespace cleanmap

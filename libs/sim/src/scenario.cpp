@@ -8,6 +8,7 @@
 
 #include "cleanmap/core/error.h"
 #include "cleanmap/io/files.h"
+#include "cleanmap/io/ini.h"
 
 namespace cleanmap::sim {
 namespace {
@@ -69,13 +70,6 @@ struct Reader {
   }
 };
 
-std::string trim(const std::string& s) {
-  const auto a = s.find_first_not_of(" \t\r");
-  if (a == std::string::npos) return "";
-  const auto b = s.find_last_not_of(" \t\r");
-  return s.substr(a, b - a + 1);
-}
-
 }  // namespace
 
 Scenario parseScenario(const std::string& text, const std::string& name) {
@@ -83,9 +77,6 @@ Scenario parseScenario(const std::string& text, const std::string& name) {
   sc.source = name;
   Reader r{name};
   std::string section;
-  bool ego_path_set = false;
-  std::istringstream in(text);
-  std::string raw;
   // Handlers per section; a new [box] / [cylinder] / [mover] starts a new element.
   using Handler = std::function<bool(const std::string&, const std::string&)>;
   std::map<std::string, Handler> handlers;
@@ -111,7 +102,7 @@ Scenario parseScenario(const std::string& text, const std::string& name) {
     return true;
   };
   handlers["ego"] = [&](const std::string& k, const std::string& v) {
-    if (k == "path") sc.ego_path = r.path(k, v), ego_path_set = true;
+    if (k == "path") sc.ego_path = r.path(k, v);
     else if (k == "speed") sc.ego_speed = r.number(k, v, 0, 60);
     else if (k == "pose_drift") sc.ego_pose_drift = r.number(k, v, 0, 0.1);
     else return false;
@@ -178,35 +169,24 @@ Scenario parseScenario(const std::string& text, const std::string& name) {
     else return false;
     return true;
   };
-  while (std::getline(in, raw)) {
-    ++r.line;
-    std::string line = raw;
-    const auto hash = line.find_first_of("#;");
-    if (hash != std::string::npos && (hash == 0 || line[hash - 1] == ' ' || line[hash - 1] == '\t'))
-      line = line.substr(0, hash);
-    line = trim(line);
-    if (line.empty()) continue;
-    if (line.front() == '[') {
-      if (line.back() != ']') r.fail("malformed section header '" + line + "'");
-      section = trim(line.substr(1, line.size() - 2));
-      if (!handlers.count(section))
-        r.fail("unknown section [" + section + "] (scenario, sensor, ego, ground, box, cylinder, mover)");
-      if (section == "box") sc.boxes.emplace_back(), sc.boxes.back().name = "box" + std::to_string(sc.boxes.size());
-      if (section == "cylinder") sc.cylinders.emplace_back(), sc.cylinders.back().name = "cylinder" + std::to_string(sc.cylinders.size());
-      if (section == "mover") sc.movers.emplace_back(), sc.movers.back().name = "mover" + std::to_string(sc.movers.size());
-      continue;
-    }
-    const auto eq = line.find('=');
-    if (eq == std::string::npos) r.fail("expected 'key = value', got '" + line + "'");
-    const std::string key = trim(line.substr(0, eq)), value = trim(line.substr(eq + 1));
-    if (section.empty()) r.fail("key '" + key + "' outside a section");
-    if (value.empty()) r.fail(key + ": empty value");
-    if (!handlers[section](key, value)) r.fail("unknown key '" + key + "' in [" + section + "]");
-  }
+  io::IniHandlers on;
+  on.section = [&](const std::string& sec, int line) {
+    r.line = line;
+    section = sec;
+    if (!handlers.count(section))
+      r.fail("unknown section [" + section + "] (scenario, sensor, ego, ground, box, cylinder, mover)");
+    if (section == "box") sc.boxes.emplace_back(), sc.boxes.back().name = "box" + std::to_string(sc.boxes.size());
+    if (section == "cylinder") sc.cylinders.emplace_back(), sc.cylinders.back().name = "cylinder" + std::to_string(sc.cylinders.size());
+    if (section == "mover") sc.movers.emplace_back(), sc.movers.back().name = "mover" + std::to_string(sc.movers.size());
+  };
+  on.entry = [&](const io::IniLine& e) {
+    r.line = e.line;
+    if (!handlers[e.section](e.key, e.value)) r.fail("unknown key '" + e.key + "' in [" + e.section + "]");
+  };
+  io::parseIni(text, name, on);
   r.line = 0;
   for (const auto& m : sc.movers)
     if (m.path.size() < 2) throw Error(name, "mover '" + m.name + "' has no path (at least two waypoints)");
-  (void)ego_path_set;
   if (sc.sensor.min_range >= sc.sensor.max_range) throw Error(name, "sensor min_range must be < max_range");
   return sc;
 }

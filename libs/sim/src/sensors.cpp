@@ -2,8 +2,8 @@
 // Simulated HDL-64E and camera (issue #4): ray casting World at the sweep's instants.
 #include <algorithm>
 #include <cmath>
-#include <thread>
 
+#include "cleanmap/core/parallel.h"
 #include "cleanmap/sim/world.h"
 
 namespace cleanmap::sim {
@@ -20,18 +20,6 @@ uint64_t splitmix(uint64_t x) {
   return x ^ (x >> 31);
 }
 double uniform(uint64_t h) { return (static_cast<double>(h >> 11) + 0.5) * (1.0 / 9007199254740992.0); }
-
-template <class F>
-void parallelFor(int n, int threads, F&& f) {
-  threads = std::max(1, std::min(threads, n));
-  std::vector<std::thread> pool;
-  for (int w = 1; w < threads; ++w)
-    pool.emplace_back([&, w] {
-      for (int i = w; i < n; i += threads) f(i);
-    });
-  for (int i = 0; i < n; i += threads) f(i);
-  for (auto& th : pool) th.join();
-}
 
 double wrapPi(double a) {
   while (a > M_PI) a -= 2 * M_PI;
@@ -94,7 +82,8 @@ SimScan simulateScan(const Scenario& sc, int k, int threads) {
     std::vector<int> solid;
   };
   std::vector<Part> parts(kSlices);
-  parallelFor(kSlices, threads, [&](int sl) {
+  parallelFor(kSlices, threads, [&](std::size_t slice) {  // one slice per chunk
+    const int sl = static_cast<int>(slice);
     const int c0 = sl * ncol / kSlices, c1 = (sl + 1) * ncol / kSlices;
     // Columns sweep clockwise from behind the car (azimuth +pi) through the front (0).
     const auto az = [&](int c) { return M_PI - 2 * M_PI * (c + 0.5) / ncol; };
@@ -132,7 +121,7 @@ SimScan simulateScan(const Scenario& sc, int k, int threads) {
         p.solid.push_back(hit.object);
       }
     }
-  });
+  }, 1);
   for (auto& p : parts) {
     out.points.insert(out.points.end(), p.pts.begin(), p.pts.end());
     out.labels.insert(out.labels.end(), p.labels.begin(), p.labels.end());
@@ -161,7 +150,7 @@ PinholeCamera kittiCamera() {
 
 namespace {
 
-Eigen::Vector3f shade(const World& w, const Hit& h, const Eigen::Vector3d& dir) {
+Eigen::Vector3f shade(const World& w, const Hit& h) {
   Eigen::Vector3f base;
   if (h.object < 0) {
     // Asphalt / pavement: fine procedural grain, lane marks on the road.
@@ -182,7 +171,6 @@ Eigen::Vector3f shade(const World& w, const Hit& h, const Eigen::Vector3d& dir) 
   }
   const Eigen::Vector3d light = Eigen::Vector3d(0.4, 0.3, 0.87).normalized();
   const double lambert = 0.45 + 0.55 * std::max(0.0, h.normal.dot(light));
-  (void)dir;
   return (base * float(lambert)).cwiseMin(1.0f);
 }
 
@@ -197,14 +185,15 @@ cv::Mat renderImage(const Scenario& sc, int k, const PinholeCamera& cam, int thr
   const Eigen::Vector3d origin = T_world_lidar * (T_opt_lidar.inverse() * Eigen::Vector3d::Zero());
   const Eigen::Matrix3d Kinv = cam.K().inverse();
   cv::Mat img(cam.height, cam.width, CV_8UC3);
-  parallelFor(cam.height, threads, [&](int v) {
+  parallelFor(static_cast<std::size_t>(cam.height), threads, [&](std::size_t row_index) {
+    const int v = static_cast<int>(row_index);
     Hit hit;
     auto* row = img.ptr<cv::Vec3b>(v);
     for (int u = 0; u < cam.width; ++u) {
       const Eigen::Vector3d d = (R_world_opt * (Kinv * Eigen::Vector3d(u + 0.5, v + 0.5, 1.0))).normalized();
       Eigen::Vector3f c;
       if (w.intersect(origin, d, 300.0, hit)) {
-        c = shade(w, hit, d);
+        c = shade(w, hit);
         const float fog = float(std::min(1.0, hit.t / 300.0));
         c = (1 - fog) * c + fog * Eigen::Vector3f(0.85f, 0.8f, 0.75f);
       } else {
@@ -213,7 +202,7 @@ cv::Mat renderImage(const Scenario& sc, int k, const PinholeCamera& cam, int thr
       }
       row[u] = cv::Vec3b(uchar(255 * c.z()), uchar(255 * c.y()), uchar(255 * c.x()));
     }
-  });
+  }, 8);
   return img;
 }
 

@@ -29,7 +29,6 @@ class DuplicateFilter {
     int32_t scan;
   };
   using Key = uint64_t;
-  Key key(int x, int y, int z) const;
   void prune(long oldest);
 
   FilterParams p_;

@@ -20,10 +20,11 @@ class RadiusIndex {
   const std::vector<Eigen::Vector3f>& points() const { return pts_; }  ///< finite input points, cell order
 
  private:
-  uint64_t key(int64_t x, int64_t y, int64_t z) const;
+  bool indexable(const Eigen::Vector3f& p) const;
+  uint64_t cellOf(const Eigen::Vector3f& p) const;
   std::vector<Eigen::Vector3f> pts_;  // sorted by cell
   std::unordered_map<uint64_t, std::pair<uint32_t, uint32_t>> cells_;  // key -> [begin, end)
-  double radius_;
+  double radius_, inv_;
   float r2_;
 };
 

@@ -1,19 +1,20 @@
 // SPDX-License-Identifier: BSD-3-Clause
-// Every parameter of the laser pipeline (SPEC §2), with its default and unit. The one source of
+// Every parameter of the laser pipeline (DESIGN §2), with its default and unit. The one source of
 // truth: ini files and CLI flags are parsed into these structs at the boundary.
 #pragma once
 #include <cstdint>
+#include <string>
 
 namespace cleanmap {
 
-/// SPEC §2.2-2.3: range crop and duplicate filter.
+/// DESIGN §2.2-2.3: range crop and duplicate filter.
 struct FilterParams {
   double crop_tau = 30.0;      ///< m; a point is a candidate iff |x|,|y|,|z| <= tau (sensor frame)
   int dup_window = 10;         ///< W: scans whose static points the duplicate test looks at
   double dup_distance = 0.10;  ///< m; d_dup
 };
 
-/// SPEC §2a: ground removal by height propagation.
+/// DESIGN §2a: ground removal by height propagation.
 struct GroundParams {
   double cell = 0.4;             ///< m; grid cell side
   double step = 0.09;            ///< m; s, the largest rise within / between cells (22 % slope)
@@ -26,7 +27,7 @@ struct GroundParams {
   int max_gap_cells = 10;
 };
 
-/// SPEC §2b: Dempster-Shafer beam model and window.
+/// DESIGN §2b: Dempster-Shafer beam model and window.
 struct DsParams {
   double sigma_m = 0.05;          ///< m; range measurement noise
   double sigma_r = 0.15;          ///< m; registration noise
@@ -42,7 +43,7 @@ struct DsParams {
   double scan_conflict = 0.3;
 };
 
-/// SPEC §2c: octree leaf sampling.
+/// DESIGN §2c: octree leaf sampling.
 struct OctreeParams {
   double leaf = 0.3;        ///< m; leaf size (OctoMap key resolution)
   int tau_np = 6;           ///< leaves with fewer points test all of them
@@ -74,5 +75,9 @@ struct PipelineParams {
   uint64_t seed = 42;  ///< octree sampling; a run is reproducible bit for bit
   int threads = 2;     ///< worker threads for the moving-point test (1 = serial)
 };
+
+/// Checks physical sense (positive sizes, r_inf <= r_sup < 1, K >= 1, ...); throws
+/// cleanmap::Error(name, "<section.key> must ...") naming the offending key.
+void validate(const PipelineParams& params, const std::string& name);
 
 }  // namespace cleanmap

@@ -1,13 +1,12 @@
 // SPDX-License-Identifier: BSD-3-Clause
-// Core data types (SPEC §1): scans, per-point labels, pinhole cameras, images. No MRPT types.
+// Core data types (DESIGN §1): scans, per-point labels, pinhole cameras. Eigen only: no MRPT,
+// no OpenCV (images and frames are in frame.h).
 #pragma once
 #include <Eigen/Geometry>
 #include <cstdint>
 #include <optional>
 #include <string>
 #include <vector>
-
-#include <opencv2/core/mat.hpp>
 
 namespace cleanmap {
 
@@ -73,32 +72,6 @@ struct PinholeCamera {
   Eigen::Isometry3d opticalFromLidar() const;
   /// Projects a lidar-frame point; nullopt when behind the camera or outside the image.
   std::optional<Eigen::Vector2d> project(const Eigen::Vector3d& p_lidar) const;
-};
-
-/// A camera frame taken with scan k.
-struct Image {
-  cv::Mat bgr;  ///< 8-bit, 3 channels (OpenCV order)
-  double timestamp = 0.0;
-};
-
-/// One element of a sequence as every reader delivers it.
-struct Frame {
-  std::size_t index = 0;
-  std::string stem;  ///< "000123" (KITTI file stem or 6-digit rawlog index), names output files
-  Scan scan;
-  std::optional<Image> image;
-};
-
-/// A forward-only stream of frames: lets the pipeline keep only its window in memory.
-class FrameSource {
- public:
-  virtual ~FrameSource() = default;
-  /// Next frame, or nullopt at the end. Throws cleanmap::Error on bad input.
-  virtual std::optional<Frame> next() = 0;
-  /// Number of frames if known up front.
-  virtual std::optional<std::size_t> sizeHint() const { return std::nullopt; }
-  /// The camera, if the sequence has one.
-  virtual std::optional<PinholeCamera> camera() const { return std::nullopt; }
 };
 
 /// Drops NaN/inf points in place, filling original_index / dropped_invalid. Returns the count.

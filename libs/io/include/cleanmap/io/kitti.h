@@ -5,7 +5,7 @@
 #include <string>
 #include <vector>
 
-#include "cleanmap/core/types.h"
+#include "cleanmap/core/frame.h"
 #include "cleanmap/io/files.h"
 
 namespace cleanmap::io {

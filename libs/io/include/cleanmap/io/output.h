@@ -1,5 +1,7 @@
 // SPDX-License-Identifier: BSD-3-Clause
-// SPEC §4: the output folder of a run — labels per scan, binary PLY maps, poses, report.
+// DESIGN §4: the output folder of a run — labels per scan, binary PLY maps, poses, report — and
+// how it is published: everything is written into a staging folder beside OUTDIR and moved into
+// place only when the run is complete, so OUTDIR always holds one whole run (or nothing new).
 #pragma once
 #include <memory>
 #include <optional>
@@ -8,31 +10,53 @@
 
 #include "cleanmap/core/metrics.h"
 #include "cleanmap/core/params.h"
-#include "cleanmap/pipeline/laser_pipeline.h"
+#include "cleanmap/core/scan_result.h"
 
 namespace cleanmap::io {
 
 class PlyStreamWriter;
 
-/// Writes OUTDIR/labels/<stem>.label, static_map.ply, static_map_full.ply, dynamic.ply,
-/// poses.txt, params.ini, report.json and report.md. Every file is written atomically; the maps
-/// are streamed, so memory does not grow with the sequence.
+struct OutputOptions {
+  /// Replace OUTDIR even if it is a non-empty folder that holds no cleanmap run.
+  bool force = false;
+};
+
+/// Refuses (cleanmap::Error naming the folder) an OUTDIR that is a file, or a non-empty folder
+/// without a cleanmap report.json unless `force`. An earlier cleanmap run is fine: it is replaced.
+void checkOutputFolder(const std::string& outdir, const OutputOptions& opts);
+
+/// True if `dir` holds a finished cleanmap run (a report.json written by cleanmap).
+bool isCleanmapRun(const std::string& dir);
+
+/// Writes labels/<stem>.label, static_map.ply, static_map_full.ply, dynamic.ply, poses.txt,
+/// params.ini, report.md and, last, report.json (which marks a finished run) into a staging folder
+/// `.<name>.cleanmap-staging-<pid>` beside OUTDIR; finish() swaps it into place as a whole. The
+/// maps are streamed, so memory does not grow with the sequence. Destroyed without finish() (an
+/// error, a signal), it removes the staging folder and leaves OUTDIR as it was.
 class OutputWriter {
  public:
-  OutputWriter(const std::string& outdir, const std::string& input, const PipelineParams& params);
+  OutputWriter(const std::string& outdir, const std::string& input, const PipelineParams& params,
+               const OutputOptions& opts = {});
   ~OutputWriter();
+  OutputWriter(const OutputWriter&) = delete;
+  OutputWriter& operator=(const OutputWriter&) = delete;
 
   /// One decided scan, with its evaluation when ground truth exists.
   void write(const ScanResult& r, const std::optional<MosCounts>& eval);
-  /// Closes the maps and writes poses and the report. `wall_s`: whole run, seconds.
+  /// Closes the maps, writes poses and the report, and publishes the folder as OUTDIR.
+  /// `wall_s`: whole run, seconds.
   void finish(double wall_s);
 
-  const std::string& dir() const { return dir_; }
+  const std::string& dir() const { return dir_; }          ///< OUTDIR
+  const std::string& staging() const { return staging_; }  ///< where files are written until finish()
   std::size_t scans() const { return stats_.size(); }
   std::optional<MosCounts> evaluation() const { return has_eval_ ? std::optional(eval_) : std::nullopt; }
 
  private:
-  std::string dir_, input_;
+  void publish();
+
+  std::string dir_, staging_, input_;
+  bool published_ = false;
   PipelineParams params_;
   std::unique_ptr<PlyStreamWriter> compact_, full_, moving_;
   std::vector<Eigen::Isometry3d> poses_;

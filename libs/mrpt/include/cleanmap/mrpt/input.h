@@ -4,7 +4,7 @@
 #include <memory>
 #include <string>
 
-#include "cleanmap/core/types.h"
+#include "cleanmap/core/frame.h"
 
 namespace cleanmap::mrpt {
 

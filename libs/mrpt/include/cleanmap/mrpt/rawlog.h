@@ -5,7 +5,7 @@
 #include <optional>
 #include <string>
 
-#include "cleanmap/core/types.h"
+#include "cleanmap/core/frame.h"
 
 namespace cleanmap::mrpt {
 

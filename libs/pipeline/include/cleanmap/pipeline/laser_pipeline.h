@@ -1,59 +1,25 @@
 // SPDX-License-Identifier: BSD-3-Clause
-// SPEC §2: the laser pipeline over a stream of posed scans, with a delay of K scans and memory
+// DESIGN §2: the laser pipeline over a stream of posed scans, with a delay of K scans and memory
 // bounded by the window (2K + 1 scans), not by the sequence.
 #pragma once
 #include <deque>
 #include <functional>
 #include <memory>
-#include <random>
-#include <string>
 #include <unordered_set>
 #include <vector>
 
-#include "cleanmap/core/beam_index.h"
 #include "cleanmap/core/duplicate_filter.h"
+#include "cleanmap/core/frame.h"
 #include "cleanmap/core/moving_test.h"
 #include "cleanmap/core/params.h"
-#include "cleanmap/core/types.h"
+#include "cleanmap/core/scan_result.h"
 
 namespace cleanmap {
-
-/// Per-stage wall time of one scan, milliseconds.
-struct StageTimes {
-  double index = 0, ground = 0, duplicates = 0, octree = 0, classify = 0, objects = 0, total = 0;
-  StageTimes& operator+=(const StageTimes& o);
-};
-
-struct ScanStats {
-  std::size_t points = 0;         ///< original points (invalid included)
-  std::size_t invalid = 0;        ///< NaN / inf, dropped on reading
-  std::size_t in_crop = 0, ground = 0, duplicates = 0, candidates = 0, tested = 0;
-  std::size_t moving = 0, static_points = 0;
-  std::size_t window = 0;         ///< scans in the window
-  std::size_t total_conflicts = 0, no_evidence = 0;
-  std::size_t conflicting_scans = 0;  ///< empty scan votes made unknown (doc/SCAN_CONFLICT.md)
-  std::size_t objects_moving = 0, consensus_points = 0, consensus_removed = 0;  ///< doc/OBJECTS.md
-  std::size_t objects_persisted = 0;  ///< of objects_moving, kept moving by the hysteresis
-  bool empty = false;
-  StageTimes ms;
-};
-
-/// Everything the pipeline says about one scan, handed to the sink once the scan is decided.
-struct ScanResult {
-  std::size_t index = 0;
-  std::string stem;
-  double timestamp = 0;
-  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
-  Labels labels;  ///< one per original point, original order (SPEC §4)
-  std::vector<PointXYZI> static_compact;  ///< world frame: static points not already in the map
-  std::vector<PointXYZI> static_full;     ///< world frame: every static point (ground included)
-  std::vector<PointXYZI> moving;          ///< world frame
-  ScanStats stats;
-};
 
 class LaserPipeline {
  public:
   using Sink = std::function<void(ScanResult&&)>;
+  /// Throws cleanmap::Error naming "parameters" if `params` fail validate().
   LaserPipeline(const PipelineParams& params, Sink sink);
   ~LaserPipeline();
 
@@ -65,11 +31,21 @@ class LaserPipeline {
   std::size_t decided() const { return decided_; }
 
  private:
-  struct Prepared;
+  struct Prepared;  // a buffered scan: beams, crop and ground masks
+  struct Work;      // the scan being decided: world points, candidates, tests, moving mask
   std::unique_ptr<Prepared> prepare(Frame&& f);
-  void decide(std::size_t pos);
   void decideReady(std::size_t future);
-  uint64_t persistCell(const Eigen::Vector3d& w) const;
+  void decide(std::size_t pos);
+
+  // The stages of decide(), in order.
+  std::vector<WindowScan> windowAround(std::size_t pos) const;
+  void findDuplicates(Prepared& s, Work& w) const;
+  void sampleLeaves(Prepared& s, Work& w) const;
+  void classify(const std::vector<WindowScan>& window, Prepared& s, Work& w) const;
+  void decideLeaves(const Prepared& s, Work& w) const;
+  void objectConsensus(Prepared& s, Work& w) const;
+  ScanResult collect(Prepared& s, const Work& w) const;
+  void remember(const ScanResult& r, long index);
 
   PipelineParams p_;
   Sink sink_;

@@ -1,0 +1,51 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// What the pipeline says about one decided scan (DESIGN §4): labels, map points, counts, stage
+// times. Plain data below the pipeline, so the writers in cleanmap::io need no pipeline.
+#pragma once
+#include <Eigen/Geometry>
+#include <cstddef>
+#include <string>
+#include <vector>
+
+#include "cleanmap/core/types.h"
+
+namespace cleanmap {
+
+/// Per-stage wall time of one scan, milliseconds.
+struct StageTimes {
+  double index = 0, ground = 0, duplicates = 0, octree = 0, classify = 0, objects = 0, total = 0;
+  StageTimes& operator+=(const StageTimes& o);
+};
+
+/// Counts of one scan (or, summed with +=, of a run).
+struct ScanStats {
+  std::size_t points = 0;   ///< original points (invalid included)
+  std::size_t invalid = 0;  ///< NaN / inf, dropped on reading
+  std::size_t in_crop = 0, ground = 0, duplicates = 0, candidates = 0, tested = 0;
+  std::size_t moving = 0, static_points = 0;
+  std::size_t window = 0;  ///< scans in the window
+  std::size_t total_conflicts = 0, no_evidence = 0;
+  std::size_t conflicting_scans = 0;  ///< empty scan votes made unknown (doc/SCAN_CONFLICT.md)
+  std::size_t objects_moving = 0, consensus_points = 0, consensus_removed = 0;  ///< doc/OBJECTS.md
+  std::size_t objects_persisted = 0;  ///< of objects_moving, kept moving by the hysteresis
+  std::size_t empty = 0;              ///< 1 for a scan without valid points (summed: empty scans)
+  StageTimes ms;
+  /// Sums every count and time (window: sum too; divide by scans for a mean).
+  ScanStats& operator+=(const ScanStats& o);
+};
+
+/// Everything the pipeline says about one scan, handed to the sink once the scan is decided.
+struct ScanResult {
+  std::size_t index = 0;
+  std::string stem;
+  std::string source;  ///< the input it came from (Frame::source)
+  double timestamp = 0;
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  Labels labels;                          ///< one per original point, original order (DESIGN §4)
+  std::vector<PointXYZI> static_compact;  ///< world frame: static points not already in the map
+  std::vector<PointXYZI> static_full;     ///< world frame: every static point (ground included)
+  std::vector<PointXYZI> moving;          ///< world frame
+  ScanStats stats;
+};
+
+}  // namespace cleanmap

@@ -1,0 +1,40 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#include "cleanmap/core/params.h"
+
+#include "cleanmap/core/error.h"
+
+namespace cleanmap {
+
+void validate(const PipelineParams& p, const std::string& name) {
+  auto require = [&](bool ok, const std::string& what) {
+    if (!ok) throw Error(name, what);
+  };
+  require(p.filter.crop_tau > 0, "filter.crop_tau must be > 0");
+  require(p.filter.dup_window >= 0, "filter.dup_window must be >= 0");
+  require(p.filter.dup_distance > 0, "filter.dup_distance must be > 0");
+  require(p.ground.cell > 0, "ground.cell must be > 0");
+  require(p.ground.step > 0, "ground.step must be > 0");
+  require(p.ds.sigma_m >= 0 && p.ds.sigma_r >= 0 && p.ds.sigma_m + p.ds.sigma_r > 0,
+          "ds.sigma_m and ds.sigma_r must be >= 0, not both 0");
+  require(p.ds.lambda_theta > 0 && p.ds.lambda_theta < 0.5, "ds.lambda_theta must be in (0, 0.5) rad");
+  require(p.ds.search_lambdas > 0, "ds.search_lambdas must be > 0");
+  require(0 <= p.ds.r_inf && p.ds.r_inf <= p.ds.r_sup && p.ds.r_sup < 1,
+          "need 0 <= ds.r_inf <= ds.r_sup < 1");
+  require(p.ds.window_k >= 1, "ds.window_k must be >= 1 (K = 0 leaves no scan to compare with)");
+  require(p.ds.scan_conflict > 0 && p.ds.scan_conflict <= 1,
+          "ds.scan_conflict must be in (0, 1] (1 = off)");
+  require(p.octree.leaf > 0, "octree.leaf must be > 0");
+  require(p.octree.tau_np >= 1, "octree.tau_np must be >= 1");
+  require(p.octree.fraction > 0 && p.octree.fraction <= 1, "octree.fraction must be in (0, 1]");
+  require(p.object.voxel > 0, "object.voxel must be > 0");
+  require(0 <= p.object.static_fraction && p.object.static_fraction <= p.object.moving_fraction &&
+              p.object.moving_fraction <= 1,
+          "need 0 <= object.static_fraction <= object.moving_fraction <= 1");
+  require(p.object.min_moving >= 1, "object.min_moving must be >= 1");
+  require(p.object.max_length > 0 && p.object.max_height > 0, "object.max_length and max_height must be > 0");
+  require(p.object.persist_radius >= 0 && p.object.persist_radius <= 10,
+          "object.persist_radius must be in [0, 10] m (0 = off)");
+  require(p.threads >= 1, "run.threads must be >= 1");
+}
+
+}  // namespace cleanmap

@@ -1,0 +1,40 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#include "cleanmap/core/scan_result.h"
+
+namespace cleanmap {
+
+StageTimes& StageTimes::operator+=(const StageTimes& o) {
+  index += o.index;
+  ground += o.ground;
+  duplicates += o.duplicates;
+  octree += o.octree;
+  classify += o.classify;
+  objects += o.objects;
+  total += o.total;
+  return *this;
+}
+
+ScanStats& ScanStats::operator+=(const ScanStats& o) {
+  points += o.points;
+  invalid += o.invalid;
+  in_crop += o.in_crop;
+  ground += o.ground;
+  duplicates += o.duplicates;
+  candidates += o.candidates;
+  tested += o.tested;
+  moving += o.moving;
+  static_points += o.static_points;
+  window += o.window;
+  total_conflicts += o.total_conflicts;
+  no_evidence += o.no_evidence;
+  conflicting_scans += o.conflicting_scans;
+  objects_moving += o.objects_moving;
+  consensus_points += o.consensus_points;
+  consensus_removed += o.consensus_removed;
+  objects_persisted += o.objects_persisted;
+  empty += o.empty;
+  ms += o.ms;
+  return *this;
+}
+
+}  // namespace cleanmap

@@ -1,0 +1,90 @@
+#!/usr/bin/env bash
+# SPDX-License-Identifier: BSD-3-Clause
+# End-to-end checks of cleanmap's output folder and input rules, on a short simulated sequence (no
+# external data): atomic publication, real SIGINT / SIGTERM, refusing a foreign folder, empty and
+# all-NaN scans in every app, and one clear error line per bad input.
+# usage: cleanmap_test.sh BIN_DIR SCRATCH
+set -uo pipefail
+bin=$1 scratch=$2
+rm -rf "$scratch" && mkdir -p "$scratch"
+source "$(dirname "$0")/common.sh"
+
+"$bin/cleanmap-sim" -o "$scratch/seq" --frames 24 --threads 2 --no-images >/dev/null 2>&1 || fail "sim failed"
+seq=$scratch/seq
+
+# A full run, then a shorter one into the same folder: replaced as a whole, no stale labels.
+"$bin/cleanmap" "$seq" -o "$scratch/out" --quiet >/dev/null || fail "first run failed"
+[[ $(ls "$scratch/out/labels" | wc -l) -eq 24 ]] || fail "expected 24 label files"
+"$bin/cleanmap" "$seq" -o "$scratch/out" --quiet --last 4 >/dev/null || fail "second run failed"
+[[ $(ls "$scratch/out/labels" | wc -l) -eq 5 ]] || fail "stale label files survived the shorter run"
+[[ $(ls -A "$scratch" | grep -c cleanmap-staging) -eq 0 ]] || fail "a staging folder was left"
+"$bin/cleanmap-eval" "$seq" "$scratch/out" --last 4 --json >/dev/null || fail "eval refused a finished run"
+
+# A real signal in the middle of a run: exit 128 + signal, one line, staging removed, the earlier
+# run untouched.
+before=$(cat "$scratch/out/report.json")
+for sig in INT TERM; do
+  "$bin/cleanmap" "$seq" -o "$scratch/out" --quiet --threads 1 >/dev/null 2>"$scratch/err" &
+  pid=$!
+  for _ in $(seq 600); do  # wait until the run has written labels into its staging folder
+    compgen -G "$scratch/.out.cleanmap-staging-$pid/labels/*.label" >/dev/null && break
+    sleep 0.05
+  done
+  compgen -G "$scratch/.out.cleanmap-staging-$pid/labels/*.label" >/dev/null || fail "SIG$sig: no staging labels seen"
+  kill -s "$sig" "$pid"
+  wait "$pid"; rc=$?
+  want=$([[ $sig == INT ]] && echo 130 || echo 143)
+  [[ $rc -eq $want ]] || fail "SIG$sig: exit $rc, expected $want"
+  [[ $(wc -l <"$scratch/err") -eq 1 ]] && grep -q "interrupted by SIG$sig" "$scratch/err" ||
+    fail "SIG$sig: message '$(cat "$scratch/err")'"
+  [[ -e $scratch/.out.cleanmap-staging-$pid ]] && fail "SIG$sig: staging folder left behind"
+  [[ "$(cat "$scratch/out/report.json")" == "$before" ]] || fail "SIG$sig: the earlier run was touched"
+  [[ $(ls "$scratch/out/labels" | wc -l) -eq 5 ]] || fail "SIG$sig: the earlier run's labels changed"
+done
+ls -A "$scratch" | grep -q '\.tmp\.' && fail "temporary files left beside the outputs"
+
+# cleanmap-eval refuses a folder that is no finished run.
+mkdir -p "$scratch/half/labels"; cp "$scratch/out/labels/000000.label" "$scratch/half/labels/"
+expect_error 1 "not a finished cleanmap run" "$bin/cleanmap-eval" "$seq" "$scratch/half"
+
+# A non-empty folder that is no cleanmap output is refused, or replaced with --force.
+mkdir -p "$scratch/mine"; echo keep >"$scratch/mine/notes.txt"
+expect_error 1 "holds no cleanmap run" "$bin/cleanmap" "$seq" -o "$scratch/mine" --last 2
+[[ -f $scratch/mine/notes.txt ]] || fail "a refused folder was modified"
+"$bin/cleanmap" "$seq" -o "$scratch/mine" --last 2 --force --quiet >/dev/null || fail "--force failed"
+[[ ! -e $scratch/mine/notes.txt && -f $scratch/mine/report.json ]] || fail "--force did not replace the folder"
+
+# Empty scans: one rule in every app. A 0-byte scan (and its 0-entry label file) and an all-NaN
+# scan are kept, counted, labelled 0 per original point.
+cp -r "$seq" "$scratch/holes"; rm -f "$scratch/holes/sequence.rawlog"
+: >"$scratch/holes/velodyne/000003.bin"; : >"$scratch/holes/labels/000003.label"
+python3 - "$scratch/holes/velodyne/000005.bin" <<'PY'
+import struct, sys
+n = len(open(sys.argv[1], 'rb').read()) // 16
+open(sys.argv[1], 'wb').write(struct.pack('<f', float('nan')) * 4 * n)
+PY
+npts=$(( $(stat -c %s "$scratch/holes/velodyne/000005.bin") / 16 ))
+"$bin/cleanmap" "$scratch/holes" -o "$scratch/holes_out" --quiet >"$scratch/o" 2>"$scratch/e" || fail "empty scans stopped cleanmap"
+grep -q "warning: 2 empty scans" "$scratch/e" || fail "no empty-scan warning: $(cat "$scratch/e")"
+grep -q '"empty_scans": 2' "$scratch/holes_out/report.json" || fail "report.json does not count 2 empty scans"
+[[ $(stat -c %s "$scratch/holes_out/labels/000003.label") -eq 0 ]] || fail "0-byte scan: label file not empty"
+[[ $(stat -c %s "$scratch/holes_out/labels/000005.label") -eq $((4 * npts)) ]] || fail "all-NaN scan: wrong label count"
+[[ -z $(tr -d '\0' <"$scratch/holes_out/labels/000005.label") ]] || fail "all-NaN scan: labels not all 0"
+grep -q "2 empty scans" <<<"$("$bin/cleanmap-info" "$scratch/holes")" || fail "cleanmap-info does not count them"
+out=$("$bin/cleanmap-kitti2rawlog" "$scratch/holes" "$scratch/holes.rawlog") || fail "kitti2rawlog refused empty scans"
+[[ $out == *"2 empty scans kept"* ]] || fail "kitti2rawlog: $out"
+"$bin/cleanmap" "$scratch/holes.rawlog" -o "$scratch/holes_rl" --quiet >/dev/null 2>&1 || fail "empty scans stopped cleanmap on a rawlog"
+"$bin/cleanmap-eval" "$scratch/holes" "$scratch/holes_out" --json >/dev/null || fail "cleanmap-eval failed on empty scans"
+
+# Bad inputs: one line naming what is wrong.
+expect_error 1 "--first 40 is beyond the end: the input has 24 scans (0..23)" "$bin/cleanmap" "$seq" -o "$scratch/x" --first 40
+head -c 20000 /dev/urandom >"$scratch/random.rawlog"
+expect_error 1 "random.rawlog: is not an MRPT rawlog" "$bin/cleanmap" "$scratch/random.rawlog" -o "$scratch/x"
+expect_error 1 "random.rawlog: is not an MRPT rawlog" "$bin/cleanmap-info" "$scratch/random.rawlog"
+cp -r "$seq" "$scratch/noposes"; rm "$scratch/noposes/poses.txt" "$scratch/noposes/sequence.rawlog"
+expect_error 1 "velodyne/000000.bin: has no pose" "$bin/cleanmap" "$scratch/noposes" -o "$scratch/x"
+[[ -e $scratch/x ]] && fail "a failed run created its output folder"
+expect_error 2 "unknown option" "$bin/cleanmap" "$seq" -o "$scratch/x" --bogus
+
+[[ $fails -eq 0 ]] && echo "cleanmap_test: all checks passed"
+exit $((fails > 0))
