@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # SPDX-License-Identifier: BSD-3-Clause
 # `make benchmark`: I/O benchmark, then per labelled set a Release run of cleanmap (2 threads) and
-# its evaluation (SPEC §5), one summary table, and the ROC sweep. Results in $OUT.
+# its evaluation (DESIGN §5), one summary table, and the ROC sweep. Results in $OUT.
 # usage: benchmark.sh BUILD_DIR DATA_DIR OUT [ROC=1]
 set -euo pipefail
 build=$1 data=$2 out=$3 roc=${4:-1}

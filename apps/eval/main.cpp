@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: BSD-3-Clause
-// cleanmap-eval: scores a result against a labelled sequence (SPEC §5), runs the ROC sweep, and
+// cleanmap-eval: scores a result against a labelled sequence (DESIGN §5), runs the ROC sweep, and
 // sums reports into one table.
 #include <cstdio>
 #include <iostream>
@@ -21,7 +21,7 @@ constexpr const char* kUsage = R"(usage:
                 [--first N --last M]
   cleanmap-eval summary REPORT.json...
 
-Scores moving-object removal against ground truth (SPEC.md §5).
+Scores moving-object removal against ground truth (DESIGN §5).
 GT_DIR         a labelled sequence folder (velodyne/, labels/, poses.txt, optional objects.json),
                as in ../shared/data or SemanticKITTI
 RESULT         a cleanmap output folder (labels/, static_map_full.ply, report.json, params.ini)

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: BSD-3-Clause
-// SPEC §2b maths: beam masses, Dempster's rule, Xiao's measures, discretisation.
+// DESIGN §2b maths: beam masses, Dempster's rule, Xiao's measures, discretisation.
 #include <gtest/gtest.h>
 
 #include <random>

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: BSD-3-Clause
-// SPEC §5 measures on tiny hand-made inputs with known answers; the map score against brute force;
+// DESIGN §5 measures on tiny hand-made inputs with known answers; the map score against brute force;
 // foreign .pcd / .ply maps; the summary table; bad inputs.
 #include <gtest/gtest.h>
 

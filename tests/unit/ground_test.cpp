@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: BSD-3-Clause
-// Ground removal by height propagation (SPEC §2a) on synthetic ground with objects, against the
+// Ground removal by height propagation (DESIGN §2a) on synthetic ground with objects, against the
 // two baselines the paper argues against: a fixed height threshold and a RANSAC plane.
 #include <gtest/gtest.h>
 

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: BSD-3-Clause
-// Accuracy on the labelled KITTI sets with default parameters and given poses (SPEC §5, points
+// Accuracy on the labelled KITTI sets with default parameters and given poses (DESIGN §5, points
 // in the 30 m crop, ignore labels excluded). Bounds sit a little below what we measured
 // (doc/BENCHMARK.md) so a regression fails; where issue #3's bar is met, the bar is asserted too.
 #include <gtest/gtest.h>

@@ -22,7 +22,7 @@ namespace fs = std::filesystem;
 namespace cleanmap::eval {
 namespace {
 
-constexpr double kDefaultCrop = 30.0;    // SPEC §2.3 tau, when the run does not say
+constexpr double kDefaultCrop = 30.0;    // DESIGN §2.3 tau, when the run does not say
 constexpr double kObjectMargin = 0.2;    // m; box inflation when assigning points to objects
 constexpr std::size_t kMaxLeftovers = 200000;  // points drawn in the map overview
 
@@ -293,7 +293,7 @@ void writeReport(const std::string& dir, const EvalReport& r) {
   io::writeFileAtomic(dir + "/report.md", [&](std::ostream& os) {
     char b[512];
     os << "# cleanmap evaluation: " << r.sequence << "\n\nGround truth `" << r.gt_dir << "`, result `"
-       << r.result << "`, " << r.scans << " scans. Measures: SPEC.md §5.\n";
+       << r.result << "`, " << r.scans << " scans. Measures: DESIGN §5.\n";
     if (r.mos) {
       const auto& c = *r.mos;
       std::snprintf(b, sizeof b,

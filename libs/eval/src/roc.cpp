@@ -80,7 +80,7 @@ void writeRoc(const std::string& dir, const std::string& sequence, const std::ve
 
   io::writeFileAtomic(dir + "/roc.md", [&](std::ostream& os) {
     os << "# ROC sweep: " << sequence << "\n\nLaser pipeline, default parameters except sigma_r and "
-          "sigma_theta (= lambda_theta); SPEC.md §5. Default marked *.\n\n"
+          "sigma_theta (= lambda_theta); DESIGN §5. Default marked *.\n\n"
           "| sigma_theta (rad) | sigma_r (m) | TPR (recall) | FPR | precision | IoU |\n|---|---|---|---|---|---|\n";
     char b[256];
     for (const auto& r : s) {

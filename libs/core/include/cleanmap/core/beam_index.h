@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: BSD-3-Clause
-// SPEC §2b: per-scan spherical beam index (azimuth x elevation bins), built once per scan in the
+// DESIGN §2b: per-scan spherical beam index (azimuth x elevation bins), built once per scan in the
 // sensor frame and reused by every frame whose window holds the scan.
 #pragma once
 #include <Eigen/Core>

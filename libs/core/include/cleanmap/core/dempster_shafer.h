@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: BSD-3-Clause
-// SPEC §2b / paper §II-C: Dempster-Shafer occupancy of a point from lidar beams.
+// DESIGN §2b / paper §II-C: Dempster-Shafer occupancy of a point from lidar beams.
 #pragma once
 #include <cmath>
 
@@ -29,7 +29,7 @@ struct BeamModel {
         f_inv_two_s1(static_cast<float>(1.0 / (2.0 * s1))),
         f_inv_two_lambda2(static_cast<float>(inv_two_lambda2)) {}
 
-  /// m'(P, Q) for a beam at angle theta (rad) from O->P with r = |OP'| - |OQ| (m); Eq. (4)-(5)
+  /// m'(P, Q) for a beam at angle theta (rad) from O->P with r = |OP'| - |OQ| (m); Eq. (2)-(5)
   /// with the Gaussian-convolved closed forms:
   ///   e' = f_theta * Phi(-r / sigma)
   ///   o' = exp(-r^2 / (2 (1 + sigma^2))) / sqrt(1 + sigma^2) * Phi(r / (sigma sqrt(1 + sigma^2)))
@@ -101,13 +101,13 @@ inline Consistency xiao(const Mass& a, const Mass& b) {
           a.u * (b.e + b.o) + b.u * (a.e + a.o)};
 }
 
-/// l = r_sup - (r_sup - r_inf) |OP| / |OB| (Eq. 8): stronger belief near the sensor.
+/// l = r_sup - (r_sup - r_inf) |OP| / |OB| (the unnumbered formula before Eq. 8): stronger belief near the sensor.
 inline double discreteBelief(double range_p, double range_farthest, const DsParams& p) {
   const double ratio = range_farthest > 0 ? std::min(range_p / range_farthest, 1.0) : 1.0;
   return p.r_sup - (p.r_sup - p.r_inf) * ratio;
 }
 
-/// Eq. (9)-(11): the prevailing state keeps mass l, the rest goes to unknown.
+/// Eq. (8)-(10): the prevailing state keeps mass l, the rest goes to unknown.
 inline Mass discretise(const Mass& m, double l) {
   Mass d;
   d.e = (m.e > m.o && m.e > m.u) ? l : 0.0;

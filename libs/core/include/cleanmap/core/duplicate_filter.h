@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: BSD-3-Clause
-// SPEC §2.3: a candidate is a duplicate if a static-map point contributed by the last W processed
+// DESIGN §2.3: a candidate is a duplicate if a static-map point contributed by the last W processed
 // scans lies within d_dup.
 #pragma once
 #include <Eigen/Core>

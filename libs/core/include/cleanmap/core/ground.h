@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: BSD-3-Clause
-// SPEC §2a / paper §II-B: ground removal by height propagation on a 2D grid.
+// DESIGN §2a / paper §II-B: ground removal by height propagation on a 2D grid.
 #pragma once
 #include <cstdint>
 #include <vector>

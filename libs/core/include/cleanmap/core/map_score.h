@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: BSD-3-Clause
-// SPEC §5: clean-map scores of the DynamicMap benchmark (SA, DA, AA, HA). A ground-truth point is
+// DESIGN §5: clean-map scores of the DynamicMap benchmark (SA, DA, AA, HA). A ground-truth point is
 // kept if the scored map has a point within `radius` (0.05 m) of it.
 #pragma once
 #include <Eigen/Core>

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: BSD-3-Clause
-// SPEC §5: per-point moving-object segmentation measures.
+// DESIGN §5: per-point moving-object segmentation measures.
 #pragma once
 #include <cstdint>
 #include <string>

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: BSD-3-Clause
-// SPEC §2b: the moving-point test of one point against the scans of its window.
+// DESIGN §2b: the moving-point test of one point against the scans of its window.
 #pragma once
 #include <Eigen/Geometry>
 #include <optional>
@@ -30,7 +30,7 @@ class MovingTest {
   /// unknown where that is empty but the scan's own beams conflict (DsParams::scan_conflict).
   ds::Mass scanMass(const Eigen::Vector3d& p_world, const WindowScan& s, double* range_p,
                     MovingTestStats* stats) const;
-  /// Window decision: Dempster combination of the discretised scan masses (Eq. 8-11).
+  /// Window decision: Dempster combination (Eq. 6) of the discretised scan masses (Eq. 8-10).
   ds::Mass windowMass(const Eigen::Vector3d& p_world, const std::vector<WindowScan>& window,
                       MovingTestStats* stats) const;
   /// ds::isMoving(windowMass(...)), but stops visiting scans once the rest of the window cannot

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: BSD-3-Clause
-// Object consensus (our addition, doc/OBJECTS.md): the per-point test of SPEC §2b sees only the
+// Object consensus (our addition, doc/OBJECTS.md): the per-point test of DESIGN §2b sees only the
 // parts of a vehicle whose space becomes empty in other scans; a long vehicle moving along its
 // own length keeps its sides occupied. A rigid object moves as a whole: if enough of a connected,
 // vehicle-sized group of non-ground points is moving, all of it is.

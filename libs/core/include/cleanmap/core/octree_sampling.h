@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: BSD-3-Clause
-// SPEC §2c / paper §II-C (end): octree leaf sampling with OctoMap keys.
+// DESIGN §2c / paper §II-C (end): octree leaf sampling with OctoMap keys.
 #pragma once
 #include <Eigen/Core>
 #include <cstdint>

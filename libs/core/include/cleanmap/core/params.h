@@ -19,7 +19,7 @@ struct GroundParams {
   double cell = 0.4;             ///< m; grid cell side
   double step = 0.09;            ///< m; s, the largest rise within / between cells (22 % slope)
   double sensor_height = -1.73;  ///< m; initial ground height h_G below the sensor origin
-  /// In non-ground cells, also label ground the points below h_G + s (our addition, SPEC is
+  /// In non-ground cells, also label ground the points below h_G + s (our addition, the paper is
   /// cell-level only; see doc/SWEEP.md for its effect).
   bool point_refine = true;
   /// Across k empty cells the allowed rise is s * min(1 + k, max_gap_cells) (our addition; 1 =

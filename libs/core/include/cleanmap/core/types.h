@@ -18,7 +18,7 @@ struct PointXYZI {
 static_assert(sizeof(PointXYZI) == 16, "PointXYZI must match the KITTI .bin record");
 
 /// One sweep. Points are finite; invalid input points were dropped and are remembered through
-/// `original_index` so per-point outputs can be written in the original order (SPEC §4).
+/// `original_index` so per-point outputs can be written in the original order (DESIGN §4).
 struct Scan {
   std::vector<PointXYZI> points;      ///< sensor frame, metres
   double timestamp = 0.0;             ///< seconds (epoch or sequence-relative, as the input gives)
@@ -36,7 +36,7 @@ struct Scan {
   }
 };
 
-/// Per-point labels, SemanticKITTI-MOS convention (SPEC §4); the lower 16 bits are the class.
+/// Per-point labels, SemanticKITTI-MOS convention (DESIGN §4); the lower 16 bits are the class.
 enum Label : uint32_t {
   kUnclassified = 0,  ///< out of range or invalid (ground-truth: ignore)
   kOutlier = 1,       ///< ground-truth only: ignore
@@ -46,7 +46,7 @@ enum Label : uint32_t {
 };
 using Labels = std::vector<uint32_t>;
 
-/// Ground-truth semantics of a SemanticKITTI id (SPEC §5).
+/// Ground-truth semantics of a SemanticKITTI id (DESIGN §5).
 enum class GtClass { kIgnore, kStatic, kMoving };
 inline GtClass gtClass(uint32_t label) {
   const uint32_t id = label & 0xFFFFu;

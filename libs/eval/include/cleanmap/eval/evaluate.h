@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: BSD-3-Clause
-// SPEC §5: scores a result (a cleanmap output folder, or any tool's clean map and/or per-scan
+// DESIGN §5: scores a result (a cleanmap output folder, or any tool's clean map and/or per-scan
 // labels) against a labelled sequence: per-point MOS (paper Table I), object level (Table II),
 // DynamicMap SA/DA/AA/HA, and the run's time per stage.
 #pragma once

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: BSD-3-Clause
-// Pictures of the evaluation report, drawn with OpenCV (SPEC §5, issue #5): bird's-eye views of
+// Pictures of the evaluation report, drawn with OpenCV (DESIGN §5, issue #5): bird's-eye views of
 // labelled scans, a clean-map overview, the ROC plot.
 #pragma once
 #include <Eigen/Core>

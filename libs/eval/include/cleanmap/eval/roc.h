@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: BSD-3-Clause
-// SPEC §5 ROC: the laser pipeline over a grid of sigma_r x sigma_theta (= lambda_theta), TPR and
+// DESIGN §5 ROC: the laser pipeline over a grid of sigma_r x sigma_theta (= lambda_theta), TPR and
 // FPR of the moving class per setting, like the paper's ROC figure.
 #pragma once
 #include <functional>

@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: BSD-3-Clause
 // PCL `.pcd` point clouds (the format of most dynamic-removal tools' maps: DUFOMap, Removert,
-// ERASOR, OctoMap exports), read so their maps are scored like ours (SPEC §5).
+// ERASOR, OctoMap exports), read so their maps are scored like ours (DESIGN §5).
 #pragma once
 #include <string>
 #include <vector>

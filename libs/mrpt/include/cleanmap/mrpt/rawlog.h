@@ -15,7 +15,8 @@ void registerClasses();
 
 struct RawlogWriteOptions {
   /// Store scans as lazy `KittiBinFile` references (absolute paths) instead of embedding points,
-  /// and images as external files. Requires Frame::source paths and scans without dropped points.
+  /// and images as external files. Needs the source files (write()'s scan_source / image_source)
+  /// and scans without dropped points.
   bool external = false;
   std::string lidar_label = "LIDAR";
   std::string camera_label = "CAMERA";

@@ -36,7 +36,7 @@ struct Solid {
   Eigen::Vector3f colour{0.5f, 0.5f, 0.5f};
   int tracked_id = 0;  ///< objects.json id, 0 if not tracked
   std::string name, cls;
-  /// Motion truth (movers): 1 moving, 0 static, -1 uncertain (SPEC data rules: > 0.5 m over
+  /// Motion truth (movers): 1 moving, 0 static, -1 uncertain (the labelled data's rules: > 0.5 m over
   /// +-0.5 s is moving, < 0.2 m is static).
   int motion = 0;
 };
@@ -80,7 +80,7 @@ struct SimScan {
   /// The pose written to poses.txt: `pose` plus the scenario's pose drift (reportedPose).
   Eigen::Isometry3d reported_pose = Eigen::Isometry3d::Identity();
   std::vector<PointXYZI> points;  ///< sensor frame at each point's capture time (not de-skewed)
-  Labels labels;                  ///< ground truth: 9 static, 251 moving, 0 ignore (SPEC §5)
+  Labels labels;                  ///< ground truth: 9 static, 251 moving, 0 ignore (DESIGN §5)
   std::vector<Surface> surface;   ///< per point
   std::vector<int> solid;         ///< per point, index into the frame's World::solids(), -1 ground
 };
