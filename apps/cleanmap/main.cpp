@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: BSD-3-Clause
 // cleanmap: moving-object removal over a KITTI folder or an MRPT rawlog (DESIGN §2, §4).
-#include <csignal>
 #include <chrono>
+#include <csignal>
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
@@ -73,17 +73,28 @@ int main(int argc, char** argv) {
     if (a == "--help" || a == "-h") {
       std::cout << kUsage;
       return 0;
-    } else if (a == "-o" || a == "--output") outdir = args.value(a);
-    else if (a == "-c" || a == "--config") config = args.value(a);
-    else if (a == "--threads") threads = args.integer(a, 1);
-    else if (a == "--seed") seed = args.integer(a);
-    else if (a == "--first") first = args.integer(a);
-    else if (a == "--last") last = args.integer(a);
-    else if (a == "--poses") poses = args.value(a);
-    else if (a == "--quiet") quiet = true;
-    else if (a == "--force") force = true;
-    else if (!a.empty() && a[0] != '-' && input.empty()) input = a;
-    else args.unexpected(a);
+    } else if (a == "-o" || a == "--output")
+      outdir = args.value(a);
+    else if (a == "-c" || a == "--config")
+      config = args.value(a);
+    else if (a == "--threads")
+      threads = args.integer(a, 1);
+    else if (a == "--seed")
+      seed = args.integer(a);
+    else if (a == "--first")
+      first = args.integer(a);
+    else if (a == "--last")
+      last = args.integer(a);
+    else if (a == "--poses")
+      poses = args.value(a);
+    else if (a == "--quiet")
+      quiet = true;
+    else if (a == "--force")
+      force = true;
+    else if (!a.empty() && a[0] != '-' && input.empty())
+      input = a;
+    else
+      args.unexpected(a);
   }
   if (input.empty() || outdir.empty()) args.fail("need INPUT and -o OUTDIR");
   if (poses != "given" && poses != "gicp") args.fail("--poses is 'given' or 'gicp'");
@@ -93,8 +104,9 @@ int main(int argc, char** argv) {
   std::signal(SIGTERM, onSignal);
   try {
     if (poses == "gicp")
-      throw cleanmap::Error(input, "--poses gicp: GICP registration is not implemented yet; "
-                                   "use an input with poses (--poses given)");
+      throw cleanmap::Error(input,
+                            "--poses gicp: GICP registration is not implemented yet; "
+                            "use an input with poses (--poses given)");
     {  // never write into the input: its labels/ would be replaced by ours
       std::error_code ec;
       if (std::filesystem::exists(outdir, ec) && std::filesystem::equivalent(outdir, input, ec))
@@ -113,8 +125,9 @@ int main(int argc, char** argv) {
     const bool evaluate = kitti && kitti->hasLabels();
 
     if (const auto n = src->sizeHint(); n && first >= static_cast<long>(*n))
-      throw cleanmap::Error(input, "--first " + std::to_string(first) + " is beyond the end: the input has " +
-                                       std::to_string(*n) + " scans (0.." + std::to_string(long(*n) - 1) + ")");
+      throw cleanmap::Error(input, "--first " + std::to_string(first) +
+                                       " is beyond the end: the input has " + std::to_string(*n) +
+                                       " scans (0.." + std::to_string(long(*n) - 1) + ")");
     cleanmap::io::OutputOptions out_opts;
     out_opts.force = force;
     cleanmap::io::OutputWriter out(outdir, input, params, out_opts);
@@ -130,13 +143,18 @@ int main(int argc, char** argv) {
       out.write(r, eval);
       if (!quiet) {
         progress_shown = true;
-        const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        const double s =
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
         const double rate = static_cast<double>(out.scans()) / std::max(s, 1e-9);
         long todo = -1;
-        if (total) todo = static_cast<long>(last >= 0 ? std::min<long>(last + 1, long(*total)) : long(*total)) - first;
+        if (total)
+          todo =
+              static_cast<long>(last >= 0 ? std::min<long>(last + 1, long(*total)) : long(*total)) -
+              first;
         if (todo > 0)
           std::fprintf(stderr, "\rcleanmap: %zu/%ld scans, %.1f scans/s, ETA %.0f s   ",
-                       out.scans(), todo, rate, (static_cast<double>(todo) - double(out.scans())) / rate);
+                       out.scans(), todo, rate,
+                       (static_cast<double>(todo) - double(out.scans())) / rate);
         else
           std::fprintf(stderr, "\rcleanmap: %zu scans, %.1f scans/s   ", out.scans(), rate);
       }
@@ -153,18 +171,24 @@ int main(int argc, char** argv) {
     pipeline.finish();
     checkSignal();
     if (out.scans() == 0)
-      throw cleanmap::Error(input, "no scans in the requested range: the input has " + std::to_string(seen) +
-                                       " scans (--first " + std::to_string(first) + ")");
-    const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+      throw cleanmap::Error(input, "no scans in the requested range: the input has " +
+                                       std::to_string(seen) + " scans (--first " +
+                                       std::to_string(first) + ")");
+    const double wall =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     out.finish(wall);
     if (progress_shown) std::fprintf(stderr, "\n");
     if (empty)
-      std::fprintf(stderr, "cleanmap: warning: %zu empty scans (no valid point) kept, labelled 0 (report.json: empty_scans)\n",
+      std::fprintf(stderr,
+                   "cleanmap: warning: %zu empty scans (no valid point) kept, labelled 0 "
+                   "(report.json: empty_scans)\n",
                    empty);
-    std::printf("cleanmap: %zu scans in %.1f s; results in %s\n", out.scans(), wall, outdir.c_str());
+    std::printf("cleanmap: %zu scans in %.1f s; results in %s\n", out.scans(), wall,
+                outdir.c_str());
     if (const auto e = out.evaluation())
-      std::printf("cleanmap: moving class: precision %.3f, recall %.3f, IoU %.3f (%llu points evaluated)\n",
-                  e->precision(), e->recall(), e->iou(), (unsigned long long)e->evaluated());
+      std::printf(
+          "cleanmap: moving class: precision %.3f, recall %.3f, IoU %.3f (%llu points evaluated)\n",
+          e->precision(), e->recall(), e->iou(), (unsigned long long)e->evaluated());
   } catch (const Interrupted& i) {
     if (progress_shown) std::fprintf(stderr, "\n");
     std::fprintf(stderr, "cleanmap: interrupted by %s; nothing written to %s\n",

@@ -32,7 +32,10 @@ class Args {
       if (used == v.size() && x >= min) return x;
     } catch (const std::exception&) {
     }
-    fail(flag + " needs a " + (min == 1 ? std::string("positive") : min == 0 ? "non-negative" : ">= " + std::to_string(min)) +
+    fail(flag + " needs a " +
+         (min == 1   ? std::string("positive")
+          : min == 0 ? "non-negative"
+                     : ">= " + std::to_string(min)) +
          " integer, got '" + v + "'");
   }
   /// A number >= 0 after `flag`.
@@ -51,7 +54,8 @@ class Args {
   }
   /// "unknown option" for a dash argument, "unexpected argument" otherwise.
   [[noreturn]] void unexpected(const std::string& a) const {
-    fail(!a.empty() && a[0] == '-' ? "unknown option '" + a + "'" : "unexpected argument '" + a + "'");
+    fail(!a.empty() && a[0] == '-' ? "unknown option '" + a + "'"
+                                   : "unexpected argument '" + a + "'");
   }
 
  private:

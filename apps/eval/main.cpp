@@ -49,7 +49,8 @@ Exit status: 0 ok, 1 error (one line on stderr), 2 bad command line.
 int runSummary(int argc, char** argv) {
   std::vector<std::string> files;
   for (int i = 2; i < argc; ++i) files.emplace_back(argv[i]);
-  if (files.empty()) cleanmap::cli::Args("cleanmap-eval", argc, argv).fail("summary needs report JSON files");
+  if (files.empty())
+    cleanmap::cli::Args("cleanmap-eval", argc, argv).fail("summary needs report JSON files");
   std::cout << cleanmap::eval::summaryTable(files);
   return 0;
 }
@@ -64,15 +65,24 @@ int runRoc(int argc, char** argv) {
     if (a == "--help" || a == "-h") {
       std::cout << kUsage;
       return 0;
-    } else if (a == "-o" || a == "--output") out = args.value(a);
-    else if (a == "-c" || a == "--config") config = args.value(a);
-    else if (a == "--sigma-r") opt.sigma_r = args.numbers(a);
-    else if (a == "--sigma-theta") opt.lambda_theta = args.numbers(a);
-    else if (a == "--threads") threads = args.integer(a, 1);
-    else if (a == "--first") opt.first = args.integer(a);
-    else if (a == "--last") opt.last = args.integer(a);
-    else if (!a.empty() && a[0] != '-' && gt.empty()) gt = a;
-    else args.unexpected(a);
+    } else if (a == "-o" || a == "--output")
+      out = args.value(a);
+    else if (a == "-c" || a == "--config")
+      config = args.value(a);
+    else if (a == "--sigma-r")
+      opt.sigma_r = args.numbers(a);
+    else if (a == "--sigma-theta")
+      opt.lambda_theta = args.numbers(a);
+    else if (a == "--threads")
+      threads = args.integer(a, 1);
+    else if (a == "--first")
+      opt.first = args.integer(a);
+    else if (a == "--last")
+      opt.last = args.integer(a);
+    else if (!a.empty() && a[0] != '-' && gt.empty())
+      gt = a;
+    else
+      args.unexpected(a);
   }
   if (gt.empty() || out.empty()) args.fail("roc needs GT_DIR and -o DIR");
   if (opt.last >= 0 && opt.last < opt.first) args.fail("--last must be >= --first");
@@ -87,7 +97,8 @@ int runRoc(int argc, char** argv) {
   while (!seq.empty() && seq.back() == '/') seq.pop_back();
   seq = seq.substr(seq.find_last_of('/') + 1);
   cleanmap::eval::writeRoc(out, seq, res, base);
-  std::printf("cleanmap-eval roc: %zu settings; table %s/roc.md, plot %s/roc.png\n", res.size(), out.c_str(), out.c_str());
+  std::printf("cleanmap-eval roc: %zu settings; table %s/roc.md, plot %s/roc.png\n", res.size(),
+              out.c_str(), out.c_str());
   return 0;
 }
 
@@ -102,18 +113,27 @@ int runEval(int argc, char** argv) {
     if (a == "--help" || a == "-h") {
       std::cout << kUsage;
       return 0;
-    } else if (a == "--first") opt.first = args.integer(a);
-    else if (a == "--last") opt.last = args.integer(a);
-    else if (a == "--labels") labels = args.value(a);
-    else if (a == "--report") report = args.value(a);
-    else if (a == "--json") json = true;
+    } else if (a == "--first")
+      opt.first = args.integer(a);
+    else if (a == "--last")
+      opt.last = args.integer(a);
+    else if (a == "--labels")
+      labels = args.value(a);
+    else if (a == "--report")
+      report = args.value(a);
+    else if (a == "--json")
+      json = true;
     else if (a == "--radius") {
       opt.radius = args.number(a);
       if (opt.radius <= 0) args.fail("--radius must be > 0");
-    } else if (a == "--crop") opt.crop_tau = args.number(a);
-    else if (!a.empty() && a[0] != '-' && gt.empty()) gt = a;
-    else if (!a.empty() && a[0] != '-' && result.empty()) result = a;
-    else args.unexpected(a);
+    } else if (a == "--crop")
+      opt.crop_tau = args.number(a);
+    else if (!a.empty() && a[0] != '-' && gt.empty())
+      gt = a;
+    else if (!a.empty() && a[0] != '-' && result.empty())
+      result = a;
+    else
+      args.unexpected(a);
   }
   if (gt.empty() || result.empty()) args.fail("need GT_DIR and RESULT");
   if (opt.last >= 0 && opt.last < opt.first) args.fail("--last must be >= --first");
@@ -128,17 +148,20 @@ int runEval(int argc, char** argv) {
   std::printf("%s: %zu scans\n", rep.sequence.c_str(), rep.scans);
   if (rep.mos)
     std::printf("  moving class: precision %.3f, recall %.3f, IoU %.3f (%llu points scored)\n",
-                rep.mos->precision(), rep.mos->recall(), rep.mos->iou(), (unsigned long long)rep.mos->evaluated());
+                rep.mos->precision(), rep.mos->recall(), rep.mos->iou(),
+                (unsigned long long)rep.mos->evaluated());
   if (rep.objects) {
     const auto g = rep.gradeCounts();
-    std::printf("  objects: %d detected, %d partially detected, %d missed\n", g.detected, g.partial, g.missed);
+    std::printf("  objects: %d detected, %d partially detected, %d missed\n", g.detected, g.partial,
+                g.missed);
   }
   if (rep.map)
-    std::printf("  clean map: SA %.4f, DA %.4f, AA %.4f, HA %.4f\n", rep.map->sa(), rep.map->da(), rep.map->aa(),
-                rep.map->ha());
+    std::printf("  clean map: SA %.4f, DA %.4f, AA %.4f, HA %.4f\n", rep.map->sa(), rep.map->da(),
+                rep.map->aa(), rep.map->ha());
   if (rep.runtime && !rep.runtime->stages.empty())
-    std::printf("  runtime: median %.1f ms/scan, p95 %.1f ms/scan (%d threads)\n", rep.runtime->stages[0].median_ms,
-                rep.runtime->stages[0].p95_ms, rep.runtime->threads);
+    std::printf("  runtime: median %.1f ms/scan, p95 %.1f ms/scan (%d threads)\n",
+                rep.runtime->stages[0].median_ms, rep.runtime->stages[0].p95_ms,
+                rep.runtime->threads);
   if (!report.empty()) std::printf("  report: %s/report.md\n", report.c_str());
   return 0;
 }

@@ -49,17 +49,25 @@ int main(int argc, char** argv) {
     } else if (a == "--print-default") {
       std::cout << cleanmap::sim::defaultScenarioText();
       return 0;
-    } else if (a == "-o" || a == "--output") out = args.value(a);
-    else if (a == "--frames") frames = args.integer(a, 1);
-    else if (a == "--threads") threads = args.integer(a, 1);
-    else if (a == "--no-images") images = false;
-    else if (a == "--no-rawlog") rawlog = false;
-    else if (!a.empty() && a[0] != '-' && scenario.empty()) scenario = a;
-    else args.unexpected(a);
+    } else if (a == "-o" || a == "--output")
+      out = args.value(a);
+    else if (a == "--frames")
+      frames = args.integer(a, 1);
+    else if (a == "--threads")
+      threads = args.integer(a, 1);
+    else if (a == "--no-images")
+      images = false;
+    else if (a == "--no-rawlog")
+      rawlog = false;
+    else if (!a.empty() && a[0] != '-' && scenario.empty())
+      scenario = a;
+    else
+      args.unexpected(a);
   }
   if (out.empty()) args.fail("need -o OUTDIR");
   try {
-    auto sc = scenario.empty() ? cleanmap::sim::defaultScenario() : cleanmap::sim::loadScenario(scenario);
+    auto sc =
+        scenario.empty() ? cleanmap::sim::defaultScenario() : cleanmap::sim::loadScenario(scenario);
     if (frames > 0) sc.frames = static_cast<int>(std::min<long>(frames, sc.frames));
     cleanmap::sim::GenerateOptions opt;
     opt.threads = static_cast<int>(threads);
@@ -70,7 +78,8 @@ int main(int argc, char** argv) {
     });
     std::fprintf(stderr, "\n");
     cleanmap::io::writeFileAtomic(out + "/scenario.ini", [&](std::ostream& os) {
-      os << (scenario.empty() ? cleanmap::sim::defaultScenarioText() : cleanmap::io::readTextFile(scenario));
+      os << (scenario.empty() ? cleanmap::sim::defaultScenarioText()
+                              : cleanmap::io::readTextFile(scenario));
     });
     if (rawlog) {
       cleanmap::io::KittiReadOptions ro;
@@ -78,12 +87,13 @@ int main(int argc, char** argv) {
       cleanmap::mrpt::RawlogWriter writer(out + "/sequence.rawlog");
       const auto camera = seq.camera();
       for (std::size_t i = 0; i < seq.size(); ++i)
-        writer.write(seq.frame(i), camera, seq.scanPath(i), seq.hasImages() ? seq.imagePath(i) : std::string());
+        writer.write(seq.frame(i), camera, seq.scanPath(i),
+                     seq.hasImages() ? seq.imagePath(i) : std::string());
       writer.close();
     }
-    std::printf("cleanmap-sim: %s: %zu frames, %zu points (%zu moving), %zu images%s -> %s\n", sc.name.c_str(),
-                sum.frames, sum.points, sum.moving_points, sum.images, rawlog ? ", sequence.rawlog" : "",
-                out.c_str());
+    std::printf("cleanmap-sim: %s: %zu frames, %zu points (%zu moving), %zu images%s -> %s\n",
+                sc.name.c_str(), sum.frames, sum.points, sum.moving_points, sum.images,
+                rawlog ? ", sequence.rawlog" : "", out.c_str());
   } catch (const std::exception& e) {
     std::cerr << (g_progress_shown ? "\n" : "") << "cleanmap-sim: error: " << e.what() << '\n';
     return 1;

@@ -25,7 +25,8 @@ void BM_ReadKittiBin(benchmark::State& state) {
     points += scan.size();
     benchmark::DoNotOptimize(scan.points.data());
   }
-  state.counters["points/scan"] = static_cast<double>(points) / static_cast<double>(state.iterations());
+  state.counters["points/scan"] =
+      static_cast<double>(points) / static_cast<double>(state.iterations());
 }
 
 void BM_ReadRawlogScan(benchmark::State& state) {
@@ -45,13 +46,17 @@ void BM_ReadRawlogScan(benchmark::State& state) {
     points += f->scan.size();
     benchmark::DoNotOptimize(f->scan.points.data());
   }
-  state.counters["points/scan"] = static_cast<double>(points) / static_cast<double>(state.iterations());
+  state.counters["points/scan"] =
+      static_cast<double>(points) / static_cast<double>(state.iterations());
 }
 
 }  // namespace
 
 BENCHMARK(BM_ReadKittiBin)->Unit(benchmark::kMillisecond)->Repetitions(15)->ReportAggregatesOnly();
-BENCHMARK(BM_ReadRawlogScan)->Unit(benchmark::kMillisecond)->Repetitions(15)->ReportAggregatesOnly();
+BENCHMARK(BM_ReadRawlogScan)
+    ->Unit(benchmark::kMillisecond)
+    ->Repetitions(15)
+    ->ReportAggregatesOnly();
 
 int main(int argc, char** argv) {
   std::string data = "../shared/data";

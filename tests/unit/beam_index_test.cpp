@@ -22,8 +22,8 @@ TEST(BeamIndex, FindsExactlyTheBeamsABruteForceFinds) {
   const BeamIndex idx(pts, radius);
   EXPECT_EQ(idx.size(), pts.size());
   for (int q = 0; q < 300; ++q) {
-    Eigen::Vector3f dir = q == 0 ? Eigen::Vector3f(-1, -0.0005f, 0)
-                                 : Eigen::Vector3f(u(rng), u(rng), 0.4f * u(rng));
+    Eigen::Vector3f dir =
+        q == 0 ? Eigen::Vector3f(-1, -0.0005f, 0) : Eigen::Vector3f(u(rng), u(rng), 0.4f * u(rng));
     dir.normalize();
     std::multiset<float> brute, found;
     for (const auto& p : pts) {

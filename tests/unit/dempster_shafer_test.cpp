@@ -157,7 +157,8 @@ TEST(BeamModel, TailShortcutEqualsTheClosedForm) {
     const ds::Mass got = m.beam(r, theta);
     const double f = std::exp(-theta * theta / (2 * p.lambda_theta * p.lambda_theta));
     const double e = f * ds::Phi(-r / m.sigma);
-    const double o = std::exp(-r * r / (2 * m.s1)) / std::sqrt(m.s1) * ds::Phi(r / (m.sigma * std::sqrt(m.s1)));
+    const double o =
+        std::exp(-r * r / (2 * m.s1)) / std::sqrt(m.s1) * ds::Phi(r / (m.sigma * std::sqrt(m.s1)));
     EXPECT_NEAR(got.e, e, 1e-15) << r;
     EXPECT_NEAR(got.o, o, 1e-15) << r;
     EXPECT_NEAR(got.e + got.o + got.u, 1.0, 1e-15);

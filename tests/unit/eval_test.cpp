@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: BSD-3-Clause
-// DESIGN §5 measures on tiny hand-made inputs with known answers; the map score against brute force;
-// foreign .pcd / .ply maps; the summary table; bad inputs.
+// DESIGN §5 measures on tiny hand-made inputs with known answers; the map score against brute
+// force; foreign .pcd / .ply maps; the summary table; bad inputs.
 #include <gtest/gtest.h>
 
 #include <cstring>
@@ -65,7 +65,7 @@ Tiny makeTiny(const std::string& name) {
   test::writeText(t.dir / "times.txt", times);
   test::writeText(t.dir / "calib.txt", "Tr: 1 0 0 0 0 1 0 0 0 0 1 0\n");
   test::writeText(t.dir / "objects.json",
-            R"([{"id": 7, "name": "car", "class": "car", "frames": {
+                  R"([{"id": 7, "name": "car", "class": "car", "frames": {
                  "0": {"center": [4.4, 3.0, -0.05], "size": [1.2, 0.4, 1.2], "yaw": 0.0, "moving": true, "n_points": 50},
                  "1": {"center": [4.4, 3.0, -0.05], "size": [1.2, 0.4, 1.2], "yaw": 0.0, "moving": true, "n_points": 50}}}])");
   return t;
@@ -80,20 +80,25 @@ fs::path predict(const Tiny& t, const std::string& name, int wrong_moving, int w
     Labels p = t.truth[s];
     int wm = wrong_moving, ws = wrong_static;
     for (auto& x : p) {
-      if (x == 251 && wm > 0) x = 9, --wm;
-      else if (x == 9 && ws > 0) x = 251, --ws;
-      else if (x == 0) x = 9;  // a tool labels everything; ignore labels must not count
+      if (x == 251 && wm > 0)
+        x = 9, --wm;
+      else if (x == 9 && ws > 0)
+        x = 251, --ws;
+      else if (x == 0)
+        x = 9;  // a tool labels everything; ignore labels must not count
     }
     char name6[16];
     std::snprintf(name6, sizeof name6, "%06d.label", int(s));
     io::writeLabels((dir / "labels" / name6).string(), p);
   }
-  test::writeText(dir / "report.json",  // a finished run
-                  R"({"generator": "cleanmap", "scans": 2, "timing_per_scan": {"total": {"median_ms": 50, "p95_ms": 60}}})");
+  test::writeText(
+      dir / "report.json",  // a finished run
+      R"({"generator": "cleanmap", "scans": 2, "timing_per_scan": {"total": {"median_ms": 50, "p95_ms": 60}}})");
   return dir;
 }
 
-eval::EvalReport run(const Tiny& t, const fs::path& result, const std::optional<std::string>& labels = {}) {
+eval::EvalReport run(const Tiny& t, const fs::path& result,
+                     const std::optional<std::string>& labels = {}) {
   return eval::evaluate(t.dir.string(), eval::ResultInput::fromPath(result.string(), labels), {});
 }
 
@@ -154,10 +159,10 @@ TEST(EvalObjects, GradesByFractionOfMovingPoints) {
     EXPECT_EQ(r.objects->front().moving_points, 100u);
     return r.objects->front();
   };
-  EXPECT_EQ(grade(2).grade(), ObjectGrade::kDetected);   // f = 0.96
-  EXPECT_EQ(grade(25).grade(), ObjectGrade::kPartial);   // f = 0.5
+  EXPECT_EQ(grade(2).grade(), ObjectGrade::kDetected);  // f = 0.96
+  EXPECT_EQ(grade(25).grade(), ObjectGrade::kPartial);  // f = 0.5
   EXPECT_NEAR(grade(25).fraction(), 0.5, 1e-12);
-  EXPECT_EQ(grade(48).grade(), ObjectGrade::kMissed);    // f = 0.04
+  EXPECT_EQ(grade(48).grade(), ObjectGrade::kMissed);  // f = 0.04
   EXPECT_EQ(gradeObject(0.9), ObjectGrade::kDetected);
   EXPECT_EQ(gradeObject(0.1), ObjectGrade::kPartial);
   EXPECT_EQ(gradeObject(0.0999), ObjectGrade::kMissed);
@@ -247,7 +252,9 @@ TEST(EvalMap, CropLimitsTheGroundTruthUnion) {
   io::writePly((t.dir.parent_path() / "one.ply").string(), {{0.f, 0.f, 0.f, 0.f}});
   eval::EvalOptions o;
   o.crop_tau = 6.0;  // leaves out the wall at x = 10
-  const auto r = eval::evaluate(t.dir.string(), eval::ResultInput::fromPath((t.dir.parent_path() / "one.ply").string(), {}), o);
+  const auto r = eval::evaluate(
+      t.dir.string(), eval::ResultInput::fromPath((t.dir.parent_path() / "one.ply").string(), {}),
+      o);
   EXPECT_EQ(r.map->static_total, 0u);
   EXPECT_EQ(r.map->moving_total, 100u);
 }
@@ -255,9 +262,11 @@ TEST(EvalMap, CropLimitsTheGroundTruthUnion) {
 TEST(Pcd, ReadsForeignLayouts) {
   const auto d = test::scratchDir("pcd");
   // ASCII with an extra rgb field and a NaN point of an organized cloud.
-  test::writeText(d / "a.pcd",
-            "# .PCD v0.7\nVERSION 0.7\nFIELDS x y z rgb\nSIZE 4 4 4 4\nTYPE F F F U\nCOUNT 1 1 1 1\n"
-            "WIDTH 3\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS 3\nDATA ascii\n1 2 3 255\nnan nan nan 0\n4 5 6 7\n");
+  test::writeText(
+      d / "a.pcd",
+      "# .PCD v0.7\nVERSION 0.7\nFIELDS x y z rgb\nSIZE 4 4 4 4\nTYPE F F F U\nCOUNT 1 1 1 1\n"
+      "WIDTH 3\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS 3\nDATA ascii\n1 2 3 255\nnan nan nan "
+      "0\n4 5 6 7\n");
   auto a = io::readPcd((d / "a.pcd").string());
   ASSERT_EQ(a.size(), 2u);
   EXPECT_EQ(a[1].x, 4.f);
@@ -294,10 +303,12 @@ TEST(Pcd, ReadsForeignLayouts) {
     lzf.push_back(char((2 << 5) | 0));  // back reference: length 2 + 2 = 4, distance 4
     lzf.push_back(char(3));
     std::ofstream f(d / "c.pcd", std::ios::binary);
-    f << "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 2\nHEIGHT 1\nPOINTS 2\n"
+    f << "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 2\nHEIGHT "
+         "1\nPOINTS 2\n"
          "DATA binary_compressed\n";
     const uint32_t cs = uint32_t(lzf.size()), us = uint32_t(raw.size());
-    f.write(reinterpret_cast<const char*>(&cs), 4).write(reinterpret_cast<const char*>(&us), 4) << lzf;
+    f.write(reinterpret_cast<const char*>(&cs), 4).write(reinterpret_cast<const char*>(&us), 4)
+        << lzf;
   }
   auto c = io::readPcd((d / "c.pcd").string());
   ASSERT_EQ(c.size(), 2u);
@@ -308,14 +319,18 @@ TEST(Pcd, ReadsForeignLayouts) {
 
 TEST(Pcd, BadFilesAreClearErrors) {
   const auto d = test::scratchDir("pcdbad");
-  test::writeText(d / "trunc.pcd", "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 10\n"
-                             "HEIGHT 1\nPOINTS 10\nDATA binary\nabc");
+  test::writeText(d / "trunc.pcd",
+                  "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 10\n"
+                  "HEIGHT 1\nPOINTS 10\nDATA binary\nabc");
   test::expectError([&] { io::readPcd((d / "trunc.pcd").string()); }, "trunc.pcd", "truncated");
-  test::writeText(d / "noxyz.pcd", "VERSION 0.7\nFIELDS a b\nSIZE 4 4\nTYPE F F\nCOUNT 1 1\nPOINTS 0\nDATA ascii\n");
+  test::writeText(d / "noxyz.pcd",
+                  "VERSION 0.7\nFIELDS a b\nSIZE 4 4\nTYPE F F\nCOUNT 1 1\nPOINTS 0\nDATA ascii\n");
   test::expectError([&] { io::readPcd((d / "noxyz.pcd").string()); }, "noxyz.pcd", "no x, y, z");
   test::writeText(d / "map.xyz", "1 2 3\n");
-  test::expectError([&] { io::readCloud((d / "map.xyz").string()); }, "map.xyz", "unknown point-cloud format");
-  test::expectError([&] { io::readPcd((d / "missing.pcd").string()); }, "missing.pcd", "cannot open");
+  test::expectError([&] { io::readCloud((d / "map.xyz").string()); }, "map.xyz",
+                    "unknown point-cloud format");
+  test::expectError([&] { io::readPcd((d / "missing.pcd").string()); }, "missing.pcd",
+                    "cannot open");
 }
 
 TEST(EvalErrors, BadInputsNameTheFile) {
@@ -326,14 +341,17 @@ TEST(EvalErrors, BadInputsNameTheFile) {
   // was interrupted), is refused.
   const auto empty = t.dir.parent_path() / "errors_empty";
   fs::create_directories(empty);
-  test::expectError([&] { eval::ResultInput::fromPath(empty.string(), {}); }, "errors_empty", "no cleanmap report.json");
+  test::expectError([&] { eval::ResultInput::fromPath(empty.string(), {}); }, "errors_empty",
+                    "no cleanmap report.json");
   const auto unfinished = predict(t, "unfinished", 0, 0);
   fs::remove(unfinished / "report.json");
-  test::expectError([&] { run(t, unfinished); }, "errors_unfinished", "not a finished cleanmap run");
+  test::expectError([&] { run(t, unfinished); }, "errors_unfinished",
+                    "not a finished cleanmap run");
   // A finished run with nothing to score.
   const auto nothing = t.dir.parent_path() / "errors_nothing";
   test::writeText(nothing / "report.json", R"({"generator": "cleanmap"})");
-  test::expectError([&] { eval::ResultInput::fromPath(nothing.string(), {}); }, "errors_nothing", "nothing to score");
+  test::expectError([&] { eval::ResultInput::fromPath(nothing.string(), {}); }, "errors_nothing",
+                    "nothing to score");
   // Label file with the wrong count.
   const auto p = predict(t, "short", 0, 0);
   io::writeLabels((p / "labels/000001.label").string(), Labels(3, 9));
@@ -341,8 +359,9 @@ TEST(EvalErrors, BadInputsNameTheFile) {
   // Ground truth without labels.
   fs::remove_all(t.dir / "labels");
   test::expectError([&] { run(t, predict(makeTiny("errors2"), "x", 0, 0)); }, "errors", "");
-  test::expectError([&] { eval::evaluate(t.dir.string(), eval::ResultInput::fromPath(p.string(), {}), {}); },
-                    t.dir.string(), "no labels");
+  test::expectError(
+      [&] { eval::evaluate(t.dir.string(), eval::ResultInput::fromPath(p.string(), {}), {}); },
+      t.dir.string(), "no labels");
 }
 
 TEST(EvalReport, JsonKeysSummaryAndPictures) {
@@ -356,16 +375,21 @@ TEST(EvalReport, JsonKeysSummaryAndPictures) {
   const auto r = eval::evaluate(t.dir.string(), eval::ResultInput::fromPath(p.string(), {}), o);
   eval::writeReport(o.pictures_dir, r);
   const auto j = nlohmann::json::parse(io::readTextFile(o.pictures_dir + "/report.json"));
-  for (const char* k : {"precision", "recall", "iou", "SA", "DA", "AA", "HA"}) EXPECT_TRUE(j.contains(k)) << k;
+  for (const char* k : {"precision", "recall", "iou", "SA", "DA", "AA", "HA"})
+    EXPECT_TRUE(j.contains(k)) << k;
   EXPECT_NEAR(j["recall"].get<double>(), 0.8, 1e-12);
   EXPECT_TRUE(fs::file_size(o.pictures_dir + "/bev_000000.png") > 1000);
   EXPECT_TRUE(fs::file_size(o.pictures_dir + "/map_overview.png") > 1000);
   EXPECT_TRUE(fs::exists(o.pictures_dir + "/report.md"));
   // Summary over two copies: the overall row sums the counts, so the ratios are unchanged.
-  const auto table = eval::summaryTable({o.pictures_dir + "/report.json", o.pictures_dir + "/report.json"});
-  EXPECT_NE(table.find("| **all (summed counts)** | 4 | 0.667 | 0.800 | 0.571 |"), std::string::npos) << table;
+  const auto table =
+      eval::summaryTable({o.pictures_dir + "/report.json", o.pictures_dir + "/report.json"});
+  EXPECT_NE(table.find("| **all (summed counts)** | 4 | 0.667 | 0.800 | 0.571 |"),
+            std::string::npos)
+      << table;
   test::writeText(p / "bad.json", "{\"x\": 1}");
-  test::expectError([&] { eval::summaryTable({(p / "bad.json").string()}); }, "bad.json", "not an evaluation report");
+  test::expectError([&] { eval::summaryTable({(p / "bad.json").string()}); }, "bad.json",
+                    "not an evaluation report");
 }
 
 TEST(EvalPictures, OutcomeColoursFollowTheLabels) {

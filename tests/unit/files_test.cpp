@@ -34,7 +34,7 @@ TEST(KittiBin, TruncatedFileIsAnError) {
   const float v[5] = {1, 2, 3, 4, 5};  // 20 bytes: one point and a stray float
   writeRaw(dir / "t.bin", v, sizeof v);
   test::expectError([&] { io::readKittiBin((dir / "t.bin").string()); }, "t.bin",
-              "not a multiple of 16");
+                    "not a multiple of 16");
 }
 
 TEST(KittiBin, EmptyScanIsAnErrorUnlessAllowed) {
@@ -49,7 +49,8 @@ TEST(KittiBin, EmptyScanIsAnErrorUnlessAllowed) {
 TEST(KittiBin, NanPointsAreDroppedAndCounted) {
   const auto dir = test::scratchDir("bin_nan");
   const float nan = std::numeric_limits<float>::quiet_NaN();
-  const float v[12] = {1, 2, 3, 0.5f, nan, 0, 0, 0, 4, 5, std::numeric_limits<float>::infinity(), 0};
+  const float v[12] = {1, 2, 3, 0.5f, nan, 0, 0, 0, 4, 5, std::numeric_limits<float>::infinity(),
+                       0};
   writeRaw(dir / "n.bin", v, sizeof v);
   const Scan s = io::readKittiBin((dir / "n.bin").string());
   EXPECT_EQ(s.size(), 1u);
@@ -59,12 +60,13 @@ TEST(KittiBin, NanPointsAreDroppedAndCounted) {
   // Only NaNs: an empty scan, reported as such.
   const float all_nan[4] = {nan, nan, nan, nan};
   writeRaw(dir / "all.bin", all_nan, sizeof all_nan);
-  test::expectError([&] { io::readKittiBin((dir / "all.bin").string()); }, "all.bin", "NaN or infinite");
+  test::expectError([&] { io::readKittiBin((dir / "all.bin").string()); }, "all.bin",
+                    "NaN or infinite");
 }
 
 TEST(KittiBin, MissingFileIsAnError) {
   test::expectError([] { io::readKittiBin("/nonexistent/x.bin"); }, "/nonexistent/x.bin",
-              "does not exist");
+                    "does not exist");
 }
 
 TEST(Labels, CountMismatchNamesBothNumbers) {
@@ -72,11 +74,11 @@ TEST(Labels, CountMismatchNamesBothNumbers) {
   io::writeLabels((dir / "l.label").string(), {9, 251, 0});
   EXPECT_EQ(io::readLabels((dir / "l.label").string(), 3u), (Labels{9, 251, 0}));
   test::expectError([&] { io::readLabels((dir / "l.label").string(), 4u); }, "l.label",
-              "has 3 labels but the scan has 4 points");
+                    "has 3 labels but the scan has 4 points");
   const char odd[5] = {};
   writeRaw(dir / "odd.label", odd, sizeof odd);
   test::expectError([&] { io::readLabels((dir / "odd.label").string()); }, "odd.label",
-              "not a multiple of 4");
+                    "not a multiple of 4");
 }
 
 TEST(AtomicWrite, InterruptedWriteLeavesNothing) {
@@ -97,5 +99,5 @@ TEST(AtomicWrite, InterruptedWriteLeavesNothing) {
 
 TEST(Directories, MissingDirectoryIsAnError) {
   test::expectError([] { io::requireDirectory("/nonexistent/seq"); }, "/nonexistent/seq",
-              "directory does not exist");
+                    "directory does not exist");
 }

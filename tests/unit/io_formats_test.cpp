@@ -6,8 +6,8 @@
 #include <fstream>
 #include <set>
 
-#include "cleanmap/io/config.h"
 #include "cleanmap/io/binary_field.h"
+#include "cleanmap/io/config.h"
 #include "cleanmap/io/files.h"
 #include "cleanmap/io/ini.h"
 #include "cleanmap/io/ply.h"
@@ -45,8 +45,9 @@ TEST(Ply, StreamedMapAndForeignAsciiPly) {
   const auto a = io::readPly((dir / "a.ply").string());
   ASSERT_EQ(a.size(), 2u);
   EXPECT_FLOAT_EQ(a[1].z, 6.f);
-  std::ofstream(dir / "t.ply") << "ply\nformat binary_little_endian 1.0\nelement vertex 5\n"
-                                  "property float x\nproperty float y\nproperty float z\nend_header\n";
+  std::ofstream(dir / "t.ply")
+      << "ply\nformat binary_little_endian 1.0\nelement vertex 5\n"
+         "property float x\nproperty float y\nproperty float z\nend_header\n";
   test::expectError([&] { io::readPly((dir / "t.ply").string()); }, "t.ply", "truncated PLY");
 }
 
@@ -72,8 +73,8 @@ TEST(Config, ShippedIniHoldsTheDefaults) {
 
 TEST(Config, BadIniIsAClearError) {
   PipelineParams p;
-  test::expectError([&] { io::parseParams("[ds]\nlamda_theta = 0.004\n", "x.ini", p); },
-                    "x.ini:2", "unknown key 'lamda_theta' in [ds]");
+  test::expectError([&] { io::parseParams("[ds]\nlamda_theta = 0.004\n", "x.ini", p); }, "x.ini:2",
+                    "unknown key 'lamda_theta' in [ds]");
   test::expectError([&] { io::parseParams("[dss]\n", "x.ini", p); }, "x.ini:1",
                     "unknown section [dss]");
   test::expectError([&] { io::parseParams("[ds]\nsigma_r = fast\n", "x.ini", p); }, "x.ini:2",
@@ -82,8 +83,12 @@ TEST(Config, BadIniIsAClearError) {
                     "needs an integer");
   test::expectError([&] { io::parseParams("[ds]\nr_sup = 0.5\n", "x.ini", p); }, "x.ini",
                     "r_inf <= ds.r_sup");
-  test::expectError([] { PipelineParams q; io::parseParams("[ds]\nscan_conflict = 0\n", "x.ini", q); }, "x.ini",
-                    "ds.scan_conflict must be in (0, 1]");
+  test::expectError(
+      [] {
+        PipelineParams q;
+        io::parseParams("[ds]\nscan_conflict = 0\n", "x.ini", q);
+      },
+      "x.ini", "ds.scan_conflict must be in (0, 1]");
   test::expectError([&] { io::loadParams("/nonexistent.ini", p); }, "/nonexistent.ini",
                     "does not exist");
 }
@@ -101,14 +106,22 @@ void put(std::string& out, double v, bool big) {
 }
 
 void putTyped(std::string& out, const std::string& type, double v, bool big) {
-  if (type == "char" || type == "int8") put<int8_t>(out, v, big);
-  else if (type == "uchar" || type == "uint8") put<uint8_t>(out, v, big);
-  else if (type == "short" || type == "int16") put<int16_t>(out, v, big);
-  else if (type == "ushort" || type == "uint16") put<uint16_t>(out, v, big);
-  else if (type == "int" || type == "int32") put<int32_t>(out, v, big);
-  else if (type == "uint" || type == "uint32") put<uint32_t>(out, v, big);
-  else if (type == "float" || type == "float32") put<float>(out, v, big);
-  else put<double>(out, v, big);
+  if (type == "char" || type == "int8")
+    put<int8_t>(out, v, big);
+  else if (type == "uchar" || type == "uint8")
+    put<uint8_t>(out, v, big);
+  else if (type == "short" || type == "int16")
+    put<int16_t>(out, v, big);
+  else if (type == "ushort" || type == "uint16")
+    put<uint16_t>(out, v, big);
+  else if (type == "int" || type == "int32")
+    put<int32_t>(out, v, big);
+  else if (type == "uint" || type == "uint32")
+    put<uint32_t>(out, v, big);
+  else if (type == "float" || type == "float32")
+    put<float>(out, v, big);
+  else
+    put<double>(out, v, big);
 }
 
 }  // namespace
@@ -118,21 +131,25 @@ void putTyped(std::string& out, const std::string& type, double v, bool big) {
 // 4 bytes is never read past (ASan checks the last vertex).
 TEST(Ply, EveryPropertyTypeInEveryFormat) {
   const auto dir = test::scratchDir("ply_types");
-  const std::vector<std::string> types = {"char", "uchar", "short", "ushort", "int", "uint", "float", "double",
-                                          "int8", "uint8", "int16", "uint16", "int32", "uint32", "float32",
-                                          "float64"};
+  const std::vector<std::string> types = {"char",  "uchar",  "short",   "ushort", "int",   "uint",
+                                          "float", "double", "int8",    "uint8",  "int16", "uint16",
+                                          "int32", "uint32", "float32", "float64"};
   for (const auto& type : types)
     for (const std::string format : {"ascii", "binary_little_endian", "binary_big_endian"}) {
       const bool big = format == "binary_big_endian";
       const bool is_signed = type.find('u') != 0;  // uchar, ushort, uint, uint8...
-      const std::vector<std::array<double, 4>> v = {{1, 2, 3, 100}, {is_signed ? -7.0 : 7.0, 5, 6, 120}};
+      const std::vector<std::array<double, 4>> v = {{1, 2, 3, 100},
+                                                    {is_signed ? -7.0 : 7.0, 5, 6, 120}};
       std::string text = "ply\nformat " + format + " 1.0\ncomment t\nelement vertex 2\n";
-      for (const char* n : {"x", "y", "z", "intensity"}) text += "property " + type + " " + n + "\n";
+      for (const char* n : {"x", "y", "z", "intensity"})
+        text += "property " + type + " " + n + "\n";
       text += "end_header\n";
       for (const auto& r : v)
         for (std::size_t k = 0; k < 4; ++k) {
-          if (format == "ascii") text += std::to_string(int(r[k])) + (k == 3 ? "\n" : " ");
-          else putTyped(text, type, r[k], big);
+          if (format == "ascii")
+            text += std::to_string(int(r[k])) + (k == 3 ? "\n" : " ");
+          else
+            putTyped(text, type, r[k], big);
         }
       const auto path = (dir / (type + "_" + format + ".ply")).string();
       test::writeText(path, text);
@@ -149,9 +166,12 @@ TEST(Ply, EveryPropertyTypeInEveryFormat) {
 
 TEST(Ply, SkipsElementsBeforeVerticesAndRefusesAbsurdHeaders) {
   const auto dir = test::scratchDir("ply_elements");
-  std::string b = "ply\nformat binary_little_endian 1.0\nelement camera 1\nproperty float fx\nproperty uchar id\n"
-                  "element vertex 1\nproperty double x\nproperty double y\nproperty double z\nproperty uchar intensity\n"
-                  "element face 1\nproperty list uchar int vertex_indices\nend_header\n";
+  std::string b =
+      "ply\nformat binary_little_endian 1.0\nelement camera 1\nproperty float fx\nproperty uchar "
+      "id\n"
+      "element vertex 1\nproperty double x\nproperty double y\nproperty double z\nproperty uchar "
+      "intensity\n"
+      "element face 1\nproperty list uchar int vertex_indices\nend_header\n";
   putTyped(b, "float", 700.0, false);
   putTyped(b, "uchar", 3, false);
   for (double x : {1.25, -2.5, 3.75}) putTyped(b, "double", x, false);
@@ -163,16 +183,22 @@ TEST(Ply, SkipsElementsBeforeVerticesAndRefusesAbsurdHeaders) {
   EXPECT_EQ(pts[0].z, 3.75f);
   EXPECT_EQ(pts[0].intensity, 200.f);
   // A header promising 10^12 vertices: one clear error, no allocation attempt.
-  test::writeText(dir / "huge.ply", "ply\nformat binary_little_endian 1.0\nelement vertex 1000000000000\n"
-                                    "property float x\nproperty float y\nproperty float z\nend_header\n0000");
-  test::expectError([&] { io::readPly((dir / "huge.ply").string()); }, "huge.ply", "promises 1000000000000 vertices");
-  test::writeText(dir / "list.ply", "ply\nformat binary_little_endian 1.0\nelement vertex 1\nproperty float x\n"
-                                    "property float y\nproperty list uchar float z\nend_header\n");
+  test::writeText(dir / "huge.ply",
+                  "ply\nformat binary_little_endian 1.0\nelement vertex 1000000000000\n"
+                  "property float x\nproperty float y\nproperty float z\nend_header\n0000");
+  test::expectError([&] { io::readPly((dir / "huge.ply").string()); }, "huge.ply",
+                    "promises 1000000000000 vertices");
+  test::writeText(dir / "list.ply",
+                  "ply\nformat binary_little_endian 1.0\nelement vertex 1\nproperty float x\n"
+                  "property float y\nproperty list uchar float z\nend_header\n");
   test::expectError([&] { io::readPly((dir / "list.ply").string()); }, "list.ply", "is a list");
-  test::writeText(dir / "type.ply", "ply\nformat ascii 1.0\nelement vertex 1\nproperty half x\nend_header\n");
-  test::expectError([&] { io::readPly((dir / "type.ply").string()); }, "type.ply", "unsupported PLY property type 'half'");
+  test::writeText(dir / "type.ply",
+                  "ply\nformat ascii 1.0\nelement vertex 1\nproperty half x\nend_header\n");
+  test::expectError([&] { io::readPly((dir / "type.ply").string()); }, "type.ply",
+                    "unsupported PLY property type 'half'");
   test::writeText(dir / "nohdr.ply", "ply\nformat ascii 1.0\nelement vertex 1\n");
-  test::expectError([&] { io::readPly((dir / "nohdr.ply").string()); }, "nohdr.ply", "no end_header");
+  test::expectError([&] { io::readPly((dir / "nohdr.ply").string()); }, "nohdr.ply",
+                    "no end_header");
 }
 
 TEST(BinaryField, DecodesEveryTypeBothEndians) {
@@ -198,15 +224,23 @@ TEST(Ini, CommentsSectionsAndRepeatedKeys) {
   std::vector<std::string> seen;
   io::IniHandlers on;
   on.section = [&](const std::string& s, int) { seen.push_back("[" + s + "]"); };
-  on.entry = [&](const io::IniLine& e) { seen.push_back(e.section + "." + e.key + "=" + e.value + "@" + std::to_string(e.line)); };
-  io::parseIni("# top\n[a]  ; note\nk = 1 2; 3 # tail\n\n[b]\nk = x#y\n[a]\nk = again\n", "t.ini", on);
-  const std::vector<std::string> want = {"[a]", "a.k=1 2; 3@3", "[b]", "b.k=x#y@6", "[a]", "a.k=again@8"};
+  on.entry = [&](const io::IniLine& e) {
+    seen.push_back(e.section + "." + e.key + "=" + e.value + "@" + std::to_string(e.line));
+  };
+  io::parseIni("# top\n[a]  ; note\nk = 1 2; 3 # tail\n\n[b]\nk = x#y\n[a]\nk = again\n", "t.ini",
+               on);
+  const std::vector<std::string> want = {"[a]",       "a.k=1 2; 3@3", "[b]",
+                                         "b.k=x#y@6", "[a]",          "a.k=again@8"};
   EXPECT_EQ(seen, want);
-  test::expectError([&] { io::parseIni("[a]\nk = 1\nk = 2\n", "t.ini", on); }, "t.ini:3", "'k' given twice in [a]");
-  test::expectError([&] { io::parseIni("k = 1\n", "t.ini", on); }, "t.ini:1", "outside any section");
+  test::expectError([&] { io::parseIni("[a]\nk = 1\nk = 2\n", "t.ini", on); }, "t.ini:3",
+                    "'k' given twice in [a]");
+  test::expectError([&] { io::parseIni("k = 1\n", "t.ini", on); }, "t.ini:1",
+                    "outside any section");
   test::expectError([&] { io::parseIni("[a]\nk =\n", "t.ini", on); }, "t.ini:2", "empty value");
-  test::expectError([&] { io::parseIni("[a\n", "t.ini", on); }, "t.ini:1", "malformed section header");
-  test::expectError([&] { io::parseIni("[a]\njust text\n", "t.ini", on); }, "t.ini:2", "expected 'key = value'");
+  test::expectError([&] { io::parseIni("[a\n", "t.ini", on); }, "t.ini:1",
+                    "malformed section header");
+  test::expectError([&] { io::parseIni("[a]\njust text\n", "t.ini", on); }, "t.ini:2",
+                    "expected 'key = value'");
 }
 
 TEST(Config, ShippedIniListsEveryKeyOfTheTable) {
@@ -221,11 +255,16 @@ TEST(Config, ShippedIniListsEveryKeyOfTheTable) {
 
 TEST(Config, RepeatedKeysAndEmptyWindowAreErrors) {
   PipelineParams p;
-  test::expectError([&] { io::parseParams("[ds]\nsigma_r = 0.2\nsigma_r = 0.3\n", "x.ini", p); }, "x.ini:3",
-                    "'sigma_r' given twice in [ds]");
-  test::expectError([&] { io::parseParams("[ds]\nsigma_r = 0.2\n[filter]\ncrop_tau = 20\n[ds]\nsigma_r = 0.3\n", "x.ini", p); },
-                    "x.ini:6", "'sigma_r' given twice in [ds]");
-  test::expectError([&] { io::parseParams("[ds]\nwindow_k = 0\n", "x.ini", p); }, "x.ini", "ds.window_k must be >= 1");
+  test::expectError([&] { io::parseParams("[ds]\nsigma_r = 0.2\nsigma_r = 0.3\n", "x.ini", p); },
+                    "x.ini:3", "'sigma_r' given twice in [ds]");
+  test::expectError(
+      [&] {
+        io::parseParams("[ds]\nsigma_r = 0.2\n[filter]\ncrop_tau = 20\n[ds]\nsigma_r = 0.3\n",
+                        "x.ini", p);
+      },
+      "x.ini:6", "'sigma_r' given twice in [ds]");
+  test::expectError([&] { io::parseParams("[ds]\nwindow_k = 0\n", "x.ini", p); }, "x.ini",
+                    "ds.window_k must be >= 1");
 }
 
 TEST(Config, PrintsTheShortestExactForm) {
@@ -234,5 +273,6 @@ TEST(Config, PrintsTheShortestExactForm) {
   EXPECT_EQ(io::shortestDouble(-1.73), "-1.73");
   EXPECT_EQ(io::shortestDouble(1.0 / 6.0), "0.16666666666666666");
   EXPECT_NE(io::toIni(PipelineParams{}).find("sigma_r = 0.15\n"), std::string::npos);
-  for (double v : {0.1, 1.0 / 3.0, 6.02e23, 2.2250738585072014e-308, 0.0035}) EXPECT_EQ(std::stod(io::shortestDouble(v)), v);
+  for (double v : {0.1, 1.0 / 3.0, 6.02e23, 2.2250738585072014e-308, 0.0035})
+    EXPECT_EQ(std::stod(io::shortestDouble(v)), v);
 }

@@ -21,8 +21,9 @@ fs::path miniOdometry(const std::string& name, const std::string& poses, const s
   const auto dir = test::scratchDir(name);
   fs::create_directories(dir / "velodyne");
   for (const char* s : {"000000", "000001", "000002"})
-    fs::create_symlink(fs::path(test::dataDir()) / "kitti_city/velodyne" / (std::string(s) + ".bin"),
-                       dir / "velodyne" / (std::string(s) + ".bin"));
+    fs::create_symlink(
+        fs::path(test::dataDir()) / "kitti_city/velodyne" / (std::string(s) + ".bin"),
+        dir / "velodyne" / (std::string(s) + ".bin"));
   if (!poses.empty()) test::writeText(dir / "poses.txt", poses);
   if (!calib.empty()) test::writeText(dir / "calib.txt", calib);
   return dir;
@@ -33,7 +34,11 @@ const char* kIdentityPose = "1 0 0 0 0 1 0 0 0 0 1 0\n";
 }  // namespace
 
 TEST(KittiOdometry, OpensEachSharedSet) {
-  struct Expect { const char* set; std::size_t scans; bool images; };
+  struct Expect {
+    const char* set;
+    std::size_t scans;
+    bool images;
+  };
   for (const Expect& e : {Expect{"kitti_city", 22, false}, Expect{"kitti_highway", 30, true},
                           Expect{"kitti_residential", 30, false}}) {
     CLEANMAP_REQUIRE_DATASET(e.set);
@@ -111,8 +116,7 @@ TEST(KittiOdometry, MissingCalibrationKeyIsAnError) {
   test::expectError([&] { io::KittiSequence::open(dir.string()); }, "calib.txt",
                     "missing calibration key 'Tr'");
   const auto dir2 = miniOdometry("nocalib", poses, "");
-  test::expectError([&] { io::KittiSequence::open(dir2.string()); }, "calib.txt",
-                    "does not exist");
+  test::expectError([&] { io::KittiSequence::open(dir2.string()); }, "calib.txt", "does not exist");
   const auto dir3 = miniOdometry("shortkey", poses, "Tr: 1 0 0 0 0 1\n");
   test::expectError([&] { io::KittiSequence::open(dir3.string()); }, "calib.txt",
                     "has 6 numbers, expected 12");
@@ -147,17 +151,17 @@ fs::path rawDrive(const std::string& name, double yaw, double step) {
   const auto date = test::scratchDir(name);
   const auto drive = date / "2011_09_26_drive_0001_sync";
   test::writeText(date / "calib_imu_to_velo.txt",
-            "calib_time: 25-May-2012 16:47:16\n"
-            "R: 0.99875 -0.04998 0 0.04998 0.99875 0 0 0 1\n"  // Rz(0.05)
-            "T: -0.81 0.32 -0.80\n");
+                  "calib_time: 25-May-2012 16:47:16\n"
+                  "R: 0.99875 -0.04998 0 0.04998 0.99875 0 0 0 1\n"  // Rz(0.05)
+                  "T: -0.81 0.32 -0.80\n");
   test::writeText(date / "calib_velo_to_cam.txt",
-            "calib_time: 15-Mar-2012 11:37:16\n"
-            "R: 0 -1 0 0 0 -1 1 0 0\nT: 0 -0.08 -0.27\n");
+                  "calib_time: 15-Mar-2012 11:37:16\n"
+                  "R: 0 -1 0 0 0 -1 1 0 0\nT: 0 -0.08 -0.27\n");
   test::writeText(date / "calib_cam_to_cam.txt",
-            "calib_time: 09-Jan-2012 13:57:47\n"
-            "R_rect_00: 1 0 0 0 1 0 0 0 1\n"
-            "P_rect_02: 721.5 0 609.6 44.86 0 721.5 172.9 0.2164 0 0 1 0.0027\n"
-            "S_rect_02: 1242 375\n");
+                  "calib_time: 09-Jan-2012 13:57:47\n"
+                  "R_rect_00: 1 0 0 0 1 0 0 0 1\n"
+                  "P_rect_02: 721.5 0 609.6 44.86 0 721.5 172.9 0.2164 0 0 1 0.0027\n"
+                  "S_rect_02: 1242 375\n");
   std::string stamps;
   const double scale = std::cos(kLat0 * M_PI / 180.0);
   for (int i = 0; i < 3; ++i) {
@@ -202,7 +206,9 @@ TEST(KittiRaw, OxtsPosesFollowTheDrivenPath) {
     EXPECT_NEAR(t.x(), i * std::cos(0.05), 2e-3);
     EXPECT_NEAR(t.y(), i * std::sin(0.05), 2e-3);
     EXPECT_NEAR(t.z(), 0.0, 1e-6);
-    EXPECT_LT((seq.poses()[static_cast<std::size_t>(i)].linear() - Eigen::Matrix3d::Identity()).norm(), 1e-6);
+    EXPECT_LT(
+        (seq.poses()[static_cast<std::size_t>(i)].linear() - Eigen::Matrix3d::Identity()).norm(),
+        1e-6);
   }
   EXPECT_NEAR(seq.timestamps()[0], 1317042145.064389445, 1e-5);  // 2011-09-26 13:02:25.06 UTC
   EXPECT_NEAR(seq.timestamps()[2] - seq.timestamps()[0], 0.2, 1e-6);

@@ -10,7 +10,8 @@ namespace {
 
 // A box surface sampled every `step` metres on its four sides (x from x0 to x1, y from y0 to y1,
 // z from 0 to h).
-void addBox(std::vector<PointXYZI>& pts, float x0, float x1, float y0, float y1, float h, float step = 0.1f) {
+void addBox(std::vector<PointXYZI>& pts, float x0, float x1, float y0, float y1, float h,
+            float step = 0.1f) {
   for (float z = 0; z <= h; z += step) {
     for (float x = x0; x <= x1; x += step) {
       pts.push_back({x, y0, z, 0});

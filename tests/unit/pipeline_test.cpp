@@ -7,10 +7,10 @@
 #include <cmath>
 #include <limits>
 
-#include "cleanmap/core/octree_sampling.h"
 #include "cleanmap/core/duplicate_filter.h"
-#include "cleanmap/core/moving_test.h"
 #include "cleanmap/core/error.h"
+#include "cleanmap/core/moving_test.h"
+#include "cleanmap/core/octree_sampling.h"
 #include "cleanmap/pipeline/laser_pipeline.h"
 #include "test_data.h"
 
@@ -35,7 +35,8 @@ Frame castScene(std::size_t index, double sx, double bx, std::vector<uint8_t>* o
     const double el = (-20.0 + ring * 0.7) * M_PI / 180.0;
     for (int a = 0; a < 1800; ++a) {
       const double az = a * 2 * M_PI / 1800;
-      const Eigen::Vector3d d(std::cos(el) * std::cos(az), std::cos(el) * std::sin(az), std::sin(el));
+      const Eigen::Vector3d d(std::cos(el) * std::cos(az), std::cos(el) * std::sin(az),
+                              std::sin(el));
       double t = 1e9;
       bool box = false;
       if (d.z() < 0) t = -1.73 / d.z();
@@ -209,15 +210,18 @@ TEST(Pipeline, DegenerateInputs) {
   {  // parameters are validated by the pipeline itself, not only when read from a file
     PipelineParams bad = p;
     bad.ds.window_k = 0;
-    test::expectError([&] { LaserPipeline(bad, [](ScanResult&&) {}); }, "parameters", "ds.window_k must be >= 1");
+    test::expectError([&] { LaserPipeline(bad, [](ScanResult&&) {}); }, "parameters",
+                      "ds.window_k must be >= 1");
     bad = p;
     bad.octree.leaf = -1;
-    test::expectError([&] { LaserPipeline(bad, [](ScanResult&&) {}); }, "parameters", "octree.leaf must be > 0");
+    test::expectError([&] { LaserPipeline(bad, [](ScanResult&&) {}); }, "parameters",
+                      "octree.leaf must be > 0");
   }
   {  // windows with no overlap: scans 1 km apart see nothing of each other
     out.clear();
     LaserPipeline pl(p, [&](ScanResult&& r) { out.push_back(std::move(r)); });
-    for (std::size_t i = 0; i < 3; ++i) pl.push(castScene(i, 1000.0 * double(i), 1000.0 * double(i) + 10, nullptr));
+    for (std::size_t i = 0; i < 3; ++i)
+      pl.push(castScene(i, 1000.0 * double(i), 1000.0 * double(i) + 10, nullptr));
     pl.finish();
     for (const auto& r : out) {
       EXPECT_EQ(r.stats.moving, 0u);
@@ -292,8 +296,8 @@ TEST(MovingTest, VacatedSpaceStillVotesEmpty) {
   // And a solid surface there stays occupied.
   const auto solid = hedgeScan([](int, int) { return true; });
   const BeamIndex idx2(solid, ours.search_lambdas * ours.lambda_theta);
-  EXPECT_FALSE(MovingTest(ours).isMoving({10.0, 0.03, 0.01}, {{&idx2, Eigen::Isometry3d::Identity()}},
-                                         nullptr));
+  EXPECT_FALSE(MovingTest(ours).isMoving({10.0, 0.03, 0.01},
+                                         {{&idx2, Eigen::Isometry3d::Identity()}}, nullptr));
 }
 
 TEST(MovingTest, ThinPoleWithRegistrationErrorStaysStatic) {
@@ -317,7 +321,8 @@ TEST(MovingTest, EarlyDecisionEqualsTheFullWindow) {
   const MovingTest t(p);
   std::vector<Frame> frames;
   std::vector<BeamIndex> idx;
-  for (std::size_t i = 0; i < 9; ++i) frames.push_back(castScene(i, double(i), 10.0 + 0.8 * double(i), nullptr));
+  for (std::size_t i = 0; i < 9; ++i)
+    frames.push_back(castScene(i, double(i), 10.0 + 0.8 * double(i), nullptr));
   for (const auto& f : frames) idx.emplace_back(f.scan.points, t.searchRadius());
   std::vector<WindowScan> w;
   for (std::size_t i = 0; i < frames.size(); ++i)
@@ -344,7 +349,7 @@ TEST(MovingTest, EarlyDecisionEqualsTheFullWindow) {
 TEST(OctreeSampling, DenseLeavesTestASixthDeterministically) {
   std::vector<Eigen::Vector3d> pts;
   for (int i = 0; i < 60; ++i) pts.emplace_back(0.05 + 0.003 * i, 0.1, 0.1);  // one leaf
-  for (int i = 0; i < 3; ++i) pts.emplace_back(5.0 + 0.05 * i, 0.1, 0.1);    // sparse leaf
+  for (int i = 0; i < 3; ++i) pts.emplace_back(5.0 + 0.05 * i, 0.1, 0.1);     // sparse leaf
   OctreeParams p;
   std::mt19937_64 r1(9), r2(9);
   const auto a = planLeaves(pts, p, r1), b = planLeaves(pts, p, r2);

@@ -57,8 +57,8 @@ void expectSameAsKitti(const io::KittiSequence& seq, const std::string& rawlog) 
     // KITTI's Tr is orthonormal to ~5e-8 only and MRPT stores rigid poses, so compare what
     // matters: where points 2-50 m away land in the image (well under a thousandth of a pixel).
     const auto a = src.camera()->lidarToPixel(), b = seq.camera()->lidarToPixel();
-    for (const Eigen::Vector3d& p : {Eigen::Vector3d(2, 0.5, -1), Eigen::Vector3d(10, -3, 0),
-                                    Eigen::Vector3d(50, 8, 2)}) {
+    for (const Eigen::Vector3d& p :
+         {Eigen::Vector3d(2, 0.5, -1), Eigen::Vector3d(10, -3, 0), Eigen::Vector3d(50, 8, 2)}) {
       const Eigen::Vector3d pa = a * p.homogeneous(), pb = b * p.homogeneous();
       EXPECT_LT((pa.head<2>() / pa.z() - pb.head<2>() / pb.z()).norm(), 1e-3);
     }

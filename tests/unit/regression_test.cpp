@@ -49,7 +49,8 @@ MosCounts runSet(const std::string& set, OutputDigest* digest = nullptr) {
 // decide() as named stages, one grid key, one parallel loop), default parameters. A change
 // that moves any label or map point fails here; an intended change of results updates these
 // numbers in the same commit and says why.
-void expectDigest(const OutputDigest& d, uint64_t labels, uint64_t compact, uint64_t full, uint64_t moving) {
+void expectDigest(const OutputDigest& d, uint64_t labels, uint64_t compact, uint64_t full,
+                  uint64_t moving) {
   EXPECT_EQ(d.labels, labels) << "labels differ from the reference run";
   EXPECT_EQ(d.compact, compact) << "static_map.ply differs from the reference run";
   EXPECT_EQ(d.full, full) << "static_map_full.ply differs from the reference run";
@@ -59,14 +60,18 @@ void expectDigest(const OutputDigest& d, uint64_t labels, uint64_t compact, uint
 }  // namespace
 
 TEST(Regression, OutputsByteIdenticalToTheReference) {
-  for (const char* set : {"kitti_city", "kitti_highway", "kitti_residential"}) CLEANMAP_REQUIRE_DATASET(set);
+  for (const char* set : {"kitti_city", "kitti_highway", "kitti_residential"})
+    CLEANMAP_REQUIRE_DATASET(set);
   OutputDigest city, highway, residential;
   runSet("kitti_city", &city);
   runSet("kitti_highway", &highway);
   runSet("kitti_residential", &residential);
-  expectDigest(city, 0x24a33c4c73c35b1full, 0xb261996e3f7ad817ull, 0xa2d7ff252d282e48ull, 0x8fa276e4a375d311ull);
-  expectDigest(highway, 0xef3b97fd9458c52dull, 0x05468047f5115d18ull, 0xb21ae4f297cbaa9aull, 0x56cb3c29945082c3ull);
-  expectDigest(residential, 0x47f39ecdacc70ae7ull, 0xbc71851dc5afee49ull, 0x2399c2e71f7a4a0cull, 0x982f1628fa1b4670ull);
+  expectDigest(city, 0x24a33c4c73c35b1full, 0xb261996e3f7ad817ull, 0xa2d7ff252d282e48ull,
+               0x8fa276e4a375d311ull);
+  expectDigest(highway, 0xef3b97fd9458c52dull, 0x05468047f5115d18ull, 0xb21ae4f297cbaa9aull,
+               0x56cb3c29945082c3ull);
+  expectDigest(residential, 0x47f39ecdacc70ae7ull, 0xbc71851dc5afee49ull, 0x2399c2e71f7a4a0cull,
+               0x982f1628fa1b4670ull);
 }
 
 TEST(Regression, City) {
@@ -89,5 +94,5 @@ TEST(Regression, ResidentialFalseAlarms) {
   const MosCounts c = runSet("kitti_residential");
   EXPECT_LE(c.flaggedRate(), 0.001);   // issue #3's bar
   EXPECT_LE(c.flaggedRate(), 0.0005);  // regression bound
-  EXPECT_GE(c.recall(), 0.9);  // the motorcyclist
+  EXPECT_GE(c.recall(), 0.9);          // the motorcyclist
 }

@@ -18,7 +18,8 @@ namespace fs = std::filesystem;
 namespace {
 
 sim::Scenario scenario(const std::string& name) {
-  return sim::loadScenario((fs::path(CLEANMAP_SOURCE_DIR) / "datasets/scenarios" / (name + ".ini")).string());
+  return sim::loadScenario(
+      (fs::path(CLEANMAP_SOURCE_DIR) / "datasets/scenarios" / (name + ".ini")).string());
 }
 
 struct CaseResult {
@@ -37,7 +38,8 @@ CaseResult runCase(const sim::Scenario& sc, const PipelineParams& params = {}) {
     const sim::World w(sc, t.time);
     for (std::size_t i = 0; i < t.labels.size(); ++i) {
       if (t.solid[i] < 0 || w.solids()[t.solid[i]].surface != sim::Surface::kMover) continue;
-      res.per_mover[w.solids()[t.solid[i]].name] += compareLabels({r.labels[i]}, {t.labels[i]}, "x");
+      res.per_mover[w.solids()[t.solid[i]].name] +=
+          compareLabels({r.labels[i]}, {t.labels[i]}, "x");
     }
     truth[r.index] = {};  // memory bounded by the window, as the app
   });
@@ -55,10 +57,10 @@ CaseResult runCase(const sim::Scenario& sc, const PipelineParams& params = {}) {
   }
   pipe.finish();
   for (const auto& [name, c] : res.per_mover)
-    std::printf("  %s: %s recall %.3f precision %.3f (%llu moving points)\n", sc.name.c_str(), name.c_str(),
-                c.recall(), c.precision(), (unsigned long long)(c.tp + c.fn));
-  std::printf("  %s: all: precision %.3f recall %.3f IoU %.3f\n", sc.name.c_str(), res.all.precision(),
-              res.all.recall(), res.all.iou());
+    std::printf("  %s: %s recall %.3f precision %.3f (%llu moving points)\n", sc.name.c_str(),
+                name.c_str(), c.recall(), c.precision(), (unsigned long long)(c.tp + c.fn));
+  std::printf("  %s: all: precision %.3f recall %.3f IoU %.3f\n", sc.name.c_str(),
+              res.all.precision(), res.all.recall(), res.all.iou());
   return res;
 }
 
@@ -81,14 +83,15 @@ TEST(SimCases, CarThatStopsAndStartsAgain) {
   // occupied in most scans of the window (the highway tanker's failure: 0.39 without the object
   // consensus, doc/OBJECTS.md). While it stands it must not be flagged.
   const auto r = runCase(scenario("stop_and_go"));
-  EXPECT_GE(r.per_mover.at("stop_go_car").recall(), 0.63);  // measured 0.685 (0.62 without hysteresis)
+  EXPECT_GE(r.per_mover.at("stop_go_car").recall(),
+            0.63);  // measured 0.685 (0.62 without hysteresis)
   EXPECT_GE(r.all.precision(), 0.97);
 }
 
 TEST(SimCases, PedestrianWalkingAlongAWall) {
   const auto r = runCase(scenario("pedestrian_wall"));
   EXPECT_GE(r.per_mover.at("walker").recall(), 0.80);  // measured 0.84 (0.86 without scan_conflict)
-  EXPECT_GE(r.all.precision(), 0.95);  // the wall behind must stay static
+  EXPECT_GE(r.all.precision(), 0.95);                  // the wall behind must stay static
 }
 
 TEST(SimCases, MoverEnteringTheCropFromFarAway) {
@@ -119,11 +122,13 @@ GroundScore groundScore(const std::string& name) {
       const auto& p = s.points[i];
       if (std::abs(p.x) > 30 || std::abs(p.y) > 30) continue;
       if (s.surface[i] == sim::Surface::kGround) ++g, g_found += flags[i];
-      if (s.surface[i] == sim::Surface::kStatic || s.surface[i] == sim::Surface::kMover) ++o, o_kept += !flags[i];
+      if (s.surface[i] == sim::Surface::kStatic || s.surface[i] == sim::Surface::kMover)
+        ++o, o_kept += !flags[i];
     }
   }
   const GroundScore r{double(g_found) / double(g), double(o_kept) / double(o)};
-  std::printf("  %s: ground recall %.3f, object points kept %.3f\n", name.c_str(), r.ground_recall, r.object_kept);
+  std::printf("  %s: ground recall %.3f, object points kept %.3f\n", name.c_str(), r.ground_recall,
+              r.object_kept);
   return r;
 }
 
@@ -156,9 +161,9 @@ TEST(SimCases, ThinPolesWithPoseDriftStayStatic) {
   // the same time; the paper's rule alone calls parts of the poles moving, ours does not.
   const auto sc = scenario("poles_drift");
   const auto r = runCase(sc);
-  EXPECT_GE(r.all.precision(), 0.97);                       // measured 0.991
-  EXPECT_GE(r.per_mover.at("walker").recall(), 0.90);       // measured 0.955
+  EXPECT_GE(r.all.precision(), 0.97);                  // measured 0.991
+  EXPECT_GE(r.per_mover.at("walker").recall(), 0.90);  // measured 0.955
   PipelineParams paper;
   paper.ds.scan_conflict = 1.0;
-  EXPECT_LT(runCase(sc, paper).all.precision(), 0.90);      // measured 0.822: the case is real
+  EXPECT_LT(runCase(sc, paper).all.precision(), 0.90);  // measured 0.822: the case is real
 }

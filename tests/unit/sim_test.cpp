@@ -37,7 +37,8 @@ size = 4 6 3
 name = m
 path = 0 8  100 8
 speed = 3
-)", "box_ahead");
+)",
+                            "box_ahead");
 }
 
 }  // namespace
@@ -61,19 +62,26 @@ TEST(SimScenario, ShippedScenariosParse) {
 }
 
 TEST(SimScenario, BadFilesAreOneLineErrorsWithTheLine) {
-  test::expectError([] { sim::parseScenario("[scenario]\nframes = ten\n", "s.ini"); }, "s.ini:2", "not a number");
+  test::expectError([] { sim::parseScenario("[scenario]\nframes = ten\n", "s.ini"); }, "s.ini:2",
+                    "not a number");
   test::expectError([] { sim::parseScenario("[boat]\n", "s.ini"); }, "s.ini:1", "unknown section");
-  test::expectError([] { sim::parseScenario("[box]\ncolor = 1 0 0\n", "s.ini"); }, "s.ini:2", "unknown key 'color'");
-  test::expectError([] { sim::parseScenario("[box]\nsize = 1 -2 3\n", "s.ini"); }, "s.ini:2", "must be > 0");
-  test::expectError([] { sim::parseScenario("[mover]\nspeed = 3\n", "s.ini"); }, "s.ini", "no path");
-  test::expectError([] { sim::parseScenario("[ground]\nslope = 0.5\n", "s.ini"); }, "s.ini:2", "outside");
-  test::expectError([] { sim::parseScenario("[ego]\npose_drift = 0.5\n", "s.ini"); }, "s.ini:2", "outside");
+  test::expectError([] { sim::parseScenario("[box]\ncolor = 1 0 0\n", "s.ini"); }, "s.ini:2",
+                    "unknown key 'color'");
+  test::expectError([] { sim::parseScenario("[box]\nsize = 1 -2 3\n", "s.ini"); }, "s.ini:2",
+                    "must be > 0");
+  test::expectError([] { sim::parseScenario("[mover]\nspeed = 3\n", "s.ini"); }, "s.ini",
+                    "no path");
+  test::expectError([] { sim::parseScenario("[ground]\nslope = 0.5\n", "s.ini"); }, "s.ini:2",
+                    "outside");
+  test::expectError([] { sim::parseScenario("[ego]\npose_drift = 0.5\n", "s.ini"); }, "s.ini:2",
+                    "outside");
   test::expectError([] { sim::loadScenario("/nonexistent/x.ini"); }, "x.ini", "");
 }
 
 TEST(SimScenario, PoseDriftIsASeededRandomWalkOfTheRequestedSize) {
   auto sc = sim::parseScenario("[ego]\npath = 0 0  1000 0\nspeed = 10\n", "s.ini");
-  for (int k : {0, 7, 30}) EXPECT_TRUE(sim::reportedPose(sc, k).isApprox(sim::egoPose(sc, k / sc.rate_hz)));
+  for (int k : {0, 7, 30})
+    EXPECT_TRUE(sim::reportedPose(sc, k).isApprox(sim::egoPose(sc, k / sc.rate_hz)));
   sc.ego_pose_drift = 0.01;  // 1 cm per frame (1 m travelled) and axis
   EXPECT_TRUE(sim::reportedPose(sc, 0).isApprox(sim::egoPose(sc, 0)));  // no distance, no error
   double sq = 0;
@@ -84,14 +92,16 @@ TEST(SimScenario, PoseDriftIsASeededRandomWalkOfTheRequestedSize) {
     EXPECT_NEAR(r.translation().z(), t.translation().z(), 1e-12);  // horizontal only
     const Eigen::Vector2d step = (r.translation() - t.translation()).head<2>() -
                                  (sim::reportedPose(sc, k - 1).translation() -
-                                  sim::egoPose(sc, (k - 1) / sc.rate_hz).translation()).head<2>();
+                                  sim::egoPose(sc, (k - 1) / sc.rate_hz).translation())
+                                     .head<2>();
     sq += step.squaredNorm();
   }
   EXPECT_NEAR(std::sqrt(sq / (2 * n)), 0.01, 0.0015);  // per-axis sigma of a step
   EXPECT_TRUE(sim::reportedPose(sc, 50).isApprox(sim::reportedPose(sc, 50)));  // deterministic
   sc.seed = 2;
-  EXPECT_FALSE(sim::reportedPose(sc, 50).isApprox(sim::reportedPose(sim::parseScenario(
-      "[ego]\npath = 0 0  1000 0\nspeed = 10\npose_drift = 0.01\n", "s.ini"), 50)));
+  EXPECT_FALSE(sim::reportedPose(sc, 50).isApprox(sim::reportedPose(
+      sim::parseScenario("[ego]\npath = 0 0  1000 0\nspeed = 10\npose_drift = 0.01\n", "s.ini"),
+      50)));
 }
 
 TEST(SimLidar, RangesAreExactOnABoxAndTheGround) {
@@ -131,7 +141,8 @@ TEST(SimLidar, DeterministicWhateverTheThreads) {
   sc.seed = 2;  // another seed: other noise
   const auto c = sim::simulateScan(sc, 3, 2);
   EXPECT_TRUE(c.points.size() != a.points.size() ||
-              std::memcmp(a.points.data(), c.points.data(), a.points.size() * sizeof(PointXYZI)) != 0);
+              std::memcmp(a.points.data(), c.points.data(), a.points.size() * sizeof(PointXYZI)) !=
+                  0);
 }
 
 TEST(SimLidar, MoverLabelsFollowItsMotion) {
@@ -220,14 +231,16 @@ size = 2 40 6
 [box]
 center = -25 0
 size = 2 40 6
-)", "walls");
+)",
+                               "walls");
   const auto still = sim::simulateScan(sc, 0, 2);
   sc.sensor.sweep_motion = true;
   const auto moving = sim::simulateScan(sc, 0, 2);
   // Match the same ray in both scans by its direction (no noise: a point lies on its ray).
   auto key = [](const PointXYZI& p) {
     const double r = p.xyz().norm();
-    return std::make_pair(std::lround(std::atan2(p.y, p.x) * 1e4), std::lround(std::asin(p.z / r) * 1e4));
+    return std::make_pair(std::lround(std::atan2(p.y, p.x) * 1e4),
+                          std::lround(std::asin(p.z / r) * 1e4));
   };
   std::map<std::pair<long, long>, std::size_t> index;
   for (std::size_t j = 0; j < moving.points.size(); ++j) index[key(moving.points[j])] = j;

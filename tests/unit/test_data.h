@@ -54,11 +54,11 @@ void expectError(F&& f, const std::string& file, const std::string& what) {
 }  // namespace cleanmap::test
 
 /// Skips (outside CI) or fails (with CI=true) when the labelled data set is missing.
-#define CLEANMAP_REQUIRE_DATASET(set)                                                       \
-  do {                                                                                      \
-    const std::string _d = cleanmap::test::dataDir() + "/" + (set);                         \
-    if (!std::filesystem::is_directory(_d)) {                                               \
-      if (cleanmap::test::inCI()) FAIL() << "dataset missing in CI: " << _d;                \
-      GTEST_SKIP() << "dataset not found: " << _d << " (set CLEANMAP_DATA_DIR)";            \
-    }                                                                                       \
+#define CLEANMAP_REQUIRE_DATASET(set)                                            \
+  do {                                                                           \
+    const std::string _d = cleanmap::test::dataDir() + "/" + (set);              \
+    if (!std::filesystem::is_directory(_d)) {                                    \
+      if (cleanmap::test::inCI()) FAIL() << "dataset missing in CI: " << _d;     \
+      GTEST_SKIP() << "dataset not found: " << _d << " (set CLEANMAP_DATA_DIR)"; \
+    }                                                                            \
   } while (0)

@@ -63,7 +63,8 @@ PinholeCamera kittiLikeCamera() {
   c.height = 375;
   c.P << 721.5, 0, 609.6, 44.86, 0, 721.5, 172.9, 0.2164, 0, 0, 1, 0.0027;
   Eigen::Matrix3d R;
-  R << 0, -1, 0, 0, 0, -1, 1, 0, 0;  // lidar (x fwd, y left, z up) -> camera (x right, y down, z fwd)
+  R << 0, -1, 0, 0, 0, -1, 1, 0,
+      0;  // lidar (x fwd, y left, z up) -> camera (x right, y down, z fwd)
   c.T_cam_lidar.linear() = R;
   c.T_cam_lidar.translation() = Eigen::Vector3d(0, -0.08, -0.27);
   return c;
@@ -95,16 +96,20 @@ TEST(ParallelFor, EveryIndexOnceWorkersInRange) {
       for (std::size_t n : {std::size_t(0), std::size_t(1), std::size_t(100), std::size_t(5000)}) {
         std::vector<std::atomic<int>> hits(n);
         std::atomic<bool> bad_worker{false};
-        parallelFor(n, threads, [&](std::size_t i, int w) {
-          hits[i].fetch_add(1);
-          if (w < 0 || w >= threads) bad_worker = true;
-        }, chunk);
+        parallelFor(
+            n, threads,
+            [&](std::size_t i, int w) {
+              hits[i].fetch_add(1);
+              if (w < 0 || w >= threads) bad_worker = true;
+            },
+            chunk);
         for (std::size_t i = 0; i < n; ++i) ASSERT_EQ(hits[i].load(), 1) << "n " << n << " i " << i;
         EXPECT_FALSE(bad_worker);
       }
   // Per-worker accumulators sum to the serial result.
   std::vector<long> acc(4, 0);
-  parallelFor(10000, 4, [&](std::size_t i, int w) { acc[std::size_t(w)] += long(i); }, 64);
+  parallelFor(
+      10000, 4, [&](std::size_t i, int w) { acc[std::size_t(w)] += long(i); }, 64);
   EXPECT_EQ(std::accumulate(acc.begin(), acc.end(), 0L), 10000L * 9999L / 2);
 }
 

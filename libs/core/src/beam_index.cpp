@@ -37,8 +37,8 @@ BeamIndex::BeamIndex(const std::vector<PointXYZI>& points, double bin) : bin_(bi
   offsets_.assign(nbins + 1, 0);
   for (std::size_t i = 0; i < beams.size(); ++i) {
     const int e = std::min(static_cast<int>(std::floor((el[i] - el_min_) / bin_)), n_el_ - 1);
-    const double az = std::atan2(static_cast<double>(beams[i].dir.y()),
-                                 static_cast<double>(beams[i].dir.x()));
+    const double az =
+        std::atan2(static_cast<double>(beams[i].dir.y()), static_cast<double>(beams[i].dir.x()));
     bin_of[i] = static_cast<uint32_t>(e * n_az_ + azBin(az));
     ++offsets_[bin_of[i] + 1];
   }

@@ -56,7 +56,8 @@ void DuplicateFilter::prune(long oldest) {
       const auto it = grid_.find(k);
       if (it == grid_.end()) continue;
       auto& v = it->second;
-      const auto keep = std::find_if(v.begin(), v.end(), [&](const Entry& e) { return e.scan >= oldest; });
+      const auto keep =
+          std::find_if(v.begin(), v.end(), [&](const Entry& e) { return e.scan >= oldest; });
       count_ -= static_cast<std::size_t>(keep - v.begin());
       v.erase(v.begin(), keep);
       if (v.empty()) grid_.erase(it);

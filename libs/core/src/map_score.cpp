@@ -62,7 +62,9 @@ bool RadiusIndex::hasNeighbour(const Eigen::Vector3f& p) const {
   return found;
 }
 
-double MapScore::aa() const { return std::sqrt(sa() * da()); }
+double MapScore::aa() const {
+  return std::sqrt(sa() * da());
+}
 double MapScore::ha() const {
   const double s = sa(), d = da();
   return s + d > 0 ? 2.0 * s * d / (s + d) : 0.0;

@@ -32,10 +32,14 @@ MosCounts compareLabels(const Labels& predicted, const Labels& truth, const std:
       continue;
     }
     const bool pm = gtClass(p) == GtClass::kMoving, gm = g == GtClass::kMoving;
-    if (pm && gm) ++c.tp;
-    else if (pm) ++c.fp;
-    else if (gm) ++c.fn;
-    else ++c.tn;
+    if (pm && gm)
+      ++c.tp;
+    else if (pm)
+      ++c.fp;
+    else if (gm)
+      ++c.fn;
+    else
+      ++c.tn;
   }
   return c;
 }

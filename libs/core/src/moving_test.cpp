@@ -13,8 +13,8 @@ MovingTest::MovingTest(const DsParams& p)
       radius_(p.search_lambdas * p.lambda_theta),
       r_far_(std::sqrt(2.0 * model_.s1 * 40.0)) {}  // exp(-r^2 / 2(1+sigma^2)) < e^-40
 
-ds::Mass MovingTest::scanMass(const Eigen::Vector3d& p_world, const WindowScan& s,
-                              double* range_p, MovingTestStats* stats) const {
+ds::Mass MovingTest::scanMass(const Eigen::Vector3d& p_world, const WindowScan& s, double* range_p,
+                              MovingTestStats* stats) const {
   const Eigen::Vector3d pl = s.world_to_sensor * p_world;
   const double d = pl.norm();
   if (range_p) *range_p = d;
@@ -84,7 +84,8 @@ std::optional<bool> MovingTest::combineWindow(const Eigen::Vector3d& p_world,
   return std::nullopt;
 }
 
-ds::Mass MovingTest::windowMass(const Eigen::Vector3d& p_world, const std::vector<WindowScan>& window,
+ds::Mass MovingTest::windowMass(const Eigen::Vector3d& p_world,
+                                const std::vector<WindowScan>& window,
                                 MovingTestStats* stats) const {
   ds::Mass acc;
   combineWindow(p_world, window, stats, false, acc);

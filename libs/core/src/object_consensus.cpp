@@ -27,7 +27,8 @@ struct UnionFind {
 
 }  // namespace
 
-ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points, const std::vector<uint8_t>& member,
+ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
+                                     const std::vector<uint8_t>& member,
                                      std::vector<uint8_t>& moving, const ObjectParams& p,
                                      const std::vector<uint8_t>* near_previous) {
   ObjectConsensusStats st;
@@ -39,9 +40,11 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points, const
   std::vector<uint32_t> point_voxel(points.size(), UINT32_MAX);
   for (std::size_t i = 0; i < points.size(); ++i) {
     if (!member[i]) continue;
-    const Eigen::Vector3i c(static_cast<int>(floorToCell(points[i].x, inv)), static_cast<int>(floorToCell(points[i].y, inv)),
+    const Eigen::Vector3i c(static_cast<int>(floorToCell(points[i].x, inv)),
+                            static_cast<int>(floorToCell(points[i].y, inv)),
                             static_cast<int>(floorToCell(points[i].z, inv)));
-    const auto [it, fresh] = voxel_of.emplace(cellKey(c.x(), c.y(), c.z()), static_cast<uint32_t>(voxels.size()));
+    const auto [it, fresh] =
+        voxel_of.emplace(cellKey(c.x(), c.y(), c.z()), static_cast<uint32_t>(voxels.size()));
     if (fresh) voxels.push_back(c);
     point_voxel[i] = it->second;
   }
@@ -77,10 +80,12 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points, const
     const Eigen::Vector3f ext = c.hi - c.lo;
     const bool vehicle_sized = ext.head<2>().norm() <= p.max_length && ext.z() <= p.max_height;
     if (vehicle_sized && static_cast<int>(c.moving) >= p.min_moving &&
-        static_cast<double>(c.moving) >= p.moving_fraction * static_cast<double>(c.n) && c.moving < c.n) {
+        static_cast<double>(c.moving) >= p.moving_fraction * static_cast<double>(c.n) &&
+        c.moving < c.n) {
       turn[v] = 1;
       ++st.moving_objects;
-    } else if (p.persist_radius > 0 && vehicle_sized && static_cast<int>(c.moving) >= p.min_moving &&
+    } else if (p.persist_radius > 0 && vehicle_sized &&
+               static_cast<int>(c.moving) >= p.min_moving &&
                static_cast<double>(c.moving) >= p.static_fraction * static_cast<double>(c.n) &&
                c.moving < c.n && 2 * c.near_prev >= c.n) {
       turn[v] = 1;  // hysteresis: it moved in the previous scan and is still partly moving

@@ -18,10 +18,10 @@ std::vector<Leaf> planLeaves(const std::vector<Eigen::Vector3d>& candidates, con
   for (uint32_t i = 0; i < candidates.size(); ++i) {
     const auto& c = candidates[i];
     octomap::OcTreeKey key;
-    if (!tree.coordToKeyChecked(octomap::point3d(static_cast<float>(c.x()),
-                                                 static_cast<float>(c.y()),
-                                                 static_cast<float>(c.z())),
-                                key)) {
+    if (!tree.coordToKeyChecked(
+            octomap::point3d(static_cast<float>(c.x()), static_cast<float>(c.y()),
+                             static_cast<float>(c.z())),
+            key)) {
       leaves.push_back(Leaf{{i}, {}});  // outside OctoMap's range: its own leaf
       continue;
     }

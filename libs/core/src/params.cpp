@@ -16,7 +16,8 @@ void validate(const PipelineParams& p, const std::string& name) {
   require(p.ground.step > 0, "ground.step must be > 0");
   require(p.ds.sigma_m >= 0 && p.ds.sigma_r >= 0 && p.ds.sigma_m + p.ds.sigma_r > 0,
           "ds.sigma_m and ds.sigma_r must be >= 0, not both 0");
-  require(p.ds.lambda_theta > 0 && p.ds.lambda_theta < 0.5, "ds.lambda_theta must be in (0, 0.5) rad");
+  require(p.ds.lambda_theta > 0 && p.ds.lambda_theta < 0.5,
+          "ds.lambda_theta must be in (0, 0.5) rad");
   require(p.ds.search_lambdas > 0, "ds.search_lambdas must be > 0");
   require(0 <= p.ds.r_inf && p.ds.r_inf <= p.ds.r_sup && p.ds.r_sup < 1,
           "need 0 <= ds.r_inf <= ds.r_sup < 1");
@@ -31,7 +32,8 @@ void validate(const PipelineParams& p, const std::string& name) {
               p.object.moving_fraction <= 1,
           "need 0 <= object.static_fraction <= object.moving_fraction <= 1");
   require(p.object.min_moving >= 1, "object.min_moving must be >= 1");
-  require(p.object.max_length > 0 && p.object.max_height > 0, "object.max_length and max_height must be > 0");
+  require(p.object.max_length > 0 && p.object.max_height > 0,
+          "object.max_length and max_height must be > 0");
   require(p.object.persist_radius >= 0 && p.object.persist_radius <= 10,
           "object.persist_radius must be in [0, 10] m (0 = off)");
   require(p.threads >= 1, "run.threads must be >= 1");

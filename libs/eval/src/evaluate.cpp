@@ -22,8 +22,8 @@ namespace fs = std::filesystem;
 namespace cleanmap::eval {
 namespace {
 
-constexpr double kDefaultCrop = 30.0;    // DESIGN §2.3 tau, when the run does not say
-constexpr double kObjectMargin = 0.2;    // m; box inflation when assigning points to objects
+constexpr double kDefaultCrop = 30.0;          // DESIGN §2.3 tau, when the run does not say
+constexpr double kObjectMargin = 0.2;          // m; box inflation when assigning points to objects
 constexpr std::size_t kMaxLeftovers = 200000;  // points drawn in the map overview
 
 RunTime readRunReport(const std::string& path) {
@@ -39,12 +39,15 @@ RunTime readRunReport(const std::string& path) {
     rt.peak_rss_mib = j.value("peak_rss_mib", 0.0);
     rt.wall_s = j.value("wall_s", 0.0);
     rt.scans = j.value("scans", std::size_t{0});
-    if (!j.contains("timing_per_scan")) throw Error(path, "no timing_per_scan: not a cleanmap run report");
+    if (!j.contains("timing_per_scan"))
+      throw Error(path, "no timing_per_scan: not a cleanmap run report");
     const auto& t = j.at("timing_per_scan");
     if (t.contains("total"))
-      rt.stages.push_back({"total", t["total"].at("median_ms").get<double>(), t["total"].at("p95_ms").get<double>()});
+      rt.stages.push_back({"total", t["total"].at("median_ms").get<double>(),
+                           t["total"].at("p95_ms").get<double>()});
     for (const auto& [name, v] : t.items())
-      if (name != "total") rt.stages.push_back({name, v.at("median_ms").get<double>(), v.at("p95_ms").get<double>()});
+      if (name != "total")
+        rt.stages.push_back({name, v.at("median_ms").get<double>(), v.at("p95_ms").get<double>()});
   } catch (const nlohmann::json::exception& e) {
     throw Error(path, std::string("malformed run report: ") + e.what());
   }
@@ -52,14 +55,16 @@ RunTime readRunReport(const std::string& path) {
 }
 
 nlohmann::json countsJson(const MosCounts& c) {
-  return {{"tp", c.tp}, {"fp", c.fp}, {"fn", c.fn}, {"tn", c.tn}, {"ignored", c.ignored},
-          {"out_of_range", c.out_of_range}};
+  return {{"tp", c.tp}, {"fp", c.fp},           {"fn", c.fn},
+          {"tn", c.tn}, {"ignored", c.ignored}, {"out_of_range", c.out_of_range}};
 }
 
 }  // namespace
 
 const char* gradeName(ObjectGrade g) {
-  return g == ObjectGrade::kDetected ? "detected" : g == ObjectGrade::kPartial ? "partial" : "missed";
+  return g == ObjectGrade::kDetected  ? "detected"
+         : g == ObjectGrade::kPartial ? "partial"
+                                      : "missed";
 }
 
 GradeCounts EvalReport::gradeCounts() const {
@@ -75,14 +80,17 @@ GradeCounts EvalReport::gradeCounts() const {
   return c;
 }
 
-ResultInput ResultInput::fromPath(const std::string& result, const std::optional<std::string>& labels_dir) {
+ResultInput ResultInput::fromPath(const std::string& result,
+                                  const std::optional<std::string>& labels_dir) {
   ResultInput in;
   std::error_code ec;
   if (fs::is_directory(result, ec)) {
     const fs::path d(result);
     if (!io::isCleanmapRun(result))
-      throw Error(result, "has no cleanmap report.json: not a finished cleanmap run (interrupted, or another "
-                          "tool's folder: give its map file as RESULT and its labels with --labels)");
+      throw Error(
+          result,
+          "has no cleanmap report.json: not a finished cleanmap run (interrupted, or another "
+          "tool's folder: give its map file as RESULT and its labels with --labels)");
     if (fs::is_directory(d / "labels")) in.labels_dir = (d / "labels").string();
     for (const char* name : {"static_map_full.ply", "static_map_full.pcd"})
       if (fs::is_regular_file(d / name)) {
@@ -105,7 +113,9 @@ ResultInput ResultInput::fromPath(const std::string& result, const std::optional
     in.labels_dir = *labels_dir;
   }
   if (!in.labels_dir && !in.map_path)
-    throw Error(result, "nothing to score: no labels/ folder and no static_map_full.ply (or give --labels)");
+    throw Error(
+        result,
+        "nothing to score: no labels/ folder and no static_map_full.ply (or give --labels)");
   return in;
 }
 
@@ -117,13 +127,17 @@ EvalReport evaluate(const std::string& gt_dir, const ResultInput& result, const 
   if (!seq.hasLabels()) throw Error(gt_dir, "no labels/ folder: not a labelled sequence");
   if (seq.size() == 0) throw Error(gt_dir, "no scans");
   const std::size_t first = static_cast<std::size_t>(std::max(0L, opt.first));
-  const std::size_t last = opt.last < 0 ? seq.size() - 1 : std::min<std::size_t>(seq.size() - 1, std::size_t(opt.last));
-  if (first > last) throw Error(gt_dir, "the scan range is empty (the sequence has " + std::to_string(seq.size()) + " scans)");
+  const std::size_t last =
+      opt.last < 0 ? seq.size() - 1 : std::min<std::size_t>(seq.size() - 1, std::size_t(opt.last));
+  if (first > last)
+    throw Error(gt_dir, "the scan range is empty (the sequence has " + std::to_string(seq.size()) +
+                            " scans)");
 
   EvalReport rep;
   rep.gt_dir = gt_dir;
   rep.sequence = fs::path(gt_dir).lexically_normal().filename().string();
-  if (rep.sequence.empty()) rep.sequence = fs::path(gt_dir).lexically_normal().parent_path().filename().string();
+  if (rep.sequence.empty())
+    rep.sequence = fs::path(gt_dir).lexically_normal().parent_path().filename().string();
   rep.result = result.map_path ? *result.map_path : result.labels_dir ? *result.labels_dir : "";
   rep.crop_tau = opt.crop_tau ? *opt.crop_tau : result.crop_tau ? *result.crop_tau : kDefaultCrop;
   rep.radius = opt.radius;
@@ -143,7 +157,8 @@ EvalReport evaluate(const std::string& gt_dir, const ResultInput& result, const 
   std::optional<MapScorer> scorer;
   std::vector<Eigen::Vector3f> leftovers;
   if (result.map_path) {
-    if (!seq.hasPoses()) throw Error(gt_dir, "scoring a map needs the sequence's poses (poses.txt)");
+    if (!seq.hasPoses())
+      throw Error(gt_dir, "scoring a map needs the sequence's poses (poses.txt)");
     const auto cloud = io::readCloud(*result.map_path);
     std::vector<Eigen::Vector3f> pts;
     pts.reserve(cloud.size());
@@ -172,10 +187,12 @@ EvalReport evaluate(const std::string& gt_dir, const ResultInput& result, const 
     if (rep.objects) {
       std::vector<std::pair<std::size_t, const io::ObjectState*>> boxes;  // index in rep.objects
       for (std::size_t k = 0; k < rep.objects->size(); ++k) {
-        const auto& o = *std::find_if(objects.begin(), objects.end(),
-                                      [&](const io::GtObject& g) { return g.id == (*rep.objects)[k].id; });
+        const auto& o = *std::find_if(objects.begin(), objects.end(), [&](const io::GtObject& g) {
+          return g.id == (*rep.objects)[k].id;
+        });
         const auto it = o.frames.find(i);
-        if (it != o.frames.end() && it->second.motion == io::Motion::kMoving) boxes.emplace_back(k, &it->second);
+        if (it != o.frames.end() && it->second.motion == io::Motion::kMoving)
+          boxes.emplace_back(k, &it->second);
       }
       if (!boxes.empty())
         for (std::size_t j = 0; j < scan.size(); ++j) {
@@ -203,7 +220,8 @@ EvalReport evaluate(const std::string& gt_dir, const ResultInput& result, const 
         const Eigen::Vector3f w = pose * p;
         const uint64_t before = scorer->score().moving_removed;
         scorer->add(w, t == GtClass::kMoving);
-        if (t == GtClass::kMoving && scorer->score().moving_removed == before && leftovers.size() < kMaxLeftovers)
+        if (t == GtClass::kMoving && scorer->score().moving_removed == before &&
+            leftovers.size() < kMaxLeftovers)
           leftovers.push_back(w);
       }
     }
@@ -229,9 +247,10 @@ EvalReport evaluate(const std::string& gt_dir, const ResultInput& result, const 
     rep.map = scorer->score();
     if (!opt.pictures_dir.empty()) {
       char title[160];
-      std::snprintf(title, sizeof title, "%s clean map (%zu points)  SA %.3f DA %.3f", rep.sequence.c_str(),
-                    map->size(), rep.map->sa(), rep.map->da());
-      writePng(opt.pictures_dir + "/map_overview.png", mapOverview(map->points(), leftovers, title));
+      std::snprintf(title, sizeof title, "%s clean map (%zu points)  SA %.3f DA %.3f",
+                    rep.sequence.c_str(), map->size(), rep.map->sa(), rep.map->da());
+      writePng(opt.pictures_dir + "/map_overview.png",
+               mapOverview(map->points(), leftovers, title));
       rep.pictures.push_back("map_overview.png");
     }
   }
@@ -252,34 +271,48 @@ std::string toJson(const EvalReport& r) {
     j["counts"] = countsJson(*r.mos);
     nlohmann::json per = nlohmann::json::object();
     for (const auto& [stem, c] : r.per_scan)
-      per[stem] = {{"precision", c.precision()}, {"recall", c.recall()}, {"iou", c.iou()}, {"counts", countsJson(c)}};
+      per[stem] = {{"precision", c.precision()},
+                   {"recall", c.recall()},
+                   {"iou", c.iou()},
+                   {"counts", countsJson(c)}};
     j["per_scan"] = per;
   }
   if (r.objects) {
     nlohmann::json list = nlohmann::json::array();
     for (const auto& o : *r.objects)
       if (o.scored())
-        list.push_back({{"id", o.id}, {"name", o.name}, {"class", o.cls}, {"moving_points", o.moving_points},
-                        {"labelled_moving", o.labelled_moving}, {"fraction", o.fraction()},
+        list.push_back({{"id", o.id},
+                        {"name", o.name},
+                        {"class", o.cls},
+                        {"moving_points", o.moving_points},
+                        {"labelled_moving", o.labelled_moving},
+                        {"fraction", o.fraction()},
                         {"grade", gradeName(o.grade())}});
     const GradeCounts g = r.gradeCounts();
-    j["objects"] = {{"detected", g.detected}, {"partial", g.partial}, {"missed", g.missed}, {"list", list}};
+    j["objects"] = {
+        {"detected", g.detected}, {"partial", g.partial}, {"missed", g.missed}, {"list", list}};
   }
   if (r.map) {
     j["SA"] = r.map->sa();
     j["DA"] = r.map->da();
     j["AA"] = r.map->aa();
     j["HA"] = r.map->ha();
-    j["map_counts"] = {{"static_total", r.map->static_total}, {"static_kept", r.map->static_kept},
-                       {"moving_total", r.map->moving_total}, {"moving_removed", r.map->moving_removed}};
+    j["map_counts"] = {{"static_total", r.map->static_total},
+                       {"static_kept", r.map->static_kept},
+                       {"moving_total", r.map->moving_total},
+                       {"moving_removed", r.map->moving_removed}};
     j["radius_m"] = r.radius;
     j["crop_m"] = r.crop_tau;
   }
   if (r.runtime) {
     nlohmann::json st = nlohmann::json::object();
-    for (const auto& s : r.runtime->stages) st[s.stage] = {{"median_ms", s.median_ms}, {"p95_ms", s.p95_ms}};
-    j["runtime"] = {{"per_scan", st}, {"threads", r.runtime->threads}, {"peak_rss_mib", r.runtime->peak_rss_mib},
-                    {"wall_s", r.runtime->wall_s}, {"scans", r.runtime->scans}};
+    for (const auto& s : r.runtime->stages)
+      st[s.stage] = {{"median_ms", s.median_ms}, {"p95_ms", s.p95_ms}};
+    j["runtime"] = {{"per_scan", st},
+                    {"threads", r.runtime->threads},
+                    {"peak_rss_mib", r.runtime->peak_rss_mib},
+                    {"wall_s", r.runtime->wall_s},
+                    {"scans", r.runtime->scans}};
   }
   j["pictures"] = r.pictures;
   return j.dump(1);
@@ -292,54 +325,64 @@ void writeReport(const std::string& dir, const EvalReport& r) {
   io::writeFileAtomic(dir + "/report.json", [&](std::ostream& os) { os << toJson(r) << '\n'; });
   io::writeFileAtomic(dir + "/report.md", [&](std::ostream& os) {
     char b[512];
-    os << "# cleanmap evaluation: " << r.sequence << "\n\nGround truth `" << r.gt_dir << "`, result `"
-       << r.result << "`, " << r.scans << " scans. Measures: DESIGN §5.\n";
+    os << "# cleanmap evaluation: " << r.sequence << "\n\nGround truth `" << r.gt_dir
+       << "`, result `" << r.result << "`, " << r.scans << " scans. Measures: DESIGN §5.\n";
     if (r.mos) {
       const auto& c = *r.mos;
       std::snprintf(b, sizeof b,
                     "\n## Per-point moving-object segmentation (paper Table I)\n"
-                    "| precision | recall | IoU | TP | FP | FN | TN | flagged |\n|---|---|---|---|---|---|---|---|\n"
+                    "| precision | recall | IoU | TP | FP | FN | TN | flagged "
+                    "|\n|---|---|---|---|---|---|---|---|\n"
                     "| %.3f | %.3f | %.3f | %llu | %llu | %llu | %llu | %.2f %% |\n",
-                    c.precision(), c.recall(), c.iou(), (unsigned long long)c.tp, (unsigned long long)c.fp,
-                    (unsigned long long)c.fn, (unsigned long long)c.tn, 100.0 * c.flaggedRate());
+                    c.precision(), c.recall(), c.iou(), (unsigned long long)c.tp,
+                    (unsigned long long)c.fp, (unsigned long long)c.fn, (unsigned long long)c.tn,
+                    100.0 * c.flaggedRate());
       os << b;
     }
     if (r.objects) {
       os << "\n## Objects (paper Table II: detected f >= 0.9, partially 0.1 <= f < 0.9)\n"
-            "| id | class | moving points | labelled moving | f | grade |\n|---|---|---|---|---|---|\n";
+            "| id | class | moving points | labelled moving | f | grade "
+            "|\n|---|---|---|---|---|---|\n";
       for (const auto& o : *r.objects) {
         if (!o.scored()) continue;
         std::snprintf(b, sizeof b, "| %d | %s | %llu | %llu | %.3f | %s |\n", o.id, o.cls.c_str(),
-                      (unsigned long long)o.moving_points, (unsigned long long)o.labelled_moving, o.fraction(),
-                      gradeName(o.grade()));
+                      (unsigned long long)o.moving_points, (unsigned long long)o.labelled_moving,
+                      o.fraction(), gradeName(o.grade()));
         os << b;
       }
       const GradeCounts g = r.gradeCounts();
-      os << "\nDetected " << g.detected << ", partially detected " << g.partial << ", missed " << g.missed << ".\n";
+      os << "\nDetected " << g.detected << ", partially detected " << g.partial << ", missed "
+         << g.missed << ".\n";
     }
     if (r.map) {
       const auto& m = *r.map;
-      std::snprintf(b, sizeof b,
-                    "\n## Clean map (DynamicMap benchmark; kept = a map point within %.2f m; crop %.0f m)\n"
-                    "| SA | DA | AA | HA | static kept / total | moving removed / total |\n|---|---|---|---|---|---|\n"
-                    "| %.4f | %.4f | %.4f | %.4f | %llu / %llu | %llu / %llu |\n",
-                    r.radius, r.crop_tau, m.sa(), m.da(), m.aa(), m.ha(), (unsigned long long)m.static_kept,
-                    (unsigned long long)m.static_total, (unsigned long long)m.moving_removed,
-                    (unsigned long long)m.moving_total);
+      std::snprintf(
+          b, sizeof b,
+          "\n## Clean map (DynamicMap benchmark; kept = a map point within %.2f m; crop %.0f m)\n"
+          "| SA | DA | AA | HA | static kept / total | moving removed / total "
+          "|\n|---|---|---|---|---|---|\n"
+          "| %.4f | %.4f | %.4f | %.4f | %llu / %llu | %llu / %llu |\n",
+          r.radius, r.crop_tau, m.sa(), m.da(), m.aa(), m.ha(), (unsigned long long)m.static_kept,
+          (unsigned long long)m.static_total, (unsigned long long)m.moving_removed,
+          (unsigned long long)m.moving_total);
       os << b;
     }
     if (r.runtime) {
-      std::snprintf(b, sizeof b, "\n## Runtime (from the run report: %d threads, peak RSS %.0f MiB, wall %.1f s)\n"
-                                 "| stage | median ms/scan | p95 ms/scan |\n|---|---|---|\n",
-                    r.runtime->threads, r.runtime->peak_rss_mib, r.runtime->wall_s);
+      std::snprintf(
+          b, sizeof b,
+          "\n## Runtime (from the run report: %d threads, peak RSS %.0f MiB, wall %.1f s)\n"
+          "| stage | median ms/scan | p95 ms/scan |\n|---|---|---|\n",
+          r.runtime->threads, r.runtime->peak_rss_mib, r.runtime->wall_s);
       os << b;
       for (const auto& s : r.runtime->stages) {
-        std::snprintf(b, sizeof b, "| %s | %.1f | %.1f |\n", s.stage.c_str(), s.median_ms, s.p95_ms);
+        std::snprintf(b, sizeof b, "| %s | %.1f | %.1f |\n", s.stage.c_str(), s.median_ms,
+                      s.p95_ms);
         os << b;
       }
     }
     if (!r.pictures.empty()) {
-      os << "\n## Pictures\nBird's-eye views: TP red, FP orange, FN blue, static grey, not scored dark.\n\n";
+      os << "\n## Pictures\nBird's-eye views: TP red, FP orange, FN blue, static grey, not scored "
+            "dark.\n\n";
       for (const auto& p : r.pictures) os << "![" << p << "](" << p << ")\n";
     }
   });

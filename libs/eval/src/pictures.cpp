@@ -4,9 +4,9 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <ostream>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+#include <ostream>
 
 #include "cleanmap/core/error.h"
 #include "cleanmap/io/files.h"
@@ -27,8 +27,8 @@ void legend(cv::Mat& img, const std::vector<std::pair<std::string, cv::Vec3b>>& 
   int x = 8;
   for (const auto& [text, c] : items) {
     cv::rectangle(img, {x, y0 - 9}, {x + 10, y0 + 1}, cv::Scalar(c[0], c[1], c[2]), cv::FILLED);
-    cv::putText(img, text, {x + 14, y0}, cv::FONT_HERSHEY_SIMPLEX, 0.4, cv::Scalar(230, 230, 230), 1,
-                cv::LINE_AA);
+    cv::putText(img, text, {x + 14, y0}, cv::FONT_HERSHEY_SIMPLEX, 0.4, cv::Scalar(230, 230, 230),
+                1, cv::LINE_AA);
     x += 16 + 8 * static_cast<int>(text.size()) + 12;
   }
 }
@@ -63,19 +63,29 @@ cv::Mat birdsEyeView(const std::vector<PointXYZI>& points, const Labels& predict
       const int u = static_cast<int>(std::floor((half_extent - points[i].y) / kRes));
       const int v = static_cast<int>(std::floor((half_extent - points[i].x) / kRes)) + top;
       if (u < 0 || u >= side || v < top || v >= side + top) continue;
-      const int dot = pass == Outcome::kTrueNegative || pass == Outcome::kNotScored ? 1 : 2;  // movers stand out
+      const int dot = pass == Outcome::kTrueNegative || pass == Outcome::kNotScored
+                          ? 1
+                          : 2;  // movers stand out
       for (int dv = 0; dv < dot && v + dv < side + top; ++dv)
-        for (int du = 0; du < dot && u + du < side; ++du) img.at<cv::Vec3b>(v + dv, u + du) = kColour[static_cast<int>(pass)];
+        for (int du = 0; du < dot && u + du < side; ++du)
+          img.at<cv::Vec3b>(v + dv, u + du) = kColour[static_cast<int>(pass)];
     }
   cv::circle(img, {side / 2, side / 2 + top}, 3, cv::Scalar(255, 255, 255), cv::FILLED);
-  cv::putText(img, title, {8, 12}, cv::FONT_HERSHEY_SIMPLEX, 0.4, cv::Scalar(255, 255, 255), 1, cv::LINE_AA);
-  legend(img, {{"TP", kColour[0]}, {"FP", kColour[1]}, {"FN", kColour[2]}, {"static", kColour[3]},
-               {"not scored", kColour[4]}}, 24);
+  cv::putText(img, title, {8, 12}, cv::FONT_HERSHEY_SIMPLEX, 0.4, cv::Scalar(255, 255, 255), 1,
+              cv::LINE_AA);
+  legend(img,
+         {{"TP", kColour[0]},
+          {"FP", kColour[1]},
+          {"FN", kColour[2]},
+          {"static", kColour[3]},
+          {"not scored", kColour[4]}},
+         24);
   return img;
 }
 
-cv::Mat mapOverview(const std::vector<Eigen::Vector3f>& map, const std::vector<Eigen::Vector3f>& leftovers,
-                    const std::string& title, int max_side) {
+cv::Mat mapOverview(const std::vector<Eigen::Vector3f>& map,
+                    const std::vector<Eigen::Vector3f>& leftovers, const std::string& title,
+                    int max_side) {
   Eigen::Vector2f lo(0, 0), hi(1, 1);
   bool first = true;
   for (const auto* v : {&map, &leftovers})
@@ -91,7 +101,8 @@ cv::Mat mapOverview(const std::vector<Eigen::Vector3f>& map, const std::vector<E
   const int h = std::max(64, static_cast<int>((hi.x() - lo.x()) / res) + 1);
   cv::Mat count(h, w, CV_32F, cv::Scalar(0));
   auto pix = [&](const Eigen::Vector3f& p) {
-    return cv::Point(static_cast<int>((hi.y() - p.y()) / res), static_cast<int>((hi.x() - p.x()) / res));
+    return cv::Point(static_cast<int>((hi.y() - p.y()) / res),
+                     static_cast<int>((hi.x() - p.x()) / res));
   };
   for (const auto& p : map) {
     const cv::Point q = pix(p);
@@ -110,12 +121,14 @@ cv::Mat mapOverview(const std::vector<Eigen::Vector3f>& map, const std::vector<E
     const cv::Point q = pix(p);
     if (q.x >= 0 && q.x < w && q.y >= 0 && q.y < h) body.at<cv::Vec3b>(q) = kColour[0];
   }
-  cv::putText(img, title, {8, 12}, cv::FONT_HERSHEY_SIMPLEX, 0.4, cv::Scalar(255, 255, 255), 1, cv::LINE_AA);
+  cv::putText(img, title, {8, 12}, cv::FONT_HERSHEY_SIMPLEX, 0.4, cv::Scalar(255, 255, 255), 1,
+              cv::LINE_AA);
   legend(img, {{"clean map", {200, 200, 200}}, {"moving points left in the map", kColour[0]}}, 24);
   return img;
 }
 
-cv::Mat rocPlot(const std::vector<RocCurve>& curves, const RocCurvePoint& marked, const std::string& title) {
+cv::Mat rocPlot(const std::vector<RocCurve>& curves, const RocCurvePoint& marked,
+                const std::string& title) {
   const int W = 640, H = 520, L = 60, R = 170, T = 30, B = 50;
   cv::Mat img(H, W, CV_8UC3, cv::Scalar(255, 255, 255));
   // Axis ranges: the data's, padded, always starting at 0.
@@ -137,14 +150,18 @@ cv::Mat rocPlot(const std::vector<RocCurve>& curves, const RocCurvePoint& marked
   for (int k = 0; k <= 4; ++k) {
     const double f = fmax * k / 4, t = tmin + (tmax - tmin) * k / 4;
     std::snprintf(buf, sizeof buf, "%.3f", f);
-    cv::putText(img, buf, to(f, tmin) + cv::Point(-14, 16), cv::FONT_HERSHEY_SIMPLEX, 0.38, {0, 0, 0}, 1, cv::LINE_AA);
+    cv::putText(img, buf, to(f, tmin) + cv::Point(-14, 16), cv::FONT_HERSHEY_SIMPLEX, 0.38,
+                {0, 0, 0}, 1, cv::LINE_AA);
     std::snprintf(buf, sizeof buf, "%.2f", t);
-    cv::putText(img, buf, to(0, t) + cv::Point(-40, 4), cv::FONT_HERSHEY_SIMPLEX, 0.38, {0, 0, 0}, 1, cv::LINE_AA);
+    cv::putText(img, buf, to(0, t) + cv::Point(-40, 4), cv::FONT_HERSHEY_SIMPLEX, 0.38, {0, 0, 0},
+                1, cv::LINE_AA);
   }
-  cv::putText(img, "false positive rate", {L + 120, H - 12}, cv::FONT_HERSHEY_SIMPLEX, 0.45, {0, 0, 0}, 1, cv::LINE_AA);
+  cv::putText(img, "false positive rate", {L + 120, H - 12}, cv::FONT_HERSHEY_SIMPLEX, 0.45,
+              {0, 0, 0}, 1, cv::LINE_AA);
   cv::putText(img, "TPR", {8, 18}, cv::FONT_HERSHEY_SIMPLEX, 0.45, {0, 0, 0}, 1, cv::LINE_AA);
   cv::putText(img, title, {L, 18}, cv::FONT_HERSHEY_SIMPLEX, 0.45, {0, 0, 0}, 1, cv::LINE_AA);
-  const cv::Scalar palette[] = {{200, 80, 30}, {40, 160, 40}, {30, 30, 220}, {160, 40, 160}, {0, 140, 200}, {90, 90, 90}};
+  const cv::Scalar palette[] = {{200, 80, 30},  {40, 160, 40}, {30, 30, 220},
+                                {160, 40, 160}, {0, 140, 200}, {90, 90, 90}};
   for (std::size_t c = 0; c < curves.size(); ++c) {
     const cv::Scalar col = palette[c % 6];
     std::vector<cv::Point> pts;
@@ -153,12 +170,14 @@ cv::Mat rocPlot(const std::vector<RocCurve>& curves, const RocCurvePoint& marked
     for (const auto& q : pts) cv::circle(img, q, 3, col, cv::FILLED, cv::LINE_AA);
     const cv::Point lg(W - R + 12, T + 18 + 20 * static_cast<int>(c));
     cv::line(img, lg, lg + cv::Point(20, 0), col, 2);
-    cv::putText(img, curves[c].label, lg + cv::Point(26, 4), cv::FONT_HERSHEY_SIMPLEX, 0.4, {0, 0, 0}, 1, cv::LINE_AA);
+    cv::putText(img, curves[c].label, lg + cv::Point(26, 4), cv::FONT_HERSHEY_SIMPLEX, 0.4,
+                {0, 0, 0}, 1, cv::LINE_AA);
   }
   cv::circle(img, to(marked.fpr, marked.tpr), 8, cv::Scalar(0, 0, 0), 2, cv::LINE_AA);
   const cv::Point lg(W - R + 22, T + 18 + 20 * static_cast<int>(curves.size()));
   cv::circle(img, lg, 7, cv::Scalar(0, 0, 0), 2, cv::LINE_AA);
-  cv::putText(img, "default", lg + cv::Point(16, 4), cv::FONT_HERSHEY_SIMPLEX, 0.4, {0, 0, 0}, 1, cv::LINE_AA);
+  cv::putText(img, "default", lg + cv::Point(16, 4), cv::FONT_HERSHEY_SIMPLEX, 0.4, {0, 0, 0}, 1,
+              cv::LINE_AA);
   return img;
 }
 

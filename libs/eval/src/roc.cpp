@@ -15,9 +15,11 @@
 
 namespace cleanmap::eval {
 
-std::vector<RocSetting> rocSweep(const std::string& gt_dir, const PipelineParams& base, const RocOptions& opt,
+std::vector<RocSetting> rocSweep(const std::string& gt_dir, const PipelineParams& base,
+                                 const RocOptions& opt,
                                  const std::function<void(std::size_t, std::size_t)>& progress) {
-  if (opt.sigma_r.empty() || opt.lambda_theta.empty()) throw Error(gt_dir, "ROC sweep: empty parameter grid");
+  if (opt.sigma_r.empty() || opt.lambda_theta.empty())
+    throw Error(gt_dir, "ROC sweep: empty parameter grid");
   for (double v : opt.sigma_r)
     if (!(v >= 0)) throw Error(gt_dir, "ROC sweep: sigma_r values must be >= 0");
   for (double v : opt.lambda_theta)
@@ -29,7 +31,8 @@ std::vector<RocSetting> rocSweep(const std::string& gt_dir, const PipelineParams
   if (!seq.hasLabels()) throw Error(gt_dir, "no labels/ folder: the ROC sweep needs ground truth");
   if (!seq.hasPoses()) throw Error(gt_dir, "no poses: the laser pipeline needs them");
   const std::size_t first = static_cast<std::size_t>(std::max(0L, opt.first));
-  const std::size_t last = opt.last < 0 ? seq.size() - 1 : std::min<std::size_t>(seq.size() - 1, std::size_t(opt.last));
+  const std::size_t last =
+      opt.last < 0 ? seq.size() - 1 : std::min<std::size_t>(seq.size() - 1, std::size_t(opt.last));
   if (seq.size() == 0 || first > last) throw Error(gt_dir, "the scan range is empty");
 
   std::vector<RocSetting> out;
@@ -41,7 +44,8 @@ std::vector<RocSetting> rocSweep(const std::string& gt_dir, const PipelineParams
       p.ds.lambda_theta = lt;
       RocSetting s{sr, lt, {}};
       LaserPipeline pipe(p, [&](ScanResult&& r) {
-        s.counts += compareLabels(r.labels, seq.loadLabels(r.index, r.labels.size()), seq.labelPath(r.index));
+        s.counts += compareLabels(r.labels, seq.loadLabels(r.index, r.labels.size()),
+                                  seq.labelPath(r.index));
       });
       for (std::size_t i = first; i <= last; ++i) pipe.push(seq.frame(i));
       pipe.finish();
@@ -58,9 +62,17 @@ void writeRoc(const std::string& dir, const std::string& sequence, const std::ve
   if (ec) throw Error(dir, "cannot create the output folder: " + ec.message());
   nlohmann::json j = nlohmann::json::array();
   for (const auto& r : s)
-    j.push_back({{"sigma_r", r.sigma_r}, {"sigma_theta", r.lambda_theta}, {"tpr", r.tpr()}, {"fpr", r.fpr()},
-                 {"precision", r.counts.precision()}, {"recall", r.counts.recall()}, {"iou", r.counts.iou()},
-                 {"tp", r.counts.tp}, {"fp", r.counts.fp}, {"fn", r.counts.fn}, {"tn", r.counts.tn}});
+    j.push_back({{"sigma_r", r.sigma_r},
+                 {"sigma_theta", r.lambda_theta},
+                 {"tpr", r.tpr()},
+                 {"fpr", r.fpr()},
+                 {"precision", r.counts.precision()},
+                 {"recall", r.counts.recall()},
+                 {"iou", r.counts.iou()},
+                 {"tp", r.counts.tp},
+                 {"fp", r.counts.fp},
+                 {"fn", r.counts.fn},
+                 {"tn", r.counts.tn}});
   io::writeFileAtomic(dir + "/roc.json", [&](std::ostream& os) { os << j.dump(1) << '\n'; });
 
   std::map<double, RocCurve> curves;  // one per sigma_theta, points in sweep order of sigma_r
@@ -71,22 +83,28 @@ void writeRoc(const std::string& dir, const std::string& sequence, const std::ve
     std::snprintf(label, sizeof label, "sigma_theta %.4f", r.lambda_theta);
     c.label = label;
     c.points.push_back({r.fpr(), r.tpr()});
-    if (std::abs(r.sigma_r - base.ds.sigma_r) < 1e-9 && std::abs(r.lambda_theta - base.ds.lambda_theta) < 1e-9)
+    if (std::abs(r.sigma_r - base.ds.sigma_r) < 1e-9 &&
+        std::abs(r.lambda_theta - base.ds.lambda_theta) < 1e-9)
       marked = {r.fpr(), r.tpr()};
   }
   std::vector<RocCurve> list;
   for (auto& [k, c] : curves) list.push_back(std::move(c));
-  writePng(dir + "/roc.png", rocPlot(list, marked, "ROC " + sequence + " (sigma_r varies along a curve)"));
+  writePng(dir + "/roc.png",
+           rocPlot(list, marked, "ROC " + sequence + " (sigma_r varies along a curve)"));
 
   io::writeFileAtomic(dir + "/roc.md", [&](std::ostream& os) {
-    os << "# ROC sweep: " << sequence << "\n\nLaser pipeline, default parameters except sigma_r and "
+    os << "# ROC sweep: " << sequence
+       << "\n\nLaser pipeline, default parameters except sigma_r and "
           "sigma_theta (= lambda_theta); DESIGN §5. Default marked *.\n\n"
-          "| sigma_theta (rad) | sigma_r (m) | TPR (recall) | FPR | precision | IoU |\n|---|---|---|---|---|---|\n";
+          "| sigma_theta (rad) | sigma_r (m) | TPR (recall) | FPR | precision | IoU "
+          "|\n|---|---|---|---|---|---|\n";
     char b[256];
     for (const auto& r : s) {
-      const bool def = std::abs(r.sigma_r - base.ds.sigma_r) < 1e-9 && std::abs(r.lambda_theta - base.ds.lambda_theta) < 1e-9;
-      std::snprintf(b, sizeof b, "| %.4f | %.2f%s | %.3f | %.4f | %.3f | %.3f |\n", r.lambda_theta, r.sigma_r,
-                    def ? " *" : "", r.tpr(), r.fpr(), r.counts.precision(), r.counts.iou());
+      const bool def = std::abs(r.sigma_r - base.ds.sigma_r) < 1e-9 &&
+                       std::abs(r.lambda_theta - base.ds.lambda_theta) < 1e-9;
+      std::snprintf(b, sizeof b, "| %.4f | %.2f%s | %.3f | %.4f | %.3f | %.3f |\n", r.lambda_theta,
+                    r.sigma_r, def ? " *" : "", r.tpr(), r.fpr(), r.counts.precision(),
+                    r.counts.iou());
       os << b;
     }
     os << "\n![ROC](roc.png)\n";

@@ -30,7 +30,8 @@ std::string summaryTable(const std::vector<std::string>& json_files) {
     nlohmann::json j;
     try {
       j = nlohmann::json::parse(io::readTextFile(path));
-      const bool mos = j.contains("counts"), map = j.contains("map_counts"), obj = j.contains("objects");
+      const bool mos = j.contains("counts"), map = j.contains("map_counts"),
+                 obj = j.contains("objects");
       MosCounts c;
       if (mos) {
         const auto& k = j.at("counts");
@@ -48,7 +49,8 @@ std::string summaryTable(const std::vector<std::string>& json_files) {
       }
       std::string objs = "–";
       if (obj) {
-        const int d = j["objects"].at("detected"), p = j["objects"].at("partial"), x = j["objects"].at("missed");
+        const int d = j["objects"].at("detected"), p = j["objects"].at("partial"),
+                  x = j["objects"].at("missed");
         det += d, part += p, miss += x;
         objs = std::to_string(d) + " / " + std::to_string(p) + " / " + std::to_string(x);
         any_obj = true;
@@ -59,19 +61,25 @@ std::string summaryTable(const std::vector<std::string>& json_files) {
       os << "| " << j.at("sequence").get<std::string>() << " | " << n << " | "
          << fmt(mos, c.precision(), "%.3f") << " | " << fmt(mos, c.recall(), "%.3f") << " | "
          << fmt(mos, c.iou(), "%.3f") << " | " << objs << " | " << fmt(map, m.sa(), "%.4f") << " | "
-         << fmt(map, m.da(), "%.4f") << " | " << fmt(map, m.aa(), "%.4f") << " | " << fmt(map, m.ha(), "%.4f")
-         << " | " << fmt(rt, rt ? j["runtime"]["per_scan"]["total"].value("median_ms", 0.0) : 0.0, "%.0f")
-         << " | " << fmt(rt, rt ? j["runtime"]["per_scan"]["total"].value("p95_ms", 0.0) : 0.0, "%.0f") << " |\n";
+         << fmt(map, m.da(), "%.4f") << " | " << fmt(map, m.aa(), "%.4f") << " | "
+         << fmt(map, m.ha(), "%.4f") << " | "
+         << fmt(rt, rt ? j["runtime"]["per_scan"]["total"].value("median_ms", 0.0) : 0.0, "%.0f")
+         << " | "
+         << fmt(rt, rt ? j["runtime"]["per_scan"]["total"].value("p95_ms", 0.0) : 0.0, "%.0f")
+         << " |\n";
     } catch (const nlohmann::json::exception& e) {
       throw Error(path, std::string("not an evaluation report: ") + e.what());
     }
   }
   if (json_files.size() > 1) {
-    const std::string objs = any_obj ? std::to_string(det) + " / " + std::to_string(part) + " / " + std::to_string(miss) : "–";
-    os << "| **all (summed counts)** | " << scans << " | " << fmt(any_mos, all.precision(), "%.3f") << " | "
-       << fmt(any_mos, all.recall(), "%.3f") << " | " << fmt(any_mos, all.iou(), "%.3f") << " | " << objs << " | "
-       << fmt(any_map, all_map.sa(), "%.4f") << " | " << fmt(any_map, all_map.da(), "%.4f") << " | "
-       << fmt(any_map, all_map.aa(), "%.4f") << " | " << fmt(any_map, all_map.ha(), "%.4f") << " | – | – |\n";
+    const std::string objs =
+        any_obj ? std::to_string(det) + " / " + std::to_string(part) + " / " + std::to_string(miss)
+                : "–";
+    os << "| **all (summed counts)** | " << scans << " | " << fmt(any_mos, all.precision(), "%.3f")
+       << " | " << fmt(any_mos, all.recall(), "%.3f") << " | " << fmt(any_mos, all.iou(), "%.3f")
+       << " | " << objs << " | " << fmt(any_map, all_map.sa(), "%.4f") << " | "
+       << fmt(any_map, all_map.da(), "%.4f") << " | " << fmt(any_map, all_map.aa(), "%.4f") << " | "
+       << fmt(any_map, all_map.ha(), "%.4f") << " | – | – |\n";
   }
   return os.str();
 }

@@ -22,13 +22,17 @@ double read(const char* p, bool big_endian) {
 std::size_t fieldSize(FieldType t) {
   switch (t) {
     case FieldType::kI8:
-    case FieldType::kU8: return 1;
+    case FieldType::kU8:
+      return 1;
     case FieldType::kI16:
-    case FieldType::kU16: return 2;
+    case FieldType::kU16:
+      return 2;
     case FieldType::kI32:
     case FieldType::kU32:
-    case FieldType::kF32: return 4;
-    default: return 8;
+    case FieldType::kF32:
+      return 4;
+    default:
+      return 8;
   }
 }
 
@@ -50,26 +54,41 @@ std::optional<FieldType> pcdFieldType(char type, int size) {
   if (f && size == 8) return FieldType::kF64;
   if (!u && !i) return std::nullopt;
   switch (size) {
-    case 1: return u ? FieldType::kU8 : FieldType::kI8;
-    case 2: return u ? FieldType::kU16 : FieldType::kI16;
-    case 4: return u ? FieldType::kU32 : FieldType::kI32;
-    case 8: return u ? FieldType::kU64 : FieldType::kI64;
-    default: return std::nullopt;
+    case 1:
+      return u ? FieldType::kU8 : FieldType::kI8;
+    case 2:
+      return u ? FieldType::kU16 : FieldType::kI16;
+    case 4:
+      return u ? FieldType::kU32 : FieldType::kI32;
+    case 8:
+      return u ? FieldType::kU64 : FieldType::kI64;
+    default:
+      return std::nullopt;
   }
 }
 
 double decodeField(const char* p, FieldType t, bool big_endian) {
   switch (t) {
-    case FieldType::kI8: return read<int8_t>(p, big_endian);
-    case FieldType::kU8: return read<uint8_t>(p, big_endian);
-    case FieldType::kI16: return read<int16_t>(p, big_endian);
-    case FieldType::kU16: return read<uint16_t>(p, big_endian);
-    case FieldType::kI32: return read<int32_t>(p, big_endian);
-    case FieldType::kU32: return read<uint32_t>(p, big_endian);
-    case FieldType::kI64: return read<int64_t>(p, big_endian);
-    case FieldType::kU64: return read<uint64_t>(p, big_endian);
-    case FieldType::kF32: return read<float>(p, big_endian);
-    case FieldType::kF64: return read<double>(p, big_endian);
+    case FieldType::kI8:
+      return read<int8_t>(p, big_endian);
+    case FieldType::kU8:
+      return read<uint8_t>(p, big_endian);
+    case FieldType::kI16:
+      return read<int16_t>(p, big_endian);
+    case FieldType::kU16:
+      return read<uint16_t>(p, big_endian);
+    case FieldType::kI32:
+      return read<int32_t>(p, big_endian);
+    case FieldType::kU32:
+      return read<uint32_t>(p, big_endian);
+    case FieldType::kI64:
+      return read<int64_t>(p, big_endian);
+    case FieldType::kU64:
+      return read<uint64_t>(p, big_endian);
+    case FieldType::kF32:
+      return read<float>(p, big_endian);
+    case FieldType::kF64:
+      return read<double>(p, big_endian);
   }
   return 0;
 }

@@ -84,8 +84,10 @@ void parseParams(const std::string& text, const std::string& name, PipelineParam
   on.entry = [&](const IniLine& e) {
     const std::string full = e.section + "." + e.key;
     const auto it = keys.find(full);
-    if (it == keys.end()) iniError(name, e.line, "unknown key '" + e.key + "' in [" + e.section + "]");
-    if (!given.insert(full).second) iniError(name, e.line, "'" + e.key + "' given twice in [" + e.section + "]");
+    if (it == keys.end())
+      iniError(name, e.line, "unknown key '" + e.key + "' in [" + e.section + "]");
+    if (!given.insert(full).second)
+      iniError(name, e.line, "'" + e.key + "' given twice in [" + e.section + "]");
     double v = 0;
     std::size_t used = 0;
     try {

@@ -45,7 +45,8 @@ void parseIni(const std::string& text, const std::string& name, const IniHandler
       continue;
     }
     const auto eq = line.find('=');
-    if (eq == std::string::npos) iniError(name, lineno, "expected 'key = value', got '" + line + "'");
+    if (eq == std::string::npos)
+      iniError(name, lineno, "expected 'key = value', got '" + line + "'");
     IniLine e{section, trimBlanks(line.substr(0, eq)), trimBlanks(line.substr(eq + 1)), lineno};
     if (e.key.empty()) iniError(name, lineno, "missing key before '='");
     if (section.empty()) iniError(name, lineno, "key '" + e.key + "' outside any section");

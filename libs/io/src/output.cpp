@@ -38,9 +38,15 @@ Spread spread(std::vector<double> v) {
 }
 
 nlohmann::json countsJson(const MosCounts& c) {
-  return {{"precision", c.precision()}, {"recall", c.recall()}, {"iou", c.iou()},
-          {"tp", c.tp}, {"fp", c.fp}, {"fn", c.fn}, {"tn", c.tn},
-          {"flagged_rate", c.flaggedRate()}, {"ignored", c.ignored},
+  return {{"precision", c.precision()},
+          {"recall", c.recall()},
+          {"iou", c.iou()},
+          {"tp", c.tp},
+          {"fp", c.fp},
+          {"fn", c.fn},
+          {"tn", c.tn},
+          {"flagged_rate", c.flaggedRate()},
+          {"ignored", c.ignored},
           {"out_of_range", c.out_of_range}};
 }
 
@@ -70,8 +76,9 @@ void checkOutputFolder(const std::string& outdir, const OutputOptions& opts) {
   if (!fs::exists(st)) return;
   if (!fs::is_directory(st)) throw Error(outdir, "exists and is not a folder; choose another -o");
   if (fs::is_empty(outdir, ec) || isCleanmapRun(outdir) || opts.force) return;
-  throw Error(outdir, "is a non-empty folder that holds no cleanmap run (no cleanmap report.json); "
-                      "choose another -o, or pass --force to replace it and everything in it");
+  throw Error(outdir,
+              "is a non-empty folder that holds no cleanmap run (no cleanmap report.json); "
+              "choose another -o, or pass --force to replace it and everything in it");
 }
 
 namespace {
@@ -83,7 +90,8 @@ void removeStaleStaging(const fs::path& parent, const std::string& prefix) {
     const std::string n = e.path().filename().string();
     if (n.rfind(prefix, 0) != 0) continue;
     const long pid = std::atol(n.c_str() + prefix.size());
-    if (pid > 0 && ::kill(static_cast<pid_t>(pid), 0) != 0 && errno == ESRCH) fs::remove_all(e.path(), ec);
+    if (pid > 0 && ::kill(static_cast<pid_t>(pid), 0) != 0 && errno == ESRCH)
+      fs::remove_all(e.path(), ec);
   }
 }
 
@@ -142,7 +150,8 @@ void OutputWriter::publish() {
   if (!fs::exists(dir_, ec)) {
     fs::rename(staging_, dir_, ec);
     if (ec) throw Error(dir_, "cannot move the finished run into place: " + ec.message());
-  } else if (::renameat2(AT_FDCWD, staging_.c_str(), AT_FDCWD, dir_.c_str(), RENAME_EXCHANGE) != 0) {
+  } else if (::renameat2(AT_FDCWD, staging_.c_str(), AT_FDCWD, dir_.c_str(), RENAME_EXCHANGE) !=
+             0) {
     const std::string old = staging_ + ".old";
     fs::rename(dir_, old, ec);
     if (!ec) fs::rename(staging_, dir_, ec);
@@ -179,11 +188,16 @@ void OutputWriter::finish(double wall_s) {
   j["generator"] = "cleanmap";
   j["input"] = input_;
   j["scans"] = stats_.size();
-  j["counts"] = {{"points", total.points},       {"invalid_dropped", total.invalid},
-                 {"empty_scans", empty},         {"in_crop", total.in_crop},
-                 {"ground", total.ground},       {"duplicates", total.duplicates},
-                 {"candidates", total.candidates}, {"tested", total.tested},
-                 {"moving", total.moving},       {"static", total.static_points},
+  j["counts"] = {{"points", total.points},
+                 {"invalid_dropped", total.invalid},
+                 {"empty_scans", empty},
+                 {"in_crop", total.in_crop},
+                 {"ground", total.ground},
+                 {"duplicates", total.duplicates},
+                 {"candidates", total.candidates},
+                 {"tested", total.tested},
+                 {"moving", total.moving},
+                 {"static", total.static_points},
                  {"total_conflicts", total.total_conflicts},
                  {"conflicting_scan_votes", total.conflicting_scans},
                  {"objects_turned_moving", total.objects_moving},
@@ -192,11 +206,13 @@ void OutputWriter::finish(double wall_s) {
                  {"consensus_points_removed", total.consensus_removed},
                  {"no_evidence_points", total.no_evidence},
                  {"static_map_points", compact_->count()},
-                 {"static_map_full_points", full_->count()}, {"dynamic_points", moving_->count()}};
+                 {"static_map_full_points", full_->count()},
+                 {"dynamic_points", moving_->count()}};
   nlohmann::json timing;
   const std::pair<const char*, std::vector<double>*> stages[] = {
-      {"total", &t_total}, {"beam_index", &t_index}, {"crop_ground", &t_ground},
-      {"duplicates", &t_dup}, {"octree", &t_oct}, {"classify", &t_cls}, {"objects", &t_obj}};
+      {"total", &t_total},    {"beam_index", &t_index}, {"crop_ground", &t_ground},
+      {"duplicates", &t_dup}, {"octree", &t_oct},       {"classify", &t_cls},
+      {"objects", &t_obj}};
   for (const auto& [name, v] : stages) {
     const Spread s = spread(*v);
     timing[name] = {{"median_ms", s.median}, {"p95_ms", s.p95}, {"mean_ms", s.mean}};

@@ -58,7 +58,9 @@ std::string lzfDecompress(const std::string& in, std::size_t out_size, const std
   return out;
 }
 
-double readValue(const char* p, const Field& f) { return decodeField(p, f.decoded); }
+double readValue(const char* p, const Field& f) {
+  return decodeField(p, f.decoded);
+}
 
 }  // namespace
 
@@ -114,7 +116,8 @@ std::vector<PointXYZI> readPcd(const std::string& path) {
     f.type = types[k];
     f.count = counts[k];
     const auto decoded = pcdFieldType(f.type, f.size);
-    if (!decoded || f.count < 1) throw Error(path, "field '" + f.name + "' has an unsupported TYPE/SIZE/COUNT");
+    if (!decoded || f.count < 1)
+      throw Error(path, "field '" + f.name + "' has an unsupported TYPE/SIZE/COUNT");
     f.decoded = *decoded;
     f.offset = record;
     record += std::size_t(f.size) * std::size_t(f.count);
@@ -138,8 +141,9 @@ std::vector<PointXYZI> readPcd(const std::string& path) {
     for (std::size_t n = 0; n < points; ++n) {
       for (auto& x : v) {
         std::string tok;
-        if (!(in >> tok)) throw Error(path, "ASCII data end after " + std::to_string(n) + " of " +
-                                                std::to_string(points) + " points");
+        if (!(in >> tok))
+          throw Error(path, "ASCII data end after " + std::to_string(n) + " of " +
+                                std::to_string(points) + " points");
         x = tok == "nan" || tok == "NaN" ? NAN : std::strtod(tok.c_str(), nullptr);
       }
       auto at = [&](int k) {
@@ -154,12 +158,13 @@ std::vector<PointXYZI> readPcd(const std::string& path) {
   const std::string rest((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
   if (data == "binary") {
     if (rest.size() / record < points)
-      throw Error(path, "truncated: binary data hold " + std::to_string(rest.size()) +
-                            " bytes, " + std::to_string(points) + " points need " +
+      throw Error(path, "truncated: binary data hold " + std::to_string(rest.size()) + " bytes, " +
+                            std::to_string(points) + " points need " +
                             std::to_string(points * record));
     for (std::size_t n = 0; n < points; ++n) {
       const char* p = rest.data() + n * record;
-      emit(readValue(p + fields[ix].offset, fields[ix]), readValue(p + fields[iy].offset, fields[iy]),
+      emit(readValue(p + fields[ix].offset, fields[ix]),
+           readValue(p + fields[iy].offset, fields[iy]),
            readValue(p + fields[iz].offset, fields[iz]),
            ii >= 0 ? readValue(p + fields[ii].offset, fields[ii]) : 0.0);
     }
@@ -175,12 +180,14 @@ std::vector<PointXYZI> readPcd(const std::string& path) {
                             " bytes announced");
     if (record == 0 || usize / record != points || usize % record != 0)
       throw Error(path, "binary_compressed size " + std::to_string(usize) + " does not match " +
-                            std::to_string(points) + " points of " + std::to_string(record) + " bytes");
+                            std::to_string(points) + " points of " + std::to_string(record) +
+                            " bytes");
     const std::string raw = lzfDecompress(rest.substr(8, csize), usize, path);
     // Field-major: all values of field 0, then of field 1, ...
     auto value = [&](int k, std::size_t n) {
       const auto& f = fields[k];
-      return readValue(raw.data() + f.offset * points + n * std::size_t(f.size) * std::size_t(f.count), f);
+      return readValue(
+          raw.data() + f.offset * points + n * std::size_t(f.size) * std::size_t(f.count), f);
     };
     for (std::size_t n = 0; n < points; ++n)
       emit(value(ix, n), value(iy, n), value(iz, n), ii >= 0 ? value(ii, n) : 0.0);
@@ -197,7 +204,8 @@ void writePcd(const std::string& path, const std::vector<PointXYZI>& points, boo
        << "\nDATA " << (ascii ? "ascii" : "binary") << '\n';
     if (ascii) {
       os.precision(9);
-      for (const auto& p : points) os << p.x << ' ' << p.y << ' ' << p.z << ' ' << p.intensity << '\n';
+      for (const auto& p : points)
+        os << p.x << ' ' << p.y << ' ' << p.z << ' ' << p.intensity << '\n';
     } else {
       os.write(reinterpret_cast<const char*>(points.data()),
                static_cast<std::streamsize>(points.size() * sizeof(PointXYZI)));

@@ -93,14 +93,19 @@ PlyHeader readPlyHeader(const std::string& data, const std::string& path) {
     if (w == "format") {
       std::string f;
       ls >> f;
-      if (f == "ascii") h.format = PlyHeader::Format::kAscii;
-      else if (f == "binary_little_endian") h.format = PlyHeader::Format::kLittle;
-      else if (f == "binary_big_endian") h.format = PlyHeader::Format::kBig;
-      else throw Error(path, "unsupported PLY format '" + f + "'");
+      if (f == "ascii")
+        h.format = PlyHeader::Format::kAscii;
+      else if (f == "binary_little_endian")
+        h.format = PlyHeader::Format::kLittle;
+      else if (f == "binary_big_endian")
+        h.format = PlyHeader::Format::kBig;
+      else
+        throw Error(path, "unsupported PLY format '" + f + "'");
       have_format = true;
     } else if (w == "element") {
       PlyElement e;
-      if (!(ls >> e.name >> e.count)) throw Error(path, "malformed PLY element line '" + line + "'");
+      if (!(ls >> e.name >> e.count))
+        throw Error(path, "malformed PLY element line '" + line + "'");
       h.elements.push_back(e);
     } else if (w == "property") {
       if (h.elements.empty()) throw Error(path, "PLY property before any element");
@@ -166,9 +171,11 @@ std::vector<PointXYZI> readPly(const std::string& path) {
   const std::size_t n = vertex->count;
   const std::size_t body = data.size() - h.data_start;
   // Check the count against the file size before allocating anything.
-  const std::size_t min_bytes = h.format == PlyHeader::Format::kAscii ? 2 * vertex->props.size() : stride;
+  const std::size_t min_bytes =
+      h.format == PlyHeader::Format::kAscii ? 2 * vertex->props.size() : stride;
   if (n > 0 && (body < skip_bytes || (body - skip_bytes) / min_bytes < n))
-    throw Error(path, "truncated PLY: header promises " + std::to_string(n) + " vertices, the file is too short");
+    throw Error(path, "truncated PLY: header promises " + std::to_string(n) +
+                          " vertices, the file is too short");
   std::vector<PointXYZI> pts(n);
   if (h.format == PlyHeader::Format::kAscii) {
     std::istringstream in(data.substr(h.data_start));
@@ -177,7 +184,9 @@ std::vector<PointXYZI> readPly(const std::string& path) {
     std::vector<double> v(vertex->props.size());
     for (std::size_t k = 0; k < n; ++k) {
       for (auto& x : v)
-        if (!(in >> x)) throw Error(path, "truncated PLY: " + std::to_string(k) + " of " + std::to_string(n) + " vertices");
+        if (!(in >> x))
+          throw Error(path, "truncated PLY: " + std::to_string(k) + " of " + std::to_string(n) +
+                                " vertices");
       pts[k] = {float(v[std::size_t(ix)]), float(v[std::size_t(iy)]), float(v[std::size_t(iz)]),
                 ii >= 0 ? float(v[std::size_t(ii)]) : 0.f};
     }
@@ -189,7 +198,8 @@ std::vector<PointXYZI> readPly(const std::string& path) {
     const auto q = static_cast<std::size_t>(prop);
     return static_cast<float>(decodeField(base + k * stride + off[q], vertex->props[q].type, big));
   };
-  for (std::size_t k = 0; k < n; ++k) pts[k] = {get(k, ix), get(k, iy), get(k, iz), ii >= 0 ? get(k, ii) : 0.f};
+  for (std::size_t k = 0; k < n; ++k)
+    pts[k] = {get(k, ix), get(k, iy), get(k, iz), ii >= 0 ? get(k, ii) : 0.f};
   return pts;
 }
 

@@ -1,10 +1,10 @@
 // SPDX-License-Identifier: BSD-3-Clause
 #include "cleanmap/mrpt/convert.h"
 
-#include <mrpt/obs/CObservationPointCloud.h>
-#include <mrpt/math/CMatrixFixed.h>
 #include <mrpt/maps/CSimplePointsMap.h>
+#include <mrpt/math/CMatrixFixed.h>
 #include <mrpt/obs/CObservation3DRangeScan.h>
+#include <mrpt/obs/CObservationPointCloud.h>
 #include <mrpt/obs/CObservationVelodyneScan.h>
 
 #include "cleanmap/core/error.h"

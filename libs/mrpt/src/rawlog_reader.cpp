@@ -111,12 +111,14 @@ struct RawlogSource::Impl {
         eof = true;
         return false;
       }
-      if (entry == 0) throw Error(path, "is not an MRPT rawlog, or is truncated inside its first entry");
+      if (entry == 0)
+        throw Error(path, "is not an MRPT rawlog, or is truncated inside its first entry");
       throw Error(path, "truncated rawlog at entry " + std::to_string(entry) +
                             " (the file ends inside an object)");
     } catch (const std::exception& e) {
       if (entry == 0)
-        throw Error(path, "is not an MRPT rawlog (its first entry is not a serialized MRPT object)");
+        throw Error(path,
+                    "is not an MRPT rawlog (its first entry is not a serialized MRPT object)");
       throw Error(path, "truncated or corrupt rawlog at entry " + std::to_string(entry) + ": " +
                             briefMessage(e));
     }
@@ -179,8 +181,9 @@ RawlogSource::RawlogSource(const std::string& path, const RawlogReadOptions& opt
   while (!impl_->findScan(0) && impl_->readEntry()) {
   }
   if (!impl_->findScan(0))
-    throw Error(path, "holds no point-cloud observations (CObservationPointCloud, "
-                      "CObservationVelodyneScan or CObservation3DRangeScan)");
+    throw Error(path,
+                "holds no point-cloud observations (CObservationPointCloud, "
+                "CObservationVelodyneScan or CObservation3DRangeScan)");
 }
 
 RawlogSource::~RawlogSource() = default;
@@ -221,8 +224,12 @@ std::optional<Frame> RawlogSource::next() {
   return f;
 }
 
-std::optional<PinholeCamera> RawlogSource::camera() const { return impl_->camera; }
+std::optional<PinholeCamera> RawlogSource::camera() const {
+  return impl_->camera;
+}
 
-std::size_t RawlogSource::skippedObservations() const { return impl_->skipped; }
+std::size_t RawlogSource::skippedObservations() const {
+  return impl_->skipped;
+}
 
 }  // namespace cleanmap::mrpt

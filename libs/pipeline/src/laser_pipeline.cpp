@@ -83,7 +83,8 @@ std::unique_ptr<LaserPipeline::Prepared> LaserPipeline::prepare(Frame&& f) {
   s->in_crop.resize(pts.size());
   s->candidate.resize(pts.size());
   for (std::size_t i = 0; i < pts.size(); ++i) {  // DESIGN §2.2: per-axis crop, sensor frame
-    s->in_crop[i] = std::abs(pts[i].x) <= tau && std::abs(pts[i].y) <= tau && std::abs(pts[i].z) <= tau;
+    s->in_crop[i] =
+        std::abs(pts[i].x) <= tau && std::abs(pts[i].y) <= tau && std::abs(pts[i].z) <= tau;
     s->ground[i] = s->ground[i] && s->in_crop[i];
     s->candidate[i] = s->in_crop[i] && !s->ground[i];
     st.in_crop += s->in_crop[i];
@@ -144,7 +145,8 @@ void LaserPipeline::decide(std::size_t pos) {
 std::vector<WindowScan> LaserPipeline::windowAround(std::size_t pos) const {
   std::vector<WindowScan> window;
   for (std::size_t j = 0; j < buf_.size(); ++j)
-    if (j != pos && !buf_[j]->beams.empty()) window.push_back({&buf_[j]->beams, buf_[j]->world_to_sensor});
+    if (j != pos && !buf_[j]->beams.empty())
+      window.push_back({&buf_[j]->beams, buf_[j]->world_to_sensor});
   return window;
 }
 
@@ -179,7 +181,8 @@ void LaserPipeline::sampleLeaves(Prepared& s, Work& w) const {
   const auto t0 = Clock::now();
   std::mt19937_64 rng(p_.seed * 0x9E3779B97F4A7C15ull + static_cast<uint64_t>(s.index));
   w.leaves = planLeaves(w.cand_world, p_.octree, rng);
-  for (const auto& leaf : w.leaves) w.tested.insert(w.tested.end(), leaf.tested.begin(), leaf.tested.end());
+  for (const auto& leaf : w.leaves)
+    w.tested.insert(w.tested.end(), leaf.tested.begin(), leaf.tested.end());
   s.stats.tested = w.tested.size();
   s.stats.ms.octree = msSince(t0);
 }
@@ -192,7 +195,8 @@ void LaserPipeline::classify(const std::vector<WindowScan>& window, Prepared& s,
   std::vector<MovingTestStats> acc(static_cast<std::size_t>(std::max(p_.threads, 1)));
   parallelFor(w.tested.size(), p_.threads, [&](std::size_t t, int worker) {
     const uint32_t c = w.tested[t];
-    w.moving_tested[c] = test_.isMoving(w.cand_world[c], window, &acc[static_cast<std::size_t>(worker)]);
+    w.moving_tested[c] =
+        test_.isMoving(w.cand_world[c], window, &acc[static_cast<std::size_t>(worker)]);
   });
   for (const auto& a : acc) {
     s.stats.total_conflicts += a.total_conflicts;
@@ -223,7 +227,8 @@ void LaserPipeline::objectConsensus(Prepared& s, Work& w) const {
     const double inv = 1.0 / p_.object.persist_radius;
     for (uint32_t i = 0; i < s.scan.size(); ++i)
       if (s.candidate[i])
-        near_prev[i] = prev_moving_cells_.count(cellKeyOf(w.world[i].x(), w.world[i].y(), w.world[i].z(), inv)) > 0;
+        near_prev[i] = prev_moving_cells_.count(
+                           cellKeyOf(w.world[i].x(), w.world[i].y(), w.world[i].z(), inv)) > 0;
   }
   const auto oc = cleanmap::objectConsensus(s.scan.points, s.candidate, w.moving, p_.object,
                                             near_prev.empty() ? nullptr : &near_prev);
@@ -249,9 +254,10 @@ ScanResult LaserPipeline::collect(Prepared& s, const Work& w) const {
     if (!s.in_crop[i]) continue;
     const uint32_t orig = s.scan.originalIndex(i);
     // Ground points were never transformed by the stages above.
-    const Eigen::Vector3d wd = s.ground[i] ? Eigen::Vector3d(s.scan.pose * pts[i].xyz().cast<double>()) : w.world[i];
-    const PointXYZI p{static_cast<float>(wd.x()), static_cast<float>(wd.y()), static_cast<float>(wd.z()),
-                      pts[i].intensity};
+    const Eigen::Vector3d wd =
+        s.ground[i] ? Eigen::Vector3d(s.scan.pose * pts[i].xyz().cast<double>()) : w.world[i];
+    const PointXYZI p{static_cast<float>(wd.x()), static_cast<float>(wd.y()),
+                      static_cast<float>(wd.z()), pts[i].intensity};
     if (s.ground[i]) {
       r.labels[orig] = kGround;
       r.static_full.push_back(p);
@@ -281,9 +287,11 @@ void LaserPipeline::remember(const ScanResult& r, long index) {
   if (!p_.object.enabled || p_.object.persist_radius <= 0) return;
   const double inv = 1.0 / p_.object.persist_radius;
   std::unordered_set<uint64_t> cells;
-  for (const auto& p : r.moving) cells.insert(cellKeyOf(double(p.x), double(p.y), double(p.z), inv));
+  for (const auto& p : r.moving)
+    cells.insert(cellKeyOf(double(p.x), double(p.y), double(p.z), inv));
   for (const uint64_t c : cells)
-    forEachNeighbour27([&](int dx, int dy, int dz) { prev_moving_cells_.insert(cellKeyShift(c, dx, dy, dz)); });
+    forEachNeighbour27(
+        [&](int dx, int dy, int dz) { prev_moving_cells_.insert(cellKeyShift(c, dx, dy, dz)); });
 }
 
 }  // namespace cleanmap

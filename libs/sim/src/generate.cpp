@@ -28,7 +28,8 @@ std::string row3x4(const Eigen::Matrix<double, 3, 4>& m) {
 
 }  // namespace
 
-GenerateSummary generateSequence(const Scenario& sc, const std::string& dir, const GenerateOptions& opt,
+GenerateSummary generateSequence(const Scenario& sc, const std::string& dir,
+                                 const GenerateOptions& opt,
                                  const std::function<void(int, int)>& progress) {
   std::error_code ec;
   for (const char* sub : {"velodyne", "labels", "image_2"}) {
@@ -64,7 +65,8 @@ GenerateSummary generateSequence(const Scenario& sc, const std::string& dir, con
       std::vector<uchar> png;
       if (!cv::imencode(".png", img, png)) throw Error(dir, "PNG encoding failed");
       io::writeFileAtomic(dir + "/image_2/" + stem + ".png", [&](std::ostream& os) {
-        os.write(reinterpret_cast<const char*>(png.data()), static_cast<std::streamsize>(png.size()));
+        os.write(reinterpret_cast<const char*>(png.data()),
+                 static_cast<std::streamsize>(png.size()));
       });
       ++sum.images;
     }
@@ -80,7 +82,10 @@ GenerateSummary generateSequence(const Scenario& sc, const std::string& dir, con
       if (!o.tracked_id || !hits.count(i)) continue;
       if (!object_row.count(o.tracked_id)) {
         object_row[o.tracked_id] = objects.size();
-        objects.push_back({{"id", o.tracked_id}, {"name", o.name}, {"class", o.cls}, {"frames", nlohmann::json::object()}});
+        objects.push_back({{"id", o.tracked_id},
+                           {"name", o.name},
+                           {"class", o.cls},
+                           {"frames", nlohmann::json::object()}});
       }
       const Eigen::Vector3d c = inv * o.center;
       nlohmann::json f = {{"center", {c.x(), c.y(), c.z()}},
@@ -96,9 +101,11 @@ GenerateSummary generateSequence(const Scenario& sc, const std::string& dir, con
   io::writePosesFile(dir + "/poses.txt", cam_poses);
   io::writeFileAtomic(dir + "/times.txt", [&](std::ostream& os) { os << times; });
   io::writeFileAtomic(dir + "/calib.txt", [&](std::ostream& os) {
-    os << "P0: " << row3x4(P0) << "\nP2: " << row3x4(cam.P) << "\nTr: " << row3x4(Tr.matrix().topRows<3>()) << '\n';
+    os << "P0: " << row3x4(P0) << "\nP2: " << row3x4(cam.P)
+       << "\nTr: " << row3x4(Tr.matrix().topRows<3>()) << '\n';
   });
-  io::writeFileAtomic(dir + "/objects.json", [&](std::ostream& os) { os << objects.dump(1) << '\n'; });
+  io::writeFileAtomic(dir + "/objects.json",
+                      [&](std::ostream& os) { os << objects.dump(1) << '\n'; });
   return sum;
 }
 

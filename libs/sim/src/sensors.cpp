@@ -9,9 +9,9 @@
 namespace cleanmap::sim {
 namespace {
 
-constexpr int kSlices = 72;                 // 5 deg azimuth slices: culling unit and, with
-                                            // sweep motion, the time step (1.4 ms)
-constexpr double kIgnoreBeyond = 50.0;      // m horizontal: ignore label, as in ../shared/data
+constexpr int kSlices = 72;             // 5 deg azimuth slices: culling unit and, with
+                                        // sweep motion, the time step (1.4 ms)
+constexpr double kIgnoreBeyond = 50.0;  // m horizontal: ignore label, as in ../shared/data
 
 uint64_t splitmix(uint64_t x) {
   x += 0x9E3779B97F4A7C15ull;
@@ -19,7 +19,9 @@ uint64_t splitmix(uint64_t x) {
   x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
   return x ^ (x >> 31);
 }
-double uniform(uint64_t h) { return (static_cast<double>(h >> 11) + 0.5) * (1.0 / 9007199254740992.0); }
+double uniform(uint64_t h) {
+  return (static_cast<double>(h >> 11) + 0.5) * (1.0 / 9007199254740992.0);
+}
 
 double wrapPi(double a) {
   while (a > M_PI) a -= 2 * M_PI;
@@ -29,7 +31,8 @@ double wrapPi(double a) {
 
 // Solids whose xy bounding circle, seen from the sensor, overlaps azimuths [a_lo, a_hi]
 // (sensor frame), inflated by `margin` metres.
-std::vector<int> cull(const World& w, const Eigen::Isometry3d& pose, double a_lo, double a_hi, double margin) {
+std::vector<int> cull(const World& w, const Eigen::Isometry3d& pose, double a_lo, double a_hi,
+                      double margin) {
   std::vector<int> out;
   const Eigen::Isometry3d inv = pose.inverse();
   const double mid = 0.5 * (a_lo + a_hi), half = 0.5 * (a_hi - a_lo);
@@ -56,8 +59,10 @@ Eigen::Isometry3d reportedPose(const Scenario& sc, int k) {
   Eigen::Vector2d e = Eigen::Vector2d::Zero();
   for (int j = 1; j <= k; ++j)
     for (int a = 0; a < 2; ++a) {
-      const uint64_t h = splitmix(sc.seed * 0x9E3779B97F4A7C15ull ^ (0xD1F7ull << 40) ^ (uint64_t(j) * 2 + a));
-      const double g = std::sqrt(-2 * std::log(uniform(splitmix(h ^ 1)))) * std::cos(2 * M_PI * uniform(splitmix(h ^ 2)));
+      const uint64_t h =
+          splitmix(sc.seed * 0x9E3779B97F4A7C15ull ^ (0xD1F7ull << 40) ^ (uint64_t(j) * 2 + a));
+      const double g = std::sqrt(-2 * std::log(uniform(splitmix(h ^ 1)))) *
+                       std::cos(2 * M_PI * uniform(splitmix(h ^ 2)));
       e[a] += step * g;
     }
   T.translation().head<2>() += e;
@@ -67,13 +72,15 @@ Eigen::Isometry3d reportedPose(const Scenario& sc, int k) {
 SimScan simulateScan(const Scenario& sc, int k, int threads) {
   const auto& elev = hdl64Elevations();
   const int rings = static_cast<int>(elev.size());
-  const int ncol = std::max(kSlices, static_cast<int>(std::lround(360.0 / sc.sensor.azimuth_step_deg)));
+  const int ncol =
+      std::max(kSlices, static_cast<int>(std::lround(360.0 / sc.sensor.azimuth_step_deg)));
   const double t_k = k / sc.rate_hz, sweep = 1.0 / sc.rate_hz;
   SimScan out;
   out.time = t_k;
   out.pose = egoPose(sc, t_k);
   out.reported_pose = reportedPose(sc, k);
-  const std::optional<World> shared = sc.sensor.sweep_motion ? std::nullopt : std::optional<World>(World(sc, t_k));
+  const std::optional<World> shared =
+      sc.sensor.sweep_motion ? std::nullopt : std::optional<World>(World(sc, t_k));
 
   struct Part {
     std::vector<PointXYZI> pts;
@@ -82,46 +89,57 @@ SimScan simulateScan(const Scenario& sc, int k, int threads) {
     std::vector<int> solid;
   };
   std::vector<Part> parts(kSlices);
-  parallelFor(kSlices, threads, [&](std::size_t slice) {  // one slice per chunk
-    const int sl = static_cast<int>(slice);
-    const int c0 = sl * ncol / kSlices, c1 = (sl + 1) * ncol / kSlices;
-    // Columns sweep clockwise from behind the car (azimuth +pi) through the front (0).
-    const auto az = [&](int c) { return M_PI - 2 * M_PI * (c + 0.5) / ncol; };
-    const double t = sc.sensor.sweep_motion ? t_k + ((c0 + c1) * 0.5 / ncol - 0.5) * sweep : t_k;
-    const std::optional<World> own = shared ? std::nullopt : std::optional<World>(World(sc, t));
-    const World& w = shared ? *shared : *own;
-    const Eigen::Isometry3d pose = shared ? out.pose : egoPose(sc, t);
-    const std::vector<int> cand = cull(w, pose, az(c1 - 1) - 1e-3, az(c0) + 1e-3, 0.1);
-    Part& p = parts[sl];
-    p.pts.reserve(static_cast<std::size_t>((c1 - c0) * rings));
-    Hit hit;
-    for (int c = c0; c < c1; ++c) {
-      const double a = az(c), ca = std::cos(a), sa = std::sin(a);
-      for (int r = 0; r < rings; ++r) {
-        const Eigen::Vector3d dl(std::cos(elev[r]) * ca, std::cos(elev[r]) * sa, std::sin(elev[r]));
-        const Eigen::Vector3d dw = pose.linear() * dl;
-        if (!w.intersect(pose.translation(), dw, sc.sensor.max_range, hit, &cand)) continue;
-        const uint64_t id = (static_cast<uint64_t>(k) * 64 + static_cast<uint64_t>(r)) * 100000 + static_cast<uint64_t>(c);
-        const uint64_t h = splitmix(sc.seed * 0x2545F4914F6CDD1Dull ^ id);
-        if (uniform(splitmix(h ^ 1)) < sc.sensor.dropout) continue;
-        const double g = std::sqrt(-2 * std::log(uniform(splitmix(h ^ 2)))) * std::cos(2 * M_PI * uniform(splitmix(h ^ 3)));
-        const double range = hit.t + sc.sensor.range_noise * g;
-        if (range < sc.sensor.min_range || range > sc.sensor.max_range) continue;
-        const Eigen::Vector3d q = dl * range;
-        const double refl = hit.surface == Surface::kGround ? 0.25 : hit.surface == Surface::kMover ? 0.6 : 0.45;
-        p.pts.push_back({float(q.x()), float(q.y()), float(q.z()), float(refl * std::abs(hit.normal.dot(dw)))});
-        uint32_t label = 9;
-        if (hit.surface == Surface::kMover) {
-          const int m = w.solids()[hit.object].motion;
-          label = m > 0 ? 251 : (m == 0 ? 9 : 0);
+  parallelFor(
+      kSlices, threads,
+      [&](std::size_t slice) {  // one slice per chunk
+        const int sl = static_cast<int>(slice);
+        const int c0 = sl * ncol / kSlices, c1 = (sl + 1) * ncol / kSlices;
+        // Columns sweep clockwise from behind the car (azimuth +pi) through the front (0).
+        const auto az = [&](int c) { return M_PI - 2 * M_PI * (c + 0.5) / ncol; };
+        const double t =
+            sc.sensor.sweep_motion ? t_k + ((c0 + c1) * 0.5 / ncol - 0.5) * sweep : t_k;
+        const std::optional<World> own = shared ? std::nullopt : std::optional<World>(World(sc, t));
+        const World& w = shared ? *shared : *own;
+        const Eigen::Isometry3d pose = shared ? out.pose : egoPose(sc, t);
+        const std::vector<int> cand = cull(w, pose, az(c1 - 1) - 1e-3, az(c0) + 1e-3, 0.1);
+        Part& p = parts[sl];
+        p.pts.reserve(static_cast<std::size_t>((c1 - c0) * rings));
+        Hit hit;
+        for (int c = c0; c < c1; ++c) {
+          const double a = az(c), ca = std::cos(a), sa = std::sin(a);
+          for (int r = 0; r < rings; ++r) {
+            const Eigen::Vector3d dl(std::cos(elev[r]) * ca, std::cos(elev[r]) * sa,
+                                     std::sin(elev[r]));
+            const Eigen::Vector3d dw = pose.linear() * dl;
+            if (!w.intersect(pose.translation(), dw, sc.sensor.max_range, hit, &cand)) continue;
+            const uint64_t id =
+                (static_cast<uint64_t>(k) * 64 + static_cast<uint64_t>(r)) * 100000 +
+                static_cast<uint64_t>(c);
+            const uint64_t h = splitmix(sc.seed * 0x2545F4914F6CDD1Dull ^ id);
+            if (uniform(splitmix(h ^ 1)) < sc.sensor.dropout) continue;
+            const double g = std::sqrt(-2 * std::log(uniform(splitmix(h ^ 2)))) *
+                             std::cos(2 * M_PI * uniform(splitmix(h ^ 3)));
+            const double range = hit.t + sc.sensor.range_noise * g;
+            if (range < sc.sensor.min_range || range > sc.sensor.max_range) continue;
+            const Eigen::Vector3d q = dl * range;
+            const double refl = hit.surface == Surface::kGround  ? 0.25
+                                : hit.surface == Surface::kMover ? 0.6
+                                                                 : 0.45;
+            p.pts.push_back({float(q.x()), float(q.y()), float(q.z()),
+                             float(refl * std::abs(hit.normal.dot(dw)))});
+            uint32_t label = 9;
+            if (hit.surface == Surface::kMover) {
+              const int m = w.solids()[hit.object].motion;
+              label = m > 0 ? 251 : (m == 0 ? 9 : 0);
+            }
+            if (q.head<2>().norm() > kIgnoreBeyond) label = 0;
+            p.labels.push_back(label);
+            p.surf.push_back(hit.surface);
+            p.solid.push_back(hit.object);
+          }
         }
-        if (q.head<2>().norm() > kIgnoreBeyond) label = 0;
-        p.labels.push_back(label);
-        p.surf.push_back(hit.surface);
-        p.solid.push_back(hit.object);
-      }
-    }
-  }, 1);
+      },
+      1);
   for (auto& p : parts) {
     out.points.insert(out.points.end(), p.pts.begin(), p.pts.end());
     out.labels.insert(out.labels.end(), p.labels.begin(), p.labels.end());
@@ -139,8 +157,8 @@ PinholeCamera kittiCamera() {
   c.height = 375;
   c.P << 721.5377, 0, 609.5593, 44.85728, 0, 721.5377, 172.854, 0.2163791, 0, 0, 1, 0.002745884;
   Eigen::Matrix3d R;
-  R << 7.533745e-03, -9.999714e-01, -6.166020e-04, 1.480249e-02, 7.280733e-04, -9.998902e-01, 9.998621e-01,
-      7.523790e-03, 1.480755e-02;
+  R << 7.533745e-03, -9.999714e-01, -6.166020e-04, 1.480249e-02, 7.280733e-04, -9.998902e-01,
+      9.998621e-01, 7.523790e-03, 1.480755e-02;
   // Re-orthonormalise so the transform is a true isometry (the published one is to ~1e-6).
   Eigen::JacobiSVD<Eigen::Matrix3d> svd(R, Eigen::ComputeFullU | Eigen::ComputeFullV);
   c.T_cam_lidar.linear() = svd.matrixU() * svd.matrixV().transpose();
@@ -157,7 +175,8 @@ Eigen::Vector3f shade(const World& w, const Hit& h) {
     const double n = uniform(splitmix(uint64_t(int64_t(std::floor(h.uv.x() * 10)) * 73856093) ^
                                       uint64_t(int64_t(std::floor(h.uv.y() * 10)) * 19349663)));
     base = Eigen::Vector3f::Constant(float(0.30 + 0.12 * n));
-    if (h.surface == Surface::kGround && std::abs(h.uv.y()) < 0.08 && std::fmod(std::abs(h.uv.x()), 6.0) < 3.0)
+    if (h.surface == Surface::kGround && std::abs(h.uv.y()) < 0.08 &&
+        std::fmod(std::abs(h.uv.x()), 6.0) < 3.0)
       base = Eigen::Vector3f::Constant(0.9f);
     if (h.object == -2) base = {0.55f, 0.5f, 0.45f};
   } else {
@@ -185,24 +204,29 @@ cv::Mat renderImage(const Scenario& sc, int k, const PinholeCamera& cam, int thr
   const Eigen::Vector3d origin = T_world_lidar * (T_opt_lidar.inverse() * Eigen::Vector3d::Zero());
   const Eigen::Matrix3d Kinv = cam.K().inverse();
   cv::Mat img(cam.height, cam.width, CV_8UC3);
-  parallelFor(static_cast<std::size_t>(cam.height), threads, [&](std::size_t row_index) {
-    const int v = static_cast<int>(row_index);
-    Hit hit;
-    auto* row = img.ptr<cv::Vec3b>(v);
-    for (int u = 0; u < cam.width; ++u) {
-      const Eigen::Vector3d d = (R_world_opt * (Kinv * Eigen::Vector3d(u + 0.5, v + 0.5, 1.0))).normalized();
-      Eigen::Vector3f c;
-      if (w.intersect(origin, d, 300.0, hit)) {
-        c = shade(w, hit);
-        const float fog = float(std::min(1.0, hit.t / 300.0));
-        c = (1 - fog) * c + fog * Eigen::Vector3f(0.85f, 0.8f, 0.75f);
-      } else {
-        const float up = float(std::clamp(d.z() * 3.0, 0.0, 1.0));
-        c = Eigen::Vector3f(0.85f, 0.87f, 0.9f) * (1 - up) + Eigen::Vector3f(0.45f, 0.65f, 0.95f) * up;  // sky (RGB)
-      }
-      row[u] = cv::Vec3b(uchar(255 * c.z()), uchar(255 * c.y()), uchar(255 * c.x()));
-    }
-  }, 8);
+  parallelFor(
+      static_cast<std::size_t>(cam.height), threads,
+      [&](std::size_t row_index) {
+        const int v = static_cast<int>(row_index);
+        Hit hit;
+        auto* row = img.ptr<cv::Vec3b>(v);
+        for (int u = 0; u < cam.width; ++u) {
+          const Eigen::Vector3d d =
+              (R_world_opt * (Kinv * Eigen::Vector3d(u + 0.5, v + 0.5, 1.0))).normalized();
+          Eigen::Vector3f c;
+          if (w.intersect(origin, d, 300.0, hit)) {
+            c = shade(w, hit);
+            const float fog = float(std::min(1.0, hit.t / 300.0));
+            c = (1 - fog) * c + fog * Eigen::Vector3f(0.85f, 0.8f, 0.75f);
+          } else {
+            const float up = float(std::clamp(d.z() * 3.0, 0.0, 1.0));
+            c = Eigen::Vector3f(0.85f, 0.87f, 0.9f) * (1 - up) +
+                Eigen::Vector3f(0.45f, 0.65f, 0.95f) * up;  // sky (RGB)
+          }
+          row[u] = cv::Vec3b(uchar(255 * c.z()), uchar(255 * c.y()), uchar(255 * c.x()));
+        }
+      },
+      8);
   return img;
 }
 

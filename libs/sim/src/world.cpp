@@ -11,7 +11,8 @@ namespace {
 constexpr double kEps = 1e-9;
 
 // Ray / plane n.x = d; returns t or +inf.
-double planeT(const Eigen::Vector3d& o, const Eigen::Vector3d& dir, const Eigen::Vector3d& n, double d) {
+double planeT(const Eigen::Vector3d& o, const Eigen::Vector3d& dir, const Eigen::Vector3d& n,
+              double d) {
   const double den = n.dot(dir);
   if (std::abs(den) < kEps) return std::numeric_limits<double>::infinity();
   const double t = (d - n.dot(o)) / den;
@@ -60,7 +61,8 @@ World::World(const Scenario& sc, double t) : g_(sc.ground) {
     Solid s;
     s.kind = Solid::kBox;
     s.half = 0.5 * b.size;
-    s.center = {b.center.x(), b.center.y(), groundHeight(b.center.x(), b.center.y()) + b.lift + s.half.z()};
+    s.center = {b.center.x(), b.center.y(),
+                groundHeight(b.center.x(), b.center.y()) + b.lift + s.half.z()};
     s.yaw = b.yaw;
     s.surface = Surface::kStatic;
     s.texture = b.texture;
@@ -98,7 +100,8 @@ World::World(const Scenario& sc, double t) : g_(sc.ground) {
     s.tracked_id = ++tracked;
     // Motion truth over +-0.5 s (the data's +-5 scans at 10 Hz).
     const double dist = (alongPath(m.path, moverArc(m, t + 0.5)).head<2>() -
-                         alongPath(m.path, moverArc(m, t - 0.5)).head<2>()).norm();
+                         alongPath(m.path, moverArc(m, t - 0.5)).head<2>())
+                            .norm();
     s.motion = dist > 0.5 ? 1 : (dist < 0.2 ? 0 : -1);
     solids_.push_back(s);
   }
@@ -109,19 +112,23 @@ World::World(const Scenario& sc, double t) : g_(sc.ground) {
   }
 }
 
-double World::groundHeight(double x, double y) const { return sim::groundHeight(g_, x, y); }
+double World::groundHeight(double x, double y) const {
+  return sim::groundHeight(g_, x, y);
+}
 
 double groundHeight(const GroundSpec& g_, double x, double y) {
   double z = g_.slope * x;
   if (std::abs(y) > g_.road_half_width) return z + g_.curb_height;
   if (g_.ramp) {
     const auto& r = *g_.ramp;
-    if (x >= r[0] && x <= r[2] && y >= r[3] && y <= r[4]) z += x < r[1] ? r[5] * (x - r[0]) / (r[1] - r[0]) : r[5];
+    if (x >= r[0] && x <= r[2] && y >= r[3] && y <= r[4])
+      z += x < r[1] ? r[5] * (x - r[0]) / (r[1] - r[0]) : r[5];
   }
   return z;
 }
 
-bool World::intersectGround(const Eigen::Vector3d& o, const Eigen::Vector3d& d, double max_t, Hit& hit) const {
+bool World::intersectGround(const Eigen::Vector3d& o, const Eigen::Vector3d& d, double max_t,
+                            Hit& hit) const {
   bool found = false;
   const double W = g_.road_half_width, slope = g_.slope;
   auto accept = [&](double t, Eigen::Vector3d n, Surface surf, const Eigen::Vector2d& uv) {
@@ -176,12 +183,14 @@ bool World::intersectGround(const Eigen::Vector3d& o, const Eigen::Vector3d& d, 
     double t = planeT(o, d, n_up, -k * x0);
     if (std::isfinite(t)) {
       const Eigen::Vector3d q = o + t * d;
-      if (q.x() >= x0 && q.x() <= x1 && q.y() >= y0 && q.y() <= y1) accept(t, n_up, Surface::kGround, q.head<2>());
+      if (q.x() >= x0 && q.x() <= x1 && q.y() >= y0 && q.y() <= y1)
+        accept(t, n_up, Surface::kGround, q.head<2>());
     }
     t = planeT(o, d, n_road, h);  // plateau
     if (std::isfinite(t)) {
       const Eigen::Vector3d q = o + t * d;
-      if (q.x() > x1 && q.x() <= x2 && q.y() >= y0 && q.y() <= y1) accept(t, n_road, Surface::kGround, q.head<2>());
+      if (q.x() > x1 && q.x() <= x2 && q.y() >= y0 && q.y() <= y1)
+        accept(t, n_road, Surface::kGround, q.head<2>());
     }
     // Sides and end: vertical step faces of the ground, like curbs.
     for (const double yy : {y0, y1}) {
@@ -219,13 +228,15 @@ bool World::intersect(const Eigen::Vector3d& o, const Eigen::Vector3d& d, double
     const Solid& s = solids_[idx];
     // Into the solid's frame (rotation about z by -yaw).
     const Eigen::Vector3d rel = o - s.center;
-    const Eigen::Vector3d lo(s.c * rel.x() + s.s * rel.y(), -s.s * rel.x() + s.c * rel.y(), rel.z());
+    const Eigen::Vector3d lo(s.c * rel.x() + s.s * rel.y(), -s.s * rel.x() + s.c * rel.y(),
+                             rel.z());
     const Eigen::Vector3d ld(s.c * d.x() + s.s * d.y(), -s.s * d.x() + s.c * d.y(), d.z());
     double t_hit = std::numeric_limits<double>::infinity();
     Eigen::Vector3d n_local = Eigen::Vector3d::UnitZ();
     Eigen::Vector2d uv(0, 0);
     if (s.kind == Solid::kBox) {
-      double tmin = -std::numeric_limits<double>::infinity(), tmax = std::numeric_limits<double>::infinity();
+      double tmin = -std::numeric_limits<double>::infinity(),
+             tmax = std::numeric_limits<double>::infinity();
       int axis = -1;
       double sign = 1;
       for (int a = 0; a < 3; ++a) {
@@ -245,7 +256,8 @@ bool World::intersect(const Eigen::Vector3d& o, const Eigen::Vector3d& d, double
       n_local = Eigen::Vector3d::Zero();
       n_local[axis] = sign;
       const Eigen::Vector3d q = lo + tmin * ld;
-      uv = axis == 2 ? Eigen::Vector2d(q.x(), q.y()) : Eigen::Vector2d(axis == 0 ? q.y() : q.x(), q.z());
+      uv = axis == 2 ? Eigen::Vector2d(q.x(), q.y())
+                     : Eigen::Vector2d(axis == 0 ? q.y() : q.x(), q.z());
     } else {
       const double a = ld.x() * ld.x() + ld.y() * ld.y();
       if (a > kEps) {
@@ -275,7 +287,8 @@ bool World::intersect(const Eigen::Vector3d& o, const Eigen::Vector3d& d, double
     }
     if (t_hit <= max_t && t_hit < hit.t) {
       hit.t = t_hit;
-      hit.normal = {s.c * n_local.x() - s.s * n_local.y(), s.s * n_local.x() + s.c * n_local.y(), n_local.z()};
+      hit.normal = {s.c * n_local.x() - s.s * n_local.y(), s.s * n_local.x() + s.c * n_local.y(),
+                    n_local.z()};
       hit.surface = s.surface;
       hit.object = idx;
       hit.uv = uv;
@@ -300,7 +313,8 @@ Eigen::Isometry3d egoPose(const Scenario& sc, double t) {
   const double pitch = -std::atan2(ahead - behind, 2.7);
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
   T.translation() = Eigen::Vector3d(p.x(), p.y(), h + sc.sensor.height);
-  T.linear() = (Eigen::AngleAxisd(p.z(), Eigen::Vector3d::UnitZ()) * Eigen::AngleAxisd(pitch, Eigen::Vector3d::UnitY()))
+  T.linear() = (Eigen::AngleAxisd(p.z(), Eigen::Vector3d::UnitZ()) *
+                Eigen::AngleAxisd(pitch, Eigen::Vector3d::UnitY()))
                    .toRotationMatrix();
   return T;
 }

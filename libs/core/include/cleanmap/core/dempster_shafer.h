@@ -12,7 +12,9 @@ struct Mass {
   double e = 0.0, o = 0.0, u = 1.0;
 };
 
-inline double Phi(double x) { return 0.5 * std::erfc(-x / M_SQRT2); }
+inline double Phi(double x) {
+  return 0.5 * std::erfc(-x / M_SQRT2);
+}
 
 /// Precomputed constants of the noise model F = N(0, sigma^2), sigma^2 = sigma_m^2 + sigma_r^2.
 struct BeamModel {
@@ -101,7 +103,8 @@ inline Consistency xiao(const Mass& a, const Mass& b) {
           a.u * (b.e + b.o) + b.u * (a.e + a.o)};
 }
 
-/// l = r_sup - (r_sup - r_inf) |OP| / |OB| (the unnumbered formula before Eq. 8): stronger belief near the sensor.
+/// l = r_sup - (r_sup - r_inf) |OP| / |OB| (the unnumbered formula before Eq. 8): stronger belief
+/// near the sensor.
 inline double discreteBelief(double range_p, double range_farthest, const DsParams& p) {
   const double ratio = range_farthest > 0 ? std::min(range_p / range_farthest, 1.0) : 1.0;
   return p.r_sup - (p.r_sup - p.r_inf) * ratio;
@@ -117,6 +120,8 @@ inline Mass discretise(const Mass& m, double l) {
 }
 
 /// Decision: moving iff empty is the largest mass of the window's combined evidence.
-inline bool isMoving(const Mass& m) { return m.e > m.o && m.e > m.u; }
+inline bool isMoving(const Mass& m) {
+  return m.e > m.o && m.e > m.u;
+}
 
 }  // namespace cleanmap::ds

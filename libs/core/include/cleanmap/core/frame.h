@@ -20,8 +20,9 @@ struct Image {
 /// One element of a sequence as every reader delivers it.
 struct Frame {
   std::size_t index = 0;
-  std::string stem;    ///< "000123" (KITTI file stem or 6-digit rawlog index), names output files
-  std::string source;  ///< where the scan came from, for messages: a .bin path or "x.rawlog entry 12"
+  std::string stem;  ///< "000123" (KITTI file stem or 6-digit rawlog index), names output files
+  std::string
+      source;  ///< where the scan came from, for messages: a .bin path or "x.rawlog entry 12"
   Scan scan;
   std::optional<Image> image;
 };

@@ -10,19 +10,22 @@
 namespace cleanmap {
 
 /// Exact fixed-radius neighbour test over a static cloud: points sorted into cubic cells of side
-/// `radius`, so a query looks at the 27 cells around it. Memory: the points plus one entry per cell.
+/// `radius`, so a query looks at the 27 cells around it. Memory: the points plus one entry per
+/// cell.
 class RadiusIndex {
  public:
   RadiusIndex(std::vector<Eigen::Vector3f> points, double radius);
   /// True iff some indexed point q has |q - p| <= radius.
   bool hasNeighbour(const Eigen::Vector3f& p) const;
   std::size_t size() const { return pts_.size(); }
-  const std::vector<Eigen::Vector3f>& points() const { return pts_; }  ///< finite input points, cell order
+  const std::vector<Eigen::Vector3f>& points() const {
+    return pts_;
+  }  ///< finite input points, cell order
 
  private:
   bool indexable(const Eigen::Vector3f& p) const;
   uint64_t cellOf(const Eigen::Vector3f& p) const;
-  std::vector<Eigen::Vector3f> pts_;  // sorted by cell
+  std::vector<Eigen::Vector3f> pts_;                                   // sorted by cell
   std::unordered_map<uint64_t, std::pair<uint32_t, uint32_t>> cells_;  // key -> [begin, end)
   double radius_, inv_;
   float r2_;
@@ -56,7 +59,8 @@ class MapScorer {
 /// Object-level grade of paper Table II: f = share of an object's moving points labelled moving.
 enum class ObjectGrade { kDetected, kPartial, kMissed };
 inline ObjectGrade gradeObject(double f) {
-  return f >= 0.9 ? ObjectGrade::kDetected : (f >= 0.1 ? ObjectGrade::kPartial : ObjectGrade::kMissed);
+  return f >= 0.9 ? ObjectGrade::kDetected
+                  : (f >= 0.1 ? ObjectGrade::kPartial : ObjectGrade::kMissed);
 }
 
 }  // namespace cleanmap

@@ -17,8 +17,8 @@ struct WindowScan {
 };
 
 struct MovingTestStats {
-  std::size_t total_conflicts = 0;  ///< Dempster combinations with K = 1 (set to unknown)
-  std::size_t no_evidence = 0;      ///< points that no window scan saw (all unknown)
+  std::size_t total_conflicts = 0;    ///< Dempster combinations with K = 1 (set to unknown)
+  std::size_t no_evidence = 0;        ///< points that no window scan saw (all unknown)
   std::size_t conflicting_scans = 0;  ///< empty scan votes made unknown (DsParams::scan_conflict)
 };
 
@@ -42,8 +42,9 @@ class MovingTest {
  private:
   // The window's combined mass in `acc`; with stop_early, the decision once it cannot change
   // (acc is then partial).
-  std::optional<bool> combineWindow(const Eigen::Vector3d& p_world, const std::vector<WindowScan>& window,
-                                    MovingTestStats* stats, bool stop_early, ds::Mass& acc) const;
+  std::optional<bool> combineWindow(const Eigen::Vector3d& p_world,
+                                    const std::vector<WindowScan>& window, MovingTestStats* stats,
+                                    bool stop_early, ds::Mass& acc) const;
   DsParams p_;
   ds::BeamModel model_;
   double radius_;

@@ -25,7 +25,8 @@ struct ObjectConsensusStats {
 /// `near_previous[i]` (optional): point i lies within p.persist_radius of a moving point of the
 /// previous scan (world frame); it lets a partly moving object stay moving (hysteresis).
 /// Deterministic; O(points).
-ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points, const std::vector<uint8_t>& member,
+ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
+                                     const std::vector<uint8_t>& member,
                                      std::vector<uint8_t>& moving, const ObjectParams& p,
                                      const std::vector<uint8_t>* near_previous = nullptr);
 

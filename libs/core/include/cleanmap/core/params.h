@@ -29,13 +29,13 @@ struct GroundParams {
 
 /// DESIGN §2b: Dempster-Shafer beam model and window.
 struct DsParams {
-  double sigma_m = 0.05;          ///< m; range measurement noise
-  double sigma_r = 0.15;          ///< m; registration noise
-  double lambda_theta = 0.0035;   ///< rad; angular spread of a beam (default from doc/SWEEP.md)
-  double search_lambdas = 3.0;    ///< beams within search_lambdas * lambda_theta are considered
-  double r_sup = 0.8;             ///< discretised belief near the sensor
-  double r_inf = 0.6;             ///< discretised belief at the farthest range
-  int window_k = 10;              ///< K: scans before and after
+  double sigma_m = 0.05;         ///< m; range measurement noise
+  double sigma_r = 0.15;         ///< m; registration noise
+  double lambda_theta = 0.0035;  ///< rad; angular spread of a beam (default from doc/SWEEP.md)
+  double search_lambdas = 3.0;   ///< beams within search_lambdas * lambda_theta are considered
+  double r_sup = 0.8;            ///< discretised belief near the sensor
+  double r_inf = 0.6;            ///< discretised belief at the farthest range
+  int window_k = 10;             ///< K: scans before and after
   /// Our addition (doc/SCAN_CONFLICT.md): a scan votes empty only if its own beams agree. When
   /// its most-empty and most-occupied beams conflict by K = e_max * o_max >= scan_conflict
   /// (foliage, fences, thin poles: some beams pass P, some return at P), the scan's empty vote
@@ -45,8 +45,8 @@ struct DsParams {
 
 /// DESIGN §2c: octree leaf sampling.
 struct OctreeParams {
-  double leaf = 0.3;        ///< m; leaf size (OctoMap key resolution)
-  int tau_np = 6;           ///< leaves with fewer points test all of them
+  double leaf = 0.3;            ///< m; leaf size (OctoMap key resolution)
+  int tau_np = 6;               ///< leaves with fewer points test all of them
   double fraction = 1.0 / 6.0;  ///< share of a dense leaf that is tested
 };
 
@@ -54,12 +54,12 @@ struct OctreeParams {
 /// into connected objects; a rigid object whose points are partly moving is moving as a whole.
 struct ObjectParams {
   bool enabled = true;
-  double voxel = 0.3;           ///< m; connectivity cell (26-neighbours)
-  double moving_fraction = 0.2; ///< an object with at least this share of moving points moves
-  int min_moving = 20;          ///< ... and at least this many moving points
-  double static_fraction = 0.1; ///< an object with a smaller share of moving points is static
-  double max_length = 25.0;     ///< m; larger horizontal extents are structures, left alone
-  double max_height = 5.0;      ///< m; taller objects are structures, left alone
+  double voxel = 0.3;            ///< m; connectivity cell (26-neighbours)
+  double moving_fraction = 0.2;  ///< an object with at least this share of moving points moves
+  int min_moving = 20;           ///< ... and at least this many moving points
+  double static_fraction = 0.1;  ///< an object with a smaller share of moving points is static
+  double max_length = 25.0;      ///< m; larger horizontal extents are structures, left alone
+  double max_height = 5.0;       ///< m; taller objects are structures, left alone
   /// Hysteresis over time: a vehicle-sized object with a share of moving points between
   /// static_fraction and moving_fraction stays moving if most of its points lie within
   /// `persist_radius` of the previous scan's moving points (0 = off).

@@ -20,14 +20,14 @@ static_assert(sizeof(PointXYZI) == 16, "PointXYZI must match the KITTI .bin reco
 /// One sweep. Points are finite; invalid input points were dropped and are remembered through
 /// `original_index` so per-point outputs can be written in the original order (DESIGN §4).
 struct Scan {
-  std::vector<PointXYZI> points;      ///< sensor frame, metres
-  double timestamp = 0.0;             ///< seconds (epoch or sequence-relative, as the input gives)
+  std::vector<PointXYZI> points;  ///< sensor frame, metres
+  double timestamp = 0.0;         ///< seconds (epoch or sequence-relative, as the input gives)
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();  ///< sensor pose in the world
   bool has_pose = false;
   /// original_index[i] = index of points[i] in the input; empty means the identity.
   std::vector<uint32_t> original_index;
-  std::size_t original_size = 0;      ///< number of points in the input, invalid ones included
-  std::size_t dropped_invalid = 0;    ///< NaN / infinite points removed on reading
+  std::size_t original_size = 0;    ///< number of points in the input, invalid ones included
+  std::size_t dropped_invalid = 0;  ///< NaN / infinite points removed on reading
 
   std::size_t size() const { return points.size(); }
   bool empty() const { return points.empty(); }

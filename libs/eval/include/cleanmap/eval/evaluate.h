@@ -21,14 +21,16 @@ struct ResultInput {
 
   /// RESULT is a cleanmap output folder (labels/, static_map_full.ply, report.json, params.ini)
   /// or a map file. `labels_dir` overrides / adds the labels. Throws cleanmap::Error naming RESULT.
-  static ResultInput fromPath(const std::string& result, const std::optional<std::string>& labels_dir);
+  static ResultInput fromPath(const std::string& result,
+                              const std::optional<std::string>& labels_dir);
 };
 
 struct EvalOptions {
-  long first = 0, last = -1;          ///< scan range (indices in the ground truth, inclusive)
-  std::optional<double> crop_tau;     ///< crop of the ground-truth map union; default: the run's, else 30 m
-  double radius = 0.05;               ///< m; DynamicMap "kept" distance
-  std::string pictures_dir;           ///< when set: one bird's-eye PNG per scan + map overview
+  long first = 0, last = -1;  ///< scan range (indices in the ground truth, inclusive)
+  std::optional<double>
+      crop_tau;              ///< crop of the ground-truth map union; default: the run's, else 30 m
+  double radius = 0.05;      ///< m; DynamicMap "kept" distance
+  std::string pictures_dir;  ///< when set: one bird's-eye PNG per scan + map overview
 };
 
 struct ObjectResult {
@@ -36,7 +38,9 @@ struct ObjectResult {
   std::string name, cls;
   uint64_t moving_points = 0;    ///< ground-truth moving points of the object inside the crop
   uint64_t labelled_moving = 0;  ///< of those, labelled moving by the result
-  double fraction() const { return moving_points ? double(labelled_moving) / double(moving_points) : 0.0; }
+  double fraction() const {
+    return moving_points ? double(labelled_moving) / double(moving_points) : 0.0;
+  }
   ObjectGrade grade() const { return gradeObject(fraction()); }
   bool scored() const { return moving_points > 0; }  ///< false: never inside the crop
 };

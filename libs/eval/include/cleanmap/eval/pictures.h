@@ -22,8 +22,9 @@ cv::Mat birdsEyeView(const std::vector<PointXYZI>& points, const Labels& predict
 
 /// Top view of a clean map (grey, brighter = more points) with `leftovers` (e.g. ground-truth
 /// moving points the map still holds) in red. At most max_side pixels on the longer side.
-cv::Mat mapOverview(const std::vector<Eigen::Vector3f>& map, const std::vector<Eigen::Vector3f>& leftovers,
-                    const std::string& title, int max_side = 1600);
+cv::Mat mapOverview(const std::vector<Eigen::Vector3f>& map,
+                    const std::vector<Eigen::Vector3f>& leftovers, const std::string& title,
+                    int max_side = 1600);
 
 struct RocCurvePoint {
   double fpr = 0, tpr = 0;
@@ -33,7 +34,8 @@ struct RocCurve {
   std::vector<RocCurvePoint> points;
 };
 /// TPR vs FPR, one polyline per curve, `marked` drawn as a black ring (the default setting).
-cv::Mat rocPlot(const std::vector<RocCurve>& curves, const RocCurvePoint& marked, const std::string& title);
+cv::Mat rocPlot(const std::vector<RocCurve>& curves, const RocCurvePoint& marked,
+                const std::string& title);
 
 /// Writes a PNG atomically; throws cleanmap::Error naming the file.
 void writePng(const std::string& path, const cv::Mat& image);

@@ -15,7 +15,9 @@ struct RocSetting {
   double sigma_r = 0, lambda_theta = 0;
   MosCounts counts;
   double tpr() const { return counts.recall(); }
-  double fpr() const { return counts.fp + counts.tn ? double(counts.fp) / double(counts.fp + counts.tn) : 0.0; }
+  double fpr() const {
+    return counts.fp + counts.tn ? double(counts.fp) / double(counts.fp + counts.tn) : 0.0;
+  }
 };
 
 struct RocOptions {
@@ -26,9 +28,9 @@ struct RocOptions {
 
 /// Runs the pipeline (base parameters, sigma_r and lambda_theta replaced) once per setting over
 /// the labelled KITTI folder `gt_dir`. `progress(done, total)` after each setting.
-std::vector<RocSetting> rocSweep(const std::string& gt_dir, const PipelineParams& base,
-                                 const RocOptions& opt,
-                                 const std::function<void(std::size_t, std::size_t)>& progress = {});
+std::vector<RocSetting> rocSweep(
+    const std::string& gt_dir, const PipelineParams& base, const RocOptions& opt,
+    const std::function<void(std::size_t, std::size_t)>& progress = {});
 
 /// roc.md (table), roc.json and roc.png (one curve per lambda_theta; `base`'s setting marked)
 /// into `dir`, atomically.

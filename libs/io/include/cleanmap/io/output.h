@@ -47,10 +47,14 @@ class OutputWriter {
   /// `wall_s`: whole run, seconds.
   void finish(double wall_s);
 
-  const std::string& dir() const { return dir_; }          ///< OUTDIR
-  const std::string& staging() const { return staging_; }  ///< where files are written until finish()
+  const std::string& dir() const { return dir_; }  ///< OUTDIR
+  const std::string& staging() const {
+    return staging_;
+  }  ///< where files are written until finish()
   std::size_t scans() const { return stats_.size(); }
-  std::optional<MosCounts> evaluation() const { return has_eval_ ? std::optional(eval_) : std::nullopt; }
+  std::optional<MosCounts> evaluation() const {
+    return has_eval_ ? std::optional(eval_) : std::nullopt;
+  }
 
  private:
   void publish();

@@ -23,7 +23,8 @@ Eigen::Isometry3d toIsometry(const ::mrpt::poses::CPose3D& p);
 /// `source`) if the camera has lens distortion, which our pinhole model cannot represent.
 PinholeCamera fromTCamera(const ::mrpt::img::TCamera& cam,
                           const ::mrpt::poses::CPose3D& cameraPoseOnRobot,
-                          const ::mrpt::poses::CPose3D& lidarPoseOnRobot, const std::string& source);
+                          const ::mrpt::poses::CPose3D& lidarPoseOnRobot,
+                          const std::string& source);
 
 /// Scan from a point-cloud-like observation (CObservationPointCloud, CObservationVelodyneScan,
 /// CObservation3DRangeScan), in the sensor frame, invalid points dropped. nullopt for other types.

@@ -53,7 +53,7 @@ class RawlogWriter {
 };
 
 struct RawlogReadOptions {
-  bool allow_empty_scans = false;  ///< an empty scan is an error unless allowed
+  bool allow_empty_scans = false;      ///< an empty scan is an error unless allowed
   double pose_time_tolerance = 0.01;   ///< s; a robot pose this close to a scan is its pose
   double image_time_tolerance = 0.05;  ///< s; an image this close to a scan goes with it
 };

@@ -20,7 +20,8 @@ struct GenerateSummary {
 
 /// Generates every frame of `sc` into `dir` (created). Each file is written atomically.
 /// `progress(done, total)` after each frame.
-GenerateSummary generateSequence(const Scenario& sc, const std::string& dir, const GenerateOptions& opt,
+GenerateSummary generateSequence(const Scenario& sc, const std::string& dir,
+                                 const GenerateOptions& opt,
                                  const std::function<void(int, int)>& progress = {});
 
 }  // namespace cleanmap::sim

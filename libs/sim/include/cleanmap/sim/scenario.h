@@ -19,14 +19,14 @@ struct SensorSpec {
   double range_noise = 0.01;       ///< m, Gaussian sigma
   double dropout = 0.01;           ///< probability that a ray returns nothing
   double min_range = 2.0, max_range = 120.0;
-  double height = 1.73;            ///< above the ground under the ego
-  bool sweep_motion = false;       ///< ego and movers move during the 0.1 s sweep (no de-skew)
-  bool camera = true;              ///< render image_2/ (KITTI size and calibration)
+  double height = 1.73;       ///< above the ground under the ego
+  bool sweep_motion = false;  ///< ego and movers move during the 0.1 s sweep (no de-skew)
+  bool camera = true;         ///< render image_2/ (KITTI size and calibration)
 };
 
 struct GroundSpec {
-  double slope = 0.0;           ///< grade along x (0.2 = 20 %)
-  double road_half_width = 6.0; ///< |y| <= this is road; beyond, sidewalk raised by curb_height
+  double slope = 0.0;            ///< grade along x (0.2 = 20 %)
+  double road_half_width = 6.0;  ///< |y| <= this is road; beyond, sidewalk raised by curb_height
   double curb_height = 0.0;
   /// Optional ramp on the road: rises linearly over x in [x0, x1] to `height`, plateau to x2,
   /// for y in [y0, y1].

@@ -29,14 +29,15 @@ struct Solid {
   Eigen::Vector3d center = Eigen::Vector3d::Zero();  ///< box centre; cylinder base centre
   Eigen::Vector3d half = Eigen::Vector3d::Ones();    ///< box half sizes (l, w, h)/2
   double yaw = 0, c = 1, s = 0;
-  double radius = 0, height = 0;                     ///< cylinder
-  double bound = 0;                                  ///< xy bounding-circle radius
+  double radius = 0, height = 0;  ///< cylinder
+  double bound = 0;               ///< xy bounding-circle radius
   Surface surface = Surface::kStatic;
   Texture texture = Texture::kChecker;
   Eigen::Vector3f colour{0.5f, 0.5f, 0.5f};
   int tracked_id = 0;  ///< objects.json id, 0 if not tracked
   std::string name, cls;
-  /// Motion truth (movers): 1 moving, 0 static, -1 uncertain (the labelled data's rules: > 0.5 m over
+  /// Motion truth (movers): 1 moving, 0 static, -1 uncertain (the labelled data's rules: > 0.5 m
+  /// over
   /// +-0.5 s is moving, < 0.2 m is static).
   int motion = 0;
 };
@@ -54,7 +55,8 @@ class World {
   double groundHeight(double x, double y) const;
 
  private:
-  bool intersectGround(const Eigen::Vector3d& o, const Eigen::Vector3d& d, double max_t, Hit& hit) const;
+  bool intersectGround(const Eigen::Vector3d& o, const Eigen::Vector3d& d, double max_t,
+                       Hit& hit) const;
   GroundSpec g_;
   std::vector<Solid> solids_;
 };
