@@ -7,6 +7,7 @@ PACKAGES=(
   libmrpt-dev mrpt-apps mrpt-common
   liboctomap-dev libopencv-dev libeigen3-dev nlohmann-json3-dev
   libgtest-dev libbenchmark-dev
+  clang-format-14  # pinned: `make format` and the style.format test use this exact version
 )
 missing=()
 for p in "${PACKAGES[@]}"; do

@@ -1,0 +1,17 @@
+#!/usr/bin/env bash
+# SPDX-License-Identifier: BSD-3-Clause
+# Fails if a C++ file differs from its clang-format-14 form (the Debian 12 package that
+# cmake/install-deps.sh installs; `make format` applies it).
+# usage: check-format.sh SOURCE_DIR
+set -uo pipefail
+cd "$1" || exit 1
+command -v clang-format-14 >/dev/null || { echo "FAIL: clang-format-14 not installed (make deps)"; exit 1; }
+files=$( (git ls-files '*.cpp' '*.h' 2>/dev/null || find libs apps tests -name '*.cpp' -o -name '*.h') )
+[[ -n $files ]] || { echo "FAIL: no C++ files found"; exit 1; }
+bad=$(for f in $files; do clang-format-14 --style=file "$f" | cmp -s - "$f" || echo "$f"; done)
+if [[ -n $bad ]]; then
+  echo "FAIL: not formatted (run 'make format'):"
+  echo "$bad" | sed 's/^/  /'
+  exit 1
+fi
+echo "check-format: $(echo "$files" | wc -w) files formatted"
