@@ -35,8 +35,19 @@ struct LaserPipeline::Prepared {
   ScanStats stats;
 };
 
-/// The scan being decided, computed once and passed down the stages.
+/// The scan being decided, computed once and passed down the stages. One instance lives as long
+/// as the pipeline: clear() keeps the capacity, so steady state allocates nothing per scan here.
 struct LaserPipeline::Work {
+  void clear() {
+    world.clear();
+    duplicate.clear();
+    cand.clear();
+    cand_world.clear();
+    leaves.clear();
+    tested.clear();
+    moving_tested.clear();
+    moving.clear();
+  }
   std::vector<Eigen::Vector3d> world;  // candidates' world coordinates (others left zero)
   std::vector<uint8_t> duplicate;      // DESIGN §2.3
   std::vector<uint32_t> cand;          // candidates that are not duplicates: what is tested
@@ -51,7 +62,8 @@ LaserPipeline::LaserPipeline(const PipelineParams& params, Sink sink)
     : p_((validate(params, "parameters"), params)),
       sink_(std::move(sink)),
       test_(params.ds),
-      dup_(params.filter) {}
+      dup_(params.filter),
+      work_(std::make_unique<Work>()) {}
 
 LaserPipeline::~LaserPipeline() = default;
 
@@ -128,7 +140,8 @@ void LaserPipeline::decide(std::size_t pos) {
   const auto t_start = Clock::now();
   const std::vector<WindowScan> window = windowAround(pos);
   s.stats.window = window.size();
-  Work w;
+  Work& w = *work_;
+  w.clear();
   findDuplicates(s, w);          // §2.3
   sampleLeaves(s, w);            // §2c
   classify(window, s, w);        // §2b

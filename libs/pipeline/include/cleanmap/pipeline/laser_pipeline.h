@@ -56,6 +56,7 @@ class LaserPipeline {
   std::size_t decided_ = 0;
   long prev_index_ = -1;
   std::unordered_set<uint64_t> prev_moving_cells_;  // last decided scan's moving cells, dilated
+  std::unique_ptr<Work> work_;  // the stages' buffers, reused from scan to scan (no page faults)
 };
 
 }  // namespace cleanmap
