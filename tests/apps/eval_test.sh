@@ -4,7 +4,7 @@
 # the report folder with pictures, roc, summary, and one clear error line per bad input.
 # usage: eval_test.sh BIN_DIR DATA_DIR SCRATCH
 set -uo pipefail
-bin=$1 data=$2 scratch=$3
+bin=$1 data=${CLEANMAP_DATA_DIR:-$2} scratch=$3  # the env variable wins, as for the unit tests
 rm -rf "$scratch" && mkdir -p "$scratch"
 source "$(dirname "$0")/common.sh"
 

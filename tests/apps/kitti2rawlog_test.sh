@@ -4,7 +4,7 @@
 # error line plus a non-zero exit for each kind of bad input.
 # usage: kitti2rawlog_test.sh BIN_DIR DATA_DIR SCRATCH
 set -uo pipefail
-bin=$1 data=$2 scratch=$3
+bin=$1 data=${CLEANMAP_DATA_DIR:-$2} scratch=$3  # the env variable wins, as for the unit tests
 rm -rf "$scratch" && mkdir -p "$scratch"
 source "$(dirname "$0")/common.sh"
 
