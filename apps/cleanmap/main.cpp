@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: BSD-3-Clause
 // cleanmap: moving-object removal over a KITTI folder or an MRPT rawlog (DESIGN §2, §4).
+#include <unistd.h>
 #include <chrono>
+
 #include <csignal>
 #include <cstdio>
 #include <filesystem>
@@ -52,7 +54,7 @@ INPUT                a KITTI odometry/SemanticKITTI or raw folder, or an MRPT .r
 --first N, --last M  process scans N..M only (indices in the input, inclusive)
 --poses given        use the input's poses (default; KITTI poses.txt / OXTS, rawlog
                      CObservationRobotPose). `gicp` (registration) is not available yet.
---quiet              no progress line
+--quiet              no progress line (there is none when stderr is not a terminal)
 Scans without any valid point (0-byte .bin, all NaN) are kept as empty scans: labelled 0,
 counted in report.json (empty_scans) and in one warning line.
 Exit status: 0 done, 1 error (one line naming the file), 2 bad command line, 130 / 143
@@ -100,6 +102,7 @@ int main(int argc, char** argv) {
   if (poses != "given" && poses != "gicp") args.fail("--poses is 'given' or 'gicp'");
   if (last >= 0 && last < first) args.fail("--last must be >= --first");
 
+  quiet = quiet || !::isatty(STDERR_FILENO);  // progress lines only on a terminal, not in logs
   std::signal(SIGINT, onSignal);
   std::signal(SIGTERM, onSignal);
   try {

@@ -43,6 +43,13 @@ for sig in INT TERM; do
 done
 ls -A "$scratch" | grep -q '\.tmp\.' && fail "temporary files left beside the outputs"
 
+# An error in the middle of a run (a truncated scan) also leaves the earlier run as it was.
+cp -r "$seq" "$scratch/cut"; rm -f "$scratch/cut/sequence.rawlog"
+truncate -s 1000 "$scratch/cut/velodyne/000015.bin"
+expect_error 1 "000015.bin: truncated scan" "$bin/cleanmap" "$scratch/cut" -o "$scratch/out"
+[[ "$(cat "$scratch/out/report.json")" == "$before" ]] || fail "a failed run touched the earlier run"
+[[ $(ls -A "$scratch" | grep -c cleanmap-staging) -eq 0 ]] || fail "a failed run left its staging folder"
+
 # cleanmap-eval refuses a folder that is no finished run.
 mkdir -p "$scratch/half/labels"; cp "$scratch/out/labels/000000.label" "$scratch/half/labels/"
 expect_error 1 "not a finished cleanmap run" "$bin/cleanmap-eval" "$seq" "$scratch/half"
@@ -83,6 +90,8 @@ expect_error 1 "random.rawlog: is not an MRPT rawlog" "$bin/cleanmap" "$scratch/
 expect_error 1 "random.rawlog: is not an MRPT rawlog" "$bin/cleanmap-info" "$scratch/random.rawlog"
 cp -r "$seq" "$scratch/noposes"; rm "$scratch/noposes/poses.txt" "$scratch/noposes/sequence.rawlog"
 expect_error 1 "velodyne/000000.bin: has no pose" "$bin/cleanmap" "$scratch/noposes" -o "$scratch/x"
+"$bin/cleanmap-kitti2rawlog" "$scratch/noposes" "$scratch/noposes.rawlog" >/dev/null || fail "conversion failed"
+expect_error 1 "noposes.rawlog entry 0: has no pose" "$bin/cleanmap" "$scratch/noposes.rawlog" -o "$scratch/x"
 [[ -e $scratch/x ]] && fail "a failed run created its output folder"
 expect_error 2 "unknown option" "$bin/cleanmap" "$seq" -o "$scratch/x" --bogus
 
