@@ -52,8 +52,10 @@ INPUT                a KITTI odometry/SemanticKITTI or raw folder, or an MRPT .r
 --threads N          worker threads for the moving-point test (default 2; results do not depend on it)
 --seed S             seed of the octree sampling (default 42; same seed, same output bit for bit)
 --first N, --last M  process scans N..M only (indices in the input, inclusive)
---poses given        use the input's poses (default; KITTI poses.txt / OXTS, rawlog
-                     CObservationRobotPose). `gicp` (registration) is not available yet.
+--poses SOURCE       given: the input's poses (KITTI poses.txt / OXTS, rawlog CObservationRobotPose);
+                     gicp: GICP scan-to-map odometry (DESIGN §2.1; a given first pose anchors it);
+                     refine: GICP started from each given pose. Default: given when the first
+                     scan has a pose, gicp otherwise. report.json says what each scan used.
 --quiet              no progress line (there is none when stderr is not a terminal)
 Scans without any valid point (0-byte .bin, all NaN) are kept as empty scans: labelled 0,
 counted in report.json (empty_scans) and in one warning line.
@@ -65,7 +67,7 @@ interrupted by SIGINT / SIGTERM (nothing written to DIR).
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::string input, outdir, config, poses = "given";
+  std::string input, outdir, config, poses = "auto";
   long threads = -1, first = 0, last = -1;
   long long seed = -1;
   bool quiet = false, progress_shown = false, force = false;
@@ -99,17 +101,14 @@ int main(int argc, char** argv) {
       args.unexpected(a);
   }
   if (input.empty() || outdir.empty()) args.fail("need INPUT and -o OUTDIR");
-  if (poses != "given" && poses != "gicp") args.fail("--poses is 'given' or 'gicp'");
+  if (poses != "auto" && poses != "given" && poses != "gicp" && poses != "refine")
+    args.fail("--poses is given, gicp or refine");
   if (last >= 0 && last < first) args.fail("--last must be >= --first");
 
   quiet = quiet || !::isatty(STDERR_FILENO);  // progress lines only on a terminal, not in logs
   std::signal(SIGINT, onSignal);
   std::signal(SIGTERM, onSignal);
   try {
-    if (poses == "gicp")
-      throw cleanmap::Error(input,
-                            "--poses gicp: GICP registration is not implemented yet; "
-                            "use an input with poses (--poses given)");
     {  // never write into the input: its labels/ would be replaced by ours
       std::error_code ec;
       if (std::filesystem::exists(outdir, ec) && std::filesystem::equivalent(outdir, input, ec))
@@ -119,6 +118,10 @@ int main(int argc, char** argv) {
     if (!config.empty()) cleanmap::io::loadParams(config, params);
     if (threads > 0) params.threads = static_cast<int>(threads);
     if (seed >= 0) params.seed = static_cast<uint64_t>(seed);
+    params.poses = poses == "given"    ? cleanmap::PoseSource::kGiven
+                   : poses == "gicp"   ? cleanmap::PoseSource::kGicp
+                   : poses == "refine" ? cleanmap::PoseSource::kRefine
+                                       : cleanmap::PoseSource::kAuto;
 
     cleanmap::mrpt::InputOptions in_opts;
     in_opts.allow_empty_scans = true;  // counted in the report

@@ -89,10 +89,23 @@ head -c 20000 /dev/urandom >"$scratch/random.rawlog"
 expect_error 1 "random.rawlog: is not an MRPT rawlog" "$bin/cleanmap" "$scratch/random.rawlog" -o "$scratch/x"
 expect_error 1 "random.rawlog: is not an MRPT rawlog" "$bin/cleanmap-info" "$scratch/random.rawlog"
 cp -r "$seq" "$scratch/noposes"; rm "$scratch/noposes/poses.txt" "$scratch/noposes/sequence.rawlog"
-expect_error 1 "velodyne/000000.bin: has no pose" "$bin/cleanmap" "$scratch/noposes" -o "$scratch/x"
+expect_error 1 "velodyne/000000.bin: has no pose" "$bin/cleanmap" "$scratch/noposes" -o "$scratch/x" --poses given
 "$bin/cleanmap-kitti2rawlog" "$scratch/noposes" "$scratch/noposes.rawlog" >/dev/null || fail "conversion failed"
-expect_error 1 "noposes.rawlog entry 0: has no pose" "$bin/cleanmap" "$scratch/noposes.rawlog" -o "$scratch/x"
+expect_error 1 "noposes.rawlog entry 0: has no pose" "$bin/cleanmap" "$scratch/noposes.rawlog" -o "$scratch/x" --poses given
+expect_error 1 "has no pose to refine" "$bin/cleanmap" "$scratch/noposes.rawlog" -o "$scratch/x" --poses refine
 [[ -e $scratch/x ]] && fail "a failed run created its output folder"
+expect_error 2 "--poses is given, gicp or refine" "$bin/cleanmap" "$seq" -o "$scratch/x" --poses odometry
+
+# Without poses, the run estimates them (GICP odometry, DESIGN §2.1) and says so per scan.
+"$bin/cleanmap" "$scratch/noposes" -o "$scratch/gicp" --last 5 >/dev/null || fail "an unposed input did not run"
+grep -q '"source": "gicp"' "$scratch/gicp/report.json" || fail "report.json does not say the poses came from gicp"
+[[ $(wc -l <"$scratch/gicp/poses_tum.txt") -eq 6 ]] || fail "poses_tum.txt does not hold 6 poses"
+# MRPT's own one-scan VLP-16 rawlog (no pose): a window of one.
+vlp=/usr/share/mrpt/datasets/test_velodyne_VLP16.rawlog
+if [[ -f $vlp ]]; then
+  "$bin/cleanmap" "$vlp" -o "$scratch/vlp" >/dev/null || fail "the one-scan VLP-16 rawlog did not run"
+  [[ -f $scratch/vlp/labels/000000.label ]] || fail "no labels for the VLP-16 scan"
+fi
 expect_error 2 "unknown option" "$bin/cleanmap" "$seq" -o "$scratch/x" --bogus
 
 [[ $fails -eq 0 ]] && echo "cleanmap_test: all checks passed"

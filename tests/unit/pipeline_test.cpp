@@ -200,12 +200,32 @@ TEST(Pipeline, DegenerateInputs) {
     EXPECT_TRUE(out[1].stats.empty);
     EXPECT_TRUE(out[1].labels.empty());
   }
-  {  // a scan without a pose is a clear error naming where the scan came from
-    LaserPipeline pl(p, [](ScanResult&&) {});
+  {  // with --poses given, a scan without a pose is a clear error naming where it came from
+    PipelineParams given = p;
+    given.poses = PoseSource::kGiven;
+    LaserPipeline pl(given, [](ScanResult&&) {});
     Frame f = castScene(0, 0, 10, nullptr);
     f.scan.has_pose = false;
     f.source = "drive.rawlog entry 17";
     test::expectError([&] { pl.push(std::move(f)); }, "drive.rawlog entry 17", "has no pose");
+  }
+  {  // by default the poses of a posed input are used: a later scan without one is an error
+    LaserPipeline pl(p, [](ScanResult&&) {});
+    pl.push(castScene(0, 0, 10, nullptr));
+    Frame f = castScene(1, 1, 10, nullptr);
+    f.scan.has_pose = false;
+    f.source = "seq/velodyne/000001.bin";
+    test::expectError([&] { pl.push(std::move(f)); }, "000001.bin",
+                      "has no pose while the first scan had one");
+  }
+  {  // --poses refine needs poses to refine
+    PipelineParams refine = p;
+    refine.poses = PoseSource::kRefine;
+    LaserPipeline pl(refine, [](ScanResult&&) {});
+    Frame f = castScene(0, 0, 10, nullptr);
+    f.scan.has_pose = false;
+    f.source = "x.bin";
+    test::expectError([&] { pl.push(std::move(f)); }, "x.bin", "has no pose to refine");
   }
   {  // parameters are validated by the pipeline itself, not only when read from a file
     PipelineParams bad = p;

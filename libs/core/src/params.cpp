@@ -36,6 +36,21 @@ void validate(const PipelineParams& p, const std::string& name) {
           "object.max_length and max_height must be > 0");
   require(p.object.persist_radius >= 0 && p.object.persist_radius <= 10,
           "object.persist_radius must be in [0, 10] m (0 = off)");
+  const auto& r = p.registration;
+  require(0 <= r.min_range && r.min_range < r.max_range,
+          "need 0 <= registration.min_range < max_range");
+  require(r.voxel > 0 && r.align_voxel >= r.voxel, "need 0 < registration.voxel <= align_voxel");
+  require(r.knn >= 5, "registration.knn must be >= 5");
+  require(r.plane_epsilon > 0 && r.plane_epsilon < 1,
+          "registration.plane_epsilon must be in (0, 1)");
+  require(r.max_correspondence > 0 && r.kernel > 0,
+          "registration.max_correspondence and kernel must be > 0");
+  require(r.max_iterations >= 1 && r.map_points_per_voxel >= 1,
+          "registration.max_iterations and map_points_per_voxel must be >= 1");
+  require(r.map_radius > r.max_correspondence,
+          "registration.map_radius must exceed max_correspondence");
+  require(r.max_speed > 0 && r.max_turn_rate > 0,
+          "registration.max_speed and max_turn_rate must be > 0");
   require(p.threads >= 1, "run.threads must be >= 1");
 }
 

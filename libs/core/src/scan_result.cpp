@@ -4,6 +4,7 @@
 namespace cleanmap {
 
 StageTimes& StageTimes::operator+=(const StageTimes& o) {
+  registration += o.registration;
   index += o.index;
   ground += o.ground;
   duplicates += o.duplicates;

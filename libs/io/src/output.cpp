@@ -12,6 +12,7 @@
 #include <algorithm>
 #include <cstdio>
 #include <filesystem>
+#include <map>
 #include <nlohmann/json.hpp>
 
 #include "cleanmap/core/error.h"
@@ -133,6 +134,8 @@ void OutputWriter::write(const ScanResult& r, const std::optional<MosCounts>& ev
   full_->append(r.static_full);
   moving_->append(r.moving);
   poses_.push_back(r.pose);
+  times_.push_back(r.timestamp);
+  pose_info_.push_back(r.pose_info);
   stats_.push_back(r.stats);
   stems_.push_back(r.stem);
   if (eval) {
@@ -169,13 +172,24 @@ void OutputWriter::finish(double wall_s) {
   full_->close();
   moving_->close();
   writePosesFile(staging_ + "/poses.txt", poses_);
+  writeFileAtomic(staging_ + "/poses_tum.txt", [&](std::ostream& os) {  // TUM: t x y z qx qy qz qw
+    char buf[256];
+    for (std::size_t i = 0; i < poses_.size(); ++i) {
+      const Eigen::Quaterniond q(poses_[i].linear());
+      const Eigen::Vector3d t = poses_[i].translation();
+      std::snprintf(buf, sizeof buf, "%.6f %.9f %.9f %.9f %.9f %.9f %.9f %.9f\n", times_[i], t.x(),
+                    t.y(), t.z(), q.x(), q.y(), q.z(), q.w());
+      os << buf;
+    }
+  });
   writeFileAtomic(staging_ + "/params.ini", [&](std::ostream& os) { os << toIni(params_); });
 
   ScanStats total;
-  std::vector<double> t_total, t_index, t_ground, t_dup, t_oct, t_cls, t_obj;
+  std::vector<double> t_total, t_reg, t_index, t_ground, t_dup, t_oct, t_cls, t_obj;
   for (const auto& s : stats_) {
     total += s;
     t_total.push_back(s.ms.total);
+    t_reg.push_back(s.ms.registration);
     t_index.push_back(s.ms.index);
     t_ground.push_back(s.ms.ground);
     t_dup.push_back(s.ms.duplicates);
@@ -210,14 +224,32 @@ void OutputWriter::finish(double wall_s) {
                  {"dynamic_points", moving_->count()}};
   nlohmann::json timing;
   const std::pair<const char*, std::vector<double>*> stages[] = {
-      {"total", &t_total},    {"beam_index", &t_index}, {"crop_ground", &t_ground},
-      {"duplicates", &t_dup}, {"octree", &t_oct},       {"classify", &t_cls},
-      {"objects", &t_obj}};
+      {"total", &t_total},        {"registration", &t_reg}, {"beam_index", &t_index},
+      {"crop_ground", &t_ground}, {"duplicates", &t_dup},   {"octree", &t_oct},
+      {"classify", &t_cls},       {"objects", &t_obj}};
   for (const auto& [name, v] : stages) {
     const Spread s = spread(*v);
     timing[name] = {{"median_ms", s.median}, {"p95_ms", s.p95}, {"mean_ms", s.mean}};
   }
   j["timing_per_scan"] = timing;
+  {  // DESIGN §2.1: the pose source of each scan, and the alignment's figures
+    nlohmann::json per = nlohmann::json::array();
+    std::map<std::string, std::size_t> by_status;
+    for (std::size_t i = 0; i < pose_info_.size(); ++i) {
+      const PoseInfo& p = pose_info_[i];
+      ++by_status[p.status];
+      per.push_back({{"scan", stems_[i]},
+                     {"source", p.source},
+                     {"status", p.status},
+                     {"accepted", p.accepted},
+                     {"iterations", p.iterations},
+                     {"fitness", p.fitness},
+                     {"rmse_m", p.rmse}});
+    }
+    j["registration"] = {{"source", pose_info_.empty() ? "given" : pose_info_.front().source},
+                         {"status_counts", by_status},
+                         {"per_scan", per}};
+  }
   j["wall_s"] = wall_s;
   j["threads"] = params_.threads;
   j["peak_rss_mib"] = peakRssMiB();

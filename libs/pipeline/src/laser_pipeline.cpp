@@ -12,6 +12,7 @@
 #include "cleanmap/core/object_consensus.h"
 #include "cleanmap/core/octree_sampling.h"
 #include "cleanmap/core/parallel.h"
+#include "cleanmap/registration/odometry.h"
 
 namespace cleanmap {
 namespace {
@@ -32,6 +33,7 @@ struct LaserPipeline::Prepared {
   std::vector<uint8_t> ground;     // DESIGN §2a, within the crop
   std::vector<uint8_t> candidate;  // in the crop and not ground: what the stages decide
   Eigen::Isometry3d world_to_sensor;
+  PoseInfo pose_info;
   ScanStats stats;
 };
 
@@ -63,16 +65,51 @@ LaserPipeline::LaserPipeline(const PipelineParams& params, Sink sink)
       sink_(std::move(sink)),
       test_(params.ds),
       dup_(params.filter),
-      work_(std::make_unique<Work>()) {}
+      work_(std::make_unique<Work>()),
+      source_(params.poses) {}
 
 LaserPipeline::~LaserPipeline() = default;
 
-std::unique_ptr<LaserPipeline::Prepared> LaserPipeline::prepare(Frame&& f) {
-  if (!f.scan.has_pose)
+// DESIGN §2.1: the scan's pose, given or estimated by GICP odometry.
+PoseInfo LaserPipeline::registerScan(Frame& f) {
+  if (source_ == PoseSource::kAuto)
+    source_ = f.scan.has_pose ? PoseSource::kGiven : PoseSource::kGicp;
+  PoseInfo info;
+  if (source_ == PoseSource::kGiven) return info;
+  if (source_ == PoseSource::kRefine && !f.scan.has_pose)
     throw Error(f.source.empty() ? "scan " + f.stem : f.source,
-                "has no pose: give a posed input (KITTI poses.txt / OXTS, rawlog "
-                "CObservationRobotPose); GICP registration (--poses gicp) is not available yet");
+                "has no pose to refine (--poses refine)");
+  if (!odo_) odo_ = std::make_unique<reg::Odometry>(p_.registration, p_.threads);
+  std::optional<Eigen::Isometry3d> prior;
+  // refine: every given pose is the guess; gicp: a given first pose anchors the trajectory, so
+  // the maps share the input's world frame (and can be scored against its labels).
+  if (source_ == PoseSource::kRefine || (odo_->map().empty() && f.scan.has_pose))
+    prior = f.scan.pose;
+  const reg::OdometryStep step =
+      odo_->track(f.scan.points, f.scan.timestamp, static_cast<int64_t>(f.index), prior);
+  f.scan.pose = step.pose;
+  f.scan.has_pose = true;
+  info.source = source_ == PoseSource::kRefine ? "refine" : "gicp";
+  info.status = step.status;
+  info.accepted = step.accepted;
+  info.iterations = step.gicp.iterations;
+  info.fitness = step.gicp.fitness;
+  info.rmse = step.gicp.rmse;
+  return info;
+}
+
+std::unique_ptr<LaserPipeline::Prepared> LaserPipeline::prepare(Frame&& f) {
+  const auto t_reg = Clock::now();
+  PoseInfo pose_info = registerScan(f);
+  const double ms_registration = msSince(t_reg);
+  if (!f.scan.has_pose)
+    throw Error(
+        f.source.empty() ? "scan " + f.stem : f.source,
+        "has no pose while the first scan had one: give every scan a pose, or estimate them all "
+        "with --poses gicp");
   auto s = std::make_unique<Prepared>();
+  s->pose_info = std::move(pose_info);
+  s->stats.ms.registration = ms_registration;
   s->index = f.index;
   s->stem = std::move(f.stem);
   s->source = std::move(f.source);
@@ -149,7 +186,10 @@ void LaserPipeline::decide(std::size_t pos) {
   objectConsensus(s, w);         // doc/OBJECTS.md
   ScanResult r = collect(s, w);  // §2.7: labels, static map, dynamic layer
   remember(r, static_cast<long>(s.index));
-  r.stats.ms.total = msSince(t_start) + s.stats.ms.index + s.stats.ms.ground;
+  if (odo_)
+    odo_->dropPoints(static_cast<int64_t>(s.index), w.moving);  // movers leave the local map
+  r.stats.ms.total =
+      msSince(t_start) + s.stats.ms.registration + s.stats.ms.index + s.stats.ms.ground;
   ++decided_;
   sink_(std::move(r));
 }
@@ -261,6 +301,7 @@ ScanResult LaserPipeline::collect(Prepared& s, const Work& w) const {
   r.source = s.source;
   r.timestamp = s.scan.timestamp;
   r.pose = s.scan.pose;
+  r.pose_info = s.pose_info;
   r.labels.assign(s.stats.points, kUnclassified);
   const auto& pts = s.scan.points;
   for (uint32_t i = 0; i < pts.size(); ++i) {

@@ -66,14 +66,41 @@ struct ObjectParams {
   double persist_radius = 1.5;  ///< m
 };
 
+/// DESIGN §2.1: GICP scan-to-map odometry (used with --poses gicp / refine, or when the input has
+/// no poses).
+struct RegistrationParams {
+  double min_range = 2.0;       ///< m; nearer returns (the car itself) are not aligned
+  double max_range = 80.0;      ///< m
+  double voxel = 0.5;           ///< m; the scan is downsampled to this for covariances and the map
+  double align_voxel = 1.0;     ///< m; the subset aligned (one point per voxel of this size)
+  int knn = 10;                 ///< neighbours of a covariance (within 2 voxel)
+  double plane_epsilon = 1e-3;  ///< GICP plane regularisation: eigenvalues (eps, 1, 1)
+  double max_correspondence = 1.0;  ///< m; also the map voxel
+  double kernel = 0.3;              ///< m; Geman-McClure scale
+  int max_iterations = 30;
+  int map_points_per_voxel = 20;
+  double map_radius = 100.0;   ///< m; the local map forgets what lies farther
+  double max_speed = 50.0;     ///< m/s; a faster step is a failed alignment (a jump)
+  double max_turn_rate = 1.5;  ///< rad/s; likewise
+  /// Undo the motion during the sweep before aligning (constant velocity; a point's time from its
+  /// azimuth, the sweep running clockwise from the rear as on KITTI's HDL-64E). 0 = off.
+  bool deskew = false;
+};
+
+/// Where scan poses come from (DESIGN §2.1): `kAuto` is `kGiven` when the first scan has a pose
+/// and `kGicp` otherwise; `kRefine` starts GICP from the given poses.
+enum class PoseSource { kAuto, kGiven, kGicp, kRefine };
+
 struct PipelineParams {
   FilterParams filter;
   GroundParams ground;
   DsParams ds;
   OctreeParams octree;
   ObjectParams object;
-  uint64_t seed = 42;  ///< octree sampling; a run is reproducible bit for bit
-  int threads = 2;     ///< worker threads for the moving-point test (1 = serial)
+  RegistrationParams registration;
+  PoseSource poses = PoseSource::kAuto;  ///< a run option (--poses), not an ini key
+  uint64_t seed = 42;                    ///< octree sampling; a run is reproducible bit for bit
+  int threads = 2;                       ///< worker threads for the moving-point test (1 = serial)
 };
 
 /// Checks physical sense (positive sizes, r_inf <= r_sup < 1, K >= 1, ...); throws

@@ -13,7 +13,8 @@ namespace cleanmap {
 
 /// Per-stage wall time of one scan, milliseconds.
 struct StageTimes {
-  double index = 0, ground = 0, duplicates = 0, octree = 0, classify = 0, objects = 0, total = 0;
+  double registration = 0, index = 0, ground = 0, duplicates = 0, octree = 0, classify = 0,
+         objects = 0, total = 0;
   StageTimes& operator+=(const StageTimes& o);
 };
 
@@ -34,6 +35,16 @@ struct ScanStats {
   ScanStats& operator+=(const ScanStats& o);
 };
 
+/// How the scan's pose was obtained (DESIGN §2.1).
+struct PoseInfo {
+  std::string source = "given";  ///< "given", "gicp" or "refine"
+  std::string status = "given";  ///< "given", "first", "ok", or why the alignment was refused
+  bool accepted = true;          ///< false: the pose is the constant-velocity prediction
+  int iterations = 0;
+  double fitness = 0,
+         rmse = 0;  ///< share of aligned points with a correspondence; their RMS distance (m)
+};
+
 /// Everything the pipeline says about one scan, handed to the sink once the scan is decided.
 struct ScanResult {
   std::size_t index = 0;
@@ -41,6 +52,7 @@ struct ScanResult {
   std::string source;  ///< the input it came from (Frame::source)
   double timestamp = 0;
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  PoseInfo pose_info;
   Labels labels;                          ///< one per original point, original order (DESIGN §4)
   std::vector<PointXYZI> static_compact;  ///< world frame: static points not already in the map
   std::vector<PointXYZI> static_full;     ///< world frame: every static point (ground included)

@@ -66,6 +66,8 @@ class OutputWriter {
   std::vector<Eigen::Isometry3d> poses_;
   std::vector<ScanStats> stats_;
   std::vector<std::string> stems_;
+  std::vector<double> times_;
+  std::vector<PoseInfo> pose_info_;
   std::vector<MosCounts> scan_eval_;
   MosCounts eval_;
   bool has_eval_ = false;

@@ -15,6 +15,9 @@
 #include "cleanmap/core/scan_result.h"
 
 namespace cleanmap {
+namespace reg {
+class Odometry;
+}
 
 class LaserPipeline {
  public:
@@ -23,7 +26,8 @@ class LaserPipeline {
   LaserPipeline(const PipelineParams& params, Sink sink);
   ~LaserPipeline();
 
-  /// Adds the next scan (it must have a pose). Scans are decided K scans later.
+  /// Adds the next scan. Its pose is the given one, or GICP's (DESIGN §2.1, PipelineParams::poses).
+  /// Scans are decided K scans later.
   void push(Frame&& frame);
   /// Decides the remaining scans (windows shrink at the end).
   void finish();
@@ -34,6 +38,7 @@ class LaserPipeline {
   struct Prepared;  // a buffered scan: beams, crop and ground masks
   struct Work;      // the scan being decided: world points, candidates, tests, moving mask
   std::unique_ptr<Prepared> prepare(Frame&& f);
+  PoseInfo registerScan(Frame& f);
   void decideReady(std::size_t future);
   void decide(std::size_t pos);
 
@@ -56,7 +61,10 @@ class LaserPipeline {
   std::size_t decided_ = 0;
   long prev_index_ = -1;
   std::unordered_set<uint64_t> prev_moving_cells_;  // last decided scan's moving cells, dilated
-  std::unique_ptr<Work> work_;  // the stages' buffers, reused from scan to scan (no page faults)
+  std::unique_ptr<Work> work_;
+  PoseSource source_;                   // resolved on the first scan
+  std::unique_ptr<reg::Odometry> odo_;  // with gicp / refine  // the stages' buffers, reused from
+                                        // scan to scan (no page faults)
 };
 
 }  // namespace cleanmap

@@ -1,0 +1,45 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// DESIGN §2.1: Generalized ICP (Segal, Haehnel, Thrun, RSS 2009) of a source cloud to a VoxelMap.
+// Cost: sum_i rho(d_i^T (C_t + R C_s R^T)^-1 d_i), d_i = t_i - T s_i (eq. (2) of the paper), solved
+// by Gauss-Newton with a Geman-McClure weight on |d_i|, the pose updated on the left,
+// T <- [exp(w) | v] T.
+#pragma once
+#include <Eigen/Geometry>
+#include <string>
+
+#include "cleanmap/registration/cov_cloud.h"
+#include "cleanmap/registration/voxel_map.h"
+
+namespace cleanmap::reg {
+
+struct GicpParams {
+  double max_correspondence = 1.0;  ///< m; farther pairs are not correspondences (<= map voxel)
+  double kernel = 0.3;              ///< m; Geman-McClure scale: weight (k^2 / (k^2 + |d|^2))^2
+  int max_iterations = 30;
+  double translation_eps = 1e-4;  ///< m; converged when an update moves less ...
+  double rotation_eps = 1e-5;     ///< rad; ... and turns less
+  /// Correspondences are searched again only once the pose moved this far since the last search
+  /// (m, or rad times 10 m): the last iterations reuse them.
+  double research = 0.01;
+  int min_correspondences = 50;
+  /// A direction is degenerate when its information per inlier is below this (in-plane points
+  /// give about 0.5: a scene of one plane or one corridor stays below).
+  double min_information = 1.0;
+};
+
+struct GicpResult {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  int iterations = 0;
+  std::size_t correspondences = 0;  ///< pairs within max_correspondence at the end
+  double fitness = 0;               ///< correspondences / source points
+  double rmse = 0;                  ///< m; of the correspondences at the end
+  bool converged = false;
+  bool degenerate = false;  ///< some translation is barely constrained (a plane, a corridor)
+  std::string failure;      ///< empty when the alignment is usable
+};
+
+/// Aligns `source` (sensor frame, with covariances) to `target` from `guess` (sensor to world).
+GicpResult alignGicp(const CovCloud& source, const VoxelMap& target, const Eigen::Isometry3d& guess,
+                     const GicpParams& p, int threads);
+
+}  // namespace cleanmap::reg

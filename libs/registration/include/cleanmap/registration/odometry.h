@@ -1,0 +1,49 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// DESIGN §2.1: scan-to-local-map GICP odometry. The map starts with the first scan; each new scan
+// is aligned from a constant-velocity guess (or a given prior), checked (too few points,
+// degenerate scene, a jump beyond max_speed / max_turn_rate) and, if accepted, added to the map.
+// Points the pipeline later decides moving are taken out of the map (dropPoints).
+#pragma once
+#include <Eigen/Geometry>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "cleanmap/core/params.h"
+#include "cleanmap/core/types.h"
+#include "cleanmap/registration/gicp.h"
+#include "cleanmap/registration/voxel_map.h"
+
+namespace cleanmap::reg {
+
+struct OdometryStep {
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();  ///< sensor pose in the world
+  GicpResult gicp;        ///< the alignment (iterations 0 for the first scan)
+  bool accepted = false;  ///< false: `pose` is the prediction, the scan was not added to the map
+  std::string status;     ///< "first", "ok", or why the alignment was refused
+};
+
+class Odometry {
+ public:
+  Odometry(const RegistrationParams& p, int threads);
+
+  /// The pose of a scan (sensor-frame points) taken at `timestamp` (s). `prior` replaces the
+  /// constant-velocity guess (--poses refine, rawlog odometry).
+  OdometryStep track(const std::vector<PointXYZI>& points, double timestamp, int64_t scan,
+                     const std::optional<Eigen::Isometry3d>& prior = std::nullopt);
+  /// Takes the points of `scan` flagged in `drop` (indexed like the scan's points) out of the map.
+  void dropPoints(int64_t scan, const std::vector<uint8_t>& drop) { map_.remove(scan, drop); }
+
+  const VoxelMap& map() const { return map_; }
+
+ private:
+  Eigen::Isometry3d predict(double timestamp) const;
+
+  RegistrationParams p_;
+  GicpParams gicp_;
+  int threads_;
+  VoxelMap map_;
+  std::vector<std::pair<double, Eigen::Isometry3d>> last_;  // the last two accepted (time, pose)
+};
+
+}  // namespace cleanmap::reg

@@ -1,0 +1,88 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#include "cleanmap/registration/cov_cloud.h"
+
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <numeric>
+
+#include "cleanmap/core/cell_key.h"
+#include "cleanmap/core/parallel.h"
+#include "flat_key_map.h"
+
+namespace cleanmap::reg {
+
+std::vector<uint32_t> voxelDownsample(const std::vector<Eigen::Vector3d>& points, double voxel) {
+  const double inv = 1.0 / voxel;
+  FlatKeyMap first(points.size());
+  std::vector<uint32_t> out;
+  for (uint32_t i = 0; i < points.size(); ++i) {
+    const auto& p = points[i];
+    if (first.emplace(cellKeyOf(p.x(), p.y(), p.z(), inv), i).second) out.push_back(i);
+  }
+  return out;
+}
+
+std::vector<Eigen::Matrix3d> planeCovariances(const std::vector<Eigen::Vector3d>& points, int knn,
+                                              double radius, double eps, int threads) {
+  // Cells of side `radius`: the neighbours within radius lie in the 27 cells around a point.
+  const double inv = 1.0 / radius, r2 = radius * radius;
+  // Points sorted by cell (ties in input order); a cell is a range [begin, end) of `order`.
+  std::vector<uint64_t> key(points.size());
+  for (std::size_t i = 0; i < points.size(); ++i)
+    key[i] = cellKeyOf(points[i].x(), points[i].y(), points[i].z(), inv);
+  std::vector<uint32_t> order(points.size());
+  std::iota(order.begin(), order.end(), 0u);
+  std::sort(order.begin(), order.end(),
+            [&](uint32_t a, uint32_t b) { return key[a] != key[b] ? key[a] < key[b] : a < b; });
+  FlatKeyMap begin_of(points.size());
+  std::vector<uint32_t> cell_end(points.size() + 1, 0);  // by begin position
+  for (uint32_t k = 0; k < order.size(); ++k) {
+    const auto [b, fresh] = begin_of.emplace(key[order[k]], k);
+    cell_end[b] = k + 1;
+  }
+  std::vector<Eigen::Matrix3d> covs(points.size());
+  const std::size_t k = static_cast<std::size_t>(std::max(knn, 3));
+  std::vector<std::vector<std::pair<double, uint32_t>>> scratch(
+      static_cast<std::size_t>(std::max(threads, 1)));
+  parallelFor(
+      points.size(), threads,
+      [&](std::size_t i, int worker) {
+        auto& near = scratch[static_cast<std::size_t>(worker)];
+        near.clear();
+        const Eigen::Vector3d& p = points[i];
+        const uint64_t c = cellKeyOf(p.x(), p.y(), p.z(), inv);
+        forEachNeighbour27([&](int dx, int dy, int dz) {
+          const uint32_t* b = begin_of.find(cellKeyShift(c, dx, dy, dz));
+          if (!b) return;
+          for (uint32_t pos = *b; pos < cell_end[*b]; ++pos) {
+            const uint32_t j = order[pos];
+            const double d2 = (points[j] - p).squaredNorm();
+            if (d2 <= r2) near.emplace_back(d2, j);
+          }
+        });
+        if (near.size() > k) {
+          std::nth_element(near.begin(), near.begin() + static_cast<long>(k), near.end());
+          near.resize(k);
+        }
+        if (near.size() < 5) {
+          covs[i] = Eigen::Matrix3d::Identity();
+          return;
+        }
+        Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+        for (const auto& [d2, j] : near) mean += points[j];
+        mean /= static_cast<double>(near.size());
+        Eigen::Matrix3d C = Eigen::Matrix3d::Zero();
+        for (const auto& [d2, j] : near) {
+          const Eigen::Vector3d d = points[j] - mean;
+          C += d * d.transpose();
+        }
+        Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
+        es.computeDirect(C / static_cast<double>(near.size()));
+        const Eigen::Matrix3d& V = es.eigenvectors();  // increasing eigenvalues
+        covs[i] = V * Eigen::Vector3d(eps, 1.0, 1.0).asDiagonal() * V.transpose();
+      },
+      256);
+  return covs;
+}
+
+}  // namespace cleanmap::reg

@@ -1,0 +1,117 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#include "cleanmap/registration/odometry.h"
+
+#include <cmath>
+
+namespace cleanmap::reg {
+
+Odometry::Odometry(const RegistrationParams& p, int threads)
+    : p_(p), threads_(threads), map_(p.max_correspondence, p.map_points_per_voxel) {
+  gicp_.max_correspondence = p.max_correspondence;
+  gicp_.kernel = p.kernel;
+  gicp_.max_iterations = p.max_iterations;
+}
+
+// Constant velocity: the last relative motion, scaled to the time since the last scan.
+Eigen::Isometry3d Odometry::predict(double t) const {
+  if (last_.empty()) return Eigen::Isometry3d::Identity();
+  if (last_.size() < 2) return last_.back().second;
+  const auto& [t0, T0] = last_[0];
+  const auto& [t1, T1] = last_[1];
+  const Eigen::Isometry3d delta = T0.inverse() * T1;
+  const double dt_prev = t1 - t0, dt = t - t1;
+  double s = (dt_prev > 1e-6 && dt > 0) ? dt / dt_prev : 1.0;
+  s = std::min(s, 5.0);  // a long gap: do not extrapolate wildly
+  const Eigen::AngleAxisd aa(delta.linear());
+  Eigen::Isometry3d step = Eigen::Isometry3d::Identity();
+  step.linear() = Eigen::AngleAxisd(aa.angle() * s, aa.axis()).toRotationMatrix();
+  step.translation() = delta.translation() * s;
+  return T1 * step;
+}
+
+OdometryStep Odometry::track(const std::vector<PointXYZI>& points, double t, int64_t scan,
+                             const std::optional<Eigen::Isometry3d>& prior) {
+  // The points to align: within [min_range, max_range], one per voxel.
+  std::vector<Eigen::Vector3d> pts;
+  std::vector<uint32_t> index;
+  pts.reserve(points.size());
+  const double r0 = p_.min_range * p_.min_range, r1 = p_.max_range * p_.max_range;
+  // De-skew: the sweep runs clockwise from the rear (azimuth +pi) through the front (time 0.5)
+  // to the rear again; a point seen at sweep time s in [0, 1] moved with the constant-velocity
+  // motion `sweep` (one sweep's relative pose) by (s - 0.5) of it, relative to the sweep's middle.
+  std::optional<Eigen::Matrix<double, 6, 1>> sweep;
+  if (p_.deskew && last_.size() == 2) {
+    const double dt_prev = last_[1].first - last_[0].first;
+    const Eigen::Isometry3d delta = last_[0].second.inverse() * last_[1].second;
+    const Eigen::AngleAxisd aa(delta.linear());
+    const double scale = dt_prev > 1e-6 ? 0.1 / dt_prev : 1.0;  // per 0.1 s sweep
+    Eigen::Matrix<double, 6, 1> v;
+    v << aa.axis() * aa.angle() * scale, delta.translation() * scale;
+    sweep = v;
+  }
+  for (uint32_t i = 0; i < points.size(); ++i) {
+    Eigen::Vector3d q = points[i].xyz().cast<double>();
+    const double d2 = q.squaredNorm();
+    if (d2 < r0 || d2 > r1) continue;
+    if (sweep) {
+      const double s = 0.5 * (1.0 - std::atan2(q.y(), q.x()) / M_PI) - 0.5;  // -0.5 .. 0.5
+      const Eigen::Vector3d w = sweep->head<3>() * s;
+      const double a = w.norm();
+      const Eigen::Matrix3d R =
+          a > 0 ? Eigen::AngleAxisd(a, w / a).toRotationMatrix() : Eigen::Matrix3d::Identity();
+      q = R * q + sweep->tail<3>() * s;
+    }
+    pts.push_back(q);
+    index.push_back(i);
+  }
+  CovCloud cloud;
+  for (const uint32_t k : voxelDownsample(pts, p_.voxel)) {
+    cloud.points.push_back(pts[k]);
+    cloud.source.push_back(index[k]);
+  }
+  cloud.covs = planeCovariances(cloud.points, p_.knn, 2.0 * p_.voxel, p_.plane_epsilon, threads_);
+  CovCloud align;  // a sparser subset is aligned; the map gets the whole downsampled cloud
+  for (const uint32_t k : voxelDownsample(cloud.points, p_.align_voxel)) {
+    align.points.push_back(cloud.points[k]);
+    align.covs.push_back(cloud.covs[k]);
+  }
+
+  OdometryStep step;
+  const Eigen::Isometry3d guess = prior ? *prior : predict(t);
+  if (map_.empty()) {
+    step.pose = guess;
+    step.accepted = cloud.size() >= static_cast<std::size_t>(gicp_.min_correspondences);
+    step.status = step.accepted
+                      ? "first"
+                      : "too few points to start the map (" + std::to_string(cloud.size()) + ")";
+  } else {
+    step.gicp = alignGicp(align, map_, guess, gicp_, threads_);
+    step.pose = step.gicp.T;
+    step.status = step.gicp.failure.empty() ? "ok" : step.gicp.failure;
+    if (step.gicp.failure.empty() && !last_.empty()) {  // a jump beyond what the motion allows
+      const Eigen::Isometry3d rel = last_.back().second.inverse() * step.pose;
+      const double dt = std::max(t - last_.back().first, 0.1);
+      const double turn = Eigen::AngleAxisd(rel.linear()).angle();
+      if (rel.translation().norm() > p_.max_speed * dt + 0.5 || turn > p_.max_turn_rate * dt + 0.05)
+        step.status = "jump of " + std::to_string(rel.translation().norm()) + " m / " +
+                      std::to_string(turn) + " rad in " + std::to_string(dt) + " s";
+    }
+    step.accepted = step.status == "ok";
+    if (!step.accepted) step.pose = guess;
+  }
+  if (step.accepted) {
+    CovCloud world = cloud;
+    const Eigen::Matrix3d R = step.pose.linear();
+    for (std::size_t i = 0; i < world.size(); ++i) {
+      world.points[i] = step.pose * world.points[i];
+      world.covs[i] = R * world.covs[i] * R.transpose();
+    }
+    map_.insert(world, scan);
+    map_.prune(step.pose.translation(), p_.map_radius);
+    last_.emplace_back(t, step.pose);
+    if (last_.size() > 2) last_.erase(last_.begin());
+  }
+  return step;
+}
+
+}  // namespace cleanmap::reg
