@@ -246,8 +246,22 @@ void OutputWriter::finish(double wall_s) {
                      {"fitness", p.fitness},
                      {"rmse_m", p.rmse}});
     }
+    std::vector<double> down, cov, align, map;
+    for (const PoseInfo& p : pose_info_)
+      if (p.source != "given")
+        down.push_back(p.ms_downsample), cov.push_back(p.ms_covariances),
+            align.push_back(p.ms_align), map.push_back(p.ms_map);
+    nlohmann::json steps;
+    for (const auto& [name, v] : {std::pair<const char*, std::vector<double>*>{"downsample", &down},
+                                  {"covariances", &cov},
+                                  {"align", &align},
+                                  {"map", &map}}) {
+      const Spread sp = spread(*v);
+      steps[name] = {{"median_ms", sp.median}, {"p95_ms", sp.p95}};
+    }
     j["registration"] = {{"source", pose_info_.empty() ? "given" : pose_info_.front().source},
                          {"status_counts", by_status},
+                         {"timing_per_step", steps},
                          {"per_scan", per}};
   }
   j["wall_s"] = wall_s;

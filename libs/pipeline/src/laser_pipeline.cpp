@@ -95,6 +95,10 @@ PoseInfo LaserPipeline::registerScan(Frame& f) {
   info.iterations = step.gicp.iterations;
   info.fitness = step.gicp.fitness;
   info.rmse = step.gicp.rmse;
+  info.ms_downsample = step.ms_downsample;
+  info.ms_covariances = step.ms_covariances;
+  info.ms_align = step.ms_align;
+  info.ms_map = step.ms_map;
   return info;
 }
 

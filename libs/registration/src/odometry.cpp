@@ -1,12 +1,31 @@
 // SPDX-License-Identifier: BSD-3-Clause
 #include "cleanmap/registration/odometry.h"
 
+#include "cleanmap/core/cell_key.h"
+#include "flat_key_map.h"
+
+#include <chrono>
 #include <cmath>
 
 namespace cleanmap::reg {
+namespace {
+using Clock = std::chrono::steady_clock;
+double msSince(Clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+}
+}  // namespace
+
+struct Odometry::Scratch {
+  FlatKeyMap voxels;
+};
+
+Odometry::~Odometry() = default;
 
 Odometry::Odometry(const RegistrationParams& p, int threads)
-    : p_(p), threads_(threads), map_(p.max_correspondence, p.map_points_per_voxel) {
+    : p_(p),
+      threads_(threads),
+      map_(p.max_correspondence, p.map_points_per_voxel),
+      scratch_(std::make_unique<Scratch>()) {
   gicp_.max_correspondence = p.max_correspondence;
   gicp_.kernel = p.kernel;
   gicp_.max_iterations = p.max_iterations;
@@ -31,10 +50,10 @@ Eigen::Isometry3d Odometry::predict(double t) const {
 
 OdometryStep Odometry::track(const std::vector<PointXYZI>& points, double t, int64_t scan,
                              const std::optional<Eigen::Isometry3d>& prior) {
-  // The points to align: within [min_range, max_range], one per voxel.
-  std::vector<Eigen::Vector3d> pts;
-  std::vector<uint32_t> index;
-  pts.reserve(points.size());
+  auto t0 = Clock::now();
+  OdometryStep step;
+  // The points to align: within [min_range, max_range], one per voxel, in one pass over the
+  // scan (the first point of each voxel, in scan order).
   const double r0 = p_.min_range * p_.min_range, r1 = p_.max_range * p_.max_range;
   // De-skew: the sweep runs clockwise from the rear (azimuth +pi) through the front (time 0.5)
   // to the rear again; a point seen at sweep time s in [0, 1] moved with the constant-velocity
@@ -49,6 +68,10 @@ OdometryStep Odometry::track(const std::vector<PointXYZI>& points, double t, int
     v << aa.axis() * aa.angle() * scale, delta.translation() * scale;
     sweep = v;
   }
+  CovCloud cloud;
+  FlatKeyMap& voxels = scratch_->voxels;
+  voxels.reset(points.size() / 8);
+  const double inv = 1.0 / p_.voxel;
   for (uint32_t i = 0; i < points.size(); ++i) {
     Eigen::Vector3d q = points[i].xyz().cast<double>();
     const double d2 = q.squaredNorm();
@@ -61,22 +84,20 @@ OdometryStep Odometry::track(const std::vector<PointXYZI>& points, double t, int
           a > 0 ? Eigen::AngleAxisd(a, w / a).toRotationMatrix() : Eigen::Matrix3d::Identity();
       q = R * q + sweep->tail<3>() * s;
     }
-    pts.push_back(q);
-    index.push_back(i);
+    if (!voxels.emplace(cellKeyOf(q.x(), q.y(), q.z(), inv), i).second) continue;
+    cloud.points.push_back(q);
+    cloud.source.push_back(i);
   }
-  CovCloud cloud;
-  for (const uint32_t k : voxelDownsample(pts, p_.voxel)) {
-    cloud.points.push_back(pts[k]);
-    cloud.source.push_back(index[k]);
-  }
+  step.ms_downsample = msSince(t0);
+  t0 = Clock::now();
   cloud.covs = planeCovariances(cloud.points, p_.knn, 2.0 * p_.voxel, p_.plane_epsilon, threads_);
   CovCloud align;  // a sparser subset is aligned; the map gets the whole downsampled cloud
   for (const uint32_t k : voxelDownsample(cloud.points, p_.align_voxel)) {
     align.points.push_back(cloud.points[k]);
     align.covs.push_back(cloud.covs[k]);
   }
-
-  OdometryStep step;
+  step.ms_covariances = msSince(t0);
+  t0 = Clock::now();
   const Eigen::Isometry3d guess = prior ? *prior : predict(t);
   if (map_.empty()) {
     step.pose = guess;
@@ -99,6 +120,8 @@ OdometryStep Odometry::track(const std::vector<PointXYZI>& points, double t, int
     step.accepted = step.status == "ok";
     if (!step.accepted) step.pose = guess;
   }
+  step.ms_align = msSince(t0);
+  t0 = Clock::now();
   if (step.accepted) {
     CovCloud world = cloud;
     const Eigen::Matrix3d R = step.pose.linear();
@@ -111,6 +134,7 @@ OdometryStep Odometry::track(const std::vector<PointXYZI>& points, double t, int
     last_.emplace_back(t, step.pose);
     if (last_.size() > 2) last_.erase(last_.begin());
   }
+  step.ms_map = msSince(t0);
   return step;
 }
 

@@ -41,8 +41,10 @@ struct PoseInfo {
   std::string status = "given";  ///< "given", "first", "ok", or why the alignment was refused
   bool accepted = true;          ///< false: the pose is the constant-velocity prediction
   int iterations = 0;
-  double fitness = 0,
-         rmse = 0;  ///< share of aligned points with a correspondence; their RMS distance (m)
+  double fitness = 0;  ///< share of aligned points with a correspondence
+  double rmse = 0;     ///< m; RMS distance of the correspondences
+  /// ms per step: crop + downsampling, covariances, GICP, map update
+  double ms_downsample = 0, ms_covariances = 0, ms_align = 0, ms_map = 0;
 };
 
 /// Everything the pipeline says about one scan, handed to the sink once the scan is decided.

@@ -5,6 +5,7 @@
 // Points the pipeline later decides moving are taken out of the map (dropPoints).
 #pragma once
 #include <Eigen/Geometry>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -21,11 +22,15 @@ struct OdometryStep {
   GicpResult gicp;        ///< the alignment (iterations 0 for the first scan)
   bool accepted = false;  ///< false: `pose` is the prediction, the scan was not added to the map
   std::string status;     ///< "first", "ok", or why the alignment was refused
+  /// Wall time of each step, ms: range crop + downsampling (and de-skew), covariances, GICP,
+  /// map update.
+  double ms_downsample = 0, ms_covariances = 0, ms_align = 0, ms_map = 0;
 };
 
 class Odometry {
  public:
   Odometry(const RegistrationParams& p, int threads);
+  ~Odometry();
 
   /// The pose of a scan (sensor-frame points) taken at `timestamp` (s). `prior` replaces the
   /// constant-velocity guess (--poses refine, rawlog odometry).
@@ -44,6 +49,8 @@ class Odometry {
   int threads_;
   VoxelMap map_;
   std::vector<std::pair<double, Eigen::Isometry3d>> last_;  // the last two accepted (time, pose)
+  struct Scratch;                                           // per-scan tables, reused
+  std::unique_ptr<Scratch> scratch_;
 };
 
 }  // namespace cleanmap::reg
