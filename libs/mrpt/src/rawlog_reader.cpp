@@ -9,7 +9,10 @@
 
 #include <mrpt/io/CFileGZInputStream.h>
 #include <mrpt/obs/CActionCollection.h>
+#include <mrpt/obs/CActionRobotMovement2D.h>
+#include <mrpt/obs/CActionRobotMovement3D.h>
 #include <mrpt/obs/CObservationImage.h>
+#include <mrpt/obs/CObservationOdometry.h>
 #include <mrpt/obs/CObservationRobotPose.h>
 #include <mrpt/obs/CSensoryFrame.h>
 #include <mrpt/serialization/CArchive.h>
@@ -46,13 +49,14 @@ std::string briefMessage(const std::exception& e) {
 }
 
 struct Item {
-  enum Kind { kScan, kPose, kImage } kind = kScan;
+  enum Kind { kScan, kPose, kImage, kOdometry } kind = kScan;
   double t = 0;
-  std::size_t entry = 0;                    // 0-based rawlog entry it came from
-  Scan scan;                                // kScan
-  ::mrpt::poses::CPose3D sensor_pose;       // kScan: lidar on robot
-  ::mrpt::poses::CPose3D robot_pose;        // kPose
-  ::mrpt::obs::CObservationImage::Ptr img;  // kImage
+  std::size_t entry = 0;                                  // 0-based rawlog entry it came from
+  Scan scan;                                              // kScan
+  ::mrpt::poses::CPose3D sensor_pose;                     // kScan: lidar on robot
+  ::mrpt::poses::CPose3D robot_pose;                      // kPose, kOdometry
+  std::optional<::mrpt::poses::CPose3D> action_odometry;  // kScan: odometry from the actions so far
+  ::mrpt::obs::CObservationImage::Ptr img;                // kImage
 };
 
 }  // namespace
@@ -65,6 +69,21 @@ struct RawlogSource::Impl {
   bool eof = false;
   std::deque<Item> buf;
   std::optional<PinholeCamera> camera;
+  std::optional<::mrpt::poses::CPose3D> odometry;  // robot odometry summed from actions
+
+  // Odometry increments of an action collection (sensory-frame rawlogs): 3D if there is one,
+  // else the best 2D estimate.
+  void addActions(const ::mrpt::obs::CActionCollection& acts) {
+    using namespace ::mrpt::obs;
+    ::mrpt::poses::CPose3D inc;
+    if (const auto a3 = acts.getActionByClass<CActionRobotMovement3D>())
+      inc = a3->poseChange.mean;
+    else if (const auto a2 = acts.getBestMovementEstimation())
+      inc = ::mrpt::poses::CPose3D(a2->poseChange->getMeanVal());
+    else
+      return;
+    odometry = odometry ? *odometry + inc : inc;
+  }
 
   void push(const ::mrpt::obs::CObservation::Ptr& obs) {
     using namespace ::mrpt::obs;
@@ -76,6 +95,7 @@ struct RawlogSource::Impl {
       it.t = t;
       it.scan = std::move(*scan);
       it.entry = entry - 1;
+      it.action_odometry = odometry;
       obs->getSensorPose(it.sensor_pose);
       buf.push_back(std::move(it));
     } else if (auto rp = std::dynamic_pointer_cast<CObservationRobotPose>(obs)) {
@@ -83,6 +103,12 @@ struct RawlogSource::Impl {
       it.kind = Item::kPose;
       it.t = t;
       it.robot_pose = rp->pose.mean;
+      buf.push_back(std::move(it));
+    } else if (auto od = std::dynamic_pointer_cast<CObservationOdometry>(obs)) {
+      Item it;
+      it.kind = Item::kOdometry;
+      it.t = t;
+      it.robot_pose = ::mrpt::poses::CPose3D(od->odometry);
       buf.push_back(std::move(it));
     } else if (auto im = std::dynamic_pointer_cast<CObservationImage>(obs)) {
       Item it;
@@ -127,8 +153,10 @@ struct RawlogSource::Impl {
       for (const auto& o : *sf) push(o);
     } else if (auto obs = std::dynamic_pointer_cast<CObservation>(obj)) {
       push(obs);
+    } else if (auto acts = std::dynamic_pointer_cast<CActionCollection>(obj)) {
+      addActions(*acts);
     } else {
-      ++skipped;  // actions (odometry) and anything else
+      ++skipped;  // anything else
     }
     return true;
   }
@@ -215,6 +243,11 @@ std::optional<Frame> RawlogSource::next() {
   } else {
     f.scan.pose = toIsometry(cur.sensor_pose);
   }
+  // Odometry (GICP's initial guess): an odometry observation near in time, else the actions.
+  if (const Item* o = I.nearest(Item::kOdometry, cur.t, I.opts.pose_time_tolerance, end))
+    f.odometry = toIsometry(o->robot_pose + cur.sensor_pose);
+  else if (cur.action_odometry)
+    f.odometry = toIsometry(*cur.action_odometry + cur.sensor_pose);
   if (const Item* im = I.nearest(Item::kImage, cur.t, I.opts.image_time_tolerance, end)) {
     f.image = I.toImage(*im);
     if (!I.camera)

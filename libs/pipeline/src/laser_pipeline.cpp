@@ -80,13 +80,23 @@ PoseInfo LaserPipeline::registerScan(Frame& f) {
     throw Error(f.source.empty() ? "scan " + f.stem : f.source,
                 "has no pose to refine (--poses refine)");
   if (!odo_) odo_ = std::make_unique<reg::Odometry>(p_.registration, p_.threads);
+  // The initial guess: refine starts from every given pose; with gicp, a given first pose
+  // anchors the trajectory (the maps then share the input's world frame and can be scored
+  // against its labels), and input odometry moves the last estimate by its increment; otherwise
+  // the odometry extrapolates at constant velocity.
   std::optional<Eigen::Isometry3d> prior;
-  // refine: every given pose is the guess; gicp: a given first pose anchors the trajectory, so
-  // the maps share the input's world frame (and can be scored against its labels).
-  if (source_ == PoseSource::kRefine || (odo_->map().empty() && f.scan.has_pose))
+  info.guess = "constant velocity";
+  if (source_ == PoseSource::kRefine || (odo_->map().empty() && f.scan.has_pose)) {
     prior = f.scan.pose;
+    info.guess = "given";
+  } else if (f.odometry && prev_odometry_) {
+    prior = prev_pose_ * (prev_odometry_->inverse() * *f.odometry);
+    info.guess = "odometry";
+  }
   const reg::OdometryStep step =
       odo_->track(f.scan.points, f.scan.timestamp, static_cast<int64_t>(f.index), prior);
+  prev_odometry_ = f.odometry;
+  prev_pose_ = step.pose;
   f.scan.pose = step.pose;
   f.scan.has_pose = true;
   info.source = source_ == PoseSource::kRefine ? "refine" : "gicp";

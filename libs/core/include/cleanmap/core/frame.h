@@ -25,6 +25,9 @@ struct Frame {
       source;  ///< where the scan came from, for messages: a .bin path or "x.rawlog entry 12"
   Scan scan;
   std::optional<Image> image;
+  /// The sensor's pose in the frame of the robot's odometry, where the input has odometry (rawlog
+  /// CActionRobotMovement2D/3D or CObservationOdometry): GICP's initial guess (DESIGN §2.1).
+  std::optional<Eigen::Isometry3d> odometry;
 };
 
 /// A forward-only stream of frames: lets the pipeline keep only its window in memory.

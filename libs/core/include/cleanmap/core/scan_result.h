@@ -39,7 +39,8 @@ struct ScanStats {
 struct PoseInfo {
   std::string source = "given";  ///< "given", "gicp" or "refine"
   std::string status = "given";  ///< "given", "first", "ok", or why the alignment was refused
-  bool accepted = true;          ///< false: the pose is the constant-velocity prediction
+  bool accepted = true;          ///< false: the pose is the guess (the alignment was refused)
+  std::string guess = "none";    ///< GICP's initial guess: "constant velocity", "odometry", "given"
   int iterations = 0;
   double fitness = 0;  ///< share of aligned points with a correspondence
   double rmse = 0;     ///< m; RMS distance of the correspondences

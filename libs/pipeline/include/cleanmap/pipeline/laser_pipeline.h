@@ -5,6 +5,7 @@
 #include <deque>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <unordered_set>
 #include <vector>
 
@@ -62,9 +63,12 @@ class LaserPipeline {
   long prev_index_ = -1;
   std::unordered_set<uint64_t> prev_moving_cells_;  // last decided scan's moving cells, dilated
   std::unique_ptr<Work> work_;
-  PoseSource source_;                   // resolved on the first scan
-  std::unique_ptr<reg::Odometry> odo_;  // with gicp / refine  // the stages' buffers, reused from
-                                        // scan to scan (no page faults)
+  PoseSource source_;                               // resolved on the first scan
+  std::unique_ptr<reg::Odometry> odo_;              // with gicp / refine
+  std::optional<Eigen::Isometry3d> prev_odometry_;  // the last scan's input odometry ...
+  Eigen::Isometry3d prev_pose_ =
+      Eigen::Isometry3d::Identity();  // ... and its estimated pose  // the stages' buffers, reused
+                                      // from scan to scan (no page faults)
 };
 
 }  // namespace cleanmap
