@@ -1,7 +1,6 @@
 // SPDX-License-Identifier: BSD-3-Clause
 #include "cleanmap/pipeline/laser_pipeline.h"
 
-#include <chrono>
 #include <cmath>
 #include <random>
 
@@ -12,17 +11,10 @@
 #include "cleanmap/core/object_consensus.h"
 #include "cleanmap/core/octree_sampling.h"
 #include "cleanmap/core/parallel.h"
+#include "cleanmap/core/stopwatch.h"
 #include "cleanmap/registration/odometry.h"
 
 namespace cleanmap {
-namespace {
-
-using Clock = std::chrono::steady_clock;
-double msSince(Clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-}
-
-}  // namespace
 
 struct LaserPipeline::Prepared {
   std::size_t index;

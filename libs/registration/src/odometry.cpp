@@ -2,18 +2,12 @@
 #include "cleanmap/registration/odometry.h"
 
 #include "cleanmap/core/cell_key.h"
+#include "cleanmap/core/stopwatch.h"
 #include "flat_key_map.h"
 
-#include <chrono>
 #include <cmath>
 
 namespace cleanmap::reg {
-namespace {
-using Clock = std::chrono::steady_clock;
-double msSince(Clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-}
-}  // namespace
 
 struct Odometry::Scratch {
   FlatKeyMap voxels;
