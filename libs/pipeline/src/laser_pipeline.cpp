@@ -109,10 +109,12 @@ std::unique_ptr<LaserPipeline::Prepared> LaserPipeline::prepare(Frame&& f) {
   PoseInfo pose_info = registerScan(f);
   const double ms_registration = msSince(t_reg);
   if (!f.scan.has_pose)
-    throw Error(
-        f.source.empty() ? "scan " + f.stem : f.source,
-        "has no pose while the first scan had one: give every scan a pose, or estimate them all "
-        "with --poses gicp");
+    throw Error(f.source.empty() ? "scan " + f.stem : f.source,
+                p_.poses == PoseSource::kGiven
+                    ? "has no pose (--poses given): give a posed input, or estimate the poses "
+                      "with --poses gicp"
+                    : "has no pose while the first scan had one: give every scan a pose, or "
+                      "estimate them all with --poses gicp");
   auto s = std::make_unique<Prepared>();
   s->pose_info = std::move(pose_info);
   s->stats.ms.registration = ms_registration;
