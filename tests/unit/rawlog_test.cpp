@@ -4,9 +4,17 @@
 #include <cstring>
 #include <fstream>
 
+#include <mrpt/io/CFileGZInputStream.h>
+#include <mrpt/obs/CObservationRotatingScan.h>
+#include <mrpt/obs/CObservationVelodyneScan.h>
+#include <mrpt/obs/CRawlog.h>
+#include <mrpt/serialization/CArchive.h>
 #include <opencv2/core.hpp>
+#include <unordered_map>
 
+#include "cleanmap/core/error.h"
 #include "cleanmap/io/kitti.h"
+#include "cleanmap/mrpt/convert.h"
 #include "cleanmap/mrpt/rawlog.h"
 #include "test_data.h"
 
@@ -18,9 +26,9 @@ namespace {
 // KITTI folder -> rawlog (first `n` scans, all if 0).
 void convert(const io::KittiSequence& seq, const std::string& out, bool external,
              std::size_t n = 0) {
-  mrpt::RawlogWriteOptions opts;
+  cleanmap::mrpt::RawlogWriteOptions opts;
   opts.external = external;
-  mrpt::RawlogWriter w(out, opts);
+  cleanmap::mrpt::RawlogWriter w(out, opts);
   const std::size_t count = n ? std::min(n, seq.size()) : seq.size();
   for (std::size_t i = 0; i < count; ++i)
     w.write(seq.frame(i), seq.camera(), seq.scanPath(i),
@@ -30,7 +38,7 @@ void convert(const io::KittiSequence& seq, const std::string& out, bool external
 
 // Reads the rawlog back and checks it frame by frame against the KITTI folder.
 void expectSameAsKitti(const io::KittiSequence& seq, const std::string& rawlog) {
-  mrpt::RawlogSource src(rawlog);
+  cleanmap::mrpt::RawlogSource src(rawlog);
   std::size_t i = 0;
   while (auto f = src.next()) {
     ASSERT_LT(i, seq.size());
@@ -97,7 +105,7 @@ TEST(RawlogSource, ReadsMrptVelodyneScan) {
     if (test::inCI()) FAIL() << "mrpt-common missing: " << path;
     GTEST_SKIP() << "mrpt-common not installed: " << path;
   }
-  mrpt::RawlogSource src(path);
+  cleanmap::mrpt::RawlogSource src(path);
   const auto f = src.next();
   ASSERT_TRUE(f.has_value());
   EXPECT_GT(f->scan.size(), 10000u);  // a VLP-16 sweep: 16 rings x ~1800 azimuths
@@ -114,7 +122,7 @@ TEST(RawlogSource, ReadsMrpt3DRangeScan) {
     if (test::inCI()) FAIL() << "mrpt-common missing: " << path;
     GTEST_SKIP() << "mrpt-common not installed: " << path;
   }
-  mrpt::RawlogSource src(path);
+  cleanmap::mrpt::RawlogSource src(path);
   const auto f = src.next();
   ASSERT_TRUE(f.has_value());
   EXPECT_GT(f->scan.size(), 1000u);
@@ -122,15 +130,15 @@ TEST(RawlogSource, ReadsMrpt3DRangeScan) {
 }
 
 TEST(RawlogSource, MissingEmptyAndGarbageFilesAreErrors) {
-  test::expectError([] { mrpt::RawlogSource("/nonexistent/a.rawlog"); }, "/nonexistent/a.rawlog",
-                    "does not exist");
+  test::expectError([] { cleanmap::mrpt::RawlogSource("/nonexistent/a.rawlog"); },
+                    "/nonexistent/a.rawlog", "does not exist");
   const auto dir = test::scratchDir("rawlog_bad");
   std::ofstream(dir / "empty.rawlog").close();
-  test::expectError([&] { mrpt::RawlogSource((dir / "empty.rawlog").string()); }, "empty.rawlog",
-                    "holds no point-cloud observations");
+  test::expectError([&] { cleanmap::mrpt::RawlogSource((dir / "empty.rawlog").string()); },
+                    "empty.rawlog", "holds no point-cloud observations");
   std::ofstream(dir / "text.rawlog") << "this is not a rawlog, just some text that goes on\n";
-  test::expectError([&] { mrpt::RawlogSource((dir / "text.rawlog").string()); }, "text.rawlog",
-                    "is not an MRPT rawlog");
+  test::expectError([&] { cleanmap::mrpt::RawlogSource((dir / "text.rawlog").string()); },
+                    "text.rawlog", "is not an MRPT rawlog");
 }
 
 TEST(RawlogSource, TruncatedRawlogIsAnError) {
@@ -143,7 +151,7 @@ TEST(RawlogSource, TruncatedRawlogIsAnError) {
   fs::resize_file(dir / "cut.rawlog", fs::file_size(full) * 5 / 8);
   test::expectError(
       [&] {
-        mrpt::RawlogSource src((dir / "cut.rawlog").string());
+        cleanmap::mrpt::RawlogSource src((dir / "cut.rawlog").string());
         while (src.next()) {
         }
       },
@@ -155,7 +163,7 @@ TEST(RawlogWriter, UnfinishedWriteLeavesNothing) {
   const auto seq = io::KittiSequence::open(test::dataDir() + "/kitti_city");
   const auto dir = test::scratchDir("rawlog_unfinished");
   {
-    mrpt::RawlogWriter w((dir / "x.rawlog").string());
+    cleanmap::mrpt::RawlogWriter w((dir / "x.rawlog").string());
     w.write(seq.frame(0), std::nullopt);
     // destroyed without close(): as if the run was interrupted by an exception
   }
@@ -165,18 +173,111 @@ TEST(RawlogWriter, UnfinishedWriteLeavesNothing) {
 TEST(RawlogSource, EmptyScanIsAnErrorUnlessAllowed) {
   const auto dir = test::scratchDir("rawlog_emptyscan");
   {
-    mrpt::RawlogWriter w((dir / "e.rawlog").string());
+    cleanmap::mrpt::RawlogWriter w((dir / "e.rawlog").string());
     Frame f;
     f.scan.timestamp = 1.0;
     w.write(f, std::nullopt);
     w.close();
   }
-  mrpt::RawlogSource strict((dir / "e.rawlog").string());
+  cleanmap::mrpt::RawlogSource strict((dir / "e.rawlog").string());
   test::expectError([&] { strict.next(); }, "e.rawlog", "scan 000000 is empty");
-  mrpt::RawlogReadOptions allow;
+  cleanmap::mrpt::RawlogReadOptions allow;
   allow.allow_empty_scans = true;
-  mrpt::RawlogSource lenient((dir / "e.rawlog").string(), allow);
+  cleanmap::mrpt::RawlogSource lenient((dir / "e.rawlog").string(), allow);
   const auto f = lenient.next();
   ASSERT_TRUE(f.has_value());
   EXPECT_TRUE(f->scan.empty());
+}
+
+namespace {
+
+// The VLP-16 sweep of mrpt-common, as MRPT's own packets decode it (with calibration).
+::mrpt::obs::CObservationVelodyneScan::Ptr readVelodyneSweep(const std::string& path) {
+  cleanmap::mrpt::registerClasses();
+  ::mrpt::io::CFileGZInputStream in(path);
+  auto ar = ::mrpt::serialization::archiveFrom(in);
+  ::mrpt::obs::CActionCollection::Ptr acts;
+  ::mrpt::obs::CSensoryFrame::Ptr sf;
+  ::mrpt::obs::CObservation::Ptr obs;
+  std::size_t idx = 0;
+  while (::mrpt::obs::CRawlog::getActionObservationPairOrObservation(ar, acts, sf, obs, idx))
+    if (auto v = std::dynamic_pointer_cast<::mrpt::obs::CObservationVelodyneScan>(obs)) return v;
+  return {};
+}
+
+}  // namespace
+
+// A CObservationRotatingScan keeps ranges per (laser, firing) without calibration: read with the
+// VLP-16 ring elevations and a linear azimuth per column, it must give the points MRPT computes
+// from the packets, up to the azimuth interpolation (<= 0.2 deg, 3.5 cm at 10 m).
+TEST(RawlogSource, ReadsMrptRotatingScanAsThePacketsGive) {
+  const std::string path = std::string(CLEANMAP_MRPT_DATASETS_DIR) + "/test_velodyne_VLP16.rawlog";
+  if (!fs::exists(path)) {
+    if (test::inCI()) FAIL() << "mrpt-common missing: " << path;
+    GTEST_SKIP() << "mrpt-common not installed: " << path;
+  }
+  const auto velo = readVelodyneSweep(path);
+  ASSERT_TRUE(velo);
+  const auto ref = cleanmap::mrpt::scanFromObservation(*velo);
+  ASSERT_TRUE(ref && ref->size() > 10000u);
+  ::mrpt::obs::CObservationRotatingScan rot;
+  rot.fromVelodyne(*velo);
+  const auto got = cleanmap::mrpt::scanFromObservation(rot);
+  ASSERT_TRUE(got.has_value());
+  EXPECT_NEAR(double(got->size()), double(ref->size()), 0.05 * double(ref->size()));
+
+  // Nearest reference point of each converted point, through a 0.5 m hash grid.
+  std::unordered_map<uint64_t, std::vector<Eigen::Vector3f>> grid;
+  auto key = [](const Eigen::Vector3f& p, int dx, int dy, int dz) {
+    const auto c = [](float v, int d) {
+      return uint64_t(int64_t(std::floor(v / 0.5f)) + d + 4096);
+    };
+    return (c(p.x(), dx) << 26) | (c(p.y(), dy) << 13) | c(p.z(), dz);
+  };
+  for (const auto& p : ref->points) grid[key(p.xyz(), 0, 0, 0)].push_back(p.xyz());
+  std::vector<float> err;
+  std::size_t near_sensor = 0;
+  for (const auto& p : got->points) {
+    float best = 1e9f;
+    for (int dx = -1; dx <= 1; ++dx)
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dz = -1; dz <= 1; ++dz)
+          if (auto it = grid.find(key(p.xyz(), dx, dy, dz)); it != grid.end())
+            for (const auto& q : it->second) best = std::min(best, (q - p.xyz()).norm());
+    err.push_back(best / std::max(1.0f, p.xyz().norm() / 10.0f));  // per 10 m of range
+    near_sensor += p.xyz().norm() < 1.0f;
+  }
+  std::sort(err.begin(), err.end());
+  EXPECT_LT(err[err.size() / 2], 0.035f) << "median distance to the packet points, per 10 m";
+  EXPECT_LT(err[err.size() * 95 / 100], 0.10f) << "95th percentile, per 10 m";
+  EXPECT_EQ(near_sensor, 0u);
+}
+
+TEST(RawlogSource, ReadsMrptRotatingScanRawlog) {
+  const std::string path = std::string(CLEANMAP_MRPT_DATASETS_DIR) + "/rot_scan_velodyne.rawlog";
+  if (!fs::exists(path)) {
+    if (test::inCI()) FAIL() << "mrpt-common missing: " << path;
+    GTEST_SKIP() << "mrpt-common not installed: " << path;
+  }
+  cleanmap::mrpt::RawlogSource src(path);
+  const auto f = src.next();
+  ASSERT_TRUE(f.has_value());
+  EXPECT_GT(f->scan.size(), 10000u);  // 11305 returns in the range image
+  for (const auto& p : f->scan.points) ASSERT_LT(p.xyz().norm(), 121.0f);  // maxRange 120 m
+}
+
+TEST(RawlogSource, RotatingScanOfUnknownModelIsAClearError) {
+  ::mrpt::obs::CObservationRotatingScan rot;
+  rot.sensorLabel = "LIDAR";
+  rot.lidarModel = "OS1-64";
+  rot.rowCount = 64;
+  rot.columnCount = 4;
+  rot.rangeImage.setZero(64, 4);
+  rot.rangeResolution = 0.01;
+  try {
+    cleanmap::mrpt::scanFromObservation(rot);
+    FAIL() << "no error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("OS1-64"), std::string::npos) << e.what();
+  }
 }

@@ -1,10 +1,14 @@
 // SPDX-License-Identifier: BSD-3-Clause
 #include "cleanmap/mrpt/convert.h"
 
+#include <algorithm>
+#include <cmath>
+
 #include <mrpt/maps/CSimplePointsMap.h>
 #include <mrpt/math/CMatrixFixed.h>
 #include <mrpt/obs/CObservation3DRangeScan.h>
 #include <mrpt/obs/CObservationPointCloud.h>
+#include <mrpt/obs/CObservationRotatingScan.h>
 #include <mrpt/obs/CObservationVelodyneScan.h>
 
 #include "cleanmap/core/error.h"
@@ -80,6 +84,65 @@ Scan fromPointsMap(const ::mrpt::maps::CPointsMap& map) {
   return s;
 }
 
+// Elevation (degrees) of ring `row` of a CObservationRotatingScan. MRPT 2.5.8 stores no
+// per-ring calibration in it: rows are the lidar's laser ids (fromVelodyne keeps the firing
+// order), so the elevations come from the model's data sheet. Unknown models are refused.
+double ringElevationDeg(const ::mrpt::obs::CObservationRotatingScan& o, int row) {
+  if (o.rowCount == 1) return 0.0;                   // a planar scanner (fromScan2D)
+  if (o.lidarModel == "VLP-16" && o.rowCount == 16)  // ids interleave -15, +1, -13, +3, ...
+    return (row % 2) ? row : row - 15;
+  if (o.lidarModel == "HDL-32E" && o.rowCount == 32)  // -30.67, -9.33, -29.33, -8.00, ...
+    return (row % 2) ? -9.33 + 1.333 * ((row - 1) / 2) : -30.67 + 1.333 * (row / 2);
+  throw Error("CObservationRotatingScan '" + o.sensorLabel + "'",
+              "lidar model '" + o.lidarModel + "' with " + std::to_string(o.rowCount) +
+                  " rings has no known ring elevations (VLP-16, HDL-32E and 1-ring scanners "
+                  "are read); convert it to CObservationPointCloud");
+}
+
+// A range image: column c fires at startAzimuth + azimuthSpan * c / columns; MRPT's Velodyne
+// conversion counts the azimuth as the sensor turns (clockwise seen from above), hence y = -sin.
+Scan fromRotatingScan(const ::mrpt::obs::CObservationRotatingScan& o) {
+  Scan s;
+  if (o.rangeImage.rows() != o.rowCount || o.rangeImage.cols() != o.columnCount)
+    throw Error("CObservationRotatingScan '" + o.sensorLabel + "'",
+                "range image is " + std::to_string(o.rangeImage.rows()) + "x" +
+                    std::to_string(o.rangeImage.cols()) + ", expected rowCount x columnCount");
+  const bool has_i =
+      o.intensityImage.rows() == o.rowCount && o.intensityImage.cols() == o.columnCount;
+  const bool velodyne = o.rowCount > 1;
+  std::vector<double> cos_el(o.rowCount), sin_el(o.rowCount);
+  for (int r = 0; r < o.rowCount; ++r) {
+    const double el = ringElevationDeg(o, r) * M_PI / 180.0;
+    cos_el[r] = std::cos(el);
+    sin_el[r] = std::sin(el);
+  }
+  // MRPT 2.5.8's fromVelodyne allocates rowCount times more columns than there are firings and
+  // fills only the first columnCount / rowCount: the azimuth span covers those.
+  int used = o.columnCount;
+  if (velodyne && o.columnCount % o.rowCount == 0) {
+    const int firings = o.columnCount / o.rowCount;
+    bool beyond = false;
+    for (int c = firings; c < o.columnCount && !beyond; ++c)
+      for (int r = 0; r < o.rowCount && !beyond; ++r) beyond = o.rangeImage(r, c) != 0;
+    if (!beyond) used = firings;
+  }
+  const double cols = std::max(1, velodyne ? used : used - 1);
+  for (int c = 0; c < used; ++c) {
+    const double az = o.startAzimuth + o.azimuthSpan * c / cols;
+    const double ca = std::cos(az), sa = velodyne ? -std::sin(az) : std::sin(az);
+    for (int r = 0; r < o.rowCount; ++r) {
+      const uint16_t raw = o.rangeImage(r, c);
+      if (raw == 0) continue;
+      const double d = raw * o.rangeResolution;
+      const double x = d * cos_el[r] * ca, y = d * cos_el[r] * sa, z = d * sin_el[r];
+      s.points.push_back(PointXYZI{static_cast<float>(x), static_cast<float>(y),
+                                   static_cast<float>(z),
+                                   has_i ? o.intensityImage(r, c) / 255.0f : 0.0f});
+    }
+  }
+  return s;
+}
+
 }  // namespace
 
 std::optional<Scan> scanFromObservation(const ::mrpt::obs::CObservation& obs) {
@@ -98,6 +161,8 @@ std::optional<Scan> scanFromObservation(const ::mrpt::obs::CObservation& obs) {
     for (std::size_t i = 0; i < c.size(); ++i)
       s.points[i] = PointXYZI{c.x[i], c.y[i], c.z[i], c.intensity[i] / 255.0f};
     out = std::move(s);
+  } else if (const auto* rot = dynamic_cast<const CObservationRotatingScan*>(&obs)) {
+    out = fromRotatingScan(*rot);
   } else if (const auto* rgbd = dynamic_cast<const CObservation3DRangeScan*>(&obs)) {
     auto copy = *rgbd;
     copy.load();

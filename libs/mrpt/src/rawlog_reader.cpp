@@ -89,7 +89,13 @@ struct RawlogSource::Impl {
     using namespace ::mrpt::obs;
     if (!obs) return;
     const double t = ::mrpt::Clock::toDouble(obs->timestamp);
-    if (auto scan = scanFromObservation(*obs)) {
+    std::optional<Scan> scan;
+    try {
+      scan = scanFromObservation(*obs);
+    } catch (const Error& e) {  // name the rawlog and the entry too
+      throw Error(path, "entry " + std::to_string(entry - 1) + ": " + e.what());
+    }
+    if (scan) {
       Item it;
       it.kind = Item::kScan;
       it.t = t;
@@ -211,7 +217,7 @@ RawlogSource::RawlogSource(const std::string& path, const RawlogReadOptions& opt
   if (!impl_->findScan(0))
     throw Error(path,
                 "holds no point-cloud observations (CObservationPointCloud, "
-                "CObservationVelodyneScan or CObservation3DRangeScan)");
+                "CObservationVelodyneScan, CObservationRotatingScan or CObservation3DRangeScan)");
 }
 
 RawlogSource::~RawlogSource() = default;

@@ -27,7 +27,8 @@ PinholeCamera fromTCamera(const ::mrpt::img::TCamera& cam,
                           const std::string& source);
 
 /// Scan from a point-cloud-like observation (CObservationPointCloud, CObservationVelodyneScan,
-/// CObservation3DRangeScan), in the sensor frame, invalid points dropped. nullopt for other types.
+/// CObservationRotatingScan, CObservation3DRangeScan), in the sensor frame, invalid points dropped.
+/// nullopt for other types. Throws cleanmap::Error for a rotating scan of an unknown lidar model.
 /// Loads lazy (externally stored) data first.
 std::optional<Scan> scanFromObservation(const ::mrpt::obs::CObservation& obs);
 

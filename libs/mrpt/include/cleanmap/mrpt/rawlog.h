@@ -59,8 +59,9 @@ struct RawlogReadOptions {
 };
 
 /// Reads a rawlog (either MRPT format) as a stream of frames. Scans come from
-/// CObservationPointCloud, CObservationVelodyneScan (point cloud generated), and
-/// CObservation3DRangeScan (unprojected); CObservationRobotPose gives the robot pose (scan pose =
+/// CObservationPointCloud, CObservationVelodyneScan (point cloud generated),
+/// CObservationRotatingScan (range image, VLP-16 / HDL-32E / planar) and CObservation3DRangeScan
+/// (unprojected); CObservationRobotPose gives the robot pose (scan pose =
 /// robot pose + sensor pose) and CObservationImage the image, each matched to the scan with the
 /// nearest timestamp within tolerance. Other observations are counted and skipped.
 class RawlogSource : public FrameSource {
