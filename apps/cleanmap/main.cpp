@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
+#include <optional>
 #include <string>
 
 #include "../common/cli.h"
@@ -15,6 +16,7 @@
 #include "cleanmap/io/kitti.h"
 #include "cleanmap/io/output.h"
 #include "cleanmap/mrpt/input.h"
+#include "cleanmap/mrpt/outputs.h"
 #include "cleanmap/pipeline/laser_pipeline.h"
 
 namespace {
@@ -37,9 +39,16 @@ constexpr const char* kUsage = R"(usage: cleanmap INPUT -o OUTDIR [options]
 Finds the moving points in a sequence of lidar scans (Dempster-Shafer occupancy over a window of
 K past and K future scans, after ground removal; doc/DESIGN.md §2) and writes, into OUTDIR:
   labels/<stem>.label   uint32 per original point: 251 moving, 9 static, 40 ground, 0 not classified
-  static_map.ply        compact static map (duplicates of the recent map left out), world frame
-  static_map_full.ply   every static point (ground included), world frame
-  dynamic.ply           the moving points, world frame
+  static_map.ply/.pcd   compact static map (duplicates of the recent map left out), world frame,
+                        RGB by height above the sensor
+  static_map_full.ply   every static point (ground included), world frame, RGB by height
+  dynamic.ply/.pcd      the moving points, world frame, red
+  static_map.3Dscene    for SceneViewer3D: static map (one point per 0.1 m voxel), moving
+                        points in red, trajectory (doc/MRPT.md)
+  static_map.simplemap  every scan without its moving points, with its pose (MRPT CSimpleMap)
+  cleaned.rawlog        per scan: CObservationRobotPose + CObservationPointCloud without the
+                        moving points, for any MRPT SLAM or localization
+  labelled.rawlog       per scan: pose + the scan coloured by label (RawLogViewer; doc/FORMATS.md)
   poses.txt             lidar poses used (KITTI 3x4 rows); params.ini: the parameters of the run
   report.json, report.md  counts, time per stage, and precision/recall/IoU when INPUT has labels
 
@@ -56,6 +65,8 @@ INPUT                a KITTI odometry/SemanticKITTI or raw folder, or an MRPT .r
                      gicp: GICP scan-to-map odometry (DESIGN §2.1; a given first pose anchors it);
                      refine: GICP started from each given pose. Default: given when the first
                      scan has a pose, gicp otherwise. report.json says what each scan used.
+--no-mrpt-outputs    skip the .3Dscene, .simplemap and the two rawlogs
+--viewer-voxel M     voxel of the .3Dscene's decimation, metres (default 0.1; files keep every point)
 --quiet              no progress line (there is none when stderr is not a terminal)
 Scans without any valid point (0-byte .bin, all NaN) are kept as empty scans: labelled 0,
 counted in report.json (empty_scans) and in one warning line.
@@ -70,7 +81,8 @@ int main(int argc, char** argv) {
   std::string input, outdir, config, poses = "auto";
   long threads = -1, first = 0, last = -1;
   long long seed = -1;
-  bool quiet = false, progress_shown = false, force = false;
+  bool quiet = false, progress_shown = false, force = false, mrpt_outputs = true;
+  double viewer_voxel = 0.1;
   cleanmap::cli::Args args("cleanmap", argc, argv);
   while (!args.done()) {
     const std::string a = args.next();
@@ -95,6 +107,10 @@ int main(int argc, char** argv) {
       quiet = true;
     else if (a == "--force")
       force = true;
+    else if (a == "--no-mrpt-outputs")
+      mrpt_outputs = false;
+    else if (a == "--viewer-voxel")
+      viewer_voxel = args.number(a);
     else if (!a.empty() && a[0] != '-' && input.empty())
       input = a;
     else
@@ -104,6 +120,7 @@ int main(int argc, char** argv) {
   if (poses != "auto" && poses != "given" && poses != "gicp" && poses != "refine")
     args.fail("--poses is given, gicp or refine");
   if (last >= 0 && last < first) args.fail("--last must be >= --first");
+  if (!(viewer_voxel > 0)) args.fail("--viewer-voxel must be > 0");
 
   quiet = quiet || !::isatty(STDERR_FILENO);  // progress lines only on a terminal, not in logs
   std::signal(SIGINT, onSignal);
@@ -137,6 +154,12 @@ int main(int argc, char** argv) {
     cleanmap::io::OutputOptions out_opts;
     out_opts.force = force;
     cleanmap::io::OutputWriter out(outdir, input, params, out_opts);
+    std::optional<cleanmap::mrpt::MrptOutputWriter> mrpt_out;
+    if (mrpt_outputs) {
+      cleanmap::mrpt::MrptOutputOptions mo;
+      mo.viewer_voxel = viewer_voxel;
+      mrpt_out.emplace(out.staging(), mo);
+    }
     std::size_t seen = 0, empty = 0;
     const auto t0 = std::chrono::steady_clock::now();
     const auto total = src->sizeHint();
@@ -147,6 +170,7 @@ int main(int argc, char** argv) {
         eval = cleanmap::compareLabels(r.labels, kitti->loadLabels(r.index, r.labels.size()),
                                        kitti->labelPath(r.index));
       out.write(r, eval);
+      if (mrpt_out) mrpt_out->write(std::move(r));
       if (!quiet) {
         progress_shown = true;
         const double s =
@@ -165,6 +189,7 @@ int main(int argc, char** argv) {
           std::fprintf(stderr, "\rcleanmap: %zu scans, %.1f scans/s   ", out.scans(), rate);
       }
     });
+    pipeline.keepScans(mrpt_outputs);  // the rawlogs are made from each scan's points
     while (auto f = src->next()) {
       checkSignal();
       const long idx = static_cast<long>(f->index);
@@ -182,6 +207,10 @@ int main(int argc, char** argv) {
                                        std::to_string(first) + ")");
     const double wall =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    if (mrpt_out) {
+      mrpt_out->finish();
+      out.addOutputTime("mrpt", mrpt_out->writeMs());
+    }
     out.finish(wall);
     if (progress_shown) std::fprintf(stderr, "\n");
     if (empty)

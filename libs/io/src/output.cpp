@@ -113,9 +113,15 @@ OutputWriter::OutputWriter(const std::string& outdir, const std::string& input,
   fs::remove_all(staging_, ec);
   fs::create_directories(fs::path(staging_) / "labels", ec);
   if (ec) throw Error(dir_, "cannot create the staging folder " + staging_ + ": " + ec.message());
-  compact_ = std::make_unique<PlyStreamWriter>(staging_ + "/static_map.ply");
-  full_ = std::make_unique<PlyStreamWriter>(staging_ + "/static_map_full.ply");
-  moving_ = std::make_unique<PlyStreamWriter>(staging_ + "/dynamic.ply");
+  // DESIGN §4: the maps in RGB (static by height above the sensor, moving in red), the compact
+  // map and the moving points also as PCD.
+  const CloudStreamOptions height{CloudColour::kHeight, {}};
+  compact_ = std::make_unique<PlyStreamWriter>(
+      staging_ + "/static_map.ply",
+      CloudStreamOptions{CloudColour::kHeight, staging_ + "/static_map.pcd"});
+  full_ = std::make_unique<PlyStreamWriter>(staging_ + "/static_map_full.ply", height);
+  moving_ = std::make_unique<PlyStreamWriter>(
+      staging_ + "/dynamic.ply", CloudStreamOptions{CloudColour::kRed, staging_ + "/dynamic.pcd"});
 }
 
 OutputWriter::~OutputWriter() {
@@ -130,9 +136,10 @@ OutputWriter::~OutputWriter() {
 
 void OutputWriter::write(const ScanResult& r, const std::optional<MosCounts>& eval) {
   writeLabels(staging_ + "/labels/" + r.stem + ".label", r.labels);
-  compact_->append(r.static_compact);
-  full_->append(r.static_full);
-  moving_->append(r.moving);
+  const double z = r.pose.translation().z();
+  compact_->append(r.static_compact, z);
+  full_->append(r.static_full, z);
+  moving_->append(r.moving, z);
   poses_.push_back(r.pose);
   times_.push_back(r.timestamp);
   pose_info_.push_back(r.pose_info);
@@ -265,6 +272,7 @@ void OutputWriter::finish(double wall_s) {
                          {"per_scan", per}};
   }
   j["wall_s"] = wall_s;
+  if (!output_ms_.empty()) j["output_ms"] = output_ms_;
   j["threads"] = params_.threads;
   j["peak_rss_mib"] = peakRssMiB();
   j["params_ini"] = toIni(params_);

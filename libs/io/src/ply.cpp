@@ -3,6 +3,8 @@
 
 #include <unistd.h>
 
+#include <algorithm>
+#include <cmath>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -14,8 +16,28 @@
 
 namespace cleanmap::io {
 
-PlyStreamWriter::PlyStreamWriter(const std::string& path)
-    : path_(path), body_(path + ".body.tmp." + std::to_string(::getpid())) {
+namespace {
+constexpr std::size_t kXyzi = sizeof(PointXYZI);
+std::size_t recordSize(CloudColour c) {
+  return kXyzi + (c == CloudColour::kNone ? 0 : 3);
+}
+}  // namespace
+
+std::array<uint8_t, 3> heightColour(double dz) {
+  // Samples of viridis at t = 0, 1/4, 1/2, 3/4, 1, linearly interpolated.
+  static constexpr double kRamp[5][3] = {
+      {68, 1, 84}, {59, 82, 139}, {33, 145, 140}, {94, 201, 98}, {253, 231, 37}};
+  const double t = std::clamp((dz + 2.0) / 5.0, 0.0, 1.0) * 4.0;
+  const int k = std::min(3, static_cast<int>(t));
+  const double f = t - k;
+  std::array<uint8_t, 3> c{};
+  for (int j = 0; j < 3; ++j)
+    c[j] = static_cast<uint8_t>(std::lround(kRamp[k][j] + f * (kRamp[k + 1][j] - kRamp[k][j])));
+  return c;
+}
+
+PlyStreamWriter::PlyStreamWriter(const std::string& path, const CloudStreamOptions& opts)
+    : path_(path), body_(path + ".body.tmp." + std::to_string(::getpid())), opts_(opts) {
   const auto parent = std::filesystem::path(path).parent_path();
   std::error_code ec;
   if (!parent.empty()) std::filesystem::create_directories(parent, ec);
@@ -30,9 +52,23 @@ PlyStreamWriter::~PlyStreamWriter() {
   }
 }
 
-void PlyStreamWriter::append(const std::vector<PointXYZI>& points) {
+void PlyStreamWriter::append(const std::vector<PointXYZI>& points, double sensor_z) {
   if (points.empty()) return;
-  if (std::fwrite(points.data(), sizeof(PointXYZI), points.size(), f_) != points.size())
+  const std::size_t rs = recordSize(opts_.colour);
+  const char* data = reinterpret_cast<const char*>(points.data());
+  if (opts_.colour != CloudColour::kNone) {
+    rec_.resize(points.size() * rs);
+    for (std::size_t i = 0; i < points.size(); ++i) {
+      char* r = rec_.data() + i * rs;
+      std::memcpy(r, &points[i], kXyzi);
+      const auto c = opts_.colour == CloudColour::kRed
+                         ? std::array<uint8_t, 3>{255, 0, 0}
+                         : heightColour(static_cast<double>(points[i].z) - sensor_z);
+      std::memcpy(r + kXyzi, c.data(), 3);
+    }
+    data = rec_.data();
+  }
+  if (std::fwrite(data, rs, points.size(), f_) != points.size())
     throw Error(path_, "write failed (disk full?)");
   count_ += points.size();
 }
@@ -43,16 +79,50 @@ void PlyStreamWriter::close() {
   std::rewind(f_);
   writeFileAtomic(path_, [&](std::ostream& os) {
     os << "ply\nformat binary_little_endian 1.0\ncomment cleanmap\nelement vertex " << count_
-       << "\nproperty float x\nproperty float y\nproperty float z\nproperty float intensity\n"
-          "end_header\n";
+       << "\nproperty float x\nproperty float y\nproperty float z\nproperty float intensity\n";
+    if (opts_.colour != CloudColour::kNone)
+      os << "property uchar red\nproperty uchar green\nproperty uchar blue\n";
+    os << "end_header\n";
     std::vector<char> buf(1 << 20);
     std::size_t n;
     while ((n = std::fread(buf.data(), 1, buf.size(), f_)) > 0)
       os.write(buf.data(), static_cast<std::streamsize>(n));
   });
+  if (!opts_.pcd_path.empty()) writePcd();
   std::fclose(f_);
   f_ = nullptr;
   std::remove(body_.c_str());
+}
+
+// The PCD twin, from the same body: rgb packed into a float as PCL does (0x00RRGGBB).
+void PlyStreamWriter::writePcd() {
+  const bool rgb = opts_.colour != CloudColour::kNone;
+  const std::size_t rs = recordSize(opts_.colour);
+  std::rewind(f_);
+  writeFileAtomic(opts_.pcd_path, [&](std::ostream& os) {
+    os << "# .PCD v0.7 - written by cleanmap\nVERSION 0.7\nFIELDS x y z intensity"
+       << (rgb ? " rgb\nSIZE 4 4 4 4 4\nTYPE F F F F F\nCOUNT 1 1 1 1 1"
+               : "\nSIZE 4 4 4 4\nTYPE F F F F\nCOUNT 1 1 1 1")
+       << "\nWIDTH " << count_ << "\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS " << count_
+       << "\nDATA binary\n";
+    constexpr std::size_t kBatch = 1 << 16;
+    std::vector<char> in(kBatch * rs), out(kBatch * (kXyzi + 4));
+    std::size_t n;
+    while ((n = std::fread(in.data(), rs, kBatch, f_)) > 0) {
+      if (!rgb) {
+        os.write(in.data(), static_cast<std::streamsize>(n * rs));
+        continue;
+      }
+      for (std::size_t i = 0; i < n; ++i) {
+        const auto* r = reinterpret_cast<const unsigned char*>(in.data() + i * rs);
+        const uint32_t packed =
+            (uint32_t(r[kXyzi]) << 16) | (uint32_t(r[kXyzi + 1]) << 8) | uint32_t(r[kXyzi + 2]);
+        std::memcpy(out.data() + i * (kXyzi + 4), r, kXyzi);
+        std::memcpy(out.data() + i * (kXyzi + 4) + kXyzi, &packed, 4);
+      }
+      os.write(out.data(), static_cast<std::streamsize>(n * (kXyzi + 4)));
+    }
+  });
 }
 
 void writePly(const std::string& path, const std::vector<PointXYZI>& points) {

@@ -17,6 +17,10 @@ namespace cleanmap::mrpt {
 
 using ::mrpt::poses::CPose3D;
 
+::mrpt::Clock::time_point toMrptTime(double t) {
+  return ::mrpt::Clock::fromDouble(t < 1e8 ? t + kRelativeTimeEpoch : t);
+}
+
 CPose3D toCPose3D(const Eigen::Isometry3d& T) {
   ::mrpt::math::CMatrixDouble44 m;
   m.asEigen() = T.matrix();

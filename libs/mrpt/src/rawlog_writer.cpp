@@ -51,7 +51,7 @@ void RawlogWriter::write(const Frame& frame, const std::optional<PinholeCamera>&
                          const std::string& scan_source, const std::string& image_source) {
   using namespace ::mrpt::obs;
   auto arch = ::mrpt::serialization::archiveFrom(impl_->out);
-  const auto stamp = ::mrpt::Clock::fromDouble(frame.scan.timestamp);
+  const auto stamp = toMrptTime(frame.scan.timestamp);
 
   if (frame.scan.has_pose) {
     auto obs = CObservationRobotPose::Create();
@@ -84,7 +84,7 @@ void RawlogWriter::write(const Frame& frame, const std::optional<PinholeCamera>&
     if (!camera) throw Error(path_, "frame " + frame.stem + " has an image but no camera");
     auto img = CObservationImage::Create();
     img->sensorLabel = opts_.camera_label;
-    img->timestamp = ::mrpt::Clock::fromDouble(frame.image->timestamp);
+    img->timestamp = toMrptTime(frame.image->timestamp);
     img->cameraParams = toTCamera(*camera, img->cameraPose);
     if (opts_.external && !image_source.empty())
       img->image.setExternalStorage(fs::absolute(image_source).string());

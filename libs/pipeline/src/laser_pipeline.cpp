@@ -335,6 +335,7 @@ ScanResult LaserPipeline::collect(Prepared& s, const Work& w) const {
     }
   }
   r.stats = s.stats;
+  if (keep_scans_) r.scan = s.scan;
   return r;
 }
 

@@ -60,6 +60,9 @@ struct ScanResult {
   std::vector<PointXYZI> static_compact;  ///< world frame: static points not already in the map
   std::vector<PointXYZI> static_full;     ///< world frame: every static point (ground included)
   std::vector<PointXYZI> moving;          ///< world frame
+  /// The scan as read (sensor frame, valid points, original_index), only when the pipeline keeps
+  /// scans (LaserPipeline::keepScans): the cleaned and labelled rawlogs are made from it.
+  Scan scan;
   ScanStats stats;
 };
 

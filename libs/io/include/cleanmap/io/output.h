@@ -3,6 +3,7 @@
 // how it is published: everything is written into a staging folder beside OUTDIR and moved into
 // place only when the run is complete, so OUTDIR always holds one whole run (or nothing new).
 #pragma once
+#include <map>
 #include <memory>
 #include <optional>
 #include <string>
@@ -43,6 +44,8 @@ class OutputWriter {
 
   /// One decided scan, with its evaluation when ground truth exists.
   void write(const ScanResult& r, const std::optional<MosCounts>& eval);
+  /// Wall time (ms, whole run) of another writer of the run (report.json `output_ms`).
+  void addOutputTime(const std::string& name, double ms) { output_ms_[name] += ms; }
   /// Closes the maps, writes poses and the report, and publishes the folder as OUTDIR.
   /// `wall_s`: whole run, seconds.
   void finish(double wall_s);
@@ -71,6 +74,7 @@ class OutputWriter {
   std::vector<MosCounts> scan_eval_;
   MosCounts eval_;
   bool has_eval_ = false;
+  std::map<std::string, double> output_ms_;
 };
 
 /// Peak resident memory of this process, MiB.

@@ -1,7 +1,10 @@
 // SPDX-License-Identifier: BSD-3-Clause
-// Binary little-endian PLY point clouds (x, y, z, intensity as float32), written in a stream so a
-// map of any length needs no memory, and moved into place atomically at the end.
+// Binary little-endian PLY point clouds (x, y, z, intensity as float32, optionally red, green,
+// blue as uint8), written in a stream so a map of any length needs no memory, and moved into place
+// atomically at the end; optionally the same cloud as a PCL `.pcd` (packed `rgb`).
 #pragma once
+#include <array>
+#include <cstdint>
 #include <cstdio>
 #include <string>
 #include <vector>
@@ -10,20 +13,37 @@
 
 namespace cleanmap::io {
 
+/// How a streamed cloud is coloured (DESIGN §4): not at all, by height above the sensor (the map:
+/// blue → green → yellow from 2 m below to 3 m above, no red), or red (the moving points).
+enum class CloudColour { kNone, kHeight, kRed };
+
+/// RGB of a point `dz` metres above the sensor, for CloudColour::kHeight (viridis-like ramp).
+std::array<uint8_t, 3> heightColour(double dz);
+
+struct CloudStreamOptions {
+  CloudColour colour = CloudColour::kNone;
+  std::string pcd_path;  ///< also write the cloud as binary PCD (x y z intensity [rgb]) here
+};
+
 class PlyStreamWriter {
  public:
-  explicit PlyStreamWriter(const std::string& path);
+  explicit PlyStreamWriter(const std::string& path, const CloudStreamOptions& opts = {});
   ~PlyStreamWriter();  ///< without close(): removes the temporary data, leaves no file
   PlyStreamWriter(const PlyStreamWriter&) = delete;
   PlyStreamWriter& operator=(const PlyStreamWriter&) = delete;
 
-  void append(const std::vector<PointXYZI>& points);
+  /// `sensor_z`: world height of the sensor that saw the points (reference of kHeight colours).
+  void append(const std::vector<PointXYZI>& points, double sensor_z = 0);
   /// Writes header + points to the final path through a temporary and a rename.
   void close();
   std::size_t count() const { return count_; }
 
  private:
+  void writePcd();
+
   std::string path_, body_;
+  CloudStreamOptions opts_;
+  std::vector<char> rec_;  // append()'s record buffer
   std::FILE* f_ = nullptr;
   std::size_t count_ = 0;
 };

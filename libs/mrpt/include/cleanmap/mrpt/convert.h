@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: BSD-3-Clause
 // Conversions between cleanmap core types and MRPT types (the only place both meet).
 #pragma once
+#include <mrpt/core/Clock.h>
 #include <mrpt/img/TCamera.h>
 #include <mrpt/maps/CPointsMapXYZI.h>
 #include <mrpt/obs/CObservation.h>
@@ -9,6 +10,12 @@
 #include "cleanmap/core/types.h"
 
 namespace cleanmap::mrpt {
+
+/// MRPT reads a timestamp of 0 as "none" (and 1970 dates as nonsense). Times below 1e8 s are
+/// sequence-relative (KITTI odometry `times.txt` starts at 0): they are stamped from the epoch
+/// kRelativeTimeEpoch, 2000-01-01T00:00:00Z; real epoch times (KITTI raw) are kept as they are.
+constexpr double kRelativeTimeEpoch = 946684800.0;
+::mrpt::Clock::time_point toMrptTime(double t);
 
 ::mrpt::poses::CPose3D toCPose3D(const Eigen::Isometry3d& T);
 Eigen::Isometry3d toIsometry(const ::mrpt::poses::CPose3D& p);

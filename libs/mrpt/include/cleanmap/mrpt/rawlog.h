@@ -25,8 +25,9 @@ struct RawlogWriteOptions {
 
 /// Streams frames into a rawlog: per frame a CObservationRobotPose (when the scan has a pose),
 /// a CObservationPointCloud (XYZI, sensorPose = identity: the robot frame is the lidar frame) and
-/// a CObservationImage (with TCamera and camera pose), all with the scan's timestamp.
-/// Written to a temporary file and moved into place by close(): an interrupted run leaves nothing.
+/// a CObservationImage (with TCamera and camera pose), all with the scan's timestamp (relative
+/// times from 2000-01-01, see toMrptTime). Written to a temporary file and moved into place by
+/// close(): an interrupted run leaves nothing.
 class RawlogWriter {
  public:
   RawlogWriter(const std::string& path, const RawlogWriteOptions& opts = {});

@@ -34,6 +34,8 @@ class LaserPipeline {
   void finish();
 
   std::size_t decided() const { return decided_; }
+  /// Hand each scan's points to the sink too (ScanResult::scan), for outputs made per scan.
+  void keepScans(bool on) { keep_scans_ = on; }
 
  private:
   struct Prepared;  // a buffered scan: beams, crop and ground masks
@@ -60,6 +62,7 @@ class LaserPipeline {
   std::deque<std::unique_ptr<Prepared>> buf_;  // scans k-K .. k+K around the next to decide
   std::size_t next_ = 0;                       // position in buf_ of the next scan to decide
   std::size_t decided_ = 0;
+  bool keep_scans_ = false;
   long prev_index_ = -1;
   std::unordered_set<uint64_t> prev_moving_cells_;  // last decided scan's moving cells, dilated
   std::unique_ptr<Work> work_;

@@ -1,0 +1,410 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// DESIGN §4a: the MRPT outputs of a run.
+#include "cleanmap/mrpt/outputs.h"
+
+#include <unistd.h>
+
+#include <condition_variable>
+#include <cstdio>
+#include <deque>
+#include <exception>
+#include <filesystem>
+#include <fstream>
+#include <mutex>
+#include <thread>
+#include <unordered_set>
+
+#include <mrpt/io/CFileGZOutputStream.h>
+#include <mrpt/maps/CColouredPointsMap.h>
+#include <mrpt/maps/CSimpleMap.h>
+#include <mrpt/obs/CObservationPointCloud.h>
+#include <mrpt/obs/CObservationRobotPose.h>
+#include <mrpt/obs/CSensoryFrame.h>
+#include <mrpt/opengl/CCamera.h>
+#include <mrpt/opengl/COpenGLScene.h>
+#include <mrpt/opengl/CPointCloud.h>
+#include <mrpt/opengl/CPointCloudColoured.h>
+#include <mrpt/opengl/CSetOfLines.h>
+#include <mrpt/poses/CPose3DPDFGaussian.h>
+#include <mrpt/serialization/CArchive.h>
+#include <mrpt/serialization/archiveFrom_std_vector.h>
+
+#include "cleanmap/core/cell_key.h"
+#include "cleanmap/core/error.h"
+#include "cleanmap/core/stopwatch.h"
+#include "cleanmap/io/ply.h"
+#include "cleanmap/mrpt/convert.h"
+#include "cleanmap/mrpt/rawlog.h"
+
+namespace fs = std::filesystem;
+
+namespace cleanmap::mrpt {
+
+// Palette of labelled.rawlog: binary fractions, exact in float.
+std::array<float, 3> labelColour(uint32_t label) {
+  switch (label) {
+    case kMoving:
+      return {1.0f, 0.0f, 0.0f};
+    case kStatic:
+      return {0.75f, 0.75f, 0.75f};
+    case kGround:
+      return {0.5f, 0.25f, 0.0f};
+    default:  // kUnclassified: out of the crop
+      return {0.0f, 0.25f, 1.0f};
+  }
+}
+
+uint32_t labelFromColour(float r, float g, float b) {
+  for (const uint32_t l :
+       {uint32_t(kMoving), uint32_t(kStatic), uint32_t(kGround), uint32_t(kUnclassified)}) {
+    const auto c = labelColour(l);
+    if (c[0] == r && c[1] == g && c[2] == b) return l;
+  }
+  return kOutlier;
+}
+
+namespace {
+
+// A file written under a temporary name, renamed into place by close(): gzip at `level` >= 1,
+// plain at 0 (MRPT's gzip reader reads plain files too, and zlib's CRC is not free).
+struct OutFile {
+  std::string path, tmp;
+  std::FILE* plain = nullptr;
+  ::mrpt::io::CFileGZOutputStream gz;
+  bool open = false;
+
+  OutFile(std::string p, int level, const char* suffix = ".tmp.") : path(std::move(p)) {
+    tmp = path + suffix + std::to_string(::getpid());
+    if (level <= 0)
+      plain = std::fopen(tmp.c_str(), "wb");
+    else if (!gz.open(tmp, level))
+      throw Error(path, "cannot open for writing");
+    if (level <= 0 && !plain) throw Error(path, "cannot open for writing");
+    open = true;
+  }
+  ~OutFile() {
+    if (open) {
+      finishWriting();
+      std::remove(tmp.c_str());
+    }
+  }
+  void write(const void* data, std::size_t n) {
+    if (plain ? std::fwrite(data, 1, n, plain) != n : gz.Write(data, n) != n)
+      throw Error(path, "write failed (disk full?)");
+  }
+  void finishWriting() {
+    open = false;
+    if (plain) {
+      const bool ok = std::fclose(plain) == 0;
+      plain = nullptr;
+      if (!ok) throw Error(path, "write failed (disk full?)");
+    } else {
+      gz.close();
+    }
+  }
+  void close() {
+    if (!open) return;
+    finishWriting();
+    std::error_code ec;
+    fs::rename(tmp, path, ec);
+    if (ec) {
+      std::remove(tmp.c_str());
+      throw Error(path, "cannot move into place: " + ec.message());
+    }
+  }
+};
+
+// Serializes objects in MRPT's archive format into a reused buffer (its capacity stays).
+class Encoder {
+ public:
+  template <class... T>
+  std::pair<const void*, std::size_t> operator()(const T&... objs) {
+    buf_.clear();
+    auto ar = ::mrpt::serialization::archiveFrom(buf_);
+    (ar << ... << objs);
+    return {buf_.data(), buf_.size()};
+  }
+
+ private:
+  std::vector<uint8_t> buf_;
+};
+
+// The serialized bytes of an object.
+std::vector<uint8_t> serialized(const ::mrpt::serialization::CSerializable& o) {
+  Encoder enc;
+  ::mrpt::maps::CPointsMapXYZI::Ptr kept_map = ::mrpt::maps::CPointsMapXYZI::Create();
+  ::mrpt::maps::CColouredPointsMap::Ptr labelled_map = ::mrpt::maps::CColouredPointsMap::Create();
+  const auto [p, n] = enc(o);
+  return {static_cast<const uint8_t*>(p), static_cast<const uint8_t*>(p) + n};
+}
+
+}  // namespace
+
+// A CSimpleMap is written as a stream: MRPT's serialization of it is the object header, a uint32
+// count, the (pose, sensory frame) pairs, and an end byte 0x88. The pairs go to one gzip member as
+// they come, the header with the final count to another, and the two members are concatenated
+// (gzip readers, zlib's included, read concatenated members as one stream). The header is taken
+// from MRPT's own serialization of an empty map, so a changed format is detected, never guessed.
+struct MrptOutputWriter::Impl {
+  std::string folder;
+  std::unique_ptr<OutFile> cleaned, labelled, simplemap_body;
+  Encoder enc;
+  ::mrpt::maps::CPointsMapXYZI::Ptr kept_map = ::mrpt::maps::CPointsMapXYZI::Create();
+  ::mrpt::maps::CColouredPointsMap::Ptr labelled_map = ::mrpt::maps::CColouredPointsMap::Create();
+  std::size_t simplemap_count = 0;
+  // The worker thread and its queue (MrptOutputOptions::background).
+  std::thread worker;
+  std::mutex mu;
+  std::condition_variable cv;
+  std::deque<ScanResult> queue;
+  bool closing = false;
+  std::exception_ptr error;
+  // Scene: voxel-decimated points and the trajectory.
+  std::unordered_set<uint64_t> static_cells, moving_cells;
+  std::vector<PointXYZI> scene_static, scene_moving;
+  std::vector<std::array<uint8_t, 3>> scene_static_rgb;
+  std::vector<Eigen::Vector3d> trajectory;
+
+  void addToScene(const ScanResult& r, double inv_voxel) {
+    const double z0 = r.pose.translation().z();
+    for (const auto& p : r.static_full)  // the ground too: it gives the scene its shape
+      if (static_cells.insert(cellKeyOf<double>(p.x, p.y, p.z, inv_voxel)).second) {
+        scene_static.push_back(p);
+        scene_static_rgb.push_back(io::heightColour(double(p.z) - z0));
+      }
+    for (const auto& p : r.moving)
+      if (moving_cells.insert(cellKeyOf<double>(p.x, p.y, p.z, inv_voxel)).second)
+        scene_moving.push_back(p);
+    trajectory.push_back(r.pose.translation());
+  }
+
+  void writeScene(const std::string& path) const {
+    using namespace ::mrpt::opengl;
+    COpenGLScene scene;
+    auto stat = CPointCloudColoured::Create();
+    stat->setName("static_map");
+    stat->setPointSize(2.0f);
+    stat->reserve(scene_static.size());
+    for (std::size_t i = 0; i < scene_static.size(); ++i) {
+      const auto& p = scene_static[i];
+      const auto& c = scene_static_rgb[i];
+      stat->push_back(p.x, p.y, p.z, c[0] / 255.0f, c[1] / 255.0f, c[2] / 255.0f);
+    }
+    scene.insert(stat);
+    auto mov = CPointCloud::Create();
+    mov->setName("moving_points");
+    mov->setPointSize(3.0f);
+    mov->setColor(1.0, 0.0, 0.0);
+    for (const auto& p : scene_moving) mov->insertPoint(p.x, p.y, p.z);
+    scene.insert(mov);
+    auto traj = CSetOfLines::Create();
+    traj->setName("trajectory");
+    traj->setLineWidth(3.0f);
+    traj->setColor(0.0, 0.9, 1.0);
+    for (std::size_t i = 1; i < trajectory.size(); ++i) {
+      const auto& a = trajectory[i - 1];
+      const auto& b = trajectory[i];
+      traj->appendLine(a.x(), a.y(), a.z(), b.x(), b.y(), b.z());
+    }
+    scene.insert(traj);
+    // The first view: the whole drive from above and behind its start, on a dark background.
+    if (!trajectory.empty()) {
+      Eigen::Vector3d lo = trajectory.front(), hi = lo;
+      for (const auto& p : trajectory) {
+        lo = lo.cwiseMin(p);
+        hi = hi.cwiseMax(p);
+      }
+      const Eigen::Vector3d c = 0.5 * (lo + hi);
+      const Eigen::Vector3d dir = trajectory.back() - trajectory.front();
+      auto cam = CCamera::Create();
+      cam->setPointingAt(c.x(), c.y(), c.z());
+      cam->setZoomDistance(static_cast<float>(std::max(40.0, 1.5 * (hi - lo).head<2>().norm())));
+      cam->setAzimuthDegrees(dir.head<2>().norm() > 1
+                                 ? static_cast<float>(std::atan2(-dir.y(), -dir.x()) * 180 / M_PI)
+                                 : 180.0f);
+      cam->setElevationDegrees(50.0f);
+      scene.insert(cam);
+    }
+    scene.getViewport()->setCustomBackgroundColor({0.05f, 0.05f, 0.08f});
+    const std::string tmp = path + ".tmp." + std::to_string(::getpid());
+    if (!scene.saveToFile(tmp)) {
+      std::remove(tmp.c_str());
+      throw Error(path, "cannot write the scene");
+    }
+    std::error_code ec;
+    fs::rename(tmp, path, ec);
+    if (ec) throw Error(path, "cannot move into place: " + ec.message());
+  }
+
+  void writeSimplemap(const std::string& path, int level) {
+    const uint8_t end = 0x88;  // the end byte of the CSimpleMap object
+    simplemap_body->write(&end, 1);
+    simplemap_body->finishWriting();
+    const auto empty = serialized(::mrpt::maps::CSimpleMap());
+    const std::size_t n = empty.size();
+    if (n < 5 || empty[n - 1] != 0x88 || empty[n - 2] || empty[n - 3] || empty[n - 4] ||
+        empty[n - 5])
+      throw Error(path, "this MRPT's CSimpleMap format is not the one cleanmap streams");
+    OutFile head(path, level, ".head.");
+    head.write(empty.data(), n - 5);
+    const uint32_t count = static_cast<uint32_t>(simplemap_count);  // little endian, as MRPT
+    head.write(&count, 4);
+    head.finishWriting();
+    const std::string tmp = path + ".part." + std::to_string(::getpid());
+    {
+      std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+      for (const std::string& part : {head.tmp, simplemap_body->tmp}) {
+        std::ifstream in(part, std::ios::binary);
+        out << in.rdbuf();
+      }
+      if (!out) throw Error(path, "write failed (disk full?)");
+    }
+    std::remove(head.tmp.c_str());
+    std::remove(simplemap_body->tmp.c_str());
+    std::error_code ec;
+    fs::rename(tmp, path, ec);
+    if (ec) throw Error(path, "cannot move into place: " + ec.message());
+  }
+};
+
+MrptOutputWriter::MrptOutputWriter(const std::string& folder, const MrptOutputOptions& opts)
+    : impl_(std::make_unique<Impl>()), opts_(opts) {
+  registerClasses();
+  impl_->folder = folder;
+  if (opts_.rawlogs) {
+    impl_->cleaned = std::make_unique<OutFile>(folder + "/cleaned.rawlog", opts_.gzip_level);
+    impl_->labelled = std::make_unique<OutFile>(folder + "/labelled.rawlog", opts_.gzip_level);
+    impl_->simplemap_body =
+        std::make_unique<OutFile>(folder + "/static_map.simplemap", opts_.gzip_level);
+  }
+  if (opts_.background) impl_->worker = std::thread([this] { work(); });
+}
+
+MrptOutputWriter::~MrptOutputWriter() {
+  stopWorker(false);
+}  // an error or a signal: stop now
+
+std::size_t MrptOutputWriter::scenePoints() const {
+  return impl_->scene_static.size() + impl_->scene_moving.size();
+}
+
+void MrptOutputWriter::write(ScanResult&& r) {
+  auto& I = *impl_;
+  if (!opts_.background) return writeNow(r);
+  std::unique_lock<std::mutex> lock(I.mu);
+  I.cv.wait(lock, [&] { return I.queue.size() < 2 || I.error; });
+  if (I.error) std::rethrow_exception(I.error);
+  I.queue.push_back(std::move(r));
+  I.cv.notify_all();
+}
+
+void MrptOutputWriter::work() {
+  auto& I = *impl_;
+  for (;;) {
+    ScanResult r;
+    {
+      std::unique_lock<std::mutex> lock(I.mu);
+      I.cv.wait(lock, [&] { return !I.queue.empty() || I.closing; });
+      if (I.queue.empty()) return;
+      r = std::move(I.queue.front());
+      I.queue.pop_front();
+      I.cv.notify_all();
+    }
+    try {
+      writeNow(r);
+    } catch (...) {
+      std::lock_guard<std::mutex> lock(I.mu);
+      I.error = std::current_exception();
+      I.queue.clear();
+      I.cv.notify_all();
+      return;
+    }
+  }
+}
+
+void MrptOutputWriter::stopWorker(bool drain) {
+  auto& I = *impl_;
+  if (!I.worker.joinable()) return;
+  {
+    std::lock_guard<std::mutex> lock(I.mu);
+    if (!drain) I.queue.clear();
+    I.closing = true;
+    I.cv.notify_all();
+  }
+  I.worker.join();
+}
+
+void MrptOutputWriter::writeNow(const ScanResult& r) {
+  using namespace ::mrpt::obs;
+  const auto t0 = Clock::now();
+  auto& I = *impl_;
+  if (opts_.scene) I.addToScene(r, 1.0 / opts_.viewer_voxel);
+  if (opts_.rawlogs) {
+    if (r.scan.original_size == 0 && !r.labels.empty())
+      throw Error(r.source, "scan " + r.stem + ": its points were not kept for the MRPT outputs");
+    const auto stamp = toMrptTime(r.timestamp);
+    const ::mrpt::poses::CPose3D pose = toCPose3D(r.pose);
+    auto pose_obs = CObservationRobotPose::Create();
+    pose_obs->sensorLabel = "POSE";
+    pose_obs->timestamp = stamp;
+    pose_obs->pose.mean = pose;
+    pose_obs->pose.cov.setZero();
+
+    // The maps live as long as the writer: no fresh pages per scan.
+    auto& kept = *I.kept_map;
+    auto& lab = *I.labelled_map;
+    const std::size_t n = r.scan.size();
+    std::size_t k = 0;
+    kept.resize(n);
+    lab.resize(n);
+    for (std::size_t i = 0; i < n; ++i) {
+      const auto& p = r.scan.points[i];
+      const uint32_t l = r.labels[r.scan.originalIndex(i)];
+      if (l != kMoving) kept.setPointRGB(k++, p.x, p.y, p.z, p.intensity, 0, 0);
+      const auto c = labelColour(l);
+      lab.setPointRGB(i, p.x, p.y, p.z, c[0], c[1], c[2]);
+    }
+    kept.resize(k);
+    kept.mark_as_modified();
+    lab.mark_as_modified();
+    auto cleaned = CObservationPointCloud::Create();
+    cleaned->sensorLabel = "LIDAR";
+    cleaned->timestamp = stamp;
+    cleaned->pointcloud = I.kept_map;
+    auto labelled = CObservationPointCloud::Create();
+    labelled->sensorLabel = "LIDAR_LABELLED";
+    labelled->timestamp = stamp;
+    labelled->pointcloud = I.labelled_map;
+
+    // The cleaned cloud is serialized once, for the rawlog and the simplemap.
+    const auto [pb, pn] = I.enc(*pose_obs);
+    I.cleaned->write(pb, pn);
+    I.labelled->write(pb, pn);
+    const auto [lb, ln] = I.enc(*labelled);
+    I.labelled->write(lb, ln);
+    CSensoryFrame sf;
+    sf.insert(cleaned);
+    const auto [cb, cn] = I.enc(*cleaned);
+    I.cleaned->write(cb, cn);
+    const auto [sb, sn] = I.enc(::mrpt::poses::CPose3DPDFGaussian(pose), sf);
+    I.simplemap_body->write(sb, sn);
+    ++I.simplemap_count;
+  }
+  ms_ += msSince(t0);
+}
+
+void MrptOutputWriter::finish() {
+  stopWorker(true);
+  auto& I = *impl_;
+  if (I.error) std::rethrow_exception(I.error);
+  const auto t0 = Clock::now();
+  if (opts_.rawlogs) {
+    I.cleaned->close();
+    I.labelled->close();
+    I.writeSimplemap(I.folder + "/static_map.simplemap", opts_.gzip_level);
+  }
+  if (opts_.scene) I.writeScene(I.folder + "/static_map.3Dscene");
+  ms_ += msSince(t0);
+}
+
+}  // namespace cleanmap::mrpt

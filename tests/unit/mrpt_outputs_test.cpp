@@ -1,0 +1,214 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// The MRPT outputs (DESIGN §4a) read back with MRPT itself: the rawlogs scan by scan against the
+// pipeline's labels, the streamed simplemap byte-equal to MRPT's own serialization, the scene's
+// objects.
+#include <gtest/gtest.h>
+
+#include <cstring>
+#include <fstream>
+
+#include <mrpt/io/CFileGZInputStream.h>
+#include <mrpt/maps/CColouredPointsMap.h>
+#include <mrpt/maps/CSimpleMap.h>
+#include <mrpt/obs/CObservationPointCloud.h>
+#include <mrpt/obs/CObservationRobotPose.h>
+#include <mrpt/obs/CRawlog.h>
+#include <mrpt/opengl/COpenGLScene.h>
+#include <mrpt/opengl/CPointCloud.h>
+#include <mrpt/opengl/CPointCloudColoured.h>
+#include <mrpt/opengl/CSetOfLines.h>
+#include <mrpt/poses/CPose3DPDFGaussian.h>
+#include <mrpt/serialization/CArchive.h>
+#include <mrpt/serialization/archiveFrom_std_vector.h>
+
+#include "cleanmap/io/kitti.h"
+#include "cleanmap/mrpt/convert.h"
+#include "cleanmap/mrpt/outputs.h"
+#include "cleanmap/mrpt/rawlog.h"
+#include "cleanmap/pipeline/laser_pipeline.h"
+#include "test_data.h"
+
+using namespace cleanmap;
+namespace fs = std::filesystem;
+
+namespace {
+
+struct Decided {
+  std::size_t index;
+  Eigen::Isometry3d pose;
+  Scan scan;
+  Labels labels;
+  std::size_t moving = 0;
+};
+
+// The first `n` scans of a labelled set through the pipeline, written by MrptOutputWriter.
+std::vector<Decided> runAndWrite(const std::string& set, std::size_t n, const fs::path& dir,
+                                 const cleanmap::mrpt::MrptOutputOptions& opts) {
+  auto seq = io::KittiSequence::open(test::dataDir() + "/" + set);
+  std::vector<Decided> out;
+  cleanmap::mrpt::MrptOutputWriter w(dir.string(), opts);
+  LaserPipeline pl(PipelineParams{}, [&](ScanResult&& r) {
+    out.push_back({r.index, r.pose, r.scan, r.labels, r.moving.size()});
+    w.write(std::move(r));
+  });
+  pl.keepScans(true);
+  for (std::size_t i = 0; i < std::min(n, seq.size()); ++i) pl.push(seq.frame(i));
+  pl.finish();
+  w.finish();
+  return out;
+}
+
+// Every observation of a rawlog, in order.
+std::vector<::mrpt::obs::CObservation::Ptr> readObservations(const std::string& path) {
+  cleanmap::mrpt::registerClasses();
+  ::mrpt::io::CFileGZInputStream in(path);
+  auto ar = ::mrpt::serialization::archiveFrom(in);
+  ::mrpt::obs::CActionCollection::Ptr acts;
+  ::mrpt::obs::CSensoryFrame::Ptr sf;
+  ::mrpt::obs::CObservation::Ptr obs;
+  std::size_t idx = 0;
+  std::vector<::mrpt::obs::CObservation::Ptr> all;
+  while (::mrpt::obs::CRawlog::getActionObservationPairOrObservation(ar, acts, sf, obs, idx))
+    if (obs) all.push_back(obs);
+  return all;
+}
+
+std::vector<uint8_t> fileBytes(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), {}};
+}
+
+}  // namespace
+
+TEST(MrptOutputs, LabelColoursDecodeToTheirLabels) {
+  for (const uint32_t l :
+       {uint32_t(kMoving), uint32_t(kStatic), uint32_t(kGround), uint32_t(kUnclassified)}) {
+    const auto c = cleanmap::mrpt::labelColour(l);
+    EXPECT_EQ(cleanmap::mrpt::labelFromColour(c[0], c[1], c[2]), l);
+  }
+  EXPECT_EQ(cleanmap::mrpt::labelFromColour(0.3f, 0.3f, 0.3f), uint32_t(kOutlier));
+}
+
+TEST(MrptOutputs, ScanWithoutItsPointsIsAClearError) {
+  const auto dir = test::scratchDir("not_kept");
+  cleanmap::mrpt::MrptOutputOptions opts;
+  opts.background = false;
+  cleanmap::mrpt::MrptOutputWriter w(dir.string(), opts);
+  ScanResult r;
+  r.source = "input.rawlog";
+  r.stem = "000007";
+  r.labels.assign(10, kStatic);
+  test::expectError([&] { w.write(std::move(r)); }, "input.rawlog", "000007");
+}
+
+// On real scans: the cleaned rawlog holds exactly the scan minus its moving points, the labelled
+// rawlog every point with its label's colour, the simplemap the cleaned scans with their poses.
+TEST(MrptOutputs, ReadBackWithMrptMatchTheRun) {
+  CLEANMAP_REQUIRE_DATASET("kitti_city");
+  const auto dir = test::scratchDir("city");
+  const auto run = runAndWrite("kitti_city", 12, dir, {});
+  ASSERT_EQ(run.size(), 12u);
+  std::size_t moving = 0;
+
+  const auto cleaned = readObservations((dir / "cleaned.rawlog").string());
+  const auto labelled = readObservations((dir / "labelled.rawlog").string());
+  ASSERT_EQ(cleaned.size(), 2 * run.size());
+  ASSERT_EQ(labelled.size(), 2 * run.size());
+  for (std::size_t k = 0; k < run.size(); ++k) {
+    const auto& d = run[k];
+    SCOPED_TRACE("scan " + std::to_string(d.index));
+    const auto pose = std::dynamic_pointer_cast<::mrpt::obs::CObservationRobotPose>(cleaned[2 * k]);
+    ASSERT_TRUE(pose);
+    EXPECT_TRUE(cleanmap::mrpt::toIsometry(pose->pose.mean).isApprox(d.pose, 1e-9));
+    EXPECT_GT(::mrpt::Clock::toDouble(pose->timestamp), 9e8);  // never 0: MRPT's "no time"
+
+    const auto pc =
+        std::dynamic_pointer_cast<::mrpt::obs::CObservationPointCloud>(cleaned[2 * k + 1]);
+    ASSERT_TRUE(pc && pc->pointcloud);
+    std::vector<PointXYZI> expect;
+    for (std::size_t i = 0; i < d.scan.size(); ++i)
+      if (d.labels[d.scan.originalIndex(i)] != kMoving) expect.push_back(d.scan.points[i]);
+    ASSERT_EQ(pc->pointcloud->size(), expect.size());
+    EXPECT_EQ(expect.size() + d.moving, d.scan.size());
+    const auto got = cleanmap::mrpt::scanFromObservation(*pc);
+    ASSERT_TRUE(got && got->size() == expect.size());
+    EXPECT_EQ(0, std::memcmp(got->points.data(), expect.data(), expect.size() * sizeof(PointXYZI)))
+        << "cleaned scan differs from the scan minus its moving points";
+    moving += d.moving;
+
+    const auto lab =
+        std::dynamic_pointer_cast<::mrpt::obs::CObservationPointCloud>(labelled[2 * k + 1]);
+    ASSERT_TRUE(lab);
+    const auto* cm = dynamic_cast<const ::mrpt::maps::CColouredPointsMap*>(lab->pointcloud.get());
+    ASSERT_TRUE(cm);
+    ASSERT_EQ(cm->size(), d.scan.size());
+    std::size_t wrong = 0;
+    for (std::size_t i = 0; i < cm->size(); ++i) {
+      float x, y, z, r, g, b;
+      cm->getPointRGB(i, x, y, z, r, g, b);
+      wrong += cleanmap::mrpt::labelFromColour(r, g, b) != d.labels[d.scan.originalIndex(i)] ||
+               x != d.scan.points[i].x;
+    }
+    EXPECT_EQ(wrong, 0u) << "labelled points whose colour is not their label";
+  }
+  EXPECT_GT(moving, 10000u) << "city has moving cars: the test must remove some";
+
+  // The simplemap as MRPT loads it, and its bytes equal to MRPT's serialization of what it loaded.
+  ::mrpt::maps::CSimpleMap sm;
+  ASSERT_TRUE(sm.loadFromFile((dir / "static_map.simplemap").string()));
+  ASSERT_EQ(sm.size(), run.size());
+  for (std::size_t k = 0; k < run.size(); ++k) {
+    ::mrpt::poses::CPose3DPDF::Ptr pdf;
+    ::mrpt::obs::CSensoryFrame::Ptr sf;
+    sm.get(k, pdf, sf);
+    EXPECT_TRUE(cleanmap::mrpt::toIsometry(pdf->getMeanVal()).isApprox(run[k].pose, 1e-9));
+    const auto pc = sf->getObservationByClass<::mrpt::obs::CObservationPointCloud>();
+    ASSERT_TRUE(pc && pc->pointcloud);
+    EXPECT_EQ(pc->pointcloud->size(), run[k].scan.size() - run[k].moving);
+  }
+  std::vector<uint8_t> mrpt_bytes;
+  auto ar = ::mrpt::serialization::archiveFrom(mrpt_bytes);
+  ar << sm;
+  EXPECT_TRUE(mrpt_bytes == fileBytes(dir / "static_map.simplemap"))
+      << "the streamed simplemap is not MRPT's own serialization";
+
+  // The scene: static map, moving points, trajectory.
+  ::mrpt::opengl::COpenGLScene scene;
+  ASSERT_TRUE(scene.loadFromFile((dir / "static_map.3Dscene").string()));
+  const auto stat = scene.getByClass<::mrpt::opengl::CPointCloudColoured>();
+  ASSERT_TRUE(stat);
+  EXPECT_EQ(stat->getName(), "static_map");
+  EXPECT_GT(stat->size(), 20000u);
+  const auto mov = scene.getByClass<::mrpt::opengl::CPointCloud>();
+  ASSERT_TRUE(mov);
+  EXPECT_GT(mov->size(), 1000u);
+  EXPECT_LT(mov->size(), moving);  // one point per voxel
+  const auto traj = scene.getByClass<::mrpt::opengl::CSetOfLines>();
+  ASSERT_TRUE(traj);
+  EXPECT_EQ(traj->getLineCount(), run.size() - 1);
+}
+
+// gzip-compressed outputs (two concatenated members in the simplemap) read back the same.
+TEST(MrptOutputs, CompressedOutputsReadBackTheSame) {
+  CLEANMAP_REQUIRE_DATASET("kitti_city");
+  const auto plain = test::scratchDir("plain");
+  const auto gz = test::scratchDir("gz");
+  cleanmap::mrpt::MrptOutputOptions o;
+  o.scene = false;
+  runAndWrite("kitti_city", 3, plain, o);
+  o.gzip_level = 1;
+  o.background = false;
+  runAndWrite("kitti_city", 3, gz, o);
+  EXPECT_LT(fs::file_size(gz / "cleaned.rawlog"), fs::file_size(plain / "cleaned.rawlog"));
+  ::mrpt::maps::CSimpleMap a, b;
+  ASSERT_TRUE(a.loadFromFile((plain / "static_map.simplemap").string()));
+  ASSERT_TRUE(b.loadFromFile((gz / "static_map.simplemap").string()));
+  std::vector<uint8_t> ba, bb;
+  auto aa = ::mrpt::serialization::archiveFrom(ba);
+  auto ab = ::mrpt::serialization::archiveFrom(bb);
+  aa << a;
+  ab << b;
+  EXPECT_TRUE(ba == bb);
+  EXPECT_EQ(readObservations((gz / "labelled.rawlog").string()).size(), 6u);
+  EXPECT_FALSE(fs::exists(gz / "static_map.3Dscene"));
+}
