@@ -106,6 +106,24 @@ if [[ -f $vlp ]]; then
   "$bin/cleanmap" "$vlp" -o "$scratch/vlp" >/dev/null || fail "the one-scan VLP-16 rawlog did not run"
   [[ -f $scratch/vlp/labels/000000.label ]] || fail "no labels for the VLP-16 scan"
 fi
+# MRPT's rotating-scan rawlog (CObservationRotatingScan), and the MRPT outputs as MRPT's own tool
+# reads them: the cleaned rawlog holds one LIDAR and one POSE observation, stamped after 1970.
+rot=/usr/share/mrpt/datasets/rot_scan_velodyne.rawlog
+if [[ -f $rot ]]; then
+  "$bin/cleanmap" "$rot" -o "$scratch/rot" >/dev/null || fail "the rotating-scan rawlog did not run"
+  for f in static_map.3Dscene static_map.simplemap cleaned.rawlog labelled.rawlog static_map.pcd dynamic.pcd; do
+    [[ -s $scratch/rot/$f ]] || fail "no $f"
+  done
+  if command -v rawlog-edit >/dev/null; then
+    info=$(rawlog-edit --info -i "$scratch/rot/cleaned.rawlog" 2>&1)
+    grep -qE "LIDAR +/ +1 " <<<"$info" && grep -qE "POSE +/ +1 " <<<"$info" ||
+      fail "rawlog-edit does not see one LIDAR and one POSE in cleaned.rawlog"
+    grep -q "Earliest timestamp *: 1[0-9]\{9\}" <<<"$info" || fail "cleaned.rawlog: timestamp not a real time"
+  fi
+fi
+"$bin/cleanmap" "$seq" -o "$scratch/nomrpt" --last 3 --no-mrpt-outputs >/dev/null || fail "--no-mrpt-outputs run failed"
+[[ -e $scratch/nomrpt/cleaned.rawlog || -e $scratch/nomrpt/static_map.3Dscene ]] && fail "--no-mrpt-outputs wrote MRPT outputs"
+expect_error 2 "viewer-voxel" "$bin/cleanmap" "$seq" -o "$scratch/x" --viewer-voxel 0
 expect_error 2 "unknown option" "$bin/cleanmap" "$seq" -o "$scratch/x" --bogus
 
 [[ $fails -eq 0 ]] && echo "cleanmap_test: all checks passed"

@@ -2,6 +2,8 @@
 // PLY maps, the binary field decoder and ini parameters: round trips and clear errors.
 #include <gtest/gtest.h>
 
+#include <array>
+
 #include <cstring>
 #include <fstream>
 #include <set>
@@ -10,6 +12,7 @@
 #include "cleanmap/io/config.h"
 #include "cleanmap/io/files.h"
 #include "cleanmap/io/ini.h"
+#include "cleanmap/io/pcd.h"
 #include "cleanmap/io/ply.h"
 #include "test_data.h"
 
@@ -22,6 +25,38 @@ TEST(Ply, BinaryRoundTripIsExact) {
   const auto back = io::readPly((dir / "m.ply").string());
   ASSERT_EQ(back.size(), 2u);
   EXPECT_EQ(0, std::memcmp(back.data(), pts.data(), sizeof(PointXYZI) * 2));
+}
+
+// The coloured maps: PLY with uchar red/green/blue after the floats, PCD with a packed `rgb`;
+// both read back to the same points, and the colours are where the header says.
+TEST(Ply, ColouredMapAndItsPcdTwin) {
+  const auto dir = test::scratchDir("ply_rgb");
+  const std::vector<PointXYZI> pts{{1, 2, -1.5f, 0.25f}, {3, 4, 3.5f, 0.5f}};
+  {
+    io::PlyStreamWriter w((dir / "m.ply").string(),
+                          io::CloudStreamOptions{io::CloudColour::kHeight, (dir / "m.pcd").string()});
+    w.append(pts, /*sensor_z=*/0.5);
+    w.close();
+  }
+  for (const char* f : {"m.ply", "m.pcd"}) {
+    const auto back = io::readCloud((dir / f).string());
+    ASSERT_EQ(back.size(), 2u) << f;
+    EXPECT_EQ(0, std::memcmp(back.data(), pts.data(), sizeof(PointXYZI) * 2)) << f;
+  }
+  std::ifstream in(dir / "m.ply", std::ios::binary);
+  const std::string data((std::istreambuf_iterator<char>(in)), {});
+  ASSERT_NE(data.find("property uchar red"), std::string::npos);
+  const std::size_t body = data.find("end_header\n") + 11;
+  ASSERT_EQ(data.size(), body + 2 * 19);
+  const auto rgb = [&](int i) {
+    const auto* p = reinterpret_cast<const unsigned char*>(data.data() + body + i * 19 + 16);
+    return std::array<uint8_t, 3>{p[0], p[1], p[2]};
+  };
+  EXPECT_EQ(rgb(0), io::heightColour(-2.0));  // 2 m below the sensor: the bottom of the ramp
+  EXPECT_EQ(rgb(1), io::heightColour(3.0));   // 3 m above: the top
+  EXPECT_NE(rgb(0), rgb(1));
+  EXPECT_EQ(io::heightColour(-9.0), io::heightColour(-2.0));  // clamped
+  for (double dz = -2; dz <= 3; dz += 0.25) EXPECT_LT(io::heightColour(dz)[0], 254) << dz;  // no red
 }
 
 TEST(Ply, StreamedMapAndForeignAsciiPly) {
