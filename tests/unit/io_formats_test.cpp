@@ -33,8 +33,9 @@ TEST(Ply, ColouredMapAndItsPcdTwin) {
   const auto dir = test::scratchDir("ply_rgb");
   const std::vector<PointXYZI> pts{{1, 2, -1.5f, 0.25f}, {3, 4, 3.5f, 0.5f}};
   {
-    io::PlyStreamWriter w((dir / "m.ply").string(),
-                          io::CloudStreamOptions{io::CloudColour::kHeight, (dir / "m.pcd").string()});
+    io::PlyStreamWriter w(
+        (dir / "m.ply").string(),
+        io::CloudStreamOptions{io::CloudColour::kHeight, (dir / "m.pcd").string()});
     w.append(pts, /*sensor_z=*/0.5);
     w.close();
   }
@@ -56,7 +57,8 @@ TEST(Ply, ColouredMapAndItsPcdTwin) {
   EXPECT_EQ(rgb(1), io::heightColour(3.0));   // 3 m above: the top
   EXPECT_NE(rgb(0), rgb(1));
   EXPECT_EQ(io::heightColour(-9.0), io::heightColour(-2.0));  // clamped
-  for (double dz = -2; dz <= 3; dz += 0.25) EXPECT_LT(io::heightColour(dz)[0], 254) << dz;  // no red
+  for (double dz = -2; dz <= 3; dz += 0.25)
+    EXPECT_LT(io::heightColour(dz)[0], 254) << dz;  // no red
 }
 
 TEST(Ply, StreamedMapAndForeignAsciiPly) {

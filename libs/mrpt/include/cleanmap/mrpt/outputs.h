@@ -21,7 +21,7 @@ struct MrptOutputOptions {
   /// stays viewable; every file other than the scene keeps every point.
   double viewer_voxel = 0.10;
   /// Of the rawlogs and the simplemap: 0 writes them plain (MRPT reads both), 1 (fastest) .. 9
-  /// (best) gzip them, at about 30 ms per scan and level 1 for a 64-ring lidar (doc/BENCHMARK.md).
+  /// (best) gzip them: level 1 took 81 ms per 64-ring scan against 18 ms plain (DESIGN §4a).
   int gzip_level = 0;
   /// Write on a thread of its own (one scan queued at most besides the one being written), so the
   /// work overlaps the pipeline's single-threaded stages. Output bytes do not depend on it.

@@ -1,0 +1,46 @@
+#!/usr/bin/env bash
+# SPDX-License-Identifier: BSD-3-Clause
+# Remakes the pictures of doc/MRPT.md: runs cleanmap on a KITTI set and photographs MRPT's
+# SceneViewer3D showing the cleaned map, under a virtual X server (Xvfb), no screen needed.
+# usage: doc/screenshots.sh [BUILD_DIR] [DATA_DIR]   (defaults: build, ../shared/data)
+# Installs xvfb, xauth, xdotool and imagemagick with apt-get when missing (as root).
+set -euo pipefail
+root=$(cd "$(dirname "$0")/.." && pwd)
+build=${1:-$root/build}
+data=${2:-${CLEANMAP_DATA_DIR:-$root/../shared/data}}
+set_=kitti_highway
+out=$(mktemp -d)
+trap 'kill $(jobs -p) 2>/dev/null || true; rm -rf "$out"' EXIT
+
+need=()
+for tool in Xvfb:xvfb xauth:xauth xdotool:xdotool import:imagemagick; do
+  command -v "${tool%%:*}" >/dev/null || need+=("${tool#*:}")
+done
+if ((${#need[@]})); then
+  apt-get install -y --no-install-recommends "${need[@]}" >/dev/null
+fi
+[[ -x $build/apps/cleanmap ]] || { echo "screenshots.sh: build first (make demo)" >&2; exit 1; }
+[[ -d $data/$set_ ]] || { echo "screenshots.sh: $data/$set_ missing" >&2; exit 1; }
+
+"$build/apps/cleanmap" "$data/$set_" -o "$out/run" --quiet >/dev/null
+
+display=:$((90 + RANDOM % 9))
+Xvfb "$display" -screen 0 1280x800x24 >/dev/null 2>&1 &
+sleep 2
+DISPLAY=$display SceneViewer3D "$out/run/static_map.3Dscene" >/dev/null 2>&1 &
+win=
+for _ in $(seq 60); do  # the window appears once the scene is loaded
+  win=$(DISPLAY=$display xdotool search --name SceneViewer 2>/dev/null | tail -1 || true)
+  [[ -n $win ]] && break
+  sleep 0.5
+done
+[[ -n $win ]] || { echo "screenshots.sh: SceneViewer3D did not open a window" >&2; exit 1; }
+sleep 3
+# No window manager under Xvfb: place and size every window of the viewer by hand.
+for w in $(DISPLAY=$display xdotool search --name SceneViewer); do
+  DISPLAY=$display xdotool windowmove "$w" 0 0 windowsize "$w" 1280 800 || true
+done
+sleep 4
+mkdir -p "$root/doc/img"
+DISPLAY=$display import -window root "$root/doc/img/sceneviewer_${set_}.png"
+echo "screenshots.sh: wrote doc/img/sceneviewer_${set_}.png"
