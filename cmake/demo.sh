@@ -26,6 +26,7 @@ echo "  input              : $input$([[ -f $input/sequence.rawlog ]] && echo " (
 echo "  cleaned static map : $out/$name/static_map.ply (every static point: static_map_full.ply)"
 echo "  moving points      : $out/$name/dynamic.ply"
 echo "  per-scan labels    : $out/$name/labels/"
+echo "  for MRPT           : SceneViewer3D $out/$name/static_map.3Dscene; cleaned.rawlog, labelled.rawlog, static_map.simplemap (doc/MRPT.md)"
 echo "  run report         : $out/$name/report.md (and report.json)"
 if [[ $evaluated == 1 ]]; then
   echo "  evaluation         : $out/$name/evaluation/report.md"
