@@ -24,7 +24,6 @@
 #include <mrpt/opengl/COpenGLScene.h>
 #include <mrpt/opengl/CPointCloud.h>
 #include <mrpt/opengl/CPointCloudColoured.h>
-#include <mrpt/opengl/CSetOfLines.h>
 #include <mrpt/poses/CPose3DPDFGaussian.h>
 #include <mrpt/serialization/CArchive.h>
 #include <mrpt/serialization/archiveFrom_std_vector.h>
@@ -246,14 +245,21 @@ struct MrptOutputWriter::Impl {
     mov->setColor(1.0, 0.0, 0.0);
     for (const auto& p : scene_moving) mov->insertPoint(p.x, p.y, p.z);
     scene.insert(mov);
-    auto traj = CSetOfLines::Create();
+    // The trajectory as points every 0.25 m: MRPT 2.5.8's CSetOfLines misaligns its point base
+    // class (UBSan reports every member call), so no lines.
+    auto traj = CPointCloud::Create();
     traj->setName("trajectory");
-    traj->setLineWidth(3.0f);
+    traj->setPointSize(4.0f);
     traj->setColor(0.0, 0.9, 1.0);
-    for (std::size_t i = 1; i < trajectory.size(); ++i) {
-      const auto& a = trajectory[i - 1];
-      const auto& b = trajectory[i];
-      traj->appendLine(a.x(), a.y(), a.z(), b.x(), b.y(), b.z());
+    for (std::size_t i = 0; i < trajectory.size(); ++i) {
+      const Eigen::Vector3d a = trajectory[i];
+      Eigen::Vector3d d = Eigen::Vector3d::Zero();
+      if (i + 1 < trajectory.size()) d = trajectory[i + 1] - a;
+      const int steps = std::max(1, static_cast<int>(std::ceil(d.norm() / 0.25)));
+      for (int k = 0; k < steps; ++k) {
+        const Eigen::Vector3d p = a + d * (double(k) / steps);
+        traj->insertPoint(float(p.x()), float(p.y()), float(p.z()));
+      }
     }
     scene.insert(traj);
     // The first view: the whole drive from above and behind its start, on a dark background.
