@@ -10,14 +10,20 @@
 #include <optional>
 #include <string>
 
+#include <mrpt/maps/CMultiMetricMap.h>
 #include "../common/cli.h"
 #include "cleanmap/core/error.h"
+
+#include "cleanmap/core/stopwatch.h"
 #include "cleanmap/io/config.h"
+#include "cleanmap/io/files.h"
 #include "cleanmap/io/kitti.h"
 #include "cleanmap/io/output.h"
+#include "cleanmap/maps/ground_model_map.h"
+#include "cleanmap/maps/map_config.h"
+#include "cleanmap/maps/moving_objects_map.h"
 #include "cleanmap/mrpt/input.h"
 #include "cleanmap/mrpt/outputs.h"
-#include "cleanmap/pipeline/laser_pipeline.h"
 
 namespace {
 
@@ -49,6 +55,8 @@ K past and K future scans, after ground removal; doc/DESIGN.md §2) and writes, 
   cleaned.rawlog        per scan: CObservationRobotPose + CObservationPointCloud without the
                         moving points, for any MRPT SLAM or localization
   labelled.rawlog       per scan: pose + the scan coloured by label (RawLogViewer; doc/FORMATS.md)
+  ground_model.ply/.txt the ground model map's cells (world grid of ground heights), when the
+                        configuration declares a cleanmap_ground map (config/cleanmap.ini does)
   poses.txt             lidar poses used (KITTI 3x4 rows); params.ini: the parameters of the run
   report.json, report.md  counts, time per stage, and precision/recall/IoU when INPUT has labels
 
@@ -57,7 +65,12 @@ INPUT                a KITTI odometry/SemanticKITTI or raw folder, or an MRPT .r
                      complete: an earlier cleanmap run there is replaced as a whole; an
                      interrupted or failed run leaves DIR as it was
 --force              replace DIR even if it is a non-empty folder that holds no cleanmap run
--c, --config FILE    ini file of parameters (see config/cleanmap.ini; unknown keys are errors)
+-c, --config FILE    the maps and their parameters: an MRPT ini declaring a cleanmap_moving map
+                     (and optionally a cleanmap_ground map), as config/cleanmap.ini, or a run's
+                     flat params.ini. Unknown maps, sections and keys are errors. Default: the
+                     values of config/cleanmap.ini
+--map-section NAME   the section listing the maps (default: the first of MappingApplication,
+                     map, MetricMap that declares maps)
 --threads N          worker threads for the moving-point test (default 2; results do not depend on it)
 --seed S             seed of the octree sampling (default 42; same seed, same output bit for bit)
 --first N, --last M  process scans N..M only (indices in the input, inclusive)
@@ -78,7 +91,7 @@ interrupted by SIGINT / SIGTERM (nothing written to DIR).
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::string input, outdir, config, poses = "auto";
+  std::string input, outdir, config, map_section, poses = "auto";
   long threads = -1, first = 0, last = -1;
   long long seed = -1;
   bool quiet = false, progress_shown = false, force = false, mrpt_outputs = true;
@@ -93,6 +106,8 @@ int main(int argc, char** argv) {
       outdir = args.value(a);
     else if (a == "-c" || a == "--config")
       config = args.value(a);
+    else if (a == "--map-section")
+      map_section = args.value(a);
     else if (a == "--threads")
       threads = args.integer(a, 1);
     else if (a == "--seed")
@@ -131,14 +146,63 @@ int main(int argc, char** argv) {
       if (std::filesystem::exists(outdir, ec) && std::filesystem::equivalent(outdir, input, ec))
         throw cleanmap::Error(outdir, "the output folder is the input folder; choose another -o");
     }
-    cleanmap::PipelineParams params;
-    if (!config.empty()) cleanmap::io::loadParams(config, params);
+    // The maps, through MRPT's factory from the ini (DESIGN §4b): the same sections work in a
+    // user's CMultiMetricMap. A flat params.ini (a run's) declares the two maps implicitly.
+    cleanmap_maps::registerMaps();
+    std::string map_text = cleanmap_maps::mapConfigText(cleanmap::PipelineParams{});
+    const std::string config_name = config.empty() ? "config/cleanmap.ini (defaults)" : config;
+    if (!config.empty()) {
+      map_text = cleanmap::io::readTextFile(config);
+      if (!cleanmap_maps::isMapConfig(map_text)) {
+        cleanmap::PipelineParams flat;
+        cleanmap::io::parseParams(map_text, config, flat);
+        map_text = cleanmap_maps::mapConfigText(flat);
+      }
+    }
+    const auto map_config = cleanmap_maps::parseMapConfig(map_text, config_name, map_section);
+    ::mrpt::maps::CMultiMetricMap maps;
+    maps.setListOfMaps(map_config.maps);
+    const auto moving = maps.mapByClass<cleanmap_maps::CMovingObjectsMap>();
+    const auto ground = maps.mapByClass<cleanmap_maps::CGroundModelMap>();
+    if (maps.mapByClass<cleanmap_maps::CMovingObjectsMap>(1) ||
+        maps.mapByClass<cleanmap_maps::CGroundModelMap>(1))
+      throw cleanmap::Error(config_name,
+                            "declares more than one cleanmap_moving or "
+                            "cleanmap_ground map; a cleanmap run fills one of each");
+    for (const auto& m : maps.maps)
+      if (!std::dynamic_pointer_cast<cleanmap_maps::CMovingObjectsMap>(m) &&
+          !std::dynamic_pointer_cast<cleanmap_maps::CGroundModelMap>(m))
+        std::fprintf(stderr,
+                     "cleanmap: warning: %s: map %s is left empty (cleanmap fills only "
+                     "its own maps; use it in cleanmap-icp-slam)\n",
+                     config_name.c_str(), m->GetRuntimeClass()->className);
+    cleanmap::PipelineParams params = moving->params();
     if (threads > 0) params.threads = static_cast<int>(threads);
     if (seed >= 0) params.seed = static_cast<uint64_t>(seed);
     params.poses = poses == "given"    ? cleanmap::PoseSource::kGiven
                    : poses == "gicp"   ? cleanmap::PoseSource::kGicp
                    : poses == "refine" ? cleanmap::PoseSource::kRefine
                                        : cleanmap::PoseSource::kAuto;
+    moving->setParams(params);
+    if (ground) {  // it is given the moving map's ground labels: the two must agree
+      const auto g = ground->groundParams();
+      const auto& m = params.ground;
+      auto same = [&](const char* key, double a, double b) {
+        if (a != b)
+          throw cleanmap::Error(
+              config_name, std::string("the cleanmap_ground map's ") + key + " (" +
+                               cleanmap::io::shortestDouble(a) +
+                               ") differs from cleanmap_moving's "
+                               "ground." +
+                               key + " (" + cleanmap::io::shortestDouble(b) +
+                               "): cleanmap gives the ground map the moving map's ground labels");
+      };
+      same("cell", g.cell, m.cell);
+      same("step", g.step, m.step);
+      same("sensor_height", g.sensor_height, m.sensor_height);
+      same("point_refine", g.point_refine, m.point_refine);
+      same("max_gap_cells", g.max_gap_cells, m.max_gap_cells);
+    }
 
     cleanmap::mrpt::InputOptions in_opts;
     in_opts.allow_empty_scans = true;  // counted in the report
@@ -163,8 +227,18 @@ int main(int argc, char** argv) {
     std::size_t seen = 0, empty = 0;
     const auto t0 = std::chrono::steady_clock::now();
     const auto total = src->sizeHint();
-    cleanmap::LaserPipeline pipeline(params, [&](cleanmap::ScanResult&& r) {
+    double ground_ms = 0;
+    moving->setStorePoints(false);  // streamed to the files below instead
+    moving->setScanSink([&](cleanmap::ScanResult&& r) {
       checkSignal();
+      if (ground) {
+        const auto t = cleanmap::Clock::now();
+        std::vector<uint8_t> flags(r.scan.size());
+        for (std::size_t i = 0; i < flags.size(); ++i)
+          flags[i] = r.labels[r.scan.originalIndex(i)] == cleanmap::kGround;
+        ground->insertGround(r.scan, flags);
+        ground_ms += cleanmap::msSince(t);
+      }
       std::optional<cleanmap::MosCounts> eval;
       if (evaluate)
         eval = cleanmap::compareLabels(r.labels, kitti->loadLabels(r.index, r.labels.size()),
@@ -189,7 +263,7 @@ int main(int argc, char** argv) {
           std::fprintf(stderr, "\rcleanmap: %zu scans, %.1f scans/s   ", out.scans(), rate);
       }
     });
-    pipeline.keepScans(mrpt_outputs);  // the rawlogs are made from each scan's points
+    moving->setKeepScans(mrpt_outputs || ground);  // rawlogs and ground model use the points
     while (auto f = src->next()) {
       checkSignal();
       const long idx = static_cast<long>(f->index);
@@ -197,9 +271,9 @@ int main(int argc, char** argv) {
       if (idx < first) continue;
       if (last >= 0 && idx > last) break;
       empty += f->scan.empty();
-      pipeline.push(std::move(*f));
+      moving->insertFrame(std::move(*f));
     }
-    pipeline.finish();
+    moving->flush();
     checkSignal();
     if (out.scans() == 0)
       throw cleanmap::Error(input, "no scans in the requested range: the input has " +
@@ -210,6 +284,11 @@ int main(int argc, char** argv) {
     if (mrpt_out) {
       mrpt_out->finish();
       out.addOutputTime("mrpt", mrpt_out->writeMs());
+    }
+    if (ground) {
+      const auto t = cleanmap::Clock::now();
+      ground->saveMetricMapRepresentationToFile(out.staging() + "/ground_model");
+      out.addOutputTime("ground_model", ground_ms + cleanmap::msSince(t));
     }
     out.finish(wall);
     if (progress_shown) std::fprintf(stderr, "\n");

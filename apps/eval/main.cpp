@@ -11,6 +11,7 @@
 #include "cleanmap/eval/evaluate.h"
 #include "cleanmap/eval/roc.h"
 #include "cleanmap/io/config.h"
+#include "cleanmap/maps/map_config.h"
 
 namespace {
 
@@ -87,7 +88,7 @@ int runRoc(int argc, char** argv) {
   if (gt.empty() || out.empty()) args.fail("roc needs GT_DIR and -o DIR");
   if (opt.last >= 0 && opt.last < opt.first) args.fail("--last must be >= --first");
   cleanmap::PipelineParams base;
-  if (!config.empty()) cleanmap::io::loadParams(config, base);
+  if (!config.empty()) base = cleanmap_maps::loadPipelineParams(config);  // MRPT or flat ini
   if (threads > 0) base.threads = static_cast<int>(threads);
   const auto res = cleanmap::eval::rocSweep(gt, base, opt, [](std::size_t d, std::size_t t) {
     std::fprintf(stderr, "\rcleanmap-eval roc: %zu/%zu settings   ", d, t);

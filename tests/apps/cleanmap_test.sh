@@ -126,5 +126,23 @@ fi
 expect_error 2 "viewer-voxel" "$bin/cleanmap" "$seq" -o "$scratch/x" --viewer-voxel 0
 expect_error 2 "unknown option" "$bin/cleanmap" "$seq" -o "$scratch/x" --bogus
 
+# The maps come from an MRPT ini through CMultiMetricMap (DESIGN §4b): config/cleanmap.ini gives
+# the same labels as the built-in defaults and a ground model; a run's flat params.ini is
+# accepted; MRPT's silent ignores are errors here.
+ini=$(dirname "$0")/../../config/cleanmap.ini
+"$bin/cleanmap" "$seq" -o "$scratch/ini" --quiet --last 12 -c "$ini" >/dev/null || fail "run with config/cleanmap.ini failed"
+"$bin/cleanmap" "$seq" -o "$scratch/noini" --quiet --last 12 >/dev/null || fail "run without -c failed"
+diff -rq "$scratch/ini/labels" "$scratch/noini/labels" >/dev/null || fail "config/cleanmap.ini labels differ from the defaults"
+[[ -s $scratch/ini/ground_model.ply && -s $scratch/ini/ground_model.txt ]] || fail "no ground model written"
+"$bin/cleanmap" "$seq" -o "$scratch/flat" --quiet --last 12 -c "$scratch/ini/params.ini" >/dev/null || fail "a run's params.ini was refused"
+diff -rq "$scratch/ini/labels" "$scratch/flat/labels" >/dev/null || fail "params.ini labels differ"
+sed 's/^cleanmap_moving_count/cleanmap_movin_count/' "$ini" >"$scratch/typo.ini"
+expect_error 1 "typo.ini: [MappingApplication]: unknown map 'cleanmap_movin'" "$bin/cleanmap" "$seq" -o "$scratch/t" -c "$scratch/typo.ini"
+sed 's/^ds.window_k = 10/ds.windw_k = 10/' "$ini" >"$scratch/key.ini"
+expect_error 1 "unknown key 'ds.windw_k'; did you mean 'ds.window_k'?" "$bin/cleanmap" "$seq" -o "$scratch/t" -c "$scratch/key.ini"
+sed 's/^sensor_height = -1.73/sensor_height = -1.9/' "$ini" >"$scratch/ground.ini"
+expect_error 1 "the cleanmap_ground map's sensor_height (-1.9) differs from cleanmap_moving's ground.sensor_height (-1.73)" "$bin/cleanmap" "$seq" -o "$scratch/t" -c "$scratch/ground.ini"
+[[ -e $scratch/t ]] && fail "a refused configuration produced an output folder"
+
 [[ $fails -eq 0 ]] && echo "cleanmap_test: all checks passed"
 exit $((fails > 0))

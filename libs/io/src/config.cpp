@@ -5,6 +5,7 @@
 #include <cmath>
 #include <functional>
 #include <map>
+#include <optional>
 #include <set>
 #include <sstream>
 
@@ -78,7 +79,45 @@ std::map<std::string, Key> table(PipelineParams& p) {
   };
 }
 
+// The number in `text`, or nullopt with `why` set ("needs a number, got 'x'").
+std::optional<double> parseValue(const std::string& text, bool integer, std::string& why) {
+  double v = 0;
+  std::size_t used = 0;
+  try {
+    v = std::stod(text, &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  if (used != text.size() || !std::isfinite(v)) {
+    why = "needs a number, got '" + text + "'";
+    return std::nullopt;
+  }
+  if (integer && v != std::floor(v)) {
+    why = "needs an integer, got '" + text + "'";
+    return std::nullopt;
+  }
+  return v;
+}
+
 }  // namespace
+
+void setParam(PipelineParams& params, const std::string& key, const std::string& value,
+              const std::string& where) {
+  auto keys = table(params);
+  const auto it = keys.find(key);
+  if (it == keys.end()) throw Error(where, "unknown key '" + key + "'");
+  std::string why;
+  const auto v = parseValue(trimBlanks(value), it->second.integer, why);
+  if (!v) throw Error(where, "'" + key + "' " + why);
+  it->second.set(*v);
+}
+
+std::vector<std::pair<std::string, std::string>> paramValues(const PipelineParams& params) {
+  PipelineParams copy = params;
+  std::vector<std::pair<std::string, std::string>> out;
+  for (const auto& [name, key] : table(copy)) out.emplace_back(name, shortestDouble(key.get()));
+  return out;
+}
 
 std::vector<std::string> paramKeys() {
   PipelineParams p;
@@ -103,18 +142,10 @@ void parseParams(const std::string& text, const std::string& name, PipelineParam
       iniError(name, e.line, "unknown key '" + e.key + "' in [" + e.section + "]");
     if (!given.insert(full).second)
       iniError(name, e.line, "'" + e.key + "' given twice in [" + e.section + "]");
-    double v = 0;
-    std::size_t used = 0;
-    try {
-      v = std::stod(e.value, &used);
-    } catch (const std::exception&) {
-      used = 0;
-    }
-    if (used != e.value.size() || !std::isfinite(v))
-      iniError(name, e.line, "'" + e.key + "' needs a number, got '" + e.value + "'");
-    if (it->second.integer && v != std::floor(v))
-      iniError(name, e.line, "'" + e.key + "' needs an integer, got '" + e.value + "'");
-    it->second.set(v);
+    std::string why;
+    const auto v = parseValue(e.value, it->second.integer, why);
+    if (!v) iniError(name, e.line, "'" + e.key + "' " + why);
+    it->second.set(*v);
   };
   parseIni(text, name, on);
   validate(params, name);

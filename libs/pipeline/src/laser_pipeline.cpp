@@ -62,6 +62,23 @@ LaserPipeline::LaserPipeline(const PipelineParams& params, Sink sink)
 
 LaserPipeline::~LaserPipeline() = default;
 
+std::unique_ptr<LaserPipeline> LaserPipeline::clone(Sink sink) const {
+  auto c = std::make_unique<LaserPipeline>(p_, std::move(sink));
+  c->test_ = test_;
+  c->dup_ = dup_;
+  for (const auto& s : buf_) c->buf_.push_back(std::make_unique<Prepared>(*s));
+  c->next_ = next_;
+  c->decided_ = decided_;
+  c->keep_scans_ = keep_scans_;
+  c->prev_index_ = prev_index_;
+  c->prev_moving_cells_ = prev_moving_cells_;
+  c->source_ = source_;
+  if (odo_) c->odo_ = std::make_unique<reg::Odometry>(*odo_);
+  c->prev_odometry_ = prev_odometry_;
+  c->prev_pose_ = prev_pose_;
+  return c;
+}
+
 // DESIGN §2.1: the scan's pose, given or estimated by GICP odometry.
 PoseInfo LaserPipeline::registerScan(Frame& f) {
   if (source_ == PoseSource::kAuto)

@@ -15,6 +15,14 @@ struct Odometry::Scratch {
 
 Odometry::~Odometry() = default;
 
+Odometry::Odometry(const Odometry& o)
+    : p_(o.p_),
+      gicp_(o.gicp_),
+      threads_(o.threads_),
+      map_(o.map_),
+      last_(o.last_),
+      scratch_(std::make_unique<Scratch>()) {}
+
 Odometry::Odometry(const RegistrationParams& p, int threads)
     : p_(p),
       threads_(threads),

@@ -2,6 +2,7 @@
 // PipelineParams <-> ini files (config/cleanmap.ini). Unknown sections or keys are errors.
 #pragma once
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "cleanmap/core/params.h"
@@ -13,6 +14,12 @@ namespace cleanmap::io {
 void loadParams(const std::string& path, PipelineParams& params);
 /// Applies ini text (same rules; `name` is used in messages).
 void parseParams(const std::string& text, const std::string& name, PipelineParams& params);
+/// Sets the parameter "section.key" from its text (same rules as the ini; no validate()). Throws
+/// cleanmap::Error(where, ...) naming the key on an unknown key or a bad value.
+void setParam(PipelineParams& params, const std::string& key, const std::string& value,
+              const std::string& where);
+/// Every parameter as ("section.key", shortest text of its value), in the order toIni writes them.
+std::vector<std::pair<std::string, std::string>> paramValues(const PipelineParams& params);
 /// Every ini key as "section.key", in the order toIni writes them.
 std::vector<std::string> paramKeys();
 /// The shortest decimal text that reads back as exactly `v` (0.15, not 0.14999999999999999).

@@ -34,6 +34,12 @@ class LaserPipeline {
   void finish();
 
   std::size_t decided() const { return decided_; }
+  /// Scans pushed but not yet decided (at most K until finish()).
+  std::size_t pending() const { return buf_.size() - next_; }
+  /// A deep copy of the whole state (window, duplicate history, odometry map) handing its
+  /// results to `sink`: fed the same scans, it decides them exactly as this pipeline would.
+  std::unique_ptr<LaserPipeline> clone(Sink sink) const;
+  const PipelineParams& params() const { return p_; }
   /// Hand each scan's points to the sink too (ScanResult::scan), for outputs made per scan.
   void keepScans(bool on) { keep_scans_ = on; }
 

@@ -30,6 +30,8 @@ struct OdometryStep {
 class Odometry {
  public:
   Odometry(const RegistrationParams& p, int threads);
+  Odometry(const Odometry& o);  ///< copies the map and the motion model (not the scratch tables)
+  Odometry& operator=(const Odometry&) = delete;
   ~Odometry();
 
   /// The pose of a scan (sensor-frame points) taken at `timestamp` (s). `prior` replaces the

@@ -1,0 +1,116 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// DESIGN §4b: the moving-objects map, an MRPT map plugin (alias `cleanmap_moving`) around the
+// laser pipeline (SPEC §2, the paper's windowed Dempster-Shafer classifier). Inserting a posed
+// scan (robot pose (+) sensor pose) pushes it into the window; each scan is decided K scans later
+// and its static and moving points go into the map, one point per `map_voxel` (memory bounded by
+// the area mapped). flush() decides the last K scans.
+//
+// Copies (copy constructor, clone()) are deep, the window included: a copy fed the same scans
+// decides them as the original would. A serialized map holds its content as if flushed (the
+// window's last K scans decided with the shorter window, as at the end of a sequence); a map read
+// back starts a fresh window. MRPT 2.5.8 copies a CMultiMetricMap through serialization, so a
+// copied CMultiMetricMap holds our map flushed.
+#pragma once
+#include <mrpt/maps/CMetricMap.h>
+#include <mrpt/maps/TMetricMapInitializer.h>
+
+#include <functional>
+#include <memory>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+#include "cleanmap/core/frame.h"
+#include "cleanmap/core/params.h"
+#include "cleanmap/core/scan_result.h"
+
+namespace cleanmap {
+class LaserPipeline;
+}
+
+namespace cleanmap_maps {
+
+class CMovingObjectsMap : public mrpt::maps::CMetricMap {
+  DEFINE_SERIALIZABLE(CMovingObjectsMap, cleanmap_maps)
+
+ public:
+  struct TrajectoryPoint {
+    std::size_t index = 0;
+    double timestamp = 0;
+    Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();  ///< sensor pose in the world
+  };
+
+  CMovingObjectsMap();
+  explicit CMovingObjectsMap(const cleanmap::PipelineParams& params, double map_voxel = 0.1);
+  CMovingObjectsMap(const CMovingObjectsMap& o);
+  CMovingObjectsMap& operator=(const CMovingObjectsMap& o);
+  ~CMovingObjectsMap() override;
+
+  /// The classifier's parameters (creationOpts). Changing them is allowed only while the map has
+  /// no scan in its window; throws cleanmap::Error otherwise.
+  const cleanmap::PipelineParams& params() const { return params_; }
+  void setParams(const cleanmap::PipelineParams& params);
+  double mapVoxel() const { return map_voxel_; }
+
+  /// Native insertion of a posed scan (`frame.scan.pose`, or estimated with PipelineParams::poses).
+  void insertFrame(cleanmap::Frame&& frame);
+  /// Decides the scans still in the window. Later insertions start a new window.
+  void flush();
+  /// Scans inserted but not yet decided (at most K until flush()).
+  std::size_t pending() const;
+  std::size_t decided() const { return trajectory_.size(); }
+
+  /// Every decided scan is also handed here (labels, points, stage times), in order. Not copied.
+  void setScanSink(std::function<void(cleanmap::ScanResult&&)> sink) { sink_ = std::move(sink); }
+  /// false: decided points are not kept in the map (the app streams them to files instead).
+  void setStorePoints(bool on) { store_points_ = on; }
+  /// Hand each scan's own points to the sink too (ScanResult::scan).
+  void setKeepScans(bool on);
+
+  /// One point per voxel: the static map (ground included) and the moving points, sorted by voxel.
+  std::vector<cleanmap::PointXYZI> staticPoints() const;
+  std::vector<cleanmap::PointXYZI> movingPoints() const;
+  const std::vector<TrajectoryPoint>& trajectory() const { return trajectory_; }
+  /// Counts summed over the decided scans.
+  const cleanmap::ScanStats& totals() const { return totals_; }
+
+  // CMetricMap
+  bool isEmpty() const override;
+  void saveMetricMapRepresentationToFile(const std::string& prefix) const override;
+  void getVisualizationInto(mrpt::opengl::CSetOfObjects& o) const override;
+  std::string asString() const override;
+
+  MAP_DEFINITION_START(CMovingObjectsMap)
+  cleanmap::PipelineParams params;  ///< creationOpts: every key of the parameter table
+  double map_voxel = 0.1;           ///< creationOpts: m; 0 keeps every point
+  MAP_DEFINITION_END(CMovingObjectsMap)
+
+ private:
+  void internal_clear() override;
+  bool internal_insertObservation(
+      const mrpt::obs::CObservation& obs,
+      const std::optional<const mrpt::poses::CPose3D>& robotPose = std::nullopt) override;
+  double internal_computeObservationLikelihood(const mrpt::obs::CObservation&,
+                                               const mrpt::poses::CPose3D&) const override {
+    return 0.0;
+  }
+  bool internal_canComputeObservationLikelihood(const mrpt::obs::CObservation&) const override {
+    return false;
+  }
+
+  void onDecided(cleanmap::ScanResult&& r);
+  void ensurePipeline();
+  void copyFrom(const CMovingObjectsMap& o);
+
+  cleanmap::PipelineParams params_;
+  double map_voxel_ = 0.1;
+  std::unique_ptr<cleanmap::LaserPipeline> pipe_;
+  std::function<void(cleanmap::ScanResult&&)> sink_;
+  bool store_points_ = true, keep_scans_ = false;
+  std::size_t next_index_ = 0;  // index given to the next observation inserted through MRPT
+  std::unordered_map<uint64_t, cleanmap::PointXYZI> static_, moving_;  // voxel key -> first point
+  std::vector<TrajectoryPoint> trajectory_;
+  cleanmap::ScanStats totals_;
+};
+
+}  // namespace cleanmap_maps

@@ -1,0 +1,268 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#include "cleanmap/maps/ground_model_map.h"
+
+#include <mrpt/config/CConfigFileBase.h>
+#include <mrpt/obs/CObservation.h>
+#include <mrpt/opengl/CPointCloudColoured.h>
+#include <mrpt/opengl/CSetOfObjects.h>
+#include <mrpt/serialization/CArchive.h>
+#include <mrpt/version.h>
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <sstream>
+
+#include "cleanmap/core/error.h"
+#include "cleanmap/core/ground.h"
+#include "cleanmap/io/files.h"
+#include "cleanmap/io/ply.h"
+#include "cleanmap/mrpt/convert.h"
+#include "map_options.h"
+
+namespace cleanmap_maps {
+
+IMPLEMENTS_SERIALIZABLE(CGroundModelMap, CMetricMap, cleanmap_maps)
+MAP_DEFINITION_REGISTER("cleanmap_maps::CGroundModelMap,cleanmap_ground",
+                        cleanmap_maps::CGroundModelMap)
+
+namespace {
+
+uint64_t key2(int64_t ix, int64_t iy) {
+  return (static_cast<uint64_t>(static_cast<uint32_t>(ix)) << 32) | static_cast<uint32_t>(iy);
+}
+int32_t keyX(uint64_t k) {
+  return static_cast<int32_t>(static_cast<uint32_t>(k >> 32));
+}
+int32_t keyY(uint64_t k) {
+  return static_cast<int32_t>(static_cast<uint32_t>(k));
+}
+
+// The map's option table: creationOpts `cell`; insertOpts the segmentation of SPEC §2a.
+void insertOptionKeys(OptionTable& t, CGroundModelMap::TInsertionOptions& o) {
+  t.real("step", o.step);
+  t.real("sensor_height", o.sensor_height);
+  t.flag("point_refine", o.point_refine);
+  t.integer("max_gap_cells", o.max_gap_cells);
+  t.real("extent", o.extent);
+}
+
+void checkOptions(double cell, const CGroundModelMap::TInsertionOptions& o,
+                  const std::string& where) {
+  auto bad = [&](const std::string& what) { throw cleanmap::Error(where, what); };
+  if (!(cell > 0)) bad("cell must be > 0");
+  if (!(o.step > 0)) bad("step must be > 0");
+  if (!(o.extent > 0)) bad("extent must be > 0");
+  if (o.max_gap_cells < 1) bad("max_gap_cells must be >= 1");
+}
+
+}  // namespace
+
+CGroundModelMap::CGroundModelMap(double cell) : cell_(cell) {
+  if (!(cell > 0)) throw cleanmap::Error("cleanmap_ground", "cell must be > 0");
+}
+
+cleanmap::GroundParams CGroundModelMap::groundParams() const {
+  cleanmap::GroundParams g;
+  g.cell = cell_;
+  g.step = insertionOptions.step;
+  g.sensor_height = insertionOptions.sensor_height;
+  g.point_refine = insertionOptions.point_refine;
+  g.max_gap_cells = insertionOptions.max_gap_cells;
+  return g;
+}
+
+std::optional<double> CGroundModelMap::height(double x, double y) const {
+  const auto it = cells_.find(key2(static_cast<int64_t>(std::floor(x / cell_)),
+                                   static_cast<int64_t>(std::floor(y / cell_))));
+  if (it == cells_.end()) return std::nullopt;
+  return it->second.height();
+}
+
+std::vector<std::pair<std::pair<int32_t, int32_t>, CGroundModelMap::Cell>>
+CGroundModelMap::sortedCells() const {
+  std::vector<std::pair<std::pair<int32_t, int32_t>, Cell>> out;
+  out.reserve(cells_.size());
+  for (const auto& [k, c] : cells_) out.push_back({{keyX(k), keyY(k)}, c});
+  std::sort(out.begin(), out.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+  return out;
+}
+
+void CGroundModelMap::insertGround(const cleanmap::Scan& scan, const std::vector<uint8_t>& ground) {
+  const double inv = 1.0 / cell_;
+  for (std::size_t i = 0; i < scan.points.size() && i < ground.size(); ++i) {
+    if (!ground[i]) continue;
+    const Eigen::Vector3d w = scan.pose * scan.points[i].xyz().cast<double>();
+    Cell& c = cells_[key2(static_cast<int64_t>(std::floor(w.x() * inv)),
+                          static_cast<int64_t>(std::floor(w.y() * inv)))];
+    c.sum_z += w.z();
+    ++c.count;
+  }
+  ++scans_;
+}
+
+const std::vector<uint8_t>& CGroundModelMap::insertScan(const cleanmap::Scan& scan) {
+  last_flags_ = cleanmap::segmentGround(scan.points, groundParams(), insertionOptions.extent);
+  insertGround(scan, last_flags_);
+  return last_flags_;
+}
+
+void CGroundModelMap::merge(const CGroundModelMap& other) {
+  if (other.cell_ != cell_)
+    throw cleanmap::Error("cleanmap_ground", "cannot merge maps of different cell sizes");
+  for (const auto& [k, c] : other.cells_) {
+    Cell& d = cells_[k];
+    d.sum_z += c.sum_z;
+    d.count += c.count;
+  }
+  scans_ += other.scans_;
+}
+
+void CGroundModelMap::internal_clear() {
+  cells_.clear();
+  scans_ = 0;
+  last_flags_.clear();
+}
+
+bool CGroundModelMap::internal_insertObservation(
+    const mrpt::obs::CObservation& obs,
+    const std::optional<const mrpt::poses::CPose3D>& robotPose) {
+  auto scan = cleanmap::mrpt::scanFromObservation(obs);
+  if (!scan) return false;  // not a lidar observation
+  mrpt::poses::CPose3D sensor;
+  obs.getSensorPose(sensor);
+  // The 2.5.8 point-cloud insertion ignores the robot pose (MRPT_NOTES); we compose it here.
+  scan->pose = cleanmap::mrpt::toIsometry(robotPose ? *robotPose + sensor : sensor);
+  scan->has_pose = true;
+  insertScan(*scan);
+  return true;
+}
+
+void CGroundModelMap::saveMetricMapRepresentationToFile(const std::string& prefix) const {
+  const auto cells = sortedCells();
+  std::vector<cleanmap::PointXYZI> pts;
+  double lo = 1e300, hi = -1e300;
+  for (const auto& [ij, c] : cells) {
+    const double h = c.height();
+    pts.push_back({static_cast<float>((ij.first + 0.5) * cell_),
+                   static_cast<float>((ij.second + 0.5) * cell_), static_cast<float>(h),
+                   static_cast<float>(c.count)});
+    lo = std::min(lo, h);
+    hi = std::max(hi, h);
+  }
+  cleanmap::io::CloudStreamOptions opts;
+  opts.colour = cleanmap::io::CloudColour::kHeight;
+  cleanmap::io::PlyStreamWriter ply(prefix + ".ply", opts);
+  ply.append(pts, cells.empty() ? 0.0 : lo + 2.0);  // the lowest cell at the ramp's start
+  ply.close();
+  cleanmap::io::writeFileAtomic(prefix + ".txt", [&](std::ostream& os) {
+    os << "# cleanmap ground model: cell " << cell_
+       << " m; ix iy x y height count (x, y: cell centre, world frame, m)\n";
+    os.precision(9);
+    for (const auto& [ij, c] : cells)
+      os << ij.first << ' ' << ij.second << ' ' << (ij.first + 0.5) * cell_ << ' '
+         << (ij.second + 0.5) * cell_ << ' ' << c.height() << ' ' << c.count << '\n';
+  });
+}
+
+void CGroundModelMap::getVisualizationInto(mrpt::opengl::CSetOfObjects& o) const {
+  if (!genericMapParams.enableSaveAs3DObject) return;
+  const auto cells = sortedCells();
+  double lo = 1e300;
+  for (const auto& kv : cells) lo = std::min(lo, kv.second.height());
+  auto cloud = mrpt::opengl::CPointCloudColoured::Create();
+  cloud->setName("cleanmap_ground");
+  cloud->setPointSize(4.0f);
+  for (const auto& [ij, c] : cells) {
+    const double h = c.height();
+    const auto rgb = cleanmap::io::heightColour(h - (lo + 2.0));
+    cloud->push_back(static_cast<float>((ij.first + 0.5) * cell_),
+                     static_cast<float>((ij.second + 0.5) * cell_), static_cast<float>(h),
+                     rgb[0] / 255.0f, rgb[1] / 255.0f, rgb[2] / 255.0f);
+  }
+  o.insert(cloud);
+}
+
+std::string CGroundModelMap::asString() const {
+  std::ostringstream os;
+  os << "cleanmap ground model: " << cells_.size() << " cells of " << cell_ << " m from " << scans_
+     << " scans";
+  return os.str();
+}
+
+uint8_t CGroundModelMap::serializeGetVersion() const {
+  return 0;
+}
+
+void CGroundModelMap::serializeTo(mrpt::serialization::CArchive& out) const {
+  out << genericMapParams;
+  out << cell_ << insertionOptions.step << insertionOptions.sensor_height
+      << insertionOptions.point_refine << static_cast<int32_t>(insertionOptions.max_gap_cells)
+      << insertionOptions.extent << static_cast<uint64_t>(scans_);
+  const auto cells = sortedCells();  // sorted: equal maps serialize to equal bytes
+  out << static_cast<uint64_t>(cells.size());
+  for (const auto& [ij, c] : cells) out << ij.first << ij.second << c.sum_z << c.count;
+}
+
+void CGroundModelMap::serializeFrom(mrpt::serialization::CArchive& in, uint8_t version) {
+  if (version != 0) MRPT_THROW_UNKNOWN_SERIALIZATION_VERSION(version);
+  in >> genericMapParams;
+  int32_t gap = 0;
+  uint64_t scans = 0, n = 0;
+  in >> cell_ >> insertionOptions.step >> insertionOptions.sensor_height >>
+      insertionOptions.point_refine >> gap >> insertionOptions.extent >> scans;
+  insertionOptions.max_gap_cells = gap;
+  scans_ = scans;
+  in >> n;
+  cells_.clear();
+  cells_.reserve(n);
+  for (uint64_t i = 0; i < n; ++i) {
+    int32_t ix = 0, iy = 0;
+    Cell c;
+    in >> ix >> iy >> c.sum_z >> c.count;
+    cells_[key2(ix, iy)] = c;
+  }
+  last_flags_.clear();
+}
+
+// ---- map definition (ini) ----
+
+CGroundModelMap::TMapDefinition::TMapDefinition() = default;
+
+void CGroundModelMap::TMapDefinition::loadFromConfigFile_map_specific(
+    const mrpt::config::CConfigFileBase& source, const std::string& prefix) {
+  const std::string creation = prefix + "_creationOpts", insert = prefix + "_insertOpts";
+  OptionTable c;
+  c.real("cell", cell);
+  c.load(source, creation, /*generic=*/true);
+  OptionTable t;
+  insertOptionKeys(t, insertionOpts);
+  t.load(source, insert, /*generic=*/false);
+  checkOptions(cell, insertionOpts, "[" + prefix + "]");
+}
+
+void CGroundModelMap::TMapDefinition::dumpToTextStream_map_specific(std::ostream& out) const {
+  out << "cell = " << cell << "\nstep = " << insertionOpts.step
+      << "\nsensor_height = " << insertionOpts.sensor_height
+      << "\npoint_refine = " << insertionOpts.point_refine
+      << "\nmax_gap_cells = " << insertionOpts.max_gap_cells
+      << "\nextent = " << insertionOpts.extent << "\n";
+}
+
+#if MRPT_VERSION >= 0x20b03
+std::shared_ptr<mrpt::maps::CMetricMap>
+#else
+mrpt::maps::CMetricMap*
+#endif
+CGroundModelMap::internal_CreateFromMapDefinition(const mrpt::maps::TMetricMapInitializer& def_) {
+  const auto& def = dynamic_cast<const CGroundModelMap::TMapDefinition&>(def_);
+#if MRPT_VERSION >= 0x20b03
+  auto m = std::make_shared<CGroundModelMap>(def.cell);
+#else
+  auto* m = new CGroundModelMap(def.cell);
+#endif
+  m->insertionOptions = def.insertionOpts;
+  return m;
+}
+
+}  // namespace cleanmap_maps

@@ -1,0 +1,359 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#include "cleanmap/maps/moving_objects_map.h"
+
+#include <mrpt/config/CConfigFileBase.h>
+#include <mrpt/obs/CObservation.h>
+#include <mrpt/opengl/CPointCloud.h>
+#include <mrpt/opengl/CPointCloudColoured.h>
+#include <mrpt/opengl/CSetOfObjects.h>
+#include <mrpt/serialization/CArchive.h>
+#include <mrpt/version.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <sstream>
+
+#include "cleanmap/core/cell_key.h"
+#include "cleanmap/core/error.h"
+#include "cleanmap/io/config.h"
+#include "cleanmap/io/files.h"
+#include "cleanmap/io/ply.h"
+#include "cleanmap/mrpt/convert.h"
+#include "cleanmap/pipeline/laser_pipeline.h"
+#include "map_options.h"
+
+namespace cleanmap_maps {
+
+IMPLEMENTS_SERIALIZABLE(CMovingObjectsMap, CMetricMap, cleanmap_maps)
+MAP_DEFINITION_REGISTER("cleanmap_maps::CMovingObjectsMap,cleanmap_moving",
+                        cleanmap_maps::CMovingObjectsMap)
+
+namespace {
+
+std::vector<cleanmap::PointXYZI> sortedPoints(
+    const std::unordered_map<uint64_t, cleanmap::PointXYZI>& m) {
+  std::vector<std::pair<uint64_t, cleanmap::PointXYZI>> v(m.begin(), m.end());
+  std::sort(v.begin(), v.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+  std::vector<cleanmap::PointXYZI> out;
+  out.reserve(v.size());
+  for (const auto& kv : v) out.push_back(kv.second);
+  return out;
+}
+
+// The voxel of a point; with map_voxel 0 every point is its own entry (keyed by arrival).
+void addPoints(std::unordered_map<uint64_t, cleanmap::PointXYZI>& m,
+               const std::vector<cleanmap::PointXYZI>& pts, double voxel) {
+  if (voxel <= 0) {
+    for (const auto& p : pts) m.emplace(m.size(), p);
+    return;
+  }
+  const float inv = static_cast<float>(1.0 / voxel);
+  for (const auto& p : pts) m.emplace(cleanmap::cellKeyOf(p.x, p.y, p.z, inv), p);
+}
+
+void writePoints(mrpt::serialization::CArchive& out, const std::vector<cleanmap::PointXYZI>& v) {
+  out << static_cast<uint64_t>(v.size());
+  for (const auto& p : v) out << p.x << p.y << p.z << p.intensity;
+}
+
+std::vector<cleanmap::PointXYZI> readPoints(mrpt::serialization::CArchive& in) {
+  uint64_t n = 0;
+  in >> n;
+  std::vector<cleanmap::PointXYZI> v(n);
+  for (auto& p : v) in >> p.x >> p.y >> p.z >> p.intensity;
+  return v;
+}
+
+// The creationOpts table: every key of cleanmap's parameter table ("section.key") + map_voxel.
+OptionTable creationOptions(cleanmap::PipelineParams& params, double& map_voxel) {
+  OptionTable t;
+  for (const auto& key : cleanmap::io::paramKeys())
+    t.custom(key, [&params, key](const std::string& v, const std::string& where) {
+      cleanmap::io::setParam(params, key, v, where);
+    });
+  t.real("map_voxel", map_voxel);
+  return t;
+}
+
+}  // namespace
+
+CMovingObjectsMap::CMovingObjectsMap() = default;
+
+CMovingObjectsMap::CMovingObjectsMap(const cleanmap::PipelineParams& params, double map_voxel)
+    : params_(params), map_voxel_(map_voxel) {
+  cleanmap::validate(params_, "cleanmap_moving");
+  if (map_voxel < 0) throw cleanmap::Error("cleanmap_moving", "map_voxel must be >= 0");
+}
+
+CMovingObjectsMap::CMovingObjectsMap(const CMovingObjectsMap& o) : CMetricMap(o) {
+  copyFrom(o);
+}
+
+CMovingObjectsMap& CMovingObjectsMap::operator=(const CMovingObjectsMap& o) {
+  if (this != &o) {
+    CMetricMap::operator=(o);
+    copyFrom(o);
+  }
+  return *this;
+}
+
+CMovingObjectsMap::~CMovingObjectsMap() = default;
+
+void CMovingObjectsMap::copyFrom(const CMovingObjectsMap& o) {
+  params_ = o.params_;
+  map_voxel_ = o.map_voxel_;
+  pipe_ = o.pipe_ ? o.pipe_->clone([this](cleanmap::ScanResult&& r) { onDecided(std::move(r)); })
+                  : nullptr;
+  sink_ = nullptr;  // the copy's results are its own
+  store_points_ = o.store_points_;
+  keep_scans_ = o.keep_scans_;
+  next_index_ = o.next_index_;
+  static_ = o.static_;
+  moving_ = o.moving_;
+  trajectory_ = o.trajectory_;
+  totals_ = o.totals_;
+}
+
+void CMovingObjectsMap::setParams(const cleanmap::PipelineParams& params) {
+  if (pending() > 0)
+    throw cleanmap::Error("cleanmap_moving", "parameters cannot change while scans are pending");
+  cleanmap::validate(params, "cleanmap_moving");
+  params_ = params;
+  pipe_.reset();
+}
+
+void CMovingObjectsMap::setKeepScans(bool on) {
+  keep_scans_ = on;
+  if (pipe_) pipe_->keepScans(on);
+}
+
+std::size_t CMovingObjectsMap::pending() const {
+  return pipe_ ? pipe_->pending() : 0;
+}
+
+void CMovingObjectsMap::ensurePipeline() {
+  if (pipe_) return;
+  pipe_ = std::make_unique<cleanmap::LaserPipeline>(
+      params_, [this](cleanmap::ScanResult&& r) { onDecided(std::move(r)); });
+  pipe_->keepScans(keep_scans_);
+}
+
+void CMovingObjectsMap::insertFrame(cleanmap::Frame&& frame) {
+  ensurePipeline();
+  next_index_ = std::max(next_index_, frame.index + 1);
+  pipe_->push(std::move(frame));
+}
+
+void CMovingObjectsMap::flush() {
+  if (pipe_) pipe_->finish();
+}
+
+void CMovingObjectsMap::onDecided(cleanmap::ScanResult&& r) {
+  trajectory_.push_back({r.index, r.timestamp, r.pose});
+  totals_ += r.stats;
+  if (store_points_) {
+    addPoints(static_, r.static_full, map_voxel_);
+    addPoints(moving_, r.moving, map_voxel_);
+  }
+  if (sink_) sink_(std::move(r));
+}
+
+std::vector<cleanmap::PointXYZI> CMovingObjectsMap::staticPoints() const {
+  return sortedPoints(static_);
+}
+std::vector<cleanmap::PointXYZI> CMovingObjectsMap::movingPoints() const {
+  return sortedPoints(moving_);
+}
+
+bool CMovingObjectsMap::isEmpty() const {
+  return trajectory_.empty() && pending() == 0;
+}
+
+void CMovingObjectsMap::internal_clear() {
+  pipe_.reset();
+  next_index_ = 0;
+  static_.clear();
+  moving_.clear();
+  trajectory_.clear();
+  totals_ = {};
+}
+
+bool CMovingObjectsMap::internal_insertObservation(
+    const mrpt::obs::CObservation& obs,
+    const std::optional<const mrpt::poses::CPose3D>& robotPose) {
+  auto scan = cleanmap::mrpt::scanFromObservation(obs);
+  if (!scan) return false;  // not a lidar observation
+  mrpt::poses::CPose3D sensor;
+  obs.getSensorPose(sensor);
+  cleanmap::Frame f;
+  f.index = next_index_;
+  char stem[32];
+  std::snprintf(stem, sizeof stem, "%06zu", f.index);
+  f.stem = stem;
+  f.source = std::string(obs.GetRuntimeClass()->className) + " #" + stem;
+  f.scan = std::move(*scan);
+  // robot pose (+) sensor pose: the 2.5.8 point-cloud insertion ignores the robot pose
+  // (MRPT_NOTES), we compose it ourselves. No robot pose: the origin, as in MRPT.
+  f.scan.pose = cleanmap::mrpt::toIsometry(robotPose ? *robotPose + sensor : sensor);
+  f.scan.has_pose = true;
+  f.scan.timestamp = mrpt::Clock::toDouble(obs.timestamp);
+  insertFrame(std::move(f));
+  return true;
+}
+
+void CMovingObjectsMap::saveMetricMapRepresentationToFile(const std::string& prefix) const {
+  double z0 = 0;
+  for (const auto& t : trajectory_) z0 += t.pose.translation().z();
+  if (!trajectory_.empty()) z0 /= static_cast<double>(trajectory_.size());
+  cleanmap::io::CloudStreamOptions so;
+  so.colour = cleanmap::io::CloudColour::kHeight;
+  cleanmap::io::PlyStreamWriter st(prefix + "_static.ply", so);
+  st.append(staticPoints(), z0);
+  st.close();
+  cleanmap::io::CloudStreamOptions mo;
+  mo.colour = cleanmap::io::CloudColour::kRed;
+  cleanmap::io::PlyStreamWriter mv(prefix + "_moving.ply", mo);
+  mv.append(movingPoints());
+  mv.close();
+  cleanmap::io::writeFileAtomic(prefix + "_trajectory.txt", [&](std::ostream& os) {
+    os.precision(17);
+    os << "# index timestamp r00 r01 r02 tx r10 r11 r12 ty r20 r21 r22 tz (sensor in world)\n";
+    for (const auto& t : trajectory_) {
+      os << t.index << ' ' << t.timestamp;
+      const Eigen::Matrix<double, 3, 4> m = t.pose.matrix().topRows<3>();
+      for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 4; ++c) os << ' ' << m(r, c);
+      os << '\n';
+    }
+  });
+}
+
+void CMovingObjectsMap::getVisualizationInto(mrpt::opengl::CSetOfObjects& o) const {
+  if (!genericMapParams.enableSaveAs3DObject) return;
+  double z0 = 0;
+  for (const auto& t : trajectory_) z0 += t.pose.translation().z();
+  if (!trajectory_.empty()) z0 /= static_cast<double>(trajectory_.size());
+  auto st = mrpt::opengl::CPointCloudColoured::Create();
+  st->setName("cleanmap_static");
+  st->setPointSize(2.0f);
+  for (const auto& p : staticPoints()) {
+    const auto c = cleanmap::io::heightColour(double(p.z) - z0);
+    st->push_back(p.x, p.y, p.z, c[0] / 255.0f, c[1] / 255.0f, c[2] / 255.0f);
+  }
+  o.insert(st);
+  auto mv = mrpt::opengl::CPointCloud::Create();
+  mv->setName("cleanmap_moving");
+  mv->setPointSize(3.0f);
+  mv->setColor(1.0, 0.0, 0.0);
+  for (const auto& p : movingPoints()) mv->insertPoint(p.x, p.y, p.z);
+  o.insert(mv);
+}
+
+std::string CMovingObjectsMap::asString() const {
+  std::ostringstream os;
+  os << "cleanmap moving-objects map: " << trajectory_.size() << " scans decided, " << pending()
+     << " pending (K = " << params_.ds.window_k << "); " << static_.size() << " static and "
+     << moving_.size() << " moving points (voxel " << map_voxel_ << " m)";
+  return os.str();
+}
+
+// ---- serialization: the content as if flushed (see the header) ----
+
+uint8_t CMovingObjectsMap::serializeGetVersion() const {
+  return 0;
+}
+
+void CMovingObjectsMap::serializeTo(mrpt::serialization::CArchive& out) const {
+  if (pending() > 0) {  // decide the window in a copy, and store that
+    CMovingObjectsMap flushed(*this);
+    flushed.flush();
+    flushed.serializeTo(out);
+    return;
+  }
+  out << genericMapParams;
+  out << cleanmap::io::toIni(params_) << map_voxel_ << store_points_
+      << static_cast<uint64_t>(next_index_);
+  out << static_cast<uint64_t>(trajectory_.size());
+  for (const auto& t : trajectory_) {
+    out << static_cast<uint64_t>(t.index) << t.timestamp;
+    const Eigen::Matrix4d m = t.pose.matrix();
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 4; ++c) out << m(r, c);
+  }
+  writePoints(out, staticPoints());
+  writePoints(out, movingPoints());
+  const auto& s = totals_;
+  for (const std::size_t v : {s.points, s.invalid, s.in_crop, s.ground, s.duplicates, s.candidates,
+                              s.tested, s.moving, s.static_points})
+    out << static_cast<uint64_t>(v);
+}
+
+void CMovingObjectsMap::serializeFrom(mrpt::serialization::CArchive& in, uint8_t version) {
+  if (version != 0) MRPT_THROW_UNKNOWN_SERIALIZATION_VERSION(version);
+  internal_clear();
+  in >> genericMapParams;
+  std::string ini;
+  uint64_t next = 0, n = 0;
+  in >> ini >> map_voxel_ >> store_points_ >> next;
+  params_ = cleanmap::PipelineParams{};
+  cleanmap::io::parseParams(ini, "serialized cleanmap_moving", params_);
+  next_index_ = next;
+  in >> n;
+  trajectory_.resize(n);
+  for (auto& t : trajectory_) {
+    uint64_t idx = 0;
+    in >> idx >> t.timestamp;
+    t.index = idx;
+    Eigen::Matrix4d m = Eigen::Matrix4d::Identity();
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 4; ++c) in >> m(r, c);
+    t.pose.matrix() = m;
+  }
+  // Points come back keyed by voxel again (or by arrival with map_voxel 0).
+  addPoints(static_, readPoints(in), map_voxel_);
+  addPoints(moving_, readPoints(in), map_voxel_);
+  auto& s = totals_;
+  for (std::size_t* v : {&s.points, &s.invalid, &s.in_crop, &s.ground, &s.duplicates, &s.candidates,
+                         &s.tested, &s.moving, &s.static_points}) {
+    uint64_t x = 0;
+    in >> x;
+    *v = x;
+  }
+}
+
+// ---- map definition (ini) ----
+
+CMovingObjectsMap::TMapDefinition::TMapDefinition() = default;
+
+void CMovingObjectsMap::TMapDefinition::loadFromConfigFile_map_specific(
+    const mrpt::config::CConfigFileBase& source, const std::string& prefix) {
+  const std::string creation = prefix + "_creationOpts";
+  creationOptions(params, map_voxel).load(source, creation, /*generic=*/true);
+  cleanmap::validate(params, "[" + creation + "]");
+  if (map_voxel < 0) throw cleanmap::Error("[" + creation + "]", "map_voxel must be >= 0");
+  for (const char* other : {"_insertOpts", "_likelihoodOpts"})
+    if (source.sectionExists(prefix + other))
+      throw cleanmap::Error(
+          "[" + prefix + other + "]",
+          "cleanmap_moving has no such options: every option is in [" + creation + "]");
+}
+
+void CMovingObjectsMap::TMapDefinition::dumpToTextStream_map_specific(std::ostream& out) const {
+  out << cleanmap::io::toIni(params) << "map_voxel = " << map_voxel << "\n";
+}
+
+#if MRPT_VERSION >= 0x20b03
+std::shared_ptr<mrpt::maps::CMetricMap>
+#else
+mrpt::maps::CMetricMap*
+#endif
+CMovingObjectsMap::internal_CreateFromMapDefinition(const mrpt::maps::TMetricMapInitializer& def_) {
+  const auto& def = dynamic_cast<const CMovingObjectsMap::TMapDefinition&>(def_);
+#if MRPT_VERSION >= 0x20b03
+  return std::make_shared<CMovingObjectsMap>(def.params, def.map_voxel);
+#else
+  return new CMovingObjectsMap(def.params, def.map_voxel);
+#endif
+}
+
+}  // namespace cleanmap_maps

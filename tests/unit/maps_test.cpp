@@ -1,0 +1,338 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// The MRPT map plugins (DESIGN §4b): created by name from ini text through MRPT's own factory,
+// ini mistakes refused, posed observations inserted through a CMultiMetricMap decided exactly as
+// the pipeline decides the frames, deep copies, serialization round trips, the ground model.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <fstream>
+#include <random>
+#include <set>
+
+#include <mrpt/config/CConfigFileMemory.h>
+#include <mrpt/maps/CMultiMetricMap.h>
+#include <mrpt/maps/CSimplePointsMap.h>
+#include <mrpt/obs/CObservationPointCloud.h>
+#include <mrpt/opengl/CPointCloud.h>
+#include <mrpt/opengl/CPointCloudColoured.h>
+#include <mrpt/opengl/CSetOfObjects.h>
+#include <mrpt/serialization/CArchive.h>
+#include <mrpt/serialization/archiveFrom_std_vector.h>
+
+#include "cleanmap/io/config.h"
+#include "cleanmap/io/files.h"
+#include "cleanmap/io/ini.h"
+#include "cleanmap/io/kitti.h"
+#include "cleanmap/maps/ground_model_map.h"
+#include "cleanmap/maps/map_config.h"
+#include "cleanmap/maps/moving_objects_map.h"
+#include "cleanmap/mrpt/convert.h"
+#include "cleanmap/mrpt/rawlog.h"
+#include "cleanmap/pipeline/laser_pipeline.h"
+#include "test_data.h"
+
+using namespace cleanmap;
+using cleanmap_maps::CGroundModelMap;
+using cleanmap_maps::CMovingObjectsMap;
+
+namespace {
+
+std::vector<uint8_t> serialize(const ::mrpt::serialization::CSerializable& o) {
+  std::vector<uint8_t> buf;
+  auto ar = ::mrpt::serialization::archiveFrom(buf);
+  ar << o;
+  return buf;
+}
+
+template <class T>
+std::shared_ptr<T> deserialize(const std::vector<uint8_t>& buf) {
+  auto copy = buf;
+  auto ar = ::mrpt::serialization::archiveFrom(copy);
+  auto obj = ar.ReadObject();
+  return std::dynamic_pointer_cast<T>(obj);
+}
+
+::mrpt::maps::CMultiMetricMap mapsFrom(const std::string& text) {
+  const auto mc = cleanmap_maps::parseMapConfig(text, "test.ini");
+  ::mrpt::maps::CMultiMetricMap mm;
+  mm.setListOfMaps(mc.maps);
+  return mm;
+}
+
+// A lidar observation of `frame` as a robot would log it: the sensor mounted at `sensor` on the
+// robot, so the robot's pose is the scan's world pose (-) the mounting.
+::mrpt::obs::CObservationPointCloud::Ptr observation(const Frame& f,
+                                                     const ::mrpt::poses::CPose3D& sensor,
+                                                     ::mrpt::poses::CPose3D& robot) {
+  auto o = ::mrpt::obs::CObservationPointCloud::Create();
+  o->pointcloud = cleanmap::mrpt::toPointsMap(f.scan.points);
+  o->sensorPose = sensor;
+  o->timestamp = cleanmap::mrpt::toMrptTime(f.scan.timestamp);
+  robot = cleanmap::mrpt::toCPose3D(f.scan.pose) + (-sensor);
+  return o;
+}
+
+const char* kMinimal =
+    "[map]\ncleanmap_moving_count = 1\n[map_cleanmap_moving_00_creationOpts]\n"
+    "ds.window_k = 3\nmap_voxel = 0.2\n";
+
+}  // namespace
+
+TEST(MapConfig, DefaultIniCreatesBothMapsWithTheDefaults) {
+  const std::string path = CLEANMAP_SOURCE_DIR "/config/cleanmap.ini";
+  const std::string text = io::readTextFile(path);
+  auto mm = mapsFrom(text);
+  const auto moving = mm.mapByClass<CMovingObjectsMap>();
+  const auto ground = mm.mapByClass<CGroundModelMap>();
+  ASSERT_TRUE(moving && ground);
+  EXPECT_EQ(io::toIni(moving->params()), io::toIni(PipelineParams{}));
+  EXPECT_DOUBLE_EQ(moving->mapVoxel(), 0.1);
+  EXPECT_DOUBLE_EQ(ground->cellSize(), PipelineParams{}.ground.cell);
+  EXPECT_DOUBLE_EQ(ground->insertionOptions.sensor_height, PipelineParams{}.ground.sensor_height);
+  // Every parameter of the table is written out in the file (nothing left to a hidden default).
+  std::set<std::string> in_file;
+  io::IniHandlers on;
+  on.entry = [&](const io::IniLine& e) {
+    if (e.section == "MappingApplication_cleanmap_moving_00_creationOpts") in_file.insert(e.key);
+  };
+  io::parseIni(text, path, on);
+  std::set<std::string> keys{"map_voxel"};
+  for (const auto& k : io::paramKeys()) keys.insert(k);
+  EXPECT_EQ(in_file, keys);
+  // The generated text is equivalent.
+  auto mm2 = mapsFrom(cleanmap_maps::mapConfigText(PipelineParams{}));
+  EXPECT_EQ(io::toIni(mm2.mapByClass<CMovingObjectsMap>()->params()), io::toIni(PipelineParams{}));
+}
+
+TEST(MapConfig, MrptFactoryCreatesOurMapByName) {
+  cleanmap_maps::registerMaps();
+  // MRPT's own loader, no cleanmap code in between: the alias and the class name both work.
+  for (const char* name : {"cleanmap_moving", "cleanmap_maps::CMovingObjectsMap"}) {
+    const std::string text = std::string("[map]\n") + name + "_count = 1\n[map_" + name +
+                             "_00_creationOpts]\nds.window_k = 3\n";
+    ::mrpt::config::CConfigFileMemory cfg(text);
+    ::mrpt::maps::TSetOfMetricMapInitializers inits;
+    inits.loadFromConfigFile(cfg, "map");
+    ::mrpt::maps::CMultiMetricMap mm;
+    mm.setListOfMaps(inits);
+    const auto m = mm.mapByClass<CMovingObjectsMap>();
+    ASSERT_TRUE(m) << name;
+    EXPECT_EQ(m->params().ds.window_k, 3) << name;
+  }
+  auto mm = mapsFrom(kMinimal);
+  EXPECT_DOUBLE_EQ(mm.mapByClass<CMovingObjectsMap>()->mapVoxel(), 0.2);
+  EXPECT_FALSE(mm.mapByClass<CGroundModelMap>());
+}
+
+TEST(MapConfig, MistakesAreOneLineErrors) {
+  auto expect = [](const std::string& text, const std::string& what) {
+    test::expectError([&] { cleanmap_maps::parseMapConfig(text, "my.ini"); }, "my.ini", what);
+  };
+  // A misspelled map name: MRPT 2.5.8 would create nothing and say nothing.
+  expect("[MappingApplication]\ncleanmap_movin_count = 1\n",
+         "unknown map 'cleanmap_movin' in 'cleanmap_movin_count'; did you mean 'cleanmap_moving'?");
+  expect("[map]\ncleanmap_moving_cont = 1\n", "unknown key 'cleanmap_moving_cont'");
+  expect("[map]\npointsMap_count = 1\n", "declares no cleanmap_moving map");
+  expect("[nothing]\na = 1\n", "declares no maps");
+  // Options: unknown key (with the nearest known one), bad value, failed validation.
+  expect(std::string(kMinimal) + "filter.crop_ta = 20\n",
+         "[map_cleanmap_moving_00_creationOpts]: unknown key 'filter.crop_ta'; did you mean "
+         "'filter.crop_tau'?");
+  expect(std::string(kMinimal) + "ds.sigma_r = fast\n", "'ds.sigma_r' needs a number, got 'fast'");
+  expect(std::string(kMinimal) + "ds.r_sup = 0.5\n", "r_inf");
+  expect(std::string(kMinimal) + "[map_cleanmap_moving_00_insertOpts]\nx = 1\n",
+         "cleanmap_moving has no such options");
+  // Sections MRPT would silently ignore.
+  expect(std::string(kMinimal) + "[map_cleanmap_moving_01_creationOpts]\nds.window_k = 2\n",
+         "declares 1 cleanmap_moving map(s), so this section would be ignored");
+  expect(std::string(kMinimal) + "[map_cleanmap_movng_00_creationOpts]\nds.window_k = 2\n",
+         "unknown map 'cleanmap_movng'");
+  expect(
+      "[map]\ncleanmap_moving_count = 1\ncleanmap_ground_count = 1\n"
+      "[map_cleanmap_ground_00_insertOpts]\nstepp = 0.1\n",
+      "unknown key 'stepp'; did you mean 'step'?");
+  test::expectError([] { cleanmap_maps::loadMapConfig("/nonexistent/x.ini"); },
+                    "/nonexistent/x.ini", "");
+  EXPECT_TRUE(cleanmap_maps::isMapConfig(kMinimal));
+  EXPECT_FALSE(cleanmap_maps::isMapConfig(io::toIni(PipelineParams{})));
+}
+
+// Posed CObservationPointCloud through CMultiMetricMap::insertObservation (robot pose (+) sensor
+// pose) gives exactly the labels of the pipeline run on the frames.
+TEST(MovingObjectsMap, InsertedObservationsDecidedAsThePipelineDecides) {
+  CLEANMAP_REQUIRE_DATASET("kitti_city");
+  auto seq = io::KittiSequence::open(test::dataDir() + "/kitti_city");
+  const std::size_t n = std::min<std::size_t>(12, seq.size());
+  std::vector<Frame> frames;
+  for (std::size_t i = 0; i < n; ++i) frames.push_back(seq.frame(i));
+
+  std::vector<Labels> direct;
+  {
+    LaserPipeline pl(PipelineParams{}, [&](ScanResult&& r) { direct.push_back(r.labels); });
+    for (auto f : frames) pl.push(std::move(f));
+    pl.finish();
+  }
+
+  auto mm = mapsFrom(cleanmap_maps::mapConfigText(PipelineParams{}));
+  auto moving = mm.mapByClass<CMovingObjectsMap>();
+  std::vector<Labels> via_mrpt;
+  moving->setScanSink([&](ScanResult&& r) { via_mrpt.push_back(r.labels); });
+  const ::mrpt::poses::CPose3D sensor(0.27, 0.0, 1.73, 0.0, 0.0, 0.0);  // a roof mount
+  for (const auto& f : frames) {
+    ::mrpt::poses::CPose3D robot;
+    const auto obs = observation(f, sensor, robot);
+    EXPECT_TRUE(mm.insertObservation(*obs, robot));
+  }
+  EXPECT_EQ(moving->pending(), static_cast<std::size_t>(PipelineParams{}.ds.window_k));
+  moving->flush();
+  ASSERT_EQ(via_mrpt.size(), direct.size());
+  std::size_t differ = 0, total = 0, moving_points = 0;
+  for (std::size_t i = 0; i < direct.size(); ++i) {
+    ASSERT_EQ(via_mrpt[i].size(), direct[i].size());
+    for (std::size_t j = 0; j < direct[i].size(); ++j) {
+      differ += via_mrpt[i][j] != direct[i][j];
+      moving_points += direct[i][j] == kMoving;
+    }
+    total += direct[i].size();
+  }
+  EXPECT_GT(moving_points, 1000u);  // the city scans have moving cars
+  // Composing the poses in MRPT rounds differently in the last bit: allow 1 point in 10^5.
+  EXPECT_LE(differ, total / 100000) << differ << " of " << total << " labels differ";
+  EXPECT_FALSE(moving->staticPoints().empty());
+  EXPECT_FALSE(moving->movingPoints().empty());
+  EXPECT_EQ(moving->trajectory().size(), n);
+  EXPECT_NEAR(
+      (moving->trajectory().back().pose.translation() - frames.back().scan.pose.translation())
+          .norm(),
+      0.0, 1e-9);
+
+  // The ground model, fed by MRPT too, holds the road: its cells 4 m beside the first pose lie
+  // about 1.73 m (the HDL-64E's height) below the sensor.
+  auto ground = mm.mapByClass<CGroundModelMap>();
+  ASSERT_TRUE(ground);
+  EXPECT_EQ(ground->scansInserted(), n);
+  const Eigen::Vector3d o = frames[0].scan.pose.translation();
+  std::size_t near_cells = 0;
+  for (double dx = -6; dx <= 6; dx += 0.4)
+    if (const auto h = ground->height(o.x() + dx, o.y() + 4.0)) {
+      ++near_cells;
+      // 1.73 m mount; the street's camber and slope and KITTI's tilted world frame put it
+      // 1.6-2.0 m below the sensor here: allow 0.45 m.
+      EXPECT_NEAR(*h - o.z(), -1.73, 0.45) << "cell at dx " << dx;
+    }
+  EXPECT_GT(near_cells, 10u);
+
+  // Visualisation: static points coloured by height and moving points in red.
+  ::mrpt::opengl::CSetOfObjects scene;
+  moving->getVisualizationInto(scene);
+  const auto red =
+      std::dynamic_pointer_cast<::mrpt::opengl::CPointCloud>(scene.getByName("cleanmap_moving"));
+  ASSERT_TRUE(red);
+  EXPECT_EQ(red->size(), moving->movingPoints().size());
+  EXPECT_EQ(red->getColor_u8().R, 255);
+  EXPECT_TRUE(scene.getByName("cleanmap_static"));
+}
+
+// A copy taken mid-window, fed the same remaining scans, decides them as the original does; a
+// serialized CMultiMetricMap holding both maps reads back equal (content as if flushed).
+TEST(MovingObjectsMap, CopiesAndSerializedMultiMapsAreEqual) {
+  CLEANMAP_REQUIRE_DATASET("kitti_city");
+  auto seq = io::KittiSequence::open(test::dataDir() + "/kitti_city");
+  PipelineParams p;
+  p.ds.window_k = 3;
+  auto mm = mapsFrom(cleanmap_maps::mapConfigText(p));
+  auto moving = mm.mapByClass<CMovingObjectsMap>();
+  const ::mrpt::poses::CPose3D sensor;
+  auto insert = [&](::mrpt::maps::CMultiMetricMap& m, std::size_t i) {
+    ::mrpt::poses::CPose3D robot;
+    const auto obs = observation(seq.frame(i), sensor, robot);
+    m.insertObservation(*obs, robot);
+  };
+  for (std::size_t i = 0; i < 6; ++i) insert(mm, i);
+  ASSERT_EQ(moving->pending(), 3u);
+
+  // Serialized now: the copy is flushed, the original keeps its window.
+  const auto bytes = serialize(mm);
+  EXPECT_EQ(moving->pending(), 3u);
+  const auto back = deserialize<::mrpt::maps::CMultiMetricMap>(bytes);
+  ASSERT_TRUE(back);
+  ASSERT_TRUE(back->mapByClass<CMovingObjectsMap>() && back->mapByClass<CGroundModelMap>());
+  EXPECT_EQ(back->mapByClass<CMovingObjectsMap>()->decided(), 6u);
+  EXPECT_EQ(back->mapByClass<CMovingObjectsMap>()->pending(), 0u);
+  EXPECT_EQ(serialize(*back), bytes);
+  EXPECT_EQ(back->mapByClass<CGroundModelMap>()->cellCount(),
+            mm.mapByClass<CGroundModelMap>()->cellCount());
+
+  // MRPT 2.5.8 copies a CMultiMetricMap through serialization: its copy of our map is the
+  // flushed content, equal to the map read back.
+  const ::mrpt::maps::CMultiMetricMap mm_copy(mm);
+  EXPECT_EQ(mm_copy.mapByClass<CMovingObjectsMap>()->pending(), 0u);
+  EXPECT_EQ(serialize(*mm_copy.mapByClass<CMovingObjectsMap>()),
+            serialize(*back->mapByClass<CMovingObjectsMap>()));
+
+  // The map's own clone() is deep, window included: both continue identically.
+  std::unique_ptr<CMovingObjectsMap> cm(dynamic_cast<CMovingObjectsMap*>(moving->clone()));
+  ASSERT_TRUE(cm);
+  EXPECT_EQ(cm->pending(), 3u);
+  EXPECT_EQ(cm->decided(), 3u);
+  for (std::size_t i = 6; i < 9; ++i) {
+    insert(mm, i);
+    ::mrpt::poses::CPose3D robot;
+    const auto obs = observation(seq.frame(i), sensor, robot);
+    cm->insertObservation(*obs, robot);
+  }
+  EXPECT_EQ(cm->decided(), moving->decided());
+  moving->flush();
+  cm->flush();
+  EXPECT_EQ(cm->asString(), moving->asString());
+  EXPECT_EQ(serialize(*cm), serialize(*moving));
+  EXPECT_GT(moving->movingPoints().size(), 0u);
+  // A flushed original serializes as its flushed copy did: equal maps, equal bytes.
+  EXPECT_EQ(serialize(*deserialize<CMovingObjectsMap>(serialize(*moving))), serialize(*moving));
+}
+
+// The ground model on a synthetic scene: a plane 1.73 m below the sensor and a box on it.
+TEST(GroundModelMap, FlatRoadHeightsAndMergeCommutes) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> u(-20.f, 20.f);
+  Scan scan;
+  for (int i = 0; i < 40000; ++i) scan.points.push_back({u(rng), u(rng), -1.73f, 0.f});
+  for (int i = 0; i < 3000; ++i)  // a 2 x 2 x 1.5 m box centred at (8, 0)
+    scan.points.push_back({7.f + std::fabs(u(rng)) / 10.f, -1.f + std::fabs(u(rng)) / 10.f,
+                           -1.73f + std::fabs(u(rng)) / 13.3f, 0.f});
+  scan.pose = Eigen::Isometry3d(Eigen::Translation3d(100.0, 50.0, 10.0));
+  scan.has_pose = true;
+  CGroundModelMap a(0.4), b(0.4);
+  const auto& flags = a.insertScan(scan);
+  std::size_t box_ground = 0;
+  for (std::size_t i = 40000; i < scan.points.size(); ++i)
+    box_ground += flags[i] && scan.points[i].z > -1.73f + 0.3f;
+  EXPECT_EQ(box_ground, 0u) << "box points above 0.3 m labelled ground";
+  const auto h = a.height(100.0 - 10.0, 50.0 + 5.0);
+  ASSERT_TRUE(h);
+  EXPECT_NEAR(*h, 10.0 - 1.73, 1e-5);
+  EXPECT_FALSE(a.height(0.0, 0.0));
+
+  Scan shifted = scan;
+  shifted.pose = Eigen::Isometry3d(Eigen::Translation3d(130.0, 50.0, 10.5));
+  b.insertScan(shifted);
+  CGroundModelMap ab = a, ba = b;
+  ab.merge(b);
+  ba.merge(a);
+  EXPECT_EQ(serialize(ab), serialize(ba));  // sums commute: chunked runs merge in any order
+  EXPECT_GT(ab.cellCount(), a.cellCount());
+  const auto back = deserialize<CGroundModelMap>(serialize(ab));
+  ASSERT_TRUE(back);
+  EXPECT_EQ(serialize(*back), serialize(ab));
+  EXPECT_NE(ab.asString().find("cells"), std::string::npos);
+
+  const auto dir = test::scratchDir("ground");
+  ab.saveMetricMapRepresentationToFile((dir / "ground").string());
+  EXPECT_TRUE(std::filesystem::exists(dir / "ground.ply"));
+  std::ifstream txt(dir / "ground.txt");
+  std::string header;
+  std::getline(txt, header);
+  std::size_t rows = 0;
+  for (std::string line; std::getline(txt, line);) ++rows;
+  EXPECT_EQ(rows, ab.cellCount());
+}
