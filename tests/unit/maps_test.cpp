@@ -8,10 +8,12 @@
 #include <fstream>
 #include <random>
 #include <set>
+#include <sstream>
 
 #include <mrpt/config/CConfigFileMemory.h>
 #include <mrpt/maps/CMultiMetricMap.h>
 #include <mrpt/maps/CSimplePointsMap.h>
+#include <mrpt/obs/CObservation3DRangeScan.h>
 #include <mrpt/obs/CObservationPointCloud.h>
 #include <mrpt/opengl/CPointCloud.h>
 #include <mrpt/opengl/CPointCloudColoured.h>
@@ -335,4 +337,55 @@ TEST(GroundModelMap, FlatRoadHeightsAndMergeCommutes) {
   std::size_t rows = 0;
   for (std::string line; std::getline(txt, line);) ++rows;
   EXPECT_EQ(rows, ab.cellCount());
+}
+// The MRPT 2.5.8 trap cleanmap-icp-slam and cleanmap-build-map work around: a points map drops
+// the robot pose of a CObservationPointCloud, not of a points-only CObservation3DRangeScan. When
+// an MRPT upgrade fixes it (2.11.3 did), this test fails and the workarounds can go.
+TEST(MrptTrap, PointCloudInsertionDropsTheRobotPose) {
+  auto pc = ::mrpt::obs::CObservationPointCloud::Create();
+  pc->pointcloud = cleanmap::mrpt::toPointsMap({{1.f, 0.f, 0.f, 0.f}});
+  pc->sensorPose = ::mrpt::poses::CPose3D(0, 0, 2, 0, 0, 0);
+  const ::mrpt::poses::CPose3D robot(10, 0, 0, 0, 0, 0);
+  ::mrpt::maps::CSimplePointsMap a;
+  a.insertObservation(*pc, robot);
+  ASSERT_EQ(a.size(), 1u);
+  EXPECT_FLOAT_EQ(a.getPointsBufferRef_x()[0], 1.f);  // should be 11
+  auto rs = ::mrpt::obs::CObservation3DRangeScan::Create();
+  rs->hasPoints3D = true;
+  rs->points3D_x = {1.f};
+  rs->points3D_y = {0.f};
+  rs->points3D_z = {0.f};
+  rs->points3D_idxs_x = {0};
+  rs->points3D_idxs_y = {0};
+  rs->sensorPose = pc->sensorPose;
+  ::mrpt::maps::CSimplePointsMap b;
+  b.insertObservation(*rs, robot);
+  ASSERT_EQ(b.size(), 1u);
+  EXPECT_FLOAT_EQ(b.getPointsBufferRef_x()[0], 11.f);
+  EXPECT_FLOAT_EQ(b.getPointsBufferRef_z()[0], 2.f);
+  // ... and our maps read the points-only range scan (sensor frame) like the point cloud.
+  const auto scan = cleanmap::mrpt::scanFromObservation(*rs);
+  ASSERT_TRUE(scan);
+  ASSERT_EQ(scan->points.size(), 1u);
+  EXPECT_FLOAT_EQ(scan->points[0].x, 1.f);
+}
+
+// The ICP-SLAM example carries cleanmap's layers exactly as config/cleanmap.ini declares them.
+TEST(MapConfig, IcpSlamIniCarriesTheSameLayers) {
+  const auto a = cleanmap_maps::parseMapConfig(
+      io::readTextFile(CLEANMAP_SOURCE_DIR "/config/cleanmap.ini"), "cleanmap.ini");
+  const auto b = cleanmap_maps::parseMapConfig(
+      io::readTextFile(CLEANMAP_SOURCE_DIR "/config/icp_slam_kitti.ini"), "icp_slam_kitti.ini");
+  auto dump = [](const cleanmap_maps::MapConfig& mc) {
+    std::ostringstream os;
+    for (const auto& def : mc.maps)
+      if (def->getMetricMapClassType()->className ==
+              std::string("cleanmap_maps::CMovingObjectsMap") ||
+          def->getMetricMapClassType()->className == std::string("cleanmap_maps::CGroundModelMap"))
+        def->dumpToTextStream(os);
+    return os.str();
+  };
+  EXPECT_FALSE(dump(a).empty());
+  EXPECT_EQ(dump(a), dump(b));
+  EXPECT_EQ(b.maps.size(), 3u);  // + the points map ICP aligns against
 }

@@ -51,7 +51,7 @@ bool isOurs(const std::string& map_name) {
 }  // namespace
 
 MapConfig parseMapConfig(const std::string& text, const std::string& name,
-                         const std::string& section) {
+                         const std::string& section, bool require_moving) {
   registerMaps();
   mrpt::config::CConfigFileMemory cfg(text);
   std::vector<std::string> sections;
@@ -81,9 +81,10 @@ MapConfig parseMapConfig(const std::string& text, const std::string& name,
     for (const char* s : kMapSections)  // else the first list section, checked below
       if (mc.section.empty() && cfg.sectionExists(s)) mc.section = s;
     if (mc.section.empty())
-      throw cleanmap::Error(name,
-                            "declares no maps: expected a [MappingApplication] (or [map], "
-                            "[MetricMap]) section with cleanmap_moving_count = 1");
+      throw cleanmap::Error(
+          name,
+          "declares no maps: expected a [MappingApplication] (or [map], "
+          "[MetricMap]) section with <map>_count keys (cleanmap_moving_count = 1)");
   }
   const std::string& S = mc.section;
 
@@ -109,7 +110,8 @@ MapConfig parseMapConfig(const std::string& text, const std::string& name,
                             "[" + S + "]: unknown key '" + k + "'" + suggestion(k, count_keys));
     }
   }
-  if (!counts.count("cleanmap_moving") && !counts.count("cleanmap_maps::CMovingObjectsMap"))
+  if (require_moving && !counts.count("cleanmap_moving") &&
+      !counts.count("cleanmap_maps::CMovingObjectsMap"))
     throw cleanmap::Error(
         name, "[" + S + "] declares no cleanmap_moving map (cleanmap_moving_count = 1)");
 

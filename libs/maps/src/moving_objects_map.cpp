@@ -202,6 +202,12 @@ bool CMovingObjectsMap::internal_insertObservation(
 }
 
 void CMovingObjectsMap::saveMetricMapRepresentationToFile(const std::string& prefix) const {
+  if (pending() > 0) {  // what a finished run holds: the window decided, in a copy
+    CMovingObjectsMap flushed(*this);
+    flushed.flush();
+    flushed.saveMetricMapRepresentationToFile(prefix);
+    return;
+  }
   double z0 = 0;
   for (const auto& t : trajectory_) z0 += t.pose.translation().z();
   if (!trajectory_.empty()) z0 /= static_cast<double>(trajectory_.size());

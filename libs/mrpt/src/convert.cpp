@@ -171,7 +171,16 @@ std::optional<Scan> scanFromObservation(const ::mrpt::obs::CObservation& obs) {
     auto copy = *rgbd;
     copy.load();
     ::mrpt::maps::CSimplePointsMap map;  // the XYZI map lacks the adapter unprojectInto needs
-    if (copy.hasRangeImage) copy.unprojectInto(map);  // sensor frame
+    if (copy.hasRangeImage) {
+      copy.unprojectInto(map);      // sensor frame
+    } else if (copy.hasPoints3D) {  // points only (cleanmap-icp-slam's lidar scans): sensor frame
+      const std::size_t n =
+          std::min({copy.points3D_x.size(), copy.points3D_y.size(), copy.points3D_z.size()});
+      map.reserve(n);
+      for (std::size_t i = 0; i < n; ++i)
+        map.insertPointFast(copy.points3D_x[i], copy.points3D_y[i], copy.points3D_z[i]);
+      map.mark_as_modified();
+    }
     out = fromPointsMap(map);
   } else {
     return std::nullopt;

@@ -27,9 +27,10 @@ struct MapConfig {
 /// Reads the map list of an MRPT ini text from `section` (empty: the first of kMapSections that
 /// declares a map) and checks it: every `<name>_count` names a registered map; every section
 /// `<section>_<name>_<NN>_<suffix>` belongs to a declared map; our maps' sections hold only
-/// known keys with valid values (cleanmap::validate). Throws cleanmap::Error(name, ...).
+/// known keys with valid values (cleanmap::validate); with `require_moving`, a cleanmap_moving
+/// map is declared. Throws cleanmap::Error(name, ...).
 MapConfig parseMapConfig(const std::string& text, const std::string& name,
-                         const std::string& section = "");
+                         const std::string& section = "", bool require_moving = true);
 MapConfig loadMapConfig(const std::string& path, const std::string& section = "");
 
 /// True if `text` is an MRPT map configuration (has a map list section of kMapSections or a map

@@ -74,7 +74,8 @@ class CMovingObjectsMap : public mrpt::maps::CMetricMap {
   /// Counts summed over the decided scans.
   const cleanmap::ScanStats& totals() const { return totals_; }
 
-  // CMetricMap
+  // CMetricMap. saveMetricMapRepresentationToFile writes <prefix>_static.ply, _moving.ply (RGB)
+  // and _trajectory.txt of the map as if flushed; getVisualizationInto shows the decided scans.
   bool isEmpty() const override;
   void saveMetricMapRepresentationToFile(const std::string& prefix) const override;
   void getVisualizationInto(mrpt::opengl::CSetOfObjects& o) const override;

@@ -1,0 +1,177 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// cleanmap-build-map: builds the maps of an MRPT ini (ours and MRPT's own) from a posed rawlog,
+// KITTI folder or .simplemap, as MRPT's observations2map would if it loaded plugins
+// (DESIGN §4b, doc/MRPT.md).
+#include <unistd.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+#include <string>
+
+#include <mrpt/io/CFileOutputStream.h>
+#include <mrpt/maps/CMultiMetricMap.h>
+#include <mrpt/maps/CSimpleMap.h>
+#include <mrpt/obs/CObservationPointCloud.h>
+#include <mrpt/obs/CSensoryFrame.h>
+#include <mrpt/opengl/COpenGLScene.h>
+#include <mrpt/opengl/CSetOfObjects.h>
+#include <mrpt/poses/CPose3DPDF.h>
+#include <mrpt/serialization/CArchive.h>
+
+#include "../common/cli.h"
+#include "cleanmap/core/error.h"
+#include "cleanmap/io/files.h"
+#include "cleanmap/maps/map_config.h"
+#include "cleanmap/maps/moving_objects_map.h"
+#include "cleanmap/mrpt/convert.h"
+#include "cleanmap/mrpt/input.h"
+#include "cleanmap/mrpt/rawlog.h"
+
+namespace fs = std::filesystem;
+
+namespace {
+
+constexpr const char* kUsage = R"(usage: cleanmap-build-map INPUT -c CONFIG.ini -o OUTDIR [options]
+
+Builds every map that CONFIG.ini declares (MRPT's own maps and cleanmap's cleanmap_moving /
+cleanmap_ground layers) from posed scans, as MRPT's observations2map would if it could load
+plugins. Each scan is inserted at its pose; cleanmap_moving maps are flushed at the end.
+
+INPUT               a posed MRPT rawlog (CObservationRobotPose + lidar observations, e.g. from
+                    cleanmap-kitti2rawlog or cleanmap's cleaned.rawlog), a KITTI folder with
+                    poses, or a .simplemap (pose + sensory frame pairs)
+-c, --config FILE   MRPT ini with the map list (checked: unknown maps, sections, keys are errors)
+-o, --output DIR    written atomically; an existing non-empty DIR is refused without --force
+--map-section NAME  the section listing the maps (default: MappingApplication, map, MetricMap)
+--force             replace DIR
+Writes into DIR:
+  maps.bin          the CMultiMetricMap, serialized (mrpt::serialization::archiveFrom(file) >> map;
+                    load libcleanmap_maps.so first)
+  maps.3Dscene      every map's 3D view, for SceneViewer3D
+  map_*             each map's own files (saveMetricMapRepresentationToFile)
+Exit status: 0 done, 1 error (one line), 2 bad command line.
+)";
+
+// MRPT 2.5.8's points maps drop the robot pose of a CObservationPointCloud (MRPT_NOTES): give the
+// whole pose as the sensor pose and insert at the origin, which every map composes the same way.
+void insertAt(::mrpt::maps::CMultiMetricMap& maps, ::mrpt::obs::CObservation& obs,
+              const ::mrpt::poses::CPose3D& robot) {
+  if (auto* pc = dynamic_cast<::mrpt::obs::CObservationPointCloud*>(&obs)) {
+    pc->load();
+    ::mrpt::poses::CPose3D sensor;
+    pc->getSensorPose(sensor);
+    pc->setSensorPose(robot + sensor);
+    maps.insertObservation(obs, ::mrpt::poses::CPose3D());
+  } else {
+    maps.insertObservation(obs, robot);
+  }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::string input, outdir, config, section;
+  bool force = false;
+  cleanmap::cli::Args args("cleanmap-build-map", argc, argv);
+  while (!args.done()) {
+    const std::string a = args.next();
+    if (a == "--help" || a == "-h") {
+      std::cout << kUsage;
+      return 0;
+    } else if (a == "-o" || a == "--output")
+      outdir = args.value(a);
+    else if (a == "-c" || a == "--config")
+      config = args.value(a);
+    else if (a == "--map-section")
+      section = args.value(a);
+    else if (a == "--force")
+      force = true;
+    else if (!a.empty() && a[0] != '-' && input.empty())
+      input = a;
+    else
+      args.unexpected(a);
+  }
+  if (input.empty() || outdir.empty() || config.empty())
+    args.fail("need INPUT, -c CONFIG and -o OUTDIR");
+
+  fs::path staging;
+  try {
+    cleanmap_maps::registerMaps();
+    cleanmap::mrpt::registerClasses();
+    const auto mc = cleanmap_maps::parseMapConfig(cleanmap::io::readTextFile(config), config,
+                                                  section, /*require_moving=*/false);
+    {
+      std::error_code ec;
+      if (fs::exists(outdir, ec) && !fs::is_empty(outdir, ec) && !force)
+        throw cleanmap::Error(outdir, "exists and is not empty; use --force to replace it");
+    }
+    ::mrpt::maps::CMultiMetricMap maps;
+    maps.setListOfMaps(mc.maps);
+
+    std::size_t scans = 0;
+    if (fs::path(input).extension() == ".simplemap") {
+      ::mrpt::maps::CSimpleMap sm;
+      if (!sm.loadFromFile(input)) throw cleanmap::Error(input, "cannot be read as a CSimpleMap");
+      for (std::size_t i = 0; i < sm.size(); ++i) {
+        auto& pair = sm.getAsPair(i);
+        if (!pair.pose || !pair.sf)
+          throw cleanmap::Error(input, "pair " + std::to_string(i) + " is empty");
+        const ::mrpt::poses::CPose3D robot = pair.pose->getMeanVal();
+        for (auto& obs : *pair.sf) insertAt(maps, *obs, robot);
+        ++scans;
+      }
+    } else {
+      cleanmap::mrpt::InputOptions in;
+      in.allow_empty_scans = true;
+      in.load_images = false;
+      auto src = cleanmap::mrpt::openInput(input, in);
+      while (auto f = src->next()) {
+        if (!f->scan.has_pose)
+          throw cleanmap::Error(f->source,
+                                "has no pose: cleanmap-build-map needs posed scans "
+                                "(run cleanmap --poses gicp and use its cleaned.rawlog)");
+        auto obs = ::mrpt::obs::CObservationPointCloud::Create();
+        obs->pointcloud = cleanmap::mrpt::toPointsMap(f->scan.points);
+        obs->timestamp = cleanmap::mrpt::toMrptTime(f->scan.timestamp);
+        obs->sensorLabel = "LIDAR";
+        insertAt(maps, *obs, cleanmap::mrpt::toCPose3D(f->scan.pose));
+        ++scans;
+      }
+    }
+    if (scans == 0) throw cleanmap::Error(input, "holds no scans");
+    for (const auto& m : maps.maps)
+      if (auto mv = std::dynamic_pointer_cast<cleanmap_maps::CMovingObjectsMap>(m)) mv->flush();
+
+    // Written beside DIR, then moved into place.
+    const fs::path out(outdir);
+    staging = out.parent_path().empty() ? fs::path(".") : out.parent_path();
+    staging /= "." + out.filename().string() + ".build-map-" + std::to_string(::getpid());
+    fs::remove_all(staging);
+    fs::create_directories(staging);
+    {
+      ::mrpt::io::CFileOutputStream f((staging / "maps.bin").string());
+      ::mrpt::serialization::archiveFrom(f) << maps;
+    }
+    ::mrpt::opengl::COpenGLScene scene;
+    auto objs = ::mrpt::opengl::CSetOfObjects::Create();
+    maps.getVisualizationInto(*objs);
+    scene.insert(objs);
+    if (!scene.saveToFile((staging / "maps.3Dscene").string()))
+      throw cleanmap::Error((staging / "maps.3Dscene").string(), "cannot be written");
+    maps.saveMetricMapRepresentationToFile((staging / "map").string());
+    std::error_code ec;
+    fs::remove_all(out, ec);
+    fs::rename(staging, out);
+    std::printf("cleanmap-build-map: %zu scans into %zu maps; results in %s\n", scans,
+                maps.maps.size(), outdir.c_str());
+  } catch (const std::exception& e) {
+    std::error_code ec;
+    if (!staging.empty()) fs::remove_all(staging, ec);
+    std::string what = e.what();  // MRPT's own exceptions: keep the message line
+    if (const auto m = what.rfind("Message: "); m != std::string::npos) what = what.substr(m + 9);
+    std::cerr << "cleanmap-build-map: error: " << what.substr(0, what.find('\n')) << '\n';
+    return 1;
+  }
+  return 0;
+}

@@ -1,0 +1,98 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// cleanmap-icp-slam: MRPT's ICP-SLAM application (mrpt::apps::ICP_SLAM_App_Rawlog, as the icp-slam
+// program) with cleanmap's map plugins loaded, so a [MappingApplication] map list may hold
+// cleanmap_moving and cleanmap_ground layers (DESIGN §4b, doc/MRPT.md step d). MRPT's icp-slam
+// cannot load plugins.
+#include <cstdio>
+#include <cstring>
+#include <exception>
+#include <iostream>
+#include <string>
+
+#include <mrpt/apps/ICP_SLAM_App.h>
+#include <mrpt/obs/CObservation3DRangeScan.h>
+#include <mrpt/obs/CObservationPointCloud.h>
+#include <mrpt/obs/CSensoryFrame.h>
+
+#include "cleanmap/maps/map_config.h"
+
+namespace {
+
+constexpr const char* kUsage = R"(usage: cleanmap-icp-slam CONFIG.ini [DATASET.rawlog]
+
+Runs MRPT's ICP-SLAM (2D: x, y, heading; the icp-slam program of MRPT) with cleanmap's map
+plugins: the [MappingApplication] section may declare cleanmap_moving_count = 1 and
+cleanmap_ground_count = 1 beside MRPT's own maps (ICP aligns against the first points map). The
+ini's cleanmap sections are checked as cleanmap checks them (unknown maps and keys are errors).
+Outputs, in the ini's logOutput_dir, are icp-slam's: _finalmap_.simplemap, the estimated path,
+and _finalmaps_.txt_NN_<map> for every map; for the cleanmap_moving layer
+_static.ply / _moving.ply / _trajectory.txt (its last K scans decided). See doc/MRPT.md and
+config/icp_slam_kitti.ini.
+)";
+
+// MRPT 2.5.8's points maps drop the robot pose when inserting a CObservationPointCloud
+// (MRPT_NOTES), so ICP-SLAM would pile every scan at the origin. The same points as a
+// CObservation3DRangeScan (points only, sensor frame) are inserted where the robot is.
+::mrpt::obs::CObservation::Ptr asRangeScan(const ::mrpt::obs::CObservation::Ptr& obs) {
+  const auto pc = std::dynamic_pointer_cast<::mrpt::obs::CObservationPointCloud>(obs);
+  if (!pc) return obs;
+  pc->load();
+  auto r = ::mrpt::obs::CObservation3DRangeScan::Create();
+  r->timestamp = pc->timestamp;
+  r->sensorLabel = pc->sensorLabel;
+  r->sensorPose = pc->sensorPose;
+  r->maxRange = 200.0f;
+  r->hasPoints3D = true;
+  if (pc->pointcloud) {
+    const auto& x = pc->pointcloud->getPointsBufferRef_x();
+    const auto& y = pc->pointcloud->getPointsBufferRef_y();
+    const auto& z = pc->pointcloud->getPointsBufferRef_z();
+    r->points3D_x.assign(x.begin(), x.end());
+    r->points3D_y.assign(y.begin(), y.end());
+    r->points3D_z.assign(z.begin(), z.end());
+    r->points3D_idxs_x.assign(x.size(), 0);  // no image: MRPT's serialization wants the sizes
+    r->points3D_idxs_y.assign(x.size(), 0);
+  }
+  return r;
+}
+
+class App : public ::mrpt::apps::ICP_SLAM_App_Rawlog {
+ protected:
+  bool impl_get_next_observations(::mrpt::obs::CActionCollection::Ptr& action,
+                                  ::mrpt::obs::CSensoryFrame::Ptr& observations,
+                                  ::mrpt::obs::CObservation::Ptr& observation) override {
+    if (!ICP_SLAM_App_Rawlog::impl_get_next_observations(action, observations, observation))
+      return false;
+    if (observation) observation = asRangeScan(observation);
+    if (observations)
+      for (auto& o : *observations) o = asRangeScan(o);
+    return true;
+  }
+};
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc < 2 || !std::strcmp(argv[1], "--help") || !std::strcmp(argv[1], "-h")) {
+    std::cout << kUsage;
+    return argc < 2 ? 2 : 0;
+  }
+  try {
+    cleanmap_maps::registerMaps();
+    // Our checks first, for one clear line (MRPT would ignore a misspelled map silently).
+    cleanmap_maps::loadMapConfig(argv[1], "MappingApplication");
+    App app;
+    app.quits_with_esc_key = false;
+    app.initialize(argc, argv);
+    app.run();
+  } catch (const std::exception& e) {
+    // MRPT's exceptions hold a banner, "Message: ...", the location and a stack trace: keep the
+    // message, on one line.
+    std::string what = e.what();
+    if (const auto m = what.rfind("Message: "); m != std::string::npos) what = what.substr(m + 9);
+    what = what.substr(0, what.find('\n'));
+    std::cerr << "cleanmap-icp-slam: error: " << what << "\n";
+    return 1;
+  }
+  return 0;
+}
