@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # SPDX-License-Identifier: BSD-3-Clause
 # Remakes the pictures of doc/MRPT.md: runs cleanmap on a KITTI set and photographs MRPT's
-# SceneViewer3D showing the cleaned map, under a virtual X server (Xvfb), no screen needed.
+# SceneViewer3D showing the cleaned map and RawLogViewer (with our plugin loaded) showing the
+# moving points of a scan of labelled.rawlog, under a virtual X server (Xvfb), no screen needed.
+# The clicks in RawLogViewer are at fixed places of its 1280x800 layout (MRPT 2.5.8).
 # usage: doc/screenshots.sh [BUILD_DIR] [DATA_DIR]   (defaults: build, ../shared/data)
 # Installs xvfb, xauth, xdotool and imagemagick with apt-get when missing (as root).
 set -euo pipefail
@@ -44,3 +46,26 @@ sleep 4
 mkdir -p "$root/doc/img"
 DISPLAY=$display import -window root "$root/doc/img/sceneviewer_${set_}.png"
 echo "screenshots.sh: wrote doc/img/sceneviewer_${set_}.png"
+pkill -f "SceneViewer3D $out" || true
+
+# RawLogViewer, with the plugin library loaded (-l): scan 4's LIDAR_MOVING cloud.
+DISPLAY=$display RawLogViewer -l "$build/libs/maps/libcleanmap_maps.so" "$out/run/labelled.rawlog" >/dev/null 2>&1 &
+tip=
+for _ in $(seq 60); do
+  tip=$(DISPLAY=$display xdotool search --name "Tip of the Day" 2>/dev/null | head -1 || true)
+  [[ -n $tip ]] && break
+  sleep 0.5
+done
+[[ -n $tip ]] || { echo "screenshots.sh: RawLogViewer did not open" >&2; exit 1; }
+sleep 1
+eval "$(DISPLAY=$display xdotool getwindowgeometry --shell "$tip")"
+DISPLAY=$display xdotool mousemove $((X + WIDTH - 54)) $((Y + HEIGHT - 28)) click 1  # "Close"
+sleep 1
+for w in $(DISPLAY=$display xdotool search --name "RawlogViewer - Part"); do
+  DISPLAY=$display xdotool windowmove "$w" 0 0 windowsize "$w" 1280 800 || true
+done
+sleep 2
+DISPLAY=$display xdotool mousemove 180 360 click 1  # tree entry [14]: scan 4, LIDAR_MOVING
+sleep 3
+DISPLAY=$display import -window root "$root/doc/img/rawlogviewer_${set_}_moving.png"
+echo "screenshots.sh: wrote doc/img/rawlogviewer_${set_}_moving.png"

@@ -11,6 +11,7 @@
 #include <sstream>
 
 #include <mrpt/config/CConfigFileMemory.h>
+#include <mrpt/maps/CColouredPointsMap.h>
 #include <mrpt/maps/CMultiMetricMap.h>
 #include <mrpt/maps/CSimplePointsMap.h>
 #include <mrpt/obs/CObservation3DRangeScan.h>
@@ -388,4 +389,18 @@ TEST(MapConfig, IcpSlamIniCarriesTheSameLayers) {
   EXPECT_FALSE(dump(a).empty());
   EXPECT_EQ(dump(a), dump(b));
   EXPECT_EQ(b.maps.size(), 3u);  // + the points map ICP aligns against
+}
+// Why labelled.rawlog carries a LIDAR_MOVING cloud: RawLogViewer 2.5.8 draws a point-cloud
+// observation through the CPointsMap base pointer, and that path drops the colours (all black).
+// When this test fails, MRPT renders the labels' colours and doc/MRPT.md can say so.
+TEST(MrptTrap, ViewerDropsColoursOfCloudsSeenThroughTheBase) {
+  auto m = ::mrpt::maps::CColouredPointsMap::Create();
+  m->insertPoint(1, 2, 3);
+  m->setPointColor(0, 1.0f, 0.0f, 0.0f);
+  ::mrpt::maps::CPointsMap::Ptr base = m;
+  ::mrpt::opengl::CPointCloudColoured through_base, direct;
+  through_base.loadFromPointsMap(base.get());
+  direct.loadFromPointsMap(m.get());
+  EXPECT_EQ(through_base.getPointColor(0).R, 0);
+  EXPECT_EQ(direct.getPointColor(0).R, 255);
 }

@@ -112,7 +112,7 @@ TEST(MrptOutputs, ReadBackWithMrptMatchTheRun) {
   const auto cleaned = readObservations((dir / "cleaned.rawlog").string());
   const auto labelled = readObservations((dir / "labelled.rawlog").string());
   ASSERT_EQ(cleaned.size(), 2 * run.size());
-  ASSERT_EQ(labelled.size(), 2 * run.size());
+  ASSERT_EQ(labelled.size(), 3 * run.size());
   for (std::size_t k = 0; k < run.size(); ++k) {
     const auto& d = run[k];
     SCOPED_TRACE("scan " + std::to_string(d.index));
@@ -136,8 +136,13 @@ TEST(MrptOutputs, ReadBackWithMrptMatchTheRun) {
     moving += d.moving;
 
     const auto lab =
-        std::dynamic_pointer_cast<::mrpt::obs::CObservationPointCloud>(labelled[2 * k + 1]);
+        std::dynamic_pointer_cast<::mrpt::obs::CObservationPointCloud>(labelled[3 * k + 1]);
     ASSERT_TRUE(lab);
+    const auto mov =
+        std::dynamic_pointer_cast<::mrpt::obs::CObservationPointCloud>(labelled[3 * k + 2]);
+    ASSERT_TRUE(mov && mov->pointcloud);
+    EXPECT_EQ(mov->sensorLabel, "LIDAR_MOVING");
+    EXPECT_EQ(mov->pointcloud->size(), d.moving);
     const auto* cm = dynamic_cast<const ::mrpt::maps::CColouredPointsMap*>(lab->pointcloud.get());
     ASSERT_TRUE(cm);
     ASSERT_EQ(cm->size(), d.scan.size());
@@ -211,6 +216,6 @@ TEST(MrptOutputs, CompressedOutputsReadBackTheSame) {
   aa << a;
   ab << b;
   EXPECT_TRUE(ba == bb);
-  EXPECT_EQ(readObservations((gz / "labelled.rawlog").string()).size(), 6u);
+  EXPECT_EQ(readObservations((gz / "labelled.rawlog").string()).size(), 9u);
   EXPECT_FALSE(fs::exists(gz / "static_map.3Dscene"));
 }

@@ -131,8 +131,6 @@ class Encoder {
 // The serialized bytes of an object.
 std::vector<uint8_t> serialized(const ::mrpt::serialization::CSerializable& o) {
   Encoder enc;
-  ::mrpt::maps::CPointsMapXYZI::Ptr kept_map = ::mrpt::maps::CPointsMapXYZI::Create();
-  ::mrpt::maps::CColouredPointsMap::Ptr labelled_map = ::mrpt::maps::CColouredPointsMap::Create();
   const auto [p, n] = enc(o);
   return {static_cast<const uint8_t*>(p), static_cast<const uint8_t*>(p) + n};
 }
@@ -188,6 +186,7 @@ struct MrptOutputWriter::Impl {
   Encoder enc;
   ::mrpt::maps::CPointsMapXYZI::Ptr kept_map = ::mrpt::maps::CPointsMapXYZI::Create();
   ::mrpt::maps::CColouredPointsMap::Ptr labelled_map = ::mrpt::maps::CColouredPointsMap::Create();
+  ::mrpt::maps::CPointsMapXYZI::Ptr moving_map = ::mrpt::maps::CPointsMapXYZI::Create();
   std::size_t simplemap_count = 0;
   long simplemap_count_offset = 0;
   // The worker thread and its queue (MrptOutputOptions::background).
@@ -438,19 +437,26 @@ void MrptOutputWriter::writeNow(const ScanResult& r) {
     // The maps live as long as the writer: no fresh pages per scan.
     auto& kept = *I.kept_map;
     auto& lab = *I.labelled_map;
+    auto& mov = *I.moving_map;
     const std::size_t n = r.scan.size();
-    std::size_t k = 0;
+    std::size_t k = 0, m = 0;
     kept.resize(n);
     lab.resize(n);
+    mov.resize(n);
     for (std::size_t i = 0; i < n; ++i) {
       const auto& p = r.scan.points[i];
       const uint32_t l = r.labels[r.scan.originalIndex(i)];
-      if (l != kMoving) kept.setPointRGB(k++, p.x, p.y, p.z, p.intensity, 0, 0);
+      if (l != kMoving)
+        kept.setPointRGB(k++, p.x, p.y, p.z, p.intensity, 0, 0);
+      else
+        mov.setPointRGB(m++, p.x, p.y, p.z, p.intensity, 0, 0);
       const auto c = labelColour(l);
       lab.setPointRGB(i, p.x, p.y, p.z, c[0], c[1], c[2]);
     }
     kept.resize(k);
+    mov.resize(m);
     kept.mark_as_modified();
+    mov.mark_as_modified();
     lab.mark_as_modified();
     auto cleaned = CObservationPointCloud::Create();
     cleaned->sensorLabel = "LIDAR";
@@ -467,6 +473,14 @@ void MrptOutputWriter::writeNow(const ScanResult& r) {
     I.labelled->write(pb, pn);
     const auto [lb, ln] = I.enc(*labelled);
     I.labelled->write(lb, ln);
+    // RawLogViewer 2.5.8 draws a point cloud without its colours (doc/MRPT.md): the moving
+    // points also come as their own cloud, a LIDAR_MOVING row in its timeline.
+    auto moving = CObservationPointCloud::Create();
+    moving->sensorLabel = "LIDAR_MOVING";
+    moving->timestamp = stamp;
+    moving->pointcloud = I.moving_map;
+    const auto [mb, mn] = I.enc(*moving);
+    I.labelled->write(mb, mn);
     CSensoryFrame sf;
     sf.insert(cleaned);
     const auto [cb, cn] = I.enc(*cleaned);
