@@ -69,3 +69,50 @@ DISPLAY=$display xdotool mousemove 180 360 click 1  # tree entry [14]: scan 4, L
 sleep 3
 DISPLAY=$display import -window root "$root/doc/img/rawlogviewer_${set_}_moving.png"
 echo "screenshots.sh: wrote doc/img/rawlogviewer_${set_}_moving.png"
+pkill -f "RawLogViewer -l" || true
+sleep 1
+
+# RawLogViewer's "Map from odometry" building our moving-objects layer from an external-storage
+# rawlog (cleanmap-kitti2rawlog --external), poses from its CObservationRobotPose entries.
+"$build/apps/cleanmap-kitti2rawlog" "$data/$set_" "$out/external.rawlog" --external >/dev/null
+DISPLAY=$display RawLogViewer -l "$build/libs/maps/libcleanmap_maps.so" "$out/external.rawlog" >/dev/null 2>&1 &
+tip=
+for _ in $(seq 60); do
+  tip=$(DISPLAY=$display xdotool search --name "Tip of the Day" 2>/dev/null | head -1 || true)
+  [[ -n $tip ]] && break
+  sleep 0.5
+done
+[[ -n $tip ]] || { echo "screenshots.sh: RawLogViewer did not open" >&2; exit 1; }
+sleep 1
+eval "$(DISPLAY=$display xdotool getwindowgeometry --shell "$tip")"
+DISPLAY=$display xdotool mousemove $((X + WIDTH - 54)) $((Y + HEIGHT - 28)) click 1
+sleep 1
+for w in $(DISPLAY=$display xdotool search --name "RawlogViewer - Part"); do
+  DISPLAY=$display xdotool windowmove "$w" 0 0 windowsize "$w" 1280 800 || true
+done
+sleep 1
+DISPLAY=$display xdotool mousemove 225 60 click 1  # toolbar "Raw-map..."
+sleep 3
+form=$(DISPLAY=$display xdotool search --name "Creation of" | head -1)
+DISPLAY=$display xdotool windowmove "$form" 0 0 windowsize "$form" 1280 800
+sleep 1
+DISPLAY=$display xdotool mousemove 900 150 click 1 key ctrl+a BackSpace  # the map ini text
+for line in "[map]" "cleanmap_moving_count=1" "[map_cleanmap_moving_00_insertOpts]" \
+  "use_pose_observations=1"; do
+  DISPLAY=$display xdotool type --delay 5 "$line"
+  DISPLAY=$display xdotool key Return
+done
+DISPLAY=$display xdotool mousemove 133 192 click 1  # "Map from odometry"
+sleep 20
+DISPLAY=$display xdotool mousemove 304 277 click 1  # "Preview map in 3D"
+prev=
+for _ in $(seq 60); do
+  prev=$(DISPLAY=$display xdotool search --name "Raw-map 3D preview" 2>/dev/null | head -1 || true)
+  [[ -n $prev ]] && break
+  sleep 0.5
+done
+[[ -n $prev ]] || { echo "screenshots.sh: no Raw-map 3D preview" >&2; exit 1; }
+DISPLAY=$display xdotool windowmove "$prev" 0 0 windowsize "$prev" 1280 800
+sleep 4
+DISPLAY=$display import -window root "$root/doc/img/rawlogviewer_${set_}_rawmap_external.png"
+echo "screenshots.sh: wrote doc/img/rawlogviewer_${set_}_rawmap_external.png"

@@ -11,11 +11,13 @@
 #include <sstream>
 
 #include <mrpt/config/CConfigFileMemory.h>
+#include <mrpt/io/CFileGZInputStream.h>
 #include <mrpt/maps/CColouredPointsMap.h>
 #include <mrpt/maps/CMultiMetricMap.h>
 #include <mrpt/maps/CSimplePointsMap.h>
 #include <mrpt/obs/CObservation3DRangeScan.h>
 #include <mrpt/obs/CObservationPointCloud.h>
+#include <mrpt/obs/CRawlog.h>
 #include <mrpt/opengl/CPointCloud.h>
 #include <mrpt/opengl/CPointCloudColoured.h>
 #include <mrpt/opengl/CSetOfObjects.h>
@@ -144,7 +146,9 @@ TEST(MapConfig, MistakesAreOneLineErrors) {
   expect(std::string(kMinimal) + "ds.sigma_r = fast\n", "'ds.sigma_r' needs a number, got 'fast'");
   expect(std::string(kMinimal) + "ds.r_sup = 0.5\n", "r_inf");
   expect(std::string(kMinimal) + "[map_cleanmap_moving_00_insertOpts]\nx = 1\n",
-         "cleanmap_moving has no such options");
+         "[map_cleanmap_moving_00_insertOpts]: unknown key 'x'");
+  expect(std::string(kMinimal) + "[map_cleanmap_moving_00_likelihoodOpts]\nx = 1\n",
+         "cleanmap_moving computes no likelihood");
   // Sections MRPT would silently ignore.
   expect(std::string(kMinimal) + "[map_cleanmap_moving_01_creationOpts]\nds.window_k = 2\n",
          "declares 1 cleanmap_moving map(s), so this section would be ignored");
@@ -234,6 +238,66 @@ TEST(MovingObjectsMap, InsertedObservationsDecidedAsThePipelineDecides) {
   EXPECT_EQ(red->size(), moving->movingPoints().size());
   EXPECT_EQ(red->getColor_u8().R, 255);
   EXPECT_TRUE(scene.getByName("cleanmap_static"));
+}
+
+// RawLogViewer's "Map from odometry" (MRPT 2.5.8, CFormRawMap) on an external-storage rawlog from
+// cleanmap-kitti2rawlog --external: every observation inserted in order at the odometry pose
+// (none here: the origin). With use_pose_observations our layer takes the logged 3D poses and
+// loads the lazy clouds, and decides as the pipeline does.
+TEST(MovingObjectsMap, RawLogViewerMapFromOdometryOnAnExternalRawlog) {
+  CLEANMAP_REQUIRE_DATASET("kitti_city");
+  auto seq = io::KittiSequence::open(test::dataDir() + "/kitti_city");
+  const auto dir = test::scratchDir("external");
+  const std::string rawlog = (dir / "city_external.rawlog").string();
+  const std::size_t n = 12;
+  std::vector<Labels> direct;
+  {
+    cleanmap::mrpt::RawlogWriteOptions wo;
+    wo.external = true;
+    cleanmap::mrpt::RawlogWriter w(rawlog, wo);
+    LaserPipeline pl(PipelineParams{}, [&](ScanResult&& r) { direct.push_back(r.labels); });
+    for (std::size_t i = 0; i < n; ++i) {
+      Frame f = seq.frame(i);
+      w.write(f, std::nullopt, f.source);
+      pl.push(std::move(f));
+    }
+    w.close();
+    pl.finish();
+  }
+  auto mm = mapsFrom(std::string(kMinimal) +
+                     "[map_cleanmap_moving_00_insertOpts]\nuse_pose_observations = 1\n");
+  auto moving = mm.mapByClass<CMovingObjectsMap>();
+  moving->setParams(PipelineParams{});  // kMinimal's K = 3 back to the default
+  std::vector<Labels> via_viewer;
+  moving->setScanSink([&](ScanResult&& r) { via_viewer.push_back(r.labels); });
+  cleanmap::mrpt::registerClasses();
+  ::mrpt::io::CFileGZInputStream in(rawlog);
+  auto ar = ::mrpt::serialization::archiveFrom(in);
+  ::mrpt::obs::CActionCollection::Ptr acts;
+  ::mrpt::obs::CSensoryFrame::Ptr sf;
+  ::mrpt::obs::CObservation::Ptr obs;
+  std::size_t idx = 0;
+  const ::mrpt::poses::CPose3D odometry;  // the viewer's pose without odometry entries
+  while (::mrpt::obs::CRawlog::getActionObservationPairOrObservation(ar, acts, sf, obs, idx))
+    if (obs) mm.insertObservation(*obs, odometry);
+  moving->flush();
+  ASSERT_EQ(via_viewer.size(), direct.size());
+  std::size_t differ = 0, total = 0;
+  for (std::size_t i = 0; i < direct.size(); ++i) {
+    ASSERT_EQ(via_viewer[i].size(), direct[i].size());
+    for (std::size_t j = 0; j < direct[i].size(); ++j) differ += via_viewer[i][j] != direct[i][j];
+    total += direct[i].size();
+  }
+  EXPECT_LE(differ, total / 100000) << differ << " of " << total << " labels differ";
+
+  // Without the option, a scan without a logged pose is an error only with it on: a rawlog
+  // without poses gives a clear line.
+  auto strict = mapsFrom(std::string(kMinimal) +
+                         "[map_cleanmap_moving_00_insertOpts]\nuse_pose_observations = 1\n");
+  ::mrpt::poses::CPose3D robot;
+  const auto pc = observation(seq.frame(0), ::mrpt::poses::CPose3D(), robot);
+  test::expectError([&] { strict.insertObservation(*pc, robot); }, "CObservationPointCloud",
+                    "no CObservationRobotPose within 10 ms");
 }
 
 // A copy taken mid-window, fed the same remaining scans, decides them as the original does; a

@@ -19,6 +19,7 @@
 #include "cleanmap/io/ply.h"
 #include "cleanmap/mrpt/convert.h"
 #include "map_options.h"
+#include "pose_observations.h"
 
 namespace cleanmap_maps {
 
@@ -45,6 +46,7 @@ void insertOptionKeys(OptionTable& t, CGroundModelMap::TInsertionOptions& o) {
   t.flag("point_refine", o.point_refine);
   t.integer("max_gap_cells", o.max_gap_cells);
   t.real("extent", o.extent);
+  t.flag("use_pose_observations", o.use_pose_observations);
 }
 
 void checkOptions(double cell, const CGroundModelMap::TInsertionOptions& o,
@@ -127,12 +129,15 @@ void CGroundModelMap::internal_clear() {
 bool CGroundModelMap::internal_insertObservation(
     const mrpt::obs::CObservation& obs,
     const std::optional<const mrpt::poses::CPose3D>& robotPose) {
+  if (insertionOptions.use_pose_observations && takePoseObservation(obs, pose_obs_)) return true;
   auto scan = cleanmap::mrpt::scanFromObservation(obs);
   if (!scan) return false;  // not a lidar observation
   mrpt::poses::CPose3D sensor;
   obs.getSensorPose(sensor);
+  std::optional<const mrpt::poses::CPose3D> robot = robotPose;
+  if (insertionOptions.use_pose_observations) robot.emplace(loggedPoseOf(obs, pose_obs_));
   // The 2.5.8 point-cloud insertion ignores the robot pose (MRPT_NOTES); we compose it here.
-  scan->pose = cleanmap::mrpt::toIsometry(robotPose ? *robotPose + sensor : sensor);
+  scan->pose = cleanmap::mrpt::toIsometry(robot ? *robot + sensor : sensor);
   scan->has_pose = true;
   insertScan(*scan);
   return true;
@@ -198,7 +203,8 @@ void CGroundModelMap::serializeTo(mrpt::serialization::CArchive& out) const {
   out << genericMapParams;
   out << cell_ << insertionOptions.step << insertionOptions.sensor_height
       << insertionOptions.point_refine << static_cast<int32_t>(insertionOptions.max_gap_cells)
-      << insertionOptions.extent << static_cast<uint64_t>(scans_);
+      << insertionOptions.extent << insertionOptions.use_pose_observations
+      << static_cast<uint64_t>(scans_);
   const auto cells = sortedCells();  // sorted: equal maps serialize to equal bytes
   out << static_cast<uint64_t>(cells.size());
   for (const auto& [ij, c] : cells) out << ij.first << ij.second << c.sum_z << c.count;
@@ -210,7 +216,8 @@ void CGroundModelMap::serializeFrom(mrpt::serialization::CArchive& in, uint8_t v
   int32_t gap = 0;
   uint64_t scans = 0, n = 0;
   in >> cell_ >> insertionOptions.step >> insertionOptions.sensor_height >>
-      insertionOptions.point_refine >> gap >> insertionOptions.extent >> scans;
+      insertionOptions.point_refine >> gap >> insertionOptions.extent >>
+      insertionOptions.use_pose_observations >> scans;
   insertionOptions.max_gap_cells = gap;
   scans_ = scans;
   in >> n;
@@ -246,7 +253,8 @@ void CGroundModelMap::TMapDefinition::dumpToTextStream_map_specific(std::ostream
       << "\nsensor_height = " << insertionOpts.sensor_height
       << "\npoint_refine = " << insertionOpts.point_refine
       << "\nmax_gap_cells = " << insertionOpts.max_gap_cells
-      << "\nextent = " << insertionOpts.extent << "\n";
+      << "\nextent = " << insertionOpts.extent
+      << "\nuse_pose_observations = " << insertionOpts.use_pose_observations << "\n";
 }
 
 #if MRPT_VERSION >= 0x20b03

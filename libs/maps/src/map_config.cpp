@@ -196,6 +196,7 @@ std::string mapConfigText(const cleanmap::PipelineParams& params, const std::str
   os << "[" << section << "_cleanmap_moving_00_creationOpts]\n";
   for (const auto& [k, v] : cleanmap::io::paramValues(params)) os << k << " = " << v << "\n";
   os << "map_voxel = " << cleanmap::io::shortestDouble(map_voxel) << "\n\n";
+  os << "[" << section << "_cleanmap_moving_00_insertOpts]\nuse_pose_observations = 0\n\n";
   os << "[" << section << "_cleanmap_ground_00_creationOpts]\ncell = "
      << cleanmap::io::shortestDouble(params.ground.cell) << "\n\n";
   os << "[" << section << "_cleanmap_ground_00_insertOpts]\n"
@@ -203,7 +204,8 @@ std::string mapConfigText(const cleanmap::PipelineParams& params, const std::str
      << "sensor_height = " << cleanmap::io::shortestDouble(params.ground.sensor_height) << "\n"
      << "point_refine = " << (params.ground.point_refine ? 1 : 0) << "\n"
      << "max_gap_cells = " << params.ground.max_gap_cells << "\n"
-     << "extent = " << cleanmap::io::shortestDouble(ground_extent) << "\n";
+     << "extent = " << cleanmap::io::shortestDouble(ground_extent) << "\n"
+     << "use_pose_observations = 0\n";
   return os.str();
 }
 

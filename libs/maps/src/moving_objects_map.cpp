@@ -21,6 +21,7 @@
 #include "cleanmap/mrpt/convert.h"
 #include "cleanmap/pipeline/laser_pipeline.h"
 #include "map_options.h"
+#include "pose_observations.h"
 
 namespace cleanmap_maps {
 
@@ -102,6 +103,8 @@ CMovingObjectsMap::~CMovingObjectsMap() = default;
 void CMovingObjectsMap::copyFrom(const CMovingObjectsMap& o) {
   params_ = o.params_;
   map_voxel_ = o.map_voxel_;
+  insertionOptions = o.insertionOptions;
+  pose_obs_ = o.pose_obs_;
   pipe_ = o.pipe_ ? o.pipe_->clone([this](cleanmap::ScanResult&& r) { onDecided(std::move(r)); })
                   : nullptr;
   sink_ = nullptr;  // the copy's results are its own
@@ -181,10 +184,13 @@ void CMovingObjectsMap::internal_clear() {
 bool CMovingObjectsMap::internal_insertObservation(
     const mrpt::obs::CObservation& obs,
     const std::optional<const mrpt::poses::CPose3D>& robotPose) {
+  if (insertionOptions.use_pose_observations && takePoseObservation(obs, pose_obs_)) return true;
   auto scan = cleanmap::mrpt::scanFromObservation(obs);
   if (!scan) return false;  // not a lidar observation
   mrpt::poses::CPose3D sensor;
   obs.getSensorPose(sensor);
+  std::optional<const mrpt::poses::CPose3D> robot = robotPose;
+  if (insertionOptions.use_pose_observations) robot.emplace(loggedPoseOf(obs, pose_obs_));
   cleanmap::Frame f;
   f.index = next_index_;
   char stem[32];
@@ -194,7 +200,7 @@ bool CMovingObjectsMap::internal_insertObservation(
   f.scan = std::move(*scan);
   // robot pose (+) sensor pose: the 2.5.8 point-cloud insertion ignores the robot pose
   // (MRPT_NOTES), we compose it ourselves. No robot pose: the origin, as in MRPT.
-  f.scan.pose = cleanmap::mrpt::toIsometry(robotPose ? *robotPose + sensor : sensor);
+  f.scan.pose = cleanmap::mrpt::toIsometry(robot ? *robot + sensor : sensor);
   f.scan.has_pose = true;
   f.scan.timestamp = mrpt::Clock::toDouble(obs.timestamp);
   insertFrame(std::move(f));
@@ -278,7 +284,7 @@ void CMovingObjectsMap::serializeTo(mrpt::serialization::CArchive& out) const {
   }
   out << genericMapParams;
   out << cleanmap::io::toIni(params_) << map_voxel_ << store_points_
-      << static_cast<uint64_t>(next_index_);
+      << static_cast<uint64_t>(next_index_) << insertionOptions.use_pose_observations;
   out << static_cast<uint64_t>(trajectory_.size());
   for (const auto& t : trajectory_) {
     out << static_cast<uint64_t>(t.index) << t.timestamp;
@@ -300,7 +306,7 @@ void CMovingObjectsMap::serializeFrom(mrpt::serialization::CArchive& in, uint8_t
   in >> genericMapParams;
   std::string ini;
   uint64_t next = 0, n = 0;
-  in >> ini >> map_voxel_ >> store_points_ >> next;
+  in >> ini >> map_voxel_ >> store_points_ >> next >> insertionOptions.use_pose_observations;
   params_ = cleanmap::PipelineParams{};
   cleanmap::io::parseParams(ini, "serialized cleanmap_moving", params_);
   next_index_ = next;
@@ -337,15 +343,17 @@ void CMovingObjectsMap::TMapDefinition::loadFromConfigFile_map_specific(
   creationOptions(params, map_voxel).load(source, creation, /*generic=*/true);
   cleanmap::validate(params, "[" + creation + "]");
   if (map_voxel < 0) throw cleanmap::Error("[" + creation + "]", "map_voxel must be >= 0");
-  for (const char* other : {"_insertOpts", "_likelihoodOpts"})
-    if (source.sectionExists(prefix + other))
-      throw cleanmap::Error(
-          "[" + prefix + other + "]",
-          "cleanmap_moving has no such options: every option is in [" + creation + "]");
+  OptionTable insert;
+  insert.flag("use_pose_observations", insertionOpts.use_pose_observations);
+  insert.load(source, prefix + "_insertOpts", /*generic=*/false);
+  if (source.sectionExists(prefix + "_likelihoodOpts"))
+    throw cleanmap::Error("[" + prefix + "_likelihoodOpts]",
+                          "cleanmap_moving computes no likelihood: it has no such options");
 }
 
 void CMovingObjectsMap::TMapDefinition::dumpToTextStream_map_specific(std::ostream& out) const {
-  out << cleanmap::io::toIni(params) << "map_voxel = " << map_voxel << "\n";
+  out << cleanmap::io::toIni(params) << "map_voxel = " << map_voxel
+      << "\nuse_pose_observations = " << insertionOpts.use_pose_observations << "\n";
 }
 
 #if MRPT_VERSION >= 0x20b03
@@ -356,10 +364,12 @@ mrpt::maps::CMetricMap*
 CMovingObjectsMap::internal_CreateFromMapDefinition(const mrpt::maps::TMetricMapInitializer& def_) {
   const auto& def = dynamic_cast<const CMovingObjectsMap::TMapDefinition&>(def_);
 #if MRPT_VERSION >= 0x20b03
-  return std::make_shared<CMovingObjectsMap>(def.params, def.map_voxel);
+  auto m = std::make_shared<CMovingObjectsMap>(def.params, def.map_voxel);
 #else
-  return new CMovingObjectsMap(def.params, def.map_voxel);
+  auto* m = new CMovingObjectsMap(def.params, def.map_voxel);
 #endif
+  m->insertionOptions = def.insertionOpts;
+  return m;
 }
 
 }  // namespace cleanmap_maps

@@ -10,10 +10,13 @@
 #pragma once
 #include <mrpt/maps/CMetricMap.h>
 #include <mrpt/maps/TMetricMapInitializer.h>
+#include <mrpt/poses/CPose3D.h>
 
 #include <cstdint>
+#include <memory>
 #include <optional>
 #include <unordered_map>
+#include <utility>
 #include <vector>
 
 #include "cleanmap/core/params.h"
@@ -39,6 +42,8 @@ class CGroundModelMap : public mrpt::maps::CMetricMap {
     bool point_refine = true;
     int max_gap_cells = 10;
     double extent = 30.0;  ///< m; half side of the square around the sensor that is segmented
+    /// Poses from the rawlog's CObservationRobotPose (see CMovingObjectsMap::TInsertionOptions).
+    bool use_pose_observations = false;
   };
 
   CGroundModelMap() = default;
@@ -95,6 +100,7 @@ class CGroundModelMap : public mrpt::maps::CMetricMap {
   std::unordered_map<uint64_t, Cell> cells_;  // key: (ix, iy) packed
   std::size_t scans_ = 0;
   std::vector<uint8_t> last_flags_;
+  std::optional<std::pair<double, mrpt::poses::CPose3D>> pose_obs_;  // use_pose_observations
 };
 
 }  // namespace cleanmap_maps

@@ -13,11 +13,14 @@
 #pragma once
 #include <mrpt/maps/CMetricMap.h>
 #include <mrpt/maps/TMetricMapInitializer.h>
+#include <mrpt/poses/CPose3D.h>
 
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 #include <unordered_map>
+#include <utility>
 #include <vector>
 
 #include "cleanmap/core/frame.h"
@@ -40,6 +43,14 @@ class CMovingObjectsMap : public mrpt::maps::CMetricMap {
     Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();  ///< sensor pose in the world
   };
 
+  struct TInsertionOptions {
+    /// Take each scan's pose from the CObservationRobotPose inserted just before it (same
+    /// timestamp, within 10 ms) instead of the robot pose handed to insertObservation: for
+    /// RawLogViewer's "Map from odometry", which inserts every observation of a posed rawlog at
+    /// 2D odometry. Off in SLAM, where the pose is the SLAM estimate.
+    bool use_pose_observations = false;
+  };
+
   CMovingObjectsMap();
   explicit CMovingObjectsMap(const cleanmap::PipelineParams& params, double map_voxel = 0.1);
   CMovingObjectsMap(const CMovingObjectsMap& o);
@@ -49,6 +60,7 @@ class CMovingObjectsMap : public mrpt::maps::CMetricMap {
   /// The classifier's parameters (creationOpts). Changing them is allowed only while the map has
   /// no scan in its window; throws cleanmap::Error otherwise.
   const cleanmap::PipelineParams& params() const { return params_; }
+  TInsertionOptions insertionOptions;
   void setParams(const cleanmap::PipelineParams& params);
   double mapVoxel() const { return map_voxel_; }
 
@@ -84,6 +96,7 @@ class CMovingObjectsMap : public mrpt::maps::CMetricMap {
   MAP_DEFINITION_START(CMovingObjectsMap)
   cleanmap::PipelineParams params;  ///< creationOpts: every key of the parameter table
   double map_voxel = 0.1;           ///< creationOpts: m; 0 keeps every point
+  CMovingObjectsMap::TInsertionOptions insertionOpts;  ///< insertOpts
   MAP_DEFINITION_END(CMovingObjectsMap)
 
  private:
@@ -108,6 +121,7 @@ class CMovingObjectsMap : public mrpt::maps::CMetricMap {
   std::unique_ptr<cleanmap::LaserPipeline> pipe_;
   std::function<void(cleanmap::ScanResult&&)> sink_;
   bool store_points_ = true, keep_scans_ = false;
+  std::optional<std::pair<double, mrpt::poses::CPose3D>> pose_obs_;  // use_pose_observations
   std::size_t next_index_ = 0;  // index given to the next observation inserted through MRPT
   std::unordered_map<uint64_t, cleanmap::PointXYZI> static_, moving_;  // voxel key -> first point
   std::vector<TrajectoryPoint> trajectory_;
