@@ -29,7 +29,7 @@ fi
 display=:$((90 + RANDOM % 9))
 Xvfb "$display" -screen 0 1280x800x24 >/dev/null 2>&1 &
 sleep 2
-DISPLAY=$display SceneViewer3D "$out/run/static_map.3Dscene" >/dev/null 2>&1 &
+DISPLAY=$display SceneViewer3D -l "$build/libs/maps/libcleanmap_maps.so" "$out/run/static_map.3Dscene" >/dev/null 2>&1 &
 win=
 for _ in $(seq 60); do  # the window appears once the scene is loaded
   win=$(DISPLAY=$display xdotool search --name SceneViewer 2>/dev/null | tail -1 || true)
@@ -46,7 +46,7 @@ sleep 4
 mkdir -p "$root/doc/img"
 DISPLAY=$display import -window root "$root/doc/img/sceneviewer_${set_}.png"
 echo "screenshots.sh: wrote doc/img/sceneviewer_${set_}.png"
-pkill -f "SceneViewer3D $out" || true
+pkill -f "SceneViewer3D -l" || true
 
 # RawLogViewer, with the plugin library loaded (-l): scan 4's LIDAR_MOVING cloud.
 DISPLAY=$display RawLogViewer -l "$build/libs/maps/libcleanmap_maps.so" "$out/run/labelled.rawlog" >/dev/null 2>&1 &
