@@ -334,6 +334,20 @@ TEST(MovingTest, ThinPoleWithRegistrationErrorStaysStatic) {
   EXPECT_FALSE(MovingTest(ours).isMoving(p, w, nullptr));
 }
 
+TEST(MovingTest, PoseNoiseWidensTheConeNearTheSensor) {
+  // The same pole seen 12 cm beyond its edge: outside the beam cone (3 lambda_theta = 10.5 cm
+  // at 10 m) only passing beams, so an empty vote. With a 5 cm relative pose error the cone
+  // (3 sqrt(lambda_theta^2 + (0.05 / 10)^2) = 18 cm) reaches the pole and the scan's own
+  // beams conflict: no empty vote (registration.cone_noise).
+  const auto scan = hedgeScan([](int iy, int) { return std::abs(0.02 * iy) <= 0.06; });
+  const DsParams ours;
+  const BeamIndex idx(scan, ours.search_lambdas * ours.lambda_theta);
+  const Eigen::Vector3d p(10.0, 0.06 + 0.12, 0.0);
+  EXPECT_TRUE(MovingTest(ours).isMoving(p, {{&idx, Eigen::Isometry3d::Identity()}}, nullptr));
+  EXPECT_FALSE(
+      MovingTest(ours).isMoving(p, {{&idx, Eigen::Isometry3d::Identity(), 0.05 * 0.05}}, nullptr));
+}
+
 TEST(MovingTest, EarlyDecisionEqualsTheFullWindow) {
   // isMoving stops visiting scans once the rest cannot change the outcome; it must agree with
   // Dempster's rule over the whole window (windowMass) on every point, moving or not.

@@ -21,12 +21,19 @@ ds::Mass MovingTest::scanMass(const Eigen::Vector3d& p_world, const WindowScan& 
   ds::Mass m;
   if (d < 1e-3 || !s.beams) return m;
   const Eigen::Vector3f dir = (pl / d).cast<float>();
-  const float r2max = static_cast<float>(radius_ * radius_);
+  // The cone: search_lambdas * lambda_theta, widened to search_lambdas *
+  // sqrt(lambda_theta^2 + (noise / d)^2) when the scan's pose relative to P's scan is uncertain
+  // (estimated poses): near the sensor that error exceeds the beam width.
+  const double radius =
+      s.pose_noise2 > 0 ? p_.search_lambdas *
+                              std::sqrt(p_.lambda_theta * p_.lambda_theta + s.pose_noise2 / (d * d))
+                        : radius_;
+  const float r2max = static_cast<float>(radius * radius);
   const float df = static_cast<float>(d), r_far = static_cast<float>(r_far_);
   bool conflict = false;
   float e_max = 0.0f, o_max = 0.0f;  // the scan's most-empty beam, most-occupied return at P
   const float band = static_cast<float>(2.0 * model_.sigma);  // not an occluder in front of P
-  s.beams->forEachNear(dir, radius_, [&](const BeamIndex::Beam& q) {
+  s.beams->forEachNear(dir, radius, [&](const BeamIndex::Beam& q) {
     // Small angles: theta = |a x b| to float precision (a dot product would lose it).
     const float theta2 = dir.cross(q.dir).squaredNorm();
     if (theta2 > r2max || dir.dot(q.dir) <= 0.0f) return;

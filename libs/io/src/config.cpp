@@ -73,6 +73,7 @@ std::map<std::string, Key> table(PipelineParams& p) {
       {"registration.max_turn_rate", d(p.registration.max_turn_rate)},
       {"registration.deskew", Key{[&p](double v) { p.registration.deskew = v != 0; },
                                   [&p] { return p.registration.deskew ? 1.0 : 0.0; }, true}},
+      {"registration.cone_noise", d(p.registration.cone_noise)},
       {"run.seed", Key{[&p](double v) { p.seed = static_cast<uint64_t>(v); },
                        [&p] { return double(p.seed); }, true}},
       {"run.threads", i(p.threads)},

@@ -222,9 +222,15 @@ void LaserPipeline::decide(std::size_t pos) {
 // W_k: the other buffered scans that have beams.
 std::vector<WindowScan> LaserPipeline::windowAround(std::size_t pos) const {
   std::vector<WindowScan> window;
+  // Estimated poses drift apart like a random walk: the lateral error between scans i and j is
+  // about cone_noise * sqrt(|i - j|) (doc/BENCHMARK.md, Registration). Given poses are exact.
+  const bool estimated = source_ == PoseSource::kGicp || source_ == PoseSource::kRefine;
+  const double n2 = p_.registration.cone_noise * p_.registration.cone_noise;
   for (std::size_t j = 0; j < buf_.size(); ++j)
-    if (j != pos && !buf_[j]->beams.empty())
-      window.push_back({&buf_[j]->beams, buf_[j]->world_to_sensor});
+    if (j != pos && !buf_[j]->beams.empty()) {
+      const double steps = std::abs(static_cast<double>(j) - static_cast<double>(pos));
+      window.push_back({&buf_[j]->beams, buf_[j]->world_to_sensor, estimated ? n2 * steps : 0.0});
+    }
   return window;
 }
 

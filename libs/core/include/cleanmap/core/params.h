@@ -85,6 +85,11 @@ struct RegistrationParams {
   /// Undo the motion during the sweep before aligning (constant velocity; a point's time from its
   /// azimuth, the sweep running clockwise from the rear as on KITTI's HDL-64E). 0 = off.
   bool deskew = false;
+  /// m; with gicp / refine poses, the lateral error between scans n apart is taken as
+  /// cone_noise * sqrt(n) and the moving-point test's search cone widens to cover it near the
+  /// sensor (WindowScan::pose_noise2). Given poses are exact. Off by default: it fixes
+  /// kitti_residential's pole false alarms but costs highway recall (doc/BENCHMARK.md).
+  double cone_noise = 0.0;
 };
 
 /// Where scan poses come from (DESIGN §2.1): `kAuto` is `kGiven` when the first scan has a pose
