@@ -27,6 +27,7 @@ echo "  cleaned static map : $out/$name/static_map.ply (every static point: stat
 echo "  moving points      : $out/$name/dynamic.ply"
 echo "  per-scan labels    : $out/$name/labels/"
 echo "  for MRPT           : SceneViewer3D $out/$name/static_map.3Dscene; cleaned.rawlog, labelled.rawlog, static_map.simplemap (doc/MRPT.md)"
+echo "  ground model layer : $out/$name/ground_model.ply (.txt); map plugins: $build/libs/maps/libcleanmap_maps.so"
 echo "  run report         : $out/$name/report.md (and report.json)"
 if [[ $evaluated == 1 ]]; then
   echo "  evaluation         : $out/$name/evaluation/report.md"
