@@ -48,23 +48,29 @@ DISPLAY=$display import -window root "$root/doc/img/sceneviewer_${set_}.png"
 echo "screenshots.sh: wrote doc/img/sceneviewer_${set_}.png"
 pkill -f "SceneViewer3D -l" || true
 
-# RawLogViewer, with the plugin library loaded (-l): scan 4's LIDAR_MOVING cloud.
-DISPLAY=$display RawLogViewer -l "$build/libs/maps/libcleanmap_maps.so" "$out/run/labelled.rawlog" >/dev/null 2>&1 &
-tip=
-for _ in $(seq 60); do
-  tip=$(DISPLAY=$display xdotool search --name "Tip of the Day" 2>/dev/null | head -1 || true)
-  [[ -n $tip ]] && break
-  sleep 0.5
-done
-[[ -n $tip ]] || { echo "screenshots.sh: RawLogViewer did not open" >&2; exit 1; }
-sleep 1
-eval "$(DISPLAY=$display xdotool getwindowgeometry --shell "$tip")"
-DISPLAY=$display xdotool mousemove $((X + WIDTH - 54)) $((Y + HEIGHT - 28)) click 1  # "Close"
-sleep 1
-for w in $(DISPLAY=$display xdotool search --name "RawlogViewer - Part"); do
-  DISPLAY=$display xdotool windowmove "$w" 0 0 windowsize "$w" 1280 800 || true
-done
-sleep 2
+# Starts RawLogViewer on a rawlog with our plugin loaded (-l), closes its tip of the day and
+# makes its main window 1280x800 (no window manager under Xvfb).
+rawlogviewer() {
+  DISPLAY=$display RawLogViewer -l "$build/libs/maps/libcleanmap_maps.so" "$1" >/dev/null 2>&1 &
+  local tip=
+  for _ in $(seq 60); do
+    tip=$(DISPLAY=$display xdotool search --name "Tip of the Day" 2>/dev/null | head -1 || true)
+    [[ -n $tip ]] && break
+    sleep 0.5
+  done
+  [[ -n $tip ]] || { echo "screenshots.sh: RawLogViewer did not open" >&2; exit 1; }
+  sleep 1
+  eval "$(DISPLAY=$display xdotool getwindowgeometry --shell "$tip")"
+  DISPLAY=$display xdotool mousemove $((X + WIDTH - 54)) $((Y + HEIGHT - 28)) click 1  # "Close"
+  sleep 1
+  for w in $(DISPLAY=$display xdotool search --name "RawlogViewer - Part"); do
+    DISPLAY=$display xdotool windowmove "$w" 0 0 windowsize "$w" 1280 800 || true
+  done
+  sleep 2
+}
+
+# RawLogViewer on labelled.rawlog: scan 4's LIDAR_MOVING cloud.
+rawlogviewer "$out/run/labelled.rawlog"
 DISPLAY=$display xdotool mousemove 180 360 click 1  # tree entry [14]: scan 4, LIDAR_MOVING
 sleep 3
 DISPLAY=$display import -window root "$root/doc/img/rawlogviewer_${set_}_moving.png"
@@ -75,22 +81,7 @@ sleep 1
 # RawLogViewer's "Map from odometry" building our moving-objects layer from an external-storage
 # rawlog (cleanmap-kitti2rawlog --external), poses from its CObservationRobotPose entries.
 "$build/apps/cleanmap-kitti2rawlog" "$data/$set_" "$out/external.rawlog" --external >/dev/null
-DISPLAY=$display RawLogViewer -l "$build/libs/maps/libcleanmap_maps.so" "$out/external.rawlog" >/dev/null 2>&1 &
-tip=
-for _ in $(seq 60); do
-  tip=$(DISPLAY=$display xdotool search --name "Tip of the Day" 2>/dev/null | head -1 || true)
-  [[ -n $tip ]] && break
-  sleep 0.5
-done
-[[ -n $tip ]] || { echo "screenshots.sh: RawLogViewer did not open" >&2; exit 1; }
-sleep 1
-eval "$(DISPLAY=$display xdotool getwindowgeometry --shell "$tip")"
-DISPLAY=$display xdotool mousemove $((X + WIDTH - 54)) $((Y + HEIGHT - 28)) click 1
-sleep 1
-for w in $(DISPLAY=$display xdotool search --name "RawlogViewer - Part"); do
-  DISPLAY=$display xdotool windowmove "$w" 0 0 windowsize "$w" 1280 800 || true
-done
-sleep 1
+rawlogviewer "$out/external.rawlog"
 DISPLAY=$display xdotool mousemove 225 60 click 1  # toolbar "Raw-map..."
 sleep 3
 form=$(DISPLAY=$display xdotool search --name "Creation of" | head -1)
