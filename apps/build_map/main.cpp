@@ -168,9 +168,7 @@ int main(int argc, char** argv) {
   } catch (const std::exception& e) {
     std::error_code ec;
     if (!staging.empty()) fs::remove_all(staging, ec);
-    std::string what = e.what();  // MRPT's own exceptions: keep the message line
-    if (const auto m = what.rfind("Message: "); m != std::string::npos) what = what.substr(m + 9);
-    std::cerr << "cleanmap-build-map: error: " << what.substr(0, what.find('\n')) << '\n';
+    std::cerr << "cleanmap-build-map: error: " << cleanmap::cli::errorLine(e) << '\n';
     return 1;
   }
   return 0;

@@ -3,12 +3,21 @@
 // exit 2) and checked number parsing.
 #pragma once
 #include <cstdlib>
+#include <exception>
 #include <iostream>
 #include <sstream>
 #include <string>
 #include <vector>
 
 namespace cleanmap::cli {
+
+/// The one line to print for an exception. MRPT's exceptions hold a banner, "Message: ...", the
+/// location and a stack trace: their message is kept; any text is cut at its first newline.
+inline std::string errorLine(const std::exception& e) {
+  std::string what = e.what();
+  if (const auto m = what.rfind("Message: "); m != std::string::npos) what = what.substr(m + 9);
+  return what.substr(0, what.find('\n'));
+}
 
 class Args {
  public:

@@ -14,6 +14,7 @@
 #include <mrpt/obs/CObservationPointCloud.h>
 #include <mrpt/obs/CSensoryFrame.h>
 
+#include "../common/cli.h"
 #include "cleanmap/maps/map_config.h"
 
 namespace {
@@ -86,12 +87,7 @@ int main(int argc, char** argv) {
     app.initialize(argc, argv);
     app.run();
   } catch (const std::exception& e) {
-    // MRPT's exceptions hold a banner, "Message: ...", the location and a stack trace: keep the
-    // message, on one line.
-    std::string what = e.what();
-    if (const auto m = what.rfind("Message: "); m != std::string::npos) what = what.substr(m + 9);
-    what = what.substr(0, what.find('\n'));
-    std::cerr << "cleanmap-icp-slam: error: " << what << "\n";
+    std::cerr << "cleanmap-icp-slam: error: " << cleanmap::cli::errorLine(e) << "\n";
     return 1;
   }
   return 0;

@@ -80,8 +80,9 @@ std::map<std::string, Key> table(PipelineParams& p) {
   };
 }
 
-// The number in `text`, or nullopt with `why` set ("needs a number, got 'x'").
-std::optional<double> parseValue(const std::string& text, bool integer, std::string& why) {
+}  // namespace
+
+std::optional<double> parseNumber(const std::string& text, bool integer, std::string& why) {
   double v = 0;
   std::size_t used = 0;
   try {
@@ -89,7 +90,7 @@ std::optional<double> parseValue(const std::string& text, bool integer, std::str
   } catch (const std::exception&) {
     used = 0;
   }
-  if (used != text.size() || !std::isfinite(v)) {
+  if (text.empty() || used != text.size() || !std::isfinite(v)) {
     why = "needs a number, got '" + text + "'";
     return std::nullopt;
   }
@@ -100,15 +101,13 @@ std::optional<double> parseValue(const std::string& text, bool integer, std::str
   return v;
 }
 
-}  // namespace
-
 void setParam(PipelineParams& params, const std::string& key, const std::string& value,
               const std::string& where) {
   auto keys = table(params);
   const auto it = keys.find(key);
   if (it == keys.end()) throw Error(where, "unknown key '" + key + "'");
   std::string why;
-  const auto v = parseValue(trimBlanks(value), it->second.integer, why);
+  const auto v = parseNumber(trimBlanks(value), it->second.integer, why);
   if (!v) throw Error(where, "'" + key + "' " + why);
   it->second.set(*v);
 }
@@ -144,7 +143,7 @@ void parseParams(const std::string& text, const std::string& name, PipelineParam
     if (!given.insert(full).second)
       iniError(name, e.line, "'" + e.key + "' given twice in [" + e.section + "]");
     std::string why;
-    const auto v = parseValue(e.value, it->second.integer, why);
+    const auto v = parseNumber(e.value, it->second.integer, why);
     if (!v) iniError(name, e.line, "'" + e.key + "' " + why);
     it->second.set(*v);
   };

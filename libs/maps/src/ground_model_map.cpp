@@ -129,17 +129,10 @@ void CGroundModelMap::internal_clear() {
 bool CGroundModelMap::internal_insertObservation(
     const mrpt::obs::CObservation& obs,
     const std::optional<const mrpt::poses::CPose3D>& robotPose) {
-  if (insertionOptions.use_pose_observations && takePoseObservation(obs, pose_obs_)) return true;
-  auto scan = cleanmap::mrpt::scanFromObservation(obs);
-  if (!scan) return false;  // not a lidar observation
-  mrpt::poses::CPose3D sensor;
-  obs.getSensorPose(sensor);
-  std::optional<const mrpt::poses::CPose3D> robot = robotPose;
-  if (insertionOptions.use_pose_observations) robot.emplace(loggedPoseOf(obs, pose_obs_));
-  // The 2.5.8 point-cloud insertion ignores the robot pose (MRPT_NOTES); we compose it here.
-  scan->pose = cleanmap::mrpt::toIsometry(robot ? *robot + sensor : sensor);
-  scan->has_pose = true;
-  insertScan(*scan);
+  auto posed = posedScanOf(obs, robotPose, insertionOptions.use_pose_observations, pose_obs_);
+  if (posed.consumed) return true;
+  if (!posed.scan) return false;  // not a lidar observation
+  insertScan(*posed.scan);
   return true;
 }
 

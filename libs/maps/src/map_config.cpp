@@ -43,9 +43,14 @@ bool endsWith(const std::string& s, const std::string& suffix) {
          s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
 }
 
+bool isMovingMap(const std::string& map_name) {
+  return map_name == "cleanmap_moving" || map_name == "cleanmap_maps::CMovingObjectsMap";
+}
+bool isGroundMap(const std::string& map_name) {
+  return map_name == "cleanmap_ground" || map_name == "cleanmap_maps::CGroundModelMap";
+}
 bool isOurs(const std::string& map_name) {
-  return map_name == "cleanmap_moving" || map_name == "cleanmap_ground" ||
-         map_name.rfind("cleanmap_maps::", 0) == 0;
+  return isMovingMap(map_name) || isGroundMap(map_name);
 }
 
 }  // namespace
@@ -110,8 +115,8 @@ MapConfig parseMapConfig(const std::string& text, const std::string& name,
                             "[" + S + "]: unknown key '" + k + "'" + suggestion(k, count_keys));
     }
   }
-  if (require_moving && !counts.count("cleanmap_moving") &&
-      !counts.count("cleanmap_maps::CMovingObjectsMap"))
+  if (require_moving && std::none_of(counts.begin(), counts.end(),
+                                     [](const auto& kv) { return isMovingMap(kv.first); }))
     throw cleanmap::Error(
         name, "[" + S + "] declares no cleanmap_moving map (cleanmap_moving_count = 1)");
 
@@ -148,7 +153,7 @@ MapConfig parseMapConfig(const std::string& text, const std::string& name,
       std::snprintf(idx, sizeof idx, "%02u", static_cast<unsigned>(i));
       const std::string prefix = S + "_" + map_name + "_" + idx;
       try {
-        if (map_name.find("oving") != std::string::npos) {
+        if (isMovingMap(map_name)) {
           CMovingObjectsMap::TMapDefinition d;
           d.loadFromConfigFile(cfg, prefix);
         } else {

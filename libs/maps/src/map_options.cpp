@@ -5,6 +5,7 @@
 #include <cmath>
 
 #include "cleanmap/core/error.h"
+#include "cleanmap/io/config.h"
 #include "cleanmap/io/ini.h"
 
 namespace cleanmap_maps {
@@ -12,19 +13,10 @@ namespace {
 
 double number(const std::string& text, bool integer, const std::string& key,
               const std::string& where) {
-  const std::string t = cleanmap::io::trimBlanks(text);
-  double v = 0;
-  std::size_t used = 0;
-  try {
-    v = std::stod(t, &used);
-  } catch (const std::exception&) {
-    used = 0;
-  }
-  if (t.empty() || used != t.size() || !std::isfinite(v))
-    throw cleanmap::Error(where, "'" + key + "' needs a number, got '" + t + "'");
-  if (integer && v != std::floor(v))
-    throw cleanmap::Error(where, "'" + key + "' needs an integer, got '" + t + "'");
-  return v;
+  std::string why;
+  const auto v = cleanmap::io::parseNumber(cleanmap::io::trimBlanks(text), integer, why);
+  if (!v) throw cleanmap::Error(where, "'" + key + "' " + why);
+  return *v;
 }
 
 }  // namespace

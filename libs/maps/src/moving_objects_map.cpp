@@ -184,25 +184,16 @@ void CMovingObjectsMap::internal_clear() {
 bool CMovingObjectsMap::internal_insertObservation(
     const mrpt::obs::CObservation& obs,
     const std::optional<const mrpt::poses::CPose3D>& robotPose) {
-  if (insertionOptions.use_pose_observations && takePoseObservation(obs, pose_obs_)) return true;
-  auto scan = cleanmap::mrpt::scanFromObservation(obs);
-  if (!scan) return false;  // not a lidar observation
-  mrpt::poses::CPose3D sensor;
-  obs.getSensorPose(sensor);
-  std::optional<const mrpt::poses::CPose3D> robot = robotPose;
-  if (insertionOptions.use_pose_observations) robot.emplace(loggedPoseOf(obs, pose_obs_));
+  auto posed = posedScanOf(obs, robotPose, insertionOptions.use_pose_observations, pose_obs_);
+  if (posed.consumed) return true;
+  if (!posed.scan) return false;  // not a lidar observation
   cleanmap::Frame f;
   f.index = next_index_;
   char stem[32];
   std::snprintf(stem, sizeof stem, "%06zu", f.index);
   f.stem = stem;
   f.source = std::string(obs.GetRuntimeClass()->className) + " #" + stem;
-  f.scan = std::move(*scan);
-  // robot pose (+) sensor pose: the 2.5.8 point-cloud insertion ignores the robot pose
-  // (MRPT_NOTES), we compose it ourselves. No robot pose: the origin, as in MRPT.
-  f.scan.pose = cleanmap::mrpt::toIsometry(robot ? *robot + sensor : sensor);
-  f.scan.has_pose = true;
-  f.scan.timestamp = mrpt::Clock::toDouble(obs.timestamp);
+  f.scan = std::move(*posed.scan);
   insertFrame(std::move(f));
   return true;
 }

@@ -13,6 +13,8 @@
 #include <utility>
 
 #include "cleanmap/core/error.h"
+#include "cleanmap/core/types.h"
+#include "cleanmap/mrpt/convert.h"
 
 namespace cleanmap_maps {
 
@@ -35,6 +37,34 @@ inline mrpt::poses::CPose3D loggedPoseOf(const mrpt::obs::CObservation& obs,
         std::string(obs.GetRuntimeClass()->className) + " '" + obs.sensorLabel + "'",
         "use_pose_observations: no CObservationRobotPose within 10 ms before it");
   return last->second;
+}
+
+/// What a map inserts from `obs`: its lidar scan (sensor frame, timestamped) posed at
+/// robot pose (+) sensor pose, composed here because 2.5.8's point-cloud insertion drops the robot
+/// pose (MRPT_NOTES); no robot pose means the origin, as in MRPT. With `use_logged` the robot pose
+/// is the rawlog's own (see above) and a CObservationRobotPose is remembered: `consumed`.
+struct PosedObservation {
+  bool consumed = false;               ///< a pose observation, taken
+  std::optional<cleanmap::Scan> scan;  ///< empty: not a lidar observation
+};
+
+inline PosedObservation posedScanOf(const mrpt::obs::CObservation& obs,
+                                    const std::optional<const mrpt::poses::CPose3D>& robotPose,
+                                    bool use_logged, LoggedPose& logged) {
+  PosedObservation out;
+  if (use_logged && takePoseObservation(obs, logged)) {
+    out.consumed = true;
+    return out;
+  }
+  out.scan = cleanmap::mrpt::scanFromObservation(obs);
+  if (!out.scan) return out;
+  mrpt::poses::CPose3D sensor;
+  obs.getSensorPose(sensor);
+  std::optional<const mrpt::poses::CPose3D> robot = robotPose;
+  if (use_logged) robot.emplace(loggedPoseOf(obs, logged));
+  out.scan->pose = cleanmap::mrpt::toIsometry(robot ? *robot + sensor : sensor);
+  out.scan->has_pose = true;
+  return out;
 }
 
 }  // namespace cleanmap_maps

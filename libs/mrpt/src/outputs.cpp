@@ -458,14 +458,18 @@ void MrptOutputWriter::writeNow(const ScanResult& r) {
     kept.mark_as_modified();
     mov.mark_as_modified();
     lab.mark_as_modified();
-    auto cleaned = CObservationPointCloud::Create();
-    cleaned->sensorLabel = "LIDAR";
-    cleaned->timestamp = stamp;
-    cleaned->pointcloud = I.kept_map;
-    auto labelled = CObservationPointCloud::Create();
-    labelled->sensorLabel = "LIDAR_LABELLED";
-    labelled->timestamp = stamp;
-    labelled->pointcloud = I.labelled_map;
+    auto cloud = [&](const char* label, const ::mrpt::maps::CPointsMap::Ptr& map) {
+      auto o = CObservationPointCloud::Create();
+      o->sensorLabel = label;
+      o->timestamp = stamp;
+      o->pointcloud = map;
+      return o;
+    };
+    const auto cleaned = cloud("LIDAR", I.kept_map);
+    const auto labelled = cloud("LIDAR_LABELLED", I.labelled_map);
+    // RawLogViewer 2.5.8 draws a point cloud without its colours (doc/MRPT.md): the moving
+    // points also come as their own cloud, a LIDAR_MOVING row in its timeline.
+    const auto moving = cloud("LIDAR_MOVING", I.moving_map);
 
     // The cleaned cloud is serialized once, for the rawlog and the simplemap.
     const auto [pb, pn] = I.enc(*pose_obs);
@@ -473,12 +477,6 @@ void MrptOutputWriter::writeNow(const ScanResult& r) {
     I.labelled->write(pb, pn);
     const auto [lb, ln] = I.enc(*labelled);
     I.labelled->write(lb, ln);
-    // RawLogViewer 2.5.8 draws a point cloud without its colours (doc/MRPT.md): the moving
-    // points also come as their own cloud, a LIDAR_MOVING row in its timeline.
-    auto moving = CObservationPointCloud::Create();
-    moving->sensorLabel = "LIDAR_MOVING";
-    moving->timestamp = stamp;
-    moving->pointcloud = I.moving_map;
     const auto [mb, mn] = I.enc(*moving);
     I.labelled->write(mb, mn);
     CSensoryFrame sf;

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: BSD-3-Clause
 // PipelineParams <-> ini files (config/cleanmap.ini). Unknown sections or keys are errors.
 #pragma once
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -14,6 +15,9 @@ namespace cleanmap::io {
 void loadParams(const std::string& path, PipelineParams& params);
 /// Applies ini text (same rules; `name` is used in messages).
 void parseParams(const std::string& text, const std::string& name, PipelineParams& params);
+/// The finite number `text` is (an integer where `integer`), or nullopt with `why` set to
+/// "needs a number, got 'x'" / "needs an integer, got 'x'". The one number rule of our ini files.
+std::optional<double> parseNumber(const std::string& text, bool integer, std::string& why);
 /// Sets the parameter "section.key" from its text (same rules as the ini; no validate()). Throws
 /// cleanmap::Error(where, ...) naming the key on an unknown key or a bad value.
 void setParam(PipelineParams& params, const std::string& key, const std::string& value,
