@@ -57,6 +57,16 @@ class Args {
     if (out.empty()) fail(flag + " needs a comma-separated list");
     return out;
   }
+  /// `v` (the value of `flag`) as a number >= 0; a usage error otherwise.
+  double toNumber(const std::string& flag, const std::string& v) const {
+    try {
+      std::size_t used = 0;
+      const double x = std::stod(v, &used);
+      if (used == v.size() && x >= 0) return x;
+    } catch (const std::exception&) {
+    }
+    fail(flag + " needs a non-negative number, got '" + v + "'");
+  }
   [[noreturn]] void fail(const std::string& msg) const {
     std::cerr << prog_ << ": " << msg << " (see --help)\n";
     std::exit(2);
@@ -68,16 +78,6 @@ class Args {
   }
 
  private:
-  double toNumber(const std::string& flag, const std::string& v) const {
-    try {
-      std::size_t used = 0;
-      const double x = std::stod(v, &used);
-      if (used == v.size() && x >= 0) return x;
-    } catch (const std::exception&) {
-    }
-    fail(flag + " needs a non-negative number, got '" + v + "'");
-  }
-
   std::string prog_;
   int argc_;
   char** argv_;

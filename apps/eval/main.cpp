@@ -17,7 +17,7 @@ namespace {
 
 constexpr const char* kUsage = R"(usage:
   cleanmap-eval GT_DIR RESULT [--first N --last M] [--labels DIR] [--report DIR] [--json]
-                [--radius R] [--crop TAU]
+                [--radius R] [--map-range M] [--crop TAU|run]
   cleanmap-eval roc GT_DIR -o DIR [--sigma-r LIST] [--sigma-theta LIST] [-c INI] [--threads N]
                 [--first N --last M]
   cleanmap-eval summary REPORT.json...
@@ -34,8 +34,11 @@ RESULT         a cleanmap output folder (labels/, static_map_full.ply, report.js
 --json         print one JSON object (precision, recall, iou with labels; SA, DA, AA, HA with a
                map; counts, objects, runtime) instead of the text summary
 --radius R     DynamicMap "kept" distance, metres (default 0.05)
---crop TAU     ground-truth map points used: |x|,|y|,|z| <= TAU in the sensor frame (default: the
-               run's crop from params.ini, else 30; 0 = all)
+--map-range M  ground truth of the map scores: the labelled points within M metres horizontally
+               of their scan's sensor (default 50, the DynamicMap benchmark's, whatever the run's
+               crop: a map that covers less scores less; 0 = all)
+--crop TAU|run also keep only |x|,|y|,|z| <= TAU in the sensor frame; `run`: the run's own crop
+               (filter.crop_tau of its params.ini)
 Measures: per point precision / recall / IoU of the moving class (paper Table I); per object
 Detected (f >= 0.9) / Partially detected (0.1 <= f < 0.9) (Table II, needs objects.json);
 DynamicMap SA, DA, AA = sqrt(SA DA), HA = 2 SA DA / (SA + DA); runtime from report.json.
@@ -127,9 +130,15 @@ int runEval(int argc, char** argv) {
     else if (a == "--radius") {
       opt.radius = args.number(a);
       if (opt.radius <= 0) args.fail("--radius must be > 0");
-    } else if (a == "--crop")
-      opt.crop_tau = args.number(a);
-    else if (!a.empty() && a[0] != '-' && gt.empty())
+    } else if (a == "--map-range") {
+      opt.map_range = args.number(a);
+    } else if (a == "--crop") {
+      const std::string v = args.value(a);
+      if (v == "run")
+        opt.run_crop = true;
+      else
+        opt.crop_tau = args.toNumber(a, v);
+    } else if (!a.empty() && a[0] != '-' && gt.empty())
       gt = a;
     else if (!a.empty() && a[0] != '-' && result.empty())
       result = a;

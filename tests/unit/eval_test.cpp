@@ -3,6 +3,8 @@
 // force; foreign .pcd / .ply maps; the summary table; bad inputs.
 #include <gtest/gtest.h>
 
+#include <Eigen/Geometry>
+#include <cmath>
 #include <cstring>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -257,6 +259,98 @@ TEST(EvalMap, CropLimitsTheGroundTruthUnion) {
       o);
   EXPECT_EQ(r.map->static_total, 0u);
   EXPECT_EQ(r.map->moving_total, 100u);
+}
+
+// The map scorer against a brute-force one (every GT point against every map point) on a random
+// sequence with rotated poses and points on both sides of the 50 m map range.
+TEST(EvalMap, MatchesBruteForceWithinTheMapRange) {
+  const auto dir = test::scratchDir("bruteforce");
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> u(-70.f, 70.f), uz(-2.f, 3.f), jitter(-0.08f, 0.08f);
+  std::string poses, times;
+  std::vector<Eigen::Vector3f> map;
+  std::vector<std::pair<Eigen::Vector3f, int>> gt;  // world point, 0 static / 1 moving
+  std::vector<Eigen::Vector3f> gt_sensor;
+  for (int s = 0; s < 3; ++s) {
+    const Eigen::Isometry3d pose = Eigen::Translation3d(3.0 * s, -s, 0.1 * s) *
+                                   Eigen::AngleAxisd(0.4 * s, Eigen::Vector3d::UnitZ());
+    std::vector<PointXYZI> pts;
+    Labels l;
+    for (int i = 0; i < 600; ++i) {
+      const PointXYZI p{u(rng), u(rng), uz(rng), 0.f};
+      const uint32_t label = i % 7 == 0 ? 0u : (i % 3 == 0 ? 251u : 9u);
+      pts.push_back(p);
+      l.push_back(label);
+      const Eigen::Vector3f w = pose.cast<float>() * p.xyz();
+      // The map holds about half the points, some within 0.05 m, some just beyond.
+      if (i % 2 == 0) map.push_back(w + Eigen::Vector3f(jitter(rng), jitter(rng), 0.f));
+      if (label != 0) {
+        gt.emplace_back(w, label == 251 ? 1 : 0);
+        gt_sensor.push_back(p.xyz());
+      }
+    }
+    char stem[16];
+    std::snprintf(stem, sizeof stem, "%06d", s);
+    io::writeKittiBin((dir / "velodyne" / (std::string(stem) + ".bin")).string(), pts);
+    io::writeLabels((dir / "labels" / (std::string(stem) + ".label")).string(), l);
+    const Eigen::Matrix4d m = pose.matrix();
+    char row[512];
+    std::snprintf(row, sizeof row,
+                  "%.17g %.17g %.17g %.17g %.17g %.17g %.17g %.17g %.17g %.17g %.17g %.17g\n",
+                  m(0, 0), m(0, 1), m(0, 2), m(0, 3), m(1, 0), m(1, 1), m(1, 2), m(1, 3), m(2, 0),
+                  m(2, 1), m(2, 2), m(2, 3));
+    poses += row;
+    times += std::to_string(0.1 * s) + "\n";
+  }
+  test::writeText(dir / "poses.txt", poses);
+  test::writeText(dir / "times.txt", times);
+  test::writeText(dir / "calib.txt", "Tr: 1 0 0 0 0 1 0 0 0 0 1 0\n");
+  std::vector<PointXYZI> cloud;
+  for (const auto& q : map) cloud.push_back({q.x(), q.y(), q.z(), 0.f});
+  const auto ply = dir.parent_path() / "bruteforce_map.ply";
+  io::writePly(ply.string(), cloud);
+
+  for (const double range : {50.0, 0.0, 20.0}) {
+    MapScore brute;
+    for (std::size_t i = 0; i < gt.size(); ++i) {
+      const auto& p = gt_sensor[i];
+      if (range > 0 && std::hypot(double(p.x()), double(p.y())) > range) continue;
+      bool kept = false;
+      for (const auto& q : map) kept = kept || (q - gt[i].first).norm() <= 0.05f;
+      if (gt[i].second) {
+        ++brute.moving_total;
+        brute.moving_removed += !kept;
+      } else {
+        ++brute.static_total;
+        brute.static_kept += kept;
+      }
+    }
+    eval::EvalOptions o;
+    o.map_range = range;
+    const auto r = eval::evaluate(dir.string(), eval::ResultInput::fromPath(ply.string(), {}), o);
+    ASSERT_TRUE(r.map);
+    EXPECT_EQ(r.map->static_total, brute.static_total) << range;
+    EXPECT_EQ(r.map->static_kept, brute.static_kept) << range;
+    EXPECT_EQ(r.map->moving_total, brute.moving_total) << range;
+    EXPECT_EQ(r.map->moving_removed, brute.moving_removed) << range;
+    EXPECT_GT(brute.static_kept, 0u);
+    EXPECT_LT(brute.static_kept, brute.static_total);
+  }
+}
+
+TEST(EvalMap, RunCropNeedsTheRunsParameters) {
+  const auto t = makeTiny("runcrop");
+  io::writePly((t.dir.parent_path() / "runcrop.ply").string(), {{0.f, 0.f, 0.f, 0.f}});
+  eval::EvalOptions o;
+  o.run_crop = true;
+  try {
+    eval::evaluate(t.dir.string(),
+                   eval::ResultInput::fromPath((t.dir.parent_path() / "runcrop.ply").string(), {}),
+                   o);
+    FAIL() << "no error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("params.ini"), std::string::npos) << e.what();
+  }
 }
 
 TEST(Pcd, ReadsForeignLayouts) {

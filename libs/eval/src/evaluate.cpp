@@ -22,7 +22,6 @@ namespace fs = std::filesystem;
 namespace cleanmap::eval {
 namespace {
 
-constexpr double kDefaultCrop = 30.0;          // DESIGN §2.3 tau, when the run does not say
 constexpr double kObjectMargin = 0.2;          // m; box inflation when assigning points to objects
 constexpr std::size_t kMaxLeftovers = 200000;  // points drawn in the map overview
 
@@ -119,6 +118,12 @@ ResultInput ResultInput::fromPath(const std::string& result,
   return in;
 }
 
+bool inMapGroundTruth(const Eigen::Vector3f& p, double map_range, double crop_tau) {
+  if (map_range > 0 && double(p.x()) * p.x() + double(p.y()) * p.y() > map_range * map_range)
+    return false;
+  return !(crop_tau > 0 && (p.cwiseAbs().array() > float(crop_tau)).any());
+}
+
 EvalReport evaluate(const std::string& gt_dir, const ResultInput& result, const EvalOptions& opt) {
   io::KittiReadOptions ro;
   ro.scan.allow_empty = true;
@@ -139,7 +144,14 @@ EvalReport evaluate(const std::string& gt_dir, const ResultInput& result, const 
   if (rep.sequence.empty())
     rep.sequence = fs::path(gt_dir).lexically_normal().parent_path().filename().string();
   rep.result = result.map_path ? *result.map_path : result.labels_dir ? *result.labels_dir : "";
-  rep.crop_tau = opt.crop_tau ? *opt.crop_tau : result.crop_tau ? *result.crop_tau : kDefaultCrop;
+  rep.map_range = opt.map_range;
+  if (opt.crop_tau)
+    rep.crop_tau = *opt.crop_tau;
+  else if (opt.run_crop) {
+    if (!result.crop_tau)
+      throw Error(rep.result, "has no params.ini: the run's crop is unknown (give --crop TAU)");
+    rep.crop_tau = *result.crop_tau;
+  }
   rep.radius = opt.radius;
   if (result.run_report) rep.runtime = readRunReport(*result.run_report);
 
@@ -208,15 +220,14 @@ EvalReport evaluate(const std::string& gt_dir, const ResultInput& result, const 
             }
         }
     }
-    // DynamicMap scores: every labelled point inside the crop, in the world frame.
+    // DynamicMap scores: every labelled point within the map range (and crop), world frame.
     if (scorer) {
       const Eigen::Isometry3f pose = seq.poses()[i].cast<float>();
-      const float tau = static_cast<float>(rep.crop_tau);
       for (std::size_t j = 0; j < scan.size(); ++j) {
         const GtClass t = gtClass(truth[scan.originalIndex(j)]);
         if (t == GtClass::kIgnore) continue;
         const Eigen::Vector3f p = scan.points[j].xyz();
-        if (tau > 0 && (p.cwiseAbs().array() > tau).any()) continue;
+        if (!inMapGroundTruth(p, rep.map_range, rep.crop_tau)) continue;
         const Eigen::Vector3f w = pose * p;
         const uint64_t before = scorer->score().moving_removed;
         scorer->add(w, t == GtClass::kMoving);
@@ -237,8 +248,11 @@ EvalReport evaluate(const std::string& gt_dir, const ResultInput& result, const 
       std::snprintf(title, sizeof title, "%s scan %s  P %.2f R %.2f IoU %.2f", rep.sequence.c_str(),
                     seq.stems()[i].c_str(), c.precision(), c.recall(), c.iou());
       const std::string name = "bev_" + seq.stems()[i] + ".png";
-      writePng(opt.pictures_dir + "/" + name,
-               birdsEyeView(pts, p, t, rep.crop_tau > 0 ? rep.crop_tau : 50.0, title));
+      writePng(opt.pictures_dir + "/" + name, birdsEyeView(pts, p, t,
+                                                           rep.crop_tau > 0    ? rep.crop_tau
+                                                           : rep.map_range > 0 ? rep.map_range
+                                                                               : 50.0,
+                                                           title));
       rep.pictures.push_back(name);
     }
     ++rep.scans;
@@ -302,6 +316,7 @@ std::string toJson(const EvalReport& r) {
                        {"moving_total", r.map->moving_total},
                        {"moving_removed", r.map->moving_removed}};
     j["radius_m"] = r.radius;
+    j["map_range_m"] = r.map_range;
     j["crop_m"] = r.crop_tau;
   }
   if (r.runtime) {
@@ -356,15 +371,18 @@ void writeReport(const std::string& dir, const EvalReport& r) {
     }
     if (r.map) {
       const auto& m = *r.map;
+      char crop[64] = "";
+      if (r.crop_tau > 0) std::snprintf(crop, sizeof crop, ", crop %.0f m", r.crop_tau);
       std::snprintf(
           b, sizeof b,
-          "\n## Clean map (DynamicMap benchmark; kept = a map point within %.2f m; crop %.0f m)\n"
+          "\n## Clean map (DynamicMap benchmark; kept = a map point within %.2f m; ground truth "
+          "within %.0f m horizontally%s)\n"
           "| SA | DA | AA | HA | static kept / total | moving removed / total "
           "|\n|---|---|---|---|---|---|\n"
           "| %.4f | %.4f | %.4f | %.4f | %llu / %llu | %llu / %llu |\n",
-          r.radius, r.crop_tau, m.sa(), m.da(), m.aa(), m.ha(), (unsigned long long)m.static_kept,
-          (unsigned long long)m.static_total, (unsigned long long)m.moving_removed,
-          (unsigned long long)m.moving_total);
+          r.radius, r.map_range, crop, m.sa(), m.da(), m.aa(), m.ha(),
+          (unsigned long long)m.static_kept, (unsigned long long)m.static_total,
+          (unsigned long long)m.moving_removed, (unsigned long long)m.moving_total);
       os << b;
     }
     if (r.runtime) {

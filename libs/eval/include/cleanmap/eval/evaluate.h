@@ -3,6 +3,7 @@
 // labels) against a labelled sequence: per-point MOS (paper Table I), object level (Table II),
 // DynamicMap SA/DA/AA/HA, and the run's time per stage.
 #pragma once
+#include <Eigen/Core>
 #include <optional>
 #include <string>
 #include <vector>
@@ -27,8 +28,14 @@ struct ResultInput {
 
 struct EvalOptions {
   long first = 0, last = -1;  ///< scan range (indices in the ground truth, inclusive)
-  std::optional<double>
-      crop_tau;              ///< crop of the ground-truth map union; default: the run's, else 30 m
+  /// Ground truth of the map scores: the labelled points within `map_range` metres horizontally
+  /// of their scan's sensor (DESIGN §5, the DynamicMap convention: 50 m whatever the run's crop,
+  /// so a map that covers less scores less); 0 = no limit.
+  double map_range = 50.0;
+  /// Also the per-axis crop |x|,|y|,|z| <= crop_tau (sensor frame), when set.
+  std::optional<double> crop_tau;
+  /// Use the run's own crop (params.ini `filter.crop_tau`) as crop_tau.
+  bool run_crop = false;
   double radius = 0.05;      ///< m; DynamicMap "kept" distance
   std::string pictures_dir;  ///< when set: one bird's-eye PNG per scan + map overview
 };
@@ -67,7 +74,9 @@ struct RunTime {
 struct EvalReport {
   std::string sequence, gt_dir, result;
   std::size_t scans = 0;
-  double crop_tau = 0, radius = 0;
+  double map_range = 0;  ///< m; 0 = no limit
+  double crop_tau = 0;   ///< m; 0 = no per-axis crop
+  double radius = 0;
   std::optional<MosCounts> mos;
   std::vector<std::pair<std::string, MosCounts>> per_scan;
   std::optional<std::vector<ObjectResult>> objects;  ///< when objects.json and labels exist
@@ -78,6 +87,10 @@ struct EvalReport {
   /// Paper Table II counts over the scored objects (zeros without objects).
   GradeCounts gradeCounts() const;
 };
+
+/// DESIGN §5: is a labelled point (sensor frame) part of the map's ground truth? Within
+/// `map_range` metres horizontally (0 = any) and, when crop_tau > 0, inside the per-axis crop.
+bool inMapGroundTruth(const Eigen::Vector3f& p, double map_range, double crop_tau);
 
 /// Throws cleanmap::Error (one line, naming the file) on missing or inconsistent inputs.
 EvalReport evaluate(const std::string& gt_dir, const ResultInput& result, const EvalOptions& opt);
