@@ -47,8 +47,13 @@ K past and K future scans, after ground removal; doc/DESIGN.md §2) and writes, 
   labels/<stem>.label   uint32 per original point: 251 moving, 9 static, 40 ground, 0 not classified
   static_map.ply/.pcd   compact static map (duplicates of the recent map left out), world frame,
                         RGB by height above the sensor
-  static_map_full.ply   every static point (ground included), world frame, RGB by height
-  dynamic.ply/.pcd      the moving points, world frame, red
+  static_map_full.ply   the clean map: every static point (ground included) within map.radius
+                        (50 m) of its sensor, less what the sequence's free space removed
+                        (map.policy; DESIGN §2d), world frame, RGB by height
+  dynamic.ply/.pcd      the moving points (the windowed test), world frame, red
+  map_removed.ply       the points the free-space cleaning removed from the map
+  map_labels/<stem>.label  what the map did with each point: 251 removed, 9 kept, 40 ground,
+                        0 beyond the map radius
   static_map.3Dscene    for SceneViewer3D: static map (one point per 0.1 m voxel), moving
                         points in red, trajectory (doc/MRPT.md)
   static_map.simplemap  every scan without its moving points, with its pose (MRPT CSimpleMap)
@@ -290,7 +295,7 @@ int main(int argc, char** argv) {
       ground->saveMetricMapRepresentationToFile(out.staging() + "/ground_model");
       out.addOutputTime("ground_model", ground_ms + cleanmap::msSince(t));
     }
-    out.finish(wall);
+    out.finish(wall, moving->freeSpace());
     if (progress_shown) std::fprintf(stderr, "\n");
     if (empty)
       std::fprintf(stderr,

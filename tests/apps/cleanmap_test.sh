@@ -143,6 +143,20 @@ expect_error 1 "unknown key 'ds.windw_k'; did you mean 'ds.window_k'?" "$bin/cle
 sed 's/^sensor_height = -1.73/sensor_height = -1.9/' "$ini" >"$scratch/ground.ini"
 expect_error 1 "the cleanmap_ground map's sensor_height (-1.9) differs from cleanmap_moving's ground.sensor_height (-1.73)" "$bin/cleanmap" "$seq" -o "$scratch/t" -c "$scratch/ground.ini"
 [[ -e $scratch/t ]] && fail "a refused configuration produced an output folder"
+sed 's/^static_map.policy = transient/static_map.policy = transiant/' "$ini" >"$scratch/policy.ini"
+expect_error 1 "'static_map.policy' needs one of moving, transient; got 'transiant'" "$bin/cleanmap" "$seq" -o "$scratch/t" -c "$scratch/policy.ini"
+
+# DESIGN §2d: the map's own decisions per point, and the cleaning removes moving points the
+# windowed test kept (the default scenario's movers) without costing the static map much.
+[[ $(ls "$scratch/ini/map_labels" | wc -l) -eq 13 && -s $scratch/ini/map_removed.ply ]] || fail "no map_labels/ or map_removed.ply"
+sed 's/^clean = 1/clean = 0/' "$scratch/ini/params.ini" >"$scratch/noclean.ini"
+"$bin/cleanmap" "$seq" -o "$scratch/noclean" --quiet -c "$scratch/noclean.ini" >/dev/null || fail "run without cleaning failed"
+"$bin/cleanmap" "$seq" -o "$scratch/clean" --quiet >/dev/null || fail "run with cleaning failed"
+score() { "$bin/cleanmap-eval" "$seq" "$1" --json | sed -n "s/^ *\"$2\": \([0-9.e-]*\),*$/\1/p"; }
+da0=$(score "$scratch/noclean" DA) da1=$(score "$scratch/clean" DA) sa0=$(score "$scratch/noclean" SA) sa1=$(score "$scratch/clean" SA)
+echo "cleanmap_test: map DA $da0 -> $da1, SA $sa0 -> $sa1 with the free-space cleaning"
+awk -v a="$da0" -v b="$da1" 'BEGIN { exit !(b >= a) }' || fail "cleaning lowered DA ($da0 -> $da1)"
+awk -v a="$sa0" -v b="$sa1" 'BEGIN { exit !(b >= a - 0.03) }' || fail "cleaning cost more than 0.03 SA ($sa0 -> $sa1)"
 
 [[ $fails -eq 0 ]] && echo "cleanmap_test: all checks passed"
 exit $((fails > 0))

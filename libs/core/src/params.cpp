@@ -53,6 +53,14 @@ void validate(const PipelineParams& p, const std::string& name) {
   require(r.max_speed > 0 && r.max_turn_rate > 0,
           "registration.max_speed and max_turn_rate must be > 0");
   require(p.threads >= 1, "run.threads must be >= 1");
+  const auto& m = p.map;
+  require(m.radius >= 0, "static_map.radius must be >= 0 (0: the map holds the crop only)");
+  require(m.voxel >= 0.02 && m.voxel <= 5, "static_map.voxel must be in [0.02, 5] m");
+  require(m.min_free_scans >= 1, "static_map.min_free_scans must be >= 1");
+  require(m.margin >= 0 && m.min_range >= 0 && m.beam_spacing >= 0,
+          "static_map.margin, map.min_range and map.beam_spacing must be >= 0");
+  require(m.policy == MapPolicy::kMoving || m.policy == MapPolicy::kTransient,
+          "static_map.policy must be moving or transient");
 }
 
 }  // namespace cleanmap

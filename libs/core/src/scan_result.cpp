@@ -11,6 +11,7 @@ StageTimes& StageTimes::operator+=(const StageTimes& o) {
   octree += o.octree;
   classify += o.classify;
   objects += o.objects;
+  free_space += o.free_space;
   total += o.total;
   return *this;
 }
@@ -26,6 +27,7 @@ ScanStats& ScanStats::operator+=(const ScanStats& o) {
   moving += o.moving;
   static_points += o.static_points;
   window += o.window;
+  map_far += o.map_far;
   total_conflicts += o.total_conflicts;
   no_evidence += o.no_evidence;
   conflicting_scans += o.conflicting_scans;

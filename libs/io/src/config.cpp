@@ -20,7 +20,24 @@ struct Key {
   std::function<void(double)> set;
   std::function<double()> get;
   bool integer;
+  std::vector<std::string> names = {};  ///< a named choice: the value is the index of its name
 };
+
+// A key's value from ini text: a number, or one of its names.
+std::optional<double> parseValue(const Key& k, const std::string& text, std::string& why) {
+  if (k.names.empty()) return parseNumber(text, k.integer, why);
+  for (std::size_t i = 0; i < k.names.size(); ++i)
+    if (k.names[i] == text) return double(i);
+  why = "needs one of";
+  for (std::size_t i = 0; i < k.names.size(); ++i) why += (i ? ", " : " ") + k.names[i];
+  why += "; got '" + text + "'";
+  return std::nullopt;
+}
+
+std::string formatValue(const Key& k) {
+  if (k.names.empty()) return shortestDouble(k.get());
+  return k.names.at(static_cast<std::size_t>(k.get()));
+}
 
 // The single table of ini keys: section.key -> field.
 std::map<std::string, Key> table(PipelineParams& p) {
@@ -74,6 +91,19 @@ std::map<std::string, Key> table(PipelineParams& p) {
       {"registration.deskew", Key{[&p](double v) { p.registration.deskew = v != 0; },
                                   [&p] { return p.registration.deskew ? 1.0 : 0.0; }, true}},
       {"registration.cone_noise", d(p.registration.cone_noise)},
+      {"static_map.radius", d(p.map.radius)},
+      {"static_map.clean", Key{[&p](double v) { p.map.clean = v != 0; },
+                               [&p] { return p.map.clean ? 1.0 : 0.0; }, true}},
+      {"static_map.policy", Key{[&p](double v) { p.map.policy = static_cast<MapPolicy>(int(v)); },
+                                [&p] { return double(int(p.map.policy)); },
+                                true,
+                                {"moving", "transient"}}},
+      {"static_map.voxel", d(p.map.voxel)},
+      {"static_map.min_free_scans", i(p.map.min_free_scans)},
+      {"static_map.free_ratio", d(p.map.free_ratio)},
+      {"static_map.margin", d(p.map.margin)},
+      {"static_map.min_range", d(p.map.min_range)},
+      {"static_map.beam_spacing", d(p.map.beam_spacing)},
       {"run.seed", Key{[&p](double v) { p.seed = static_cast<uint64_t>(v); },
                        [&p] { return double(p.seed); }, true}},
       {"run.threads", i(p.threads)},
@@ -107,7 +137,7 @@ void setParam(PipelineParams& params, const std::string& key, const std::string&
   const auto it = keys.find(key);
   if (it == keys.end()) throw Error(where, "unknown key '" + key + "'");
   std::string why;
-  const auto v = parseNumber(trimBlanks(value), it->second.integer, why);
+  const auto v = parseValue(it->second, trimBlanks(value), why);
   if (!v) throw Error(where, "'" + key + "' " + why);
   it->second.set(*v);
 }
@@ -115,7 +145,7 @@ void setParam(PipelineParams& params, const std::string& key, const std::string&
 std::vector<std::pair<std::string, std::string>> paramValues(const PipelineParams& params) {
   PipelineParams copy = params;
   std::vector<std::pair<std::string, std::string>> out;
-  for (const auto& [name, key] : table(copy)) out.emplace_back(name, shortestDouble(key.get()));
+  for (const auto& [name, key] : table(copy)) out.emplace_back(name, formatValue(key));
   return out;
 }
 
@@ -143,7 +173,7 @@ void parseParams(const std::string& text, const std::string& name, PipelineParam
     if (!given.insert(full).second)
       iniError(name, e.line, "'" + e.key + "' given twice in [" + e.section + "]");
     std::string why;
-    const auto v = parseNumber(e.value, it->second.integer, why);
+    const auto v = parseValue(it->second, e.value, why);
     if (!v) iniError(name, e.line, "'" + e.key + "' " + why);
     it->second.set(*v);
   };
@@ -171,7 +201,7 @@ std::string toIni(const PipelineParams& params) {
       section = name.substr(0, dot);
       os << (os.tellp() > 0 ? "\n" : "") << "[" << section << "]\n";
     }
-    os << name.substr(dot + 1) << " = " << shortestDouble(key.get()) << "\n";
+    os << name.substr(dot + 1) << " = " << formatValue(key) << "\n";
   }
   return os.str();
 }

@@ -10,7 +10,9 @@
 #include <cstdlib>
 
 #include <algorithm>
+#include <chrono>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <map>
 #include <nlohmann/json.hpp>
@@ -120,6 +122,13 @@ OutputWriter::OutputWriter(const std::string& outdir, const std::string& input,
       staging_ + "/static_map.ply",
       CloudStreamOptions{CloudColour::kHeight, staging_ + "/static_map.pcd"});
   full_ = std::make_unique<PlyStreamWriter>(staging_ + "/static_map_full.ply", height);
+  removed_ = std::make_unique<PlyStreamWriter>(staging_ + "/map_removed.ply",
+                                               CloudStreamOptions{CloudColour::kRed, {}});
+  fs::create_directories(fs::path(staging_) / "map_labels", ec);
+  spool_path_ = staging_ + "/.map_spool";
+  spool_ = std::fopen(spool_path_.c_str(), "w+b");
+  if (!spool_ || ec)
+    throw Error(staging_, "cannot create the map spool: " + std::string(std::strerror(errno)));
   moving_ = std::make_unique<PlyStreamWriter>(
       staging_ + "/dynamic.ply", CloudStreamOptions{CloudColour::kRed, staging_ + "/dynamic.pcd"});
 }
@@ -128,6 +137,8 @@ OutputWriter::~OutputWriter() {
   compact_.reset();  // closes and removes the temporaries first
   full_.reset();
   moving_.reset();
+  removed_.reset();
+  if (spool_) std::fclose(spool_);
   if (!published_ && !staging_.empty()) {
     std::error_code ec;
     fs::remove_all(staging_, ec);
@@ -137,9 +148,8 @@ OutputWriter::~OutputWriter() {
 void OutputWriter::write(const ScanResult& r, const std::optional<MosCounts>& eval) {
   writeLabels(staging_ + "/labels/" + r.stem + ".label", r.labels);
   const double z = r.pose.translation().z();
-  compact_->append(r.static_compact, z);
-  full_->append(r.static_full, z);
   moving_->append(r.moving, z);
+  spoolScan(r);
   poses_.push_back(r.pose);
   times_.push_back(r.timestamp);
   pose_info_.push_back(r.pose_info);
@@ -150,6 +160,110 @@ void OutputWriter::write(const ScanResult& r, const std::optional<MosCounts>& ev
     eval_ += *eval;
     scan_eval_.push_back(*eval);
   }
+}
+
+// The spool of the map points (DESIGN §2d): per scan a header, then its full-map points with their
+// original index and kind, then its moving points' original indices. Read back by writeMaps().
+namespace {
+struct SpoolHeader {
+  int64_t index;
+  double z;
+  uint64_t points, full, moving;
+};
+struct SpoolPoint {
+  PointXYZI p;
+  uint32_t orig;
+  uint32_t kind;  // MapKind | kSpoolCompact
+};
+constexpr uint32_t kSpoolCompact = 0x100;  // also in the compact map (not a duplicate)
+
+void spoolWrite(std::FILE* f, const void* data, std::size_t bytes, const std::string& path) {
+  if (bytes && std::fwrite(data, 1, bytes, f) != bytes)
+    throw Error(path, "cannot write the map spool: " + std::string(std::strerror(errno)));
+}
+void spoolRead(std::FILE* f, void* data, std::size_t bytes, const std::string& path) {
+  if (bytes && std::fread(data, 1, bytes, f) != bytes)
+    throw Error(path, "the map spool is truncated");
+}
+}  // namespace
+
+void OutputWriter::spoolScan(const ScanResult& r) {
+  // A result made without the pipeline may lack the indices: its points are then static and
+  // stay out of map_labels/.
+  const bool indexed = r.static_full_index.size() == r.static_full.size() &&
+                       r.static_full_kind.size() == r.static_full.size();
+  std::vector<uint32_t> moving_index = r.moving_index;
+  moving_index.resize(r.moving.size(), ~uint32_t(0));
+  const SpoolHeader h{static_cast<int64_t>(r.index), r.pose.translation().z(), r.labels.size(),
+                      r.static_full.size(), r.moving.size()};
+  spoolWrite(spool_, &h, sizeof h, spool_path_);
+  // The compact points are the full map's non-duplicate static points, in the same order.
+  std::size_t c = 0;
+  std::vector<SpoolPoint> pts(r.static_full.size());
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    uint32_t kind = indexed ? uint32_t{r.static_full_kind[i]} : uint32_t{kMapStatic};
+    if (c < r.static_compact.size() && kind == kMapStatic &&
+        std::memcmp(&r.static_compact[c], &r.static_full[i], sizeof(PointXYZI)) == 0) {
+      kind |= kSpoolCompact;
+      ++c;
+    }
+    pts[i] = {r.static_full[i], indexed ? r.static_full_index[i] : ~uint32_t(0), kind};
+  }
+  if (c != r.static_compact.size())
+    throw Error(staging_, "scan " + r.stem + ": compact map points missing from the full map");
+  spoolWrite(spool_, pts.data(), pts.size() * sizeof(SpoolPoint), spool_path_);
+  spoolWrite(spool_, moving_index.data(), moving_index.size() * sizeof(uint32_t), spool_path_);
+}
+
+// DESIGN §2d: every spooled point is decided with the whole sequence's free space: the ground
+// stays, a point whose voxel the policy calls empty goes to map_removed.ply, the others to the
+// maps; map_labels/<stem>.label says what the map did with each original point.
+void OutputWriter::writeMaps(const FreeSpaceMap* free_space) {
+  const auto t0 = std::chrono::steady_clock::now();
+  if (std::fflush(spool_) != 0 || std::fseek(spool_, 0, SEEK_SET) != 0)
+    throw Error(spool_path_, "cannot read the map spool back");
+  std::vector<SpoolPoint> pts;
+  std::vector<uint32_t> moving;
+  std::vector<PointXYZI> full, compact, removed;
+  for (std::size_t s = 0; s < stems_.size(); ++s) {
+    SpoolHeader h;
+    spoolRead(spool_, &h, sizeof h, spool_path_);
+    pts.resize(h.full);
+    moving.resize(h.moving);
+    spoolRead(spool_, pts.data(), pts.size() * sizeof(SpoolPoint), spool_path_);
+    spoolRead(spool_, moving.data(), moving.size() * sizeof(uint32_t), spool_path_);
+    Labels map_labels(h.points, kUnclassified);
+    full.clear();
+    compact.clear();
+    removed.clear();
+    for (const auto& q : pts) {
+      const auto kind = static_cast<uint8_t>(q.kind & 0xFF);
+      const bool gone = free_space && !isGroundKind(kind) &&
+                        removedByPolicy(free_space->evidence(q.p.xyz()), h.index, params_.map);
+      if (q.orig < map_labels.size())
+        map_labels[q.orig] = gone ? kMoving : isGroundKind(kind) ? kGround : kStatic;
+      if (gone) {
+        removed.push_back(q.p);
+        continue;
+      }
+      full.push_back(q.p);
+      if (q.kind & kSpoolCompact) compact.push_back(q.p);
+      map_far_kept_ += kind == kMapFar || kind == kMapFarGround;
+    }
+    for (const uint32_t o : moving)
+      if (o < map_labels.size()) map_labels[o] = kMoving;
+    map_removed_ += removed.size();
+    full_->append(full, h.z);
+    compact_->append(compact, h.z);
+    removed_->append(removed, h.z);
+    writeLabels(staging_ + "/map_labels/" + stems_[s] + ".label", map_labels);
+  }
+  std::fclose(spool_);
+  spool_ = nullptr;
+  std::error_code ec;
+  fs::remove(spool_path_, ec);
+  map_ms_ =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 }
 
 // The staging folder becomes OUTDIR in one step: renameat2(RENAME_EXCHANGE) swaps it with an
@@ -174,10 +288,12 @@ void OutputWriter::publish() {
   fs::remove_all(staging_, ec);  // after a swap: the earlier run
 }
 
-void OutputWriter::finish(double wall_s) {
+void OutputWriter::finish(double wall_s, const FreeSpaceMap* free_space) {
+  writeMaps(free_space);
   compact_->close();
   full_->close();
   moving_->close();
+  removed_->close();
   writePosesFile(staging_ + "/poses.txt", poses_);
   writeFileAtomic(staging_ + "/poses_tum.txt", [&](std::ostream& os) {  // TUM: t x y z qx qy qz qw
     char buf[256];
@@ -192,7 +308,7 @@ void OutputWriter::finish(double wall_s) {
   writeFileAtomic(staging_ + "/params.ini", [&](std::ostream& os) { os << toIni(params_); });
 
   ScanStats total;
-  std::vector<double> t_total, t_reg, t_index, t_ground, t_dup, t_oct, t_cls, t_obj;
+  std::vector<double> t_total, t_reg, t_index, t_ground, t_dup, t_oct, t_cls, t_obj, t_free;
   for (const auto& s : stats_) {
     total += s;
     t_total.push_back(s.ms.total);
@@ -203,6 +319,7 @@ void OutputWriter::finish(double wall_s) {
     t_oct.push_back(s.ms.octree);
     t_cls.push_back(s.ms.classify);
     t_obj.push_back(s.ms.objects);
+    t_free.push_back(s.ms.free_space);
   }
   const std::size_t empty = total.empty;
   nlohmann::json j;
@@ -228,12 +345,24 @@ void OutputWriter::finish(double wall_s) {
                  {"no_evidence_points", total.no_evidence},
                  {"static_map_points", compact_->count()},
                  {"static_map_full_points", full_->count()},
-                 {"dynamic_points", moving_->count()}};
+                 {"dynamic_points", moving_->count()},
+                 {"map_far_points", total.map_far},
+                 {"map_far_points_kept", map_far_kept_},
+                 {"map_removed_points", map_removed_}};
+  {
+    const auto& m = params_.map;
+    j["map"] = {{"radius_m", m.radius},
+                {"clean", m.clean && free_space != nullptr},
+                {"policy", m.policy == MapPolicy::kMoving ? "moving" : "transient"},
+                {"removed_points", map_removed_},
+                {"clean_ms", map_ms_},
+                {"free_space_mib", free_space ? double(free_space->bytes()) / (1 << 20) : 0.0}};
+  }
   nlohmann::json timing;
   const std::pair<const char*, std::vector<double>*> stages[] = {
       {"total", &t_total},        {"registration", &t_reg}, {"beam_index", &t_index},
       {"crop_ground", &t_ground}, {"duplicates", &t_dup},   {"octree", &t_oct},
-      {"classify", &t_cls},       {"objects", &t_obj}};
+      {"classify", &t_cls},       {"objects", &t_obj},      {"free_space", &t_free}};
   for (const auto& [name, v] : stages) {
     const Spread s = spread(*v);
     timing[name] = {{"median_ms", s.median}, {"p95_ms", s.p95}, {"mean_ms", s.mean}};

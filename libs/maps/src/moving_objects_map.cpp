@@ -147,6 +147,10 @@ void CMovingObjectsMap::insertFrame(cleanmap::Frame&& frame) {
   pipe_->push(std::move(frame));
 }
 
+const cleanmap::FreeSpaceMap* CMovingObjectsMap::freeSpace() const {
+  return pipe_ ? pipe_->freeSpace() : nullptr;
+}
+
 void CMovingObjectsMap::flush() {
   if (pipe_) pipe_->finish();
 }

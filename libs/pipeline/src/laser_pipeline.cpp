@@ -22,7 +22,8 @@ struct LaserPipeline::Prepared {
   Scan scan;
   BeamIndex beams;
   std::vector<uint8_t> in_crop;    // DESIGN §2.2
-  std::vector<uint8_t> ground;     // DESIGN §2a, within the crop
+  std::vector<uint8_t> ground;     // DESIGN §2a, within the crop and the map radius
+  std::vector<uint8_t> far;        // beyond the crop, within the map radius (DESIGN §2d)
   std::vector<uint8_t> candidate;  // in the crop and not ground: what the stages decide
   Eigen::Isometry3d world_to_sensor;
   PoseInfo pose_info;
@@ -58,7 +59,9 @@ LaserPipeline::LaserPipeline(const PipelineParams& params, Sink sink)
       test_(params.ds),
       dup_(params.filter),
       work_(std::make_unique<Work>()),
-      source_(params.poses) {}
+      source_(params.poses) {
+  if (p_.map.clean) free_ = std::make_unique<FreeSpaceMap>(p_.map);
+}
 
 LaserPipeline::~LaserPipeline() = default;
 
@@ -76,6 +79,7 @@ std::unique_ptr<LaserPipeline> LaserPipeline::clone(Sink sink) const {
   if (odo_) c->odo_ = std::make_unique<reg::Odometry>(*odo_);
   c->prev_odometry_ = prev_odometry_;
   c->prev_pose_ = prev_pose_;
+  if (free_) c->free_ = std::make_unique<FreeSpaceMap>(*free_);
   return c;
 }
 
@@ -153,18 +157,32 @@ std::unique_ptr<LaserPipeline::Prepared> LaserPipeline::prepare(Frame&& f) {
   t0 = Clock::now();
   const auto& pts = s->scan.points;
   const float tau = static_cast<float>(p_.filter.crop_tau);
-  s->ground = segmentGround(pts, p_.ground, p_.filter.crop_tau);
+  // The ground grid covers the map radius too (inner cells do not depend on outer ones, so the
+  // labels inside the crop are the same).
+  const double r_map = p_.map.radius;
+  s->ground = segmentGround(pts, p_.ground, std::max(p_.filter.crop_tau, r_map));
   s->in_crop.resize(pts.size());
   s->candidate.resize(pts.size());
+  s->far.assign(pts.size(), 0);
   for (std::size_t i = 0; i < pts.size(); ++i) {  // DESIGN §2.2: per-axis crop, sensor frame
     s->in_crop[i] =
         std::abs(pts[i].x) <= tau && std::abs(pts[i].y) <= tau && std::abs(pts[i].z) <= tau;
-    s->ground[i] = s->ground[i] && s->in_crop[i];
+    s->far[i] = !s->in_crop[i] &&
+                double(pts[i].x) * pts[i].x + double(pts[i].y) * pts[i].y <= r_map * r_map;
+    s->ground[i] = s->ground[i] && (s->in_crop[i] || s->far[i]);
     s->candidate[i] = s->in_crop[i] && !s->ground[i];
     st.in_crop += s->in_crop[i];
-    st.ground += s->ground[i];
+    st.ground += s->ground[i] && s->in_crop[i];
+    st.map_far += s->far[i];
   }
   st.ms.ground = msSince(t0);
+
+  // DESIGN §2d: every beam of the scan adds to the sequence's free space.
+  if (free_) {
+    t0 = Clock::now();
+    free_->insertScan(pts, s->scan.pose, static_cast<int64_t>(s->index));
+    st.ms.free_space = msSince(t0);
+  }
   return s;
 }
 
@@ -213,8 +231,8 @@ void LaserPipeline::decide(std::size_t pos) {
   remember(r, static_cast<long>(s.index));
   if (odo_)
     odo_->dropPoints(static_cast<int64_t>(s.index), w.moving);  // movers leave the local map
-  r.stats.ms.total =
-      msSince(t_start) + s.stats.ms.registration + s.stats.ms.index + s.stats.ms.ground;
+  r.stats.ms.total = msSince(t_start) + s.stats.ms.registration + s.stats.ms.index +
+                     s.stats.ms.ground + s.stats.ms.free_space;
   ++decided_;
   sink_(std::move(r));
 }
@@ -336,6 +354,14 @@ ScanResult LaserPipeline::collect(Prepared& s, const Work& w) const {
   r.labels.assign(s.stats.points, kUnclassified);
   const auto& pts = s.scan.points;
   for (uint32_t i = 0; i < pts.size(); ++i) {
+    if (s.far[i]) {  // DESIGN §2d: beyond the crop, in the map; its label stays unclassified
+      const Eigen::Vector3d wd = s.scan.pose * pts[i].xyz().cast<double>();
+      r.static_full.push_back({static_cast<float>(wd.x()), static_cast<float>(wd.y()),
+                               static_cast<float>(wd.z()), pts[i].intensity});
+      r.static_full_index.push_back(s.scan.originalIndex(i));
+      r.static_full_kind.push_back(s.ground[i] ? kMapFarGround : kMapFar);
+      continue;
+    }
     if (!s.in_crop[i]) continue;
     const uint32_t orig = s.scan.originalIndex(i);
     // Ground points were never transformed by the stages above.
@@ -346,13 +372,18 @@ ScanResult LaserPipeline::collect(Prepared& s, const Work& w) const {
     if (s.ground[i]) {
       r.labels[orig] = kGround;
       r.static_full.push_back(p);
+      r.static_full_index.push_back(orig);
+      r.static_full_kind.push_back(kMapGround);
     } else if (w.moving[i]) {
       r.labels[orig] = kMoving;
       r.moving.push_back(p);
+      r.moving_index.push_back(orig);
       ++s.stats.moving;
     } else {
       r.labels[orig] = kStatic;
       r.static_full.push_back(p);
+      r.static_full_index.push_back(orig);
+      r.static_full_kind.push_back(kMapStatic);
       ++s.stats.static_points;
       if (!w.duplicate[i]) r.static_compact.push_back(p);
     }

@@ -92,6 +92,39 @@ struct RegistrationParams {
   double cone_noise = 0.0;
 };
 
+/// What the map keeps (DESIGN §2d).
+enum class MapPolicy {
+  /// The benchmark's convention: remove what was moving when scanned: a point whose space was
+  /// seen empty both before and after its scan (something came and went).
+  kMoving,
+  /// Also remove what stood still and then left (a parked car that drives away): a point whose
+  /// space was seen empty at any time.
+  kTransient,
+};
+
+/// DESIGN §2d: the map's coverage and its long-horizon cleaning.
+struct MapParams {
+  /// m; the map holds every point within this horizontal distance of its sensor (the DynamicMap
+  /// benchmark's 50 m), classified for the map beyond the per-point crop.
+  double radius = 50.0;
+  bool clean =
+      true;  ///< remove the points whose space is seen empty (false: the windowed test only)
+  MapPolicy policy = MapPolicy::kTransient;
+  double voxel = 0.2;      ///< m; free-space voxel side
+  int min_free_scans = 2;  ///< scans that must see a voxel empty before its points go
+  /// ... and by at least free_ratio times as many scans as returned from it (0 = off): see-through
+  /// foliage and grazing beams past a surface are seen empty less often than they are hit.
+  double free_ratio = 0.5;
+  /// m; a beam marks space empty up to this distance short of its return, beyond the voxel's
+  /// half diagonal: 2 sigma of the beam model (sqrt(sigma_m^2 + sigma_r^2) = 0.16 m).
+  double margin = 0.32;
+  double min_range = 1.0;  ///< m; the first metre of every beam is not marked (the car itself)
+  /// rad; azimuth step between the beams of a ring (HDL-64E: 0.0031; 0 = cast every beam whole).
+  /// Near the sensor only every 2^L-th beam is cast, as far out as those alone are less than a
+  /// voxel apart (free_space.cpp).
+  double beam_spacing = 0.003;
+};
+
 /// Where scan poses come from (DESIGN §2.1): `kAuto` is `kGiven` when the first scan has a pose
 /// and `kGicp` otherwise; `kRefine` starts GICP from the given poses.
 enum class PoseSource { kAuto, kGiven, kGicp, kRefine };
@@ -103,6 +136,7 @@ struct PipelineParams {
   OctreeParams octree;
   ObjectParams object;
   RegistrationParams registration;
+  MapParams map;
   PoseSource poses = PoseSource::kAuto;  ///< a run option (--poses), not an ini key
   uint64_t seed = 42;                    ///< octree sampling; a run is reproducible bit for bit
   int threads = 2;                       ///< worker threads for the moving-point test (1 = serial)

@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "cleanmap/core/free_space.h"
 #include "cleanmap/core/metrics.h"
 #include "cleanmap/core/params.h"
 #include "cleanmap/core/scan_result.h"
@@ -46,9 +47,10 @@ class OutputWriter {
   void write(const ScanResult& r, const std::optional<MosCounts>& eval);
   /// Wall time (ms, whole run) of another writer of the run (report.json `output_ms`).
   void addOutputTime(const std::string& name, double ms) { output_ms_[name] += ms; }
-  /// Closes the maps, writes poses and the report, and publishes the folder as OUTDIR.
-  /// `wall_s`: whole run, seconds.
-  void finish(double wall_s);
+  /// Cleans the maps with the sequence's free space (DESIGN §2d; null: no cleaning), writes
+  /// static_map(_full).ply, map_removed.ply, map_labels/, poses and the report, and publishes the
+  /// folder as OUTDIR. `wall_s`: whole run, seconds.
+  void finish(double wall_s, const FreeSpaceMap* free_space = nullptr);
 
   const std::string& dir() const { return dir_; }  ///< OUTDIR
   const std::string& staging() const {
@@ -65,7 +67,13 @@ class OutputWriter {
   std::string dir_, staging_, input_;
   bool published_ = false;
   PipelineParams params_;
-  std::unique_ptr<PlyStreamWriter> compact_, full_, moving_;
+  void spoolScan(const ScanResult& r);
+  void writeMaps(const FreeSpaceMap* free_space);
+  std::unique_ptr<PlyStreamWriter> compact_, full_, moving_, removed_;
+  std::FILE* spool_ = nullptr;  // the map points of every scan until finish() decides them
+  std::string spool_path_;
+  std::size_t map_removed_ = 0, map_far_kept_ = 0;
+  double map_ms_ = 0;
   std::vector<Eigen::Isometry3d> poses_;
   std::vector<ScanStats> stats_;
   std::vector<std::string> stems_;

@@ -1,0 +1,63 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// DESIGN §2d: the long-horizon free-space accumulator that cleans the map. Every beam of every scan
+// marks the voxels it passed through as seen empty by that scan, stopping a margin short of its
+// return (the beam model's noise, DESIGN §2b) and skipping the voxels that scan itself hits (the
+// scan-conflict rule, doc/SCAN_CONFLICT.md). Per voxel it keeps how many scans saw it empty and
+// the first and last of them: sums, minima and maxima, so two accumulators of a sequence's chunks
+// merge exactly (merge() commutes) and memory grows with the volume the beams swept (the area
+// mapped), not with the number of scans.
+#pragma once
+#include <Eigen/Geometry>
+#include <cstdint>
+#include <memory>
+#include <unordered_map>
+#include <vector>
+
+#include "cleanmap/core/params.h"
+#include "cleanmap/core/types.h"
+
+namespace cleanmap {
+
+/// Per voxel: scans that saw it empty, the first and the last of them (-1: none).
+struct FreeEvidence {
+  int count = 0;
+  int hits = 0;  ///< scans that returned from the voxel
+  int64_t first = -1, last = -1;
+};
+
+/// Is a map point (non-ground) of scan `scan` removed, given its voxel's evidence?
+bool removedByPolicy(const FreeEvidence& e, int64_t scan, const MapParams& p);
+
+class FreeSpaceMap {
+ public:
+  explicit FreeSpaceMap(const MapParams& p);
+  ~FreeSpaceMap();
+  FreeSpaceMap(const FreeSpaceMap& o);
+  FreeSpaceMap& operator=(const FreeSpaceMap&) = delete;
+
+  /// Adds one scan: `points` in the sensor frame (every valid return is a beam), `pose` sensor to
+  /// world, `scan` its index in the sequence (scans may come in any order, each once).
+  void insertScan(const std::vector<PointXYZI>& points, const Eigen::Isometry3d& pose,
+                  int64_t scan);
+  /// The evidence of the voxel holding world point p.
+  FreeEvidence evidence(const Eigen::Vector3f& p) const;
+  /// Adds another accumulator of the same parameters (another chunk of the sequence); the result
+  /// does not depend on the order of merging.
+  void merge(const FreeSpaceMap& o);
+
+  std::size_t blocks() const { return blocks_.size(); }
+  std::size_t bytes() const;                            ///< memory held by the voxels
+  std::size_t voxelsMarked() const { return marked_; }  ///< voxel visits that counted, so far
+  const MapParams& params() const { return p_; }
+
+ private:
+  struct Block;
+  Block& block(uint64_t key, int64_t scan);
+  const Block* findBlock(uint64_t key) const;
+  MapParams p_;
+  double inv_;
+  std::unordered_map<uint64_t, std::unique_ptr<Block>> blocks_;
+  std::size_t marked_ = 0;
+};
+
+}  // namespace cleanmap

@@ -1,0 +1,211 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#include "cleanmap/core/free_space.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <limits>
+
+#include "cleanmap/core/cell_key.h"
+
+namespace cleanmap {
+namespace {
+constexpr int kBits = 3;  // blocks of 8 x 8 x 8 voxels
+constexpr int kSide = 1 << kBits;
+constexpr int kVoxels = kSide * kSide * kSide;
+
+inline int localIndex(int64_t x, int64_t y, int64_t z) {
+  return static_cast<int>(((x & (kSide - 1)) << (2 * kBits)) | ((y & (kSide - 1)) << kBits) |
+                          (z & (kSide - 1)));
+}
+inline uint64_t blockKey(int64_t x, int64_t y, int64_t z) {
+  // Arithmetic shifts floor negative voxel indices (C++20 defines it; GCC and Clang always did).
+  return cellKey(x >> kBits, y >> kBits, z >> kBits);
+}
+}  // namespace
+
+struct FreeSpaceMap::Block {
+  int64_t stamp = std::numeric_limits<int64_t>::min();  // the scan the masks below are about
+  uint64_t hit[kVoxels / 64] = {};   // voxels holding a return of that scan (not marked by it)
+  uint64_t seen[kVoxels / 64] = {};  // voxels that scan has already counted
+  struct Voxel {
+    int32_t first = -1, last = -1;  // the first and last scan that saw it empty
+    uint16_t count = 0;             // scans that saw it empty (saturating)
+    uint16_t hits = 0;              // scans that returned from it (saturating)
+  };
+  Voxel v[kVoxels];  // one cache line per visit
+  void restamp(int64_t scan) {
+    if (stamp == scan) return;
+    stamp = scan;
+    std::memset(hit, 0, sizeof hit);
+    std::memset(seen, 0, sizeof seen);
+  }
+  static bool bit(const uint64_t* m, int i) { return (m[i >> 6] >> (i & 63)) & 1u; }
+  static void set(uint64_t* m, int i) { m[i >> 6] |= uint64_t(1) << (i & 63); }
+};
+
+bool removedByPolicy(const FreeEvidence& e, int64_t scan, const MapParams& p) {
+  if (!p.clean || e.count < p.min_free_scans) return false;
+  // Seen empty by fewer scans than return from it (times free_ratio): see-through (foliage,
+  // fences, windows) or grazing beams past a surface, not a place something left.
+  if (double(e.count) < p.free_ratio * double(e.hits)) return false;
+  if (p.policy == MapPolicy::kTransient) return true;
+  return e.first < scan && e.last > scan;  // kMoving: empty before and after (it came and went)
+}
+
+FreeSpaceMap::FreeSpaceMap(const MapParams& p) : p_(p), inv_(1.0 / p.voxel) {}
+FreeSpaceMap::~FreeSpaceMap() = default;
+FreeSpaceMap::FreeSpaceMap(const FreeSpaceMap& o) : p_(o.p_), inv_(o.inv_), marked_(o.marked_) {
+  blocks_.reserve(o.blocks_.size());
+  for (const auto& [k, b] : o.blocks_) blocks_.emplace(k, std::make_unique<Block>(*b));
+}
+
+FreeSpaceMap::Block& FreeSpaceMap::block(uint64_t key, int64_t scan) {
+  auto& b = blocks_[key];
+  if (!b) b = std::make_unique<Block>();
+  b->restamp(scan);
+  return *b;
+}
+
+const FreeSpaceMap::Block* FreeSpaceMap::findBlock(uint64_t key) const {
+  const auto it = blocks_.find(key);
+  return it == blocks_.end() ? nullptr : it->second.get();
+}
+
+std::size_t FreeSpaceMap::bytes() const {
+  return blocks_.size() * (sizeof(Block) + sizeof(std::unique_ptr<Block>) + 3 * sizeof(void*));
+}
+
+void FreeSpaceMap::insertScan(const std::vector<PointXYZI>& points, const Eigen::Isometry3d& pose,
+                              int64_t scan) {
+  const Eigen::Vector3d o = pose.translation();
+  // The scan-conflict rule: the voxels this scan returns from are not seen empty by it.
+  {
+    uint64_t cached = ~uint64_t(0);
+    Block* b = nullptr;
+    for (const auto& p : points) {
+      const Eigen::Vector3d w = pose * p.xyz().cast<double>();
+      const int64_t x = floorToCell(w.x(), inv_), y = floorToCell(w.y(), inv_),
+                    z = floorToCell(w.z(), inv_);
+      const uint64_t k = blockKey(x, y, z);
+      if (k != cached) {
+        b = &block(k, scan);
+        cached = k;
+      }
+      const int li = localIndex(x, y, z);
+      if (!Block::bit(b->hit, li)) {
+        Block::set(b->hit, li);
+        if (b->v[li].hits < 0xFFFF) ++b->v[li].hits;
+      }
+    }
+  }
+  // Each beam, voxel by voxel (Amanatides & Woo), to the margin before its return; a beam longer
+  // than the map radius marks up to the radius (its return lies beyond). Near the sensor,
+  // neighbouring beams of a ring cross the same voxels, so a beam starts where the beams of its
+  // azimuth level alone would leave voxels unvisited: the beams of azimuth bin b (bins of
+  // beam_spacing) with 2^L dividing b are 2^L bins apart, which at range t is one voxel when
+  // t = voxel / (2^L beam_spacing); a beam of level L < kLevels starts at voxel / (2^(L+1)
+  // beam_spacing), those of the top level at min_range.
+  const double half_diag = 0.5 * std::sqrt(3.0) * p_.voxel;
+  constexpr int kLevels = 5;
+  double level_start[kLevels + 1];
+  for (int L = 0; L <= kLevels; ++L)
+    level_start[L] =
+        L == kLevels || p_.beam_spacing <= 0
+            ? p_.min_range
+            : std::max(p_.min_range, p_.voxel / (std::ldexp(2.0, L) * p_.beam_spacing));
+  const double inv_spacing = p_.beam_spacing > 0 ? 1.0 / p_.beam_spacing : 0.0;
+  const Eigen::Matrix3d R = pose.linear();
+  uint64_t cached = ~uint64_t(0);
+  Block* b = nullptr;
+  for (const auto& p : points) {
+    const Eigen::Vector3d ps = p.xyz().cast<double>();
+    const double r = ps.norm();
+    const double rh = std::hypot(ps.x(), ps.y());
+    if (!(r > 0)) continue;
+    double t1 = r - p_.margin - half_diag;
+    if (rh > p_.radius) t1 = std::min(t1, r * p_.radius / rh);
+    int level = kLevels;
+    if (inv_spacing > 0) {
+      const auto bin = static_cast<uint64_t>(
+          static_cast<int64_t>(std::floor((std::atan2(ps.y(), ps.x()) + M_PI) * inv_spacing)));
+      level = bin == 0 ? kLevels : std::min(kLevels, __builtin_ctzll(bin));
+    }
+    const double t0 = level_start[level];
+    if (t1 <= t0) continue;
+    const Eigen::Vector3d d = R * (ps / r);
+    const Eigen::Vector3d a = (o + t0 * d) * inv_;  // voxel units
+    const double len = (t1 - t0) * inv_;
+    int64_t v[3] = {floorToCell(a.x(), 1.0), floorToCell(a.y(), 1.0), floorToCell(a.z(), 1.0)};
+    int step[3];
+    double tmax[3], tdelta[3];
+    for (int i = 0; i < 3; ++i) {
+      if (d[i] > 0) {
+        step[i] = 1;
+        tdelta[i] = 1.0 / d[i];
+        tmax[i] = (double(v[i]) + 1.0 - a[i]) * tdelta[i];
+      } else if (d[i] < 0) {
+        step[i] = -1;
+        tdelta[i] = -1.0 / d[i];
+        tmax[i] = (a[i] - double(v[i])) * tdelta[i];
+      } else {
+        step[i] = 0;
+        tdelta[i] = tmax[i] = std::numeric_limits<double>::infinity();
+      }
+    }
+    for (double t = 0; t <= len;) {
+      const uint64_t k = blockKey(v[0], v[1], v[2]);
+      if (k != cached) {
+        b = &block(k, scan);
+        cached = k;
+      }
+      const int li = localIndex(v[0], v[1], v[2]);
+      if (!Block::bit(b->hit, li) && !Block::bit(b->seen, li)) {
+        Block::set(b->seen, li);
+        auto& x = b->v[li];
+        if (x.count < 0xFFFF) ++x.count;
+        const auto s32 = static_cast<int32_t>(scan);
+        if (x.first < 0 || s32 < x.first) x.first = s32;
+        x.last = std::max(x.last, s32);
+        ++marked_;
+      }
+      const int i = tmax[0] < tmax[1] ? (tmax[0] < tmax[2] ? 0 : 2) : (tmax[1] < tmax[2] ? 1 : 2);
+      t = tmax[i];
+      tmax[i] += tdelta[i];
+      v[i] += step[i];
+    }
+  }
+}
+
+FreeEvidence FreeSpaceMap::evidence(const Eigen::Vector3f& p) const {
+  const int64_t x = floorToCell(double(p.x()), inv_), y = floorToCell(double(p.y()), inv_),
+                z = floorToCell(double(p.z()), inv_);
+  const Block* b = findBlock(blockKey(x, y, z));
+  FreeEvidence e;
+  if (!b) return e;
+  const int li = localIndex(x, y, z);
+  e.count = static_cast<int>(b->v[li].count);
+  e.hits = static_cast<int>(b->v[li].hits);
+  e.first = b->v[li].first;
+  e.last = b->v[li].last;
+  return e;
+}
+
+void FreeSpaceMap::merge(const FreeSpaceMap& o) {
+  for (const auto& [k, ob] : o.blocks_) {
+    auto& mine = blocks_[k];
+    if (!mine) mine = std::make_unique<Block>();
+    for (int i = 0; i < kVoxels; ++i) {
+      const auto& theirs = ob->v[i];
+      auto& m = mine->v[i];
+      if (theirs.count == 0 && theirs.hits == 0) continue;
+      m.count = static_cast<uint16_t>(std::min(0xFFFF, m.count + theirs.count));
+      m.hits = static_cast<uint16_t>(std::min(0xFFFF, m.hits + theirs.hits));
+      if (theirs.first >= 0 && (m.first < 0 || theirs.first < m.first)) m.first = theirs.first;
+      m.last = std::max(m.last, theirs.last);
+    }
+  }
+  marked_ += o.marked_;
+}
+
+}  // namespace cleanmap

@@ -1,0 +1,109 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// DESIGN §2d: the free-space accumulator that cleans the map: what a beam marks, the scan-conflict
+// rule, the two policies, and merging chunks (sums, minima, maxima: any order, same result).
+#include <gtest/gtest.h>
+
+#include "cleanmap/core/free_space.h"
+
+using namespace cleanmap;
+
+namespace {
+
+// A scan of one ring of beams in the horizontal plane, all returning at `range`, plus `extra`.
+std::vector<PointXYZI> ring(float range, std::vector<PointXYZI> extra = {}) {
+  std::vector<PointXYZI> pts = std::move(extra);
+  for (int a = 0; a < 2000; ++a) {
+    const float t = 2.f * float(M_PI) * float(a) / 2000.f;
+    pts.push_back({range * std::cos(t), range * std::sin(t), 0.f, 0.f});
+  }
+  return pts;
+}
+
+MapParams params() {
+  MapParams p;
+  p.free_ratio = 0;
+  return p;
+}
+
+Eigen::Isometry3d at(double x) {
+  return Eigen::Isometry3d(Eigen::Translation3d(x, 0, 0));
+}
+
+}  // namespace
+
+TEST(FreeSpace, ABeamMarksTheSpaceBeforeItsReturnNotAtIt) {
+  FreeSpaceMap fs(params());
+  fs.insertScan(ring(20.f), at(0), 0);
+  EXPECT_EQ(fs.evidence({10.f, 0.f, 0.f}).count, 1);  // passed through
+  EXPECT_EQ(fs.evidence({10.f, 0.f, 0.f}).first, 0);
+  EXPECT_EQ(fs.evidence({20.f, 0.f, 0.f}).count, 0);    // the return itself
+  EXPECT_EQ(fs.evidence({19.75f, 0.f, 0.f}).count, 0);  // within the margin
+  EXPECT_EQ(fs.evidence({25.f, 0.f, 0.f}).count, 0);    // behind it: unseen
+  EXPECT_EQ(fs.evidence({0.5f, 0.f, 0.f}).count, 0);    // inside min_range
+}
+
+TEST(FreeSpace, AScanDoesNotSeeEmptyWhereItReturnsFrom) {
+  // A post at 8 m in front of a wall at 20 m: the beam to the wall behind the post's side passes
+  // through the post's voxel (scan-conflict rule: the scan returns from it, so it is not empty).
+  FreeSpaceMap fs(params());
+  fs.insertScan(ring(20.f, {{8.05f, 0.f, 0.f, 0.f}}), at(0), 0);
+  EXPECT_EQ(fs.evidence({8.05f, 0.f, 0.f}).count, 0);
+  EXPECT_EQ(fs.evidence({8.05f, 0.f, 0.f}).hits, 1);
+}
+
+TEST(FreeSpace, ScansCountOnceAndPoliciesDecide) {
+  MapParams p = params();
+  FreeSpaceMap fs(p);
+  // A car at x = 10 in scan 5 only; scans 0..4 and 6..9 see through its place to a wall at 20.
+  for (int k = 0; k < 10; ++k)
+    fs.insertScan(k == 5 ? ring(20.f, {{10.05f, 0.f, 0.f, 0.f}}) : ring(20.f), at(0), k);
+  const FreeEvidence e = fs.evidence({10.05f, 0.f, 0.f});
+  EXPECT_EQ(e.count, 9);  // many beams of a scan cross a voxel: it counts scans
+  EXPECT_EQ(e.hits, 1);
+  EXPECT_EQ(e.first, 0);
+  EXPECT_EQ(e.last, 9);
+  p.policy = MapPolicy::kTransient;
+  EXPECT_TRUE(removedByPolicy(e, 5, p));
+  p.policy = MapPolicy::kMoving;
+  EXPECT_TRUE(removedByPolicy(e, 5, p));   // empty before and after: it came and went
+  EXPECT_FALSE(removedByPolicy(e, 0, p));  // a point of scan 0: never empty before it
+  EXPECT_FALSE(removedByPolicy(e, 9, p));  // ... of scan 9: never empty after it
+  p.policy = MapPolicy::kTransient;
+  EXPECT_TRUE(removedByPolicy(e, 0, p));  // a parked car that left: transient removes it
+  p.min_free_scans = 10;
+  EXPECT_FALSE(removedByPolicy(e, 5, p));  // not enough evidence
+  p.min_free_scans = 2;
+  p.free_ratio = 10;  // 9 empty scans < 10 x 1 hit
+  EXPECT_FALSE(removedByPolicy(e, 5, p));
+  p.clean = false;
+  p.free_ratio = 0;
+  EXPECT_FALSE(removedByPolicy(e, 5, p));
+}
+
+TEST(FreeSpace, ChunksMergeInAnyOrderToTheWholeRun) {
+  const MapParams p = params();
+  std::vector<std::vector<PointXYZI>> scans;
+  for (int k = 0; k < 6; ++k)
+    scans.push_back(ring(15.f + float(k), {{6.f + float(k), 1.f, 0.2f, 0.f}}));
+  FreeSpaceMap whole(p), a(p), b(p);
+  for (int k = 0; k < 6; ++k) {
+    whole.insertScan(scans[k], at(0.7 * k), k);
+    (k < 3 ? a : b).insertScan(scans[k], at(0.7 * k), k);
+  }
+  FreeSpaceMap ab(a), ba(b);
+  ab.merge(b);
+  ba.merge(a);
+  int checked = 0;
+  for (float x = -20; x <= 25; x += 0.1f)
+    for (float y = -3; y <= 3; y += 0.5f) {
+      const Eigen::Vector3f q(x, y, 0.05f);
+      const FreeEvidence w = whole.evidence(q), e1 = ab.evidence(q), e2 = ba.evidence(q);
+      ASSERT_EQ(w.count, e1.count);
+      ASSERT_EQ(w.count, e2.count);
+      ASSERT_EQ(w.hits, e1.hits);
+      ASSERT_EQ(w.first, e2.first);
+      ASSERT_EQ(w.last, e1.last);
+      checked += w.count > 0;
+    }
+  EXPECT_GT(checked, 1000);
+}
