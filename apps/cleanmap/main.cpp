@@ -49,7 +49,7 @@ K past and K future scans, after ground removal; doc/DESIGN.md §2) and writes, 
                         RGB by height above the sensor
   static_map_full.ply   the clean map: every static point (ground included) within map.radius
                         (50 m) of its sensor, less what the sequence's free space removed
-                        (map.policy; DESIGN §2d), world frame, RGB by height
+                        (static_map.policy; DESIGN §2e), world frame, RGB by height
   dynamic.ply/.pcd      the moving points (the windowed test), world frame, red
   map_removed.ply       the points the free-space cleaning removed from the map
   map_labels/<stem>.label  what the map did with each point: 251 removed, 9 kept, 40 ground,

@@ -146,7 +146,7 @@ expect_error 1 "the cleanmap_ground map's sensor_height (-1.9) differs from clea
 sed 's/^static_map.policy = transient/static_map.policy = transiant/' "$ini" >"$scratch/policy.ini"
 expect_error 1 "'static_map.policy' needs one of moving, transient; got 'transiant'" "$bin/cleanmap" "$seq" -o "$scratch/t" -c "$scratch/policy.ini"
 
-# DESIGN §2d: the map's own decisions per point, and the cleaning removes moving points the
+# DESIGN §2e: the map's own decisions per point, and the cleaning removes moving points the
 # windowed test kept (the default scenario's movers) without costing the static map much.
 [[ $(ls "$scratch/ini/map_labels" | wc -l) -eq 13 && -s $scratch/ini/map_removed.ply ]] || fail "no map_labels/ or map_removed.ply"
 sed 's/^clean = 1/clean = 0/' "$scratch/ini/params.ini" >"$scratch/noclean.ini"

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: BSD-3-Clause
-// DESIGN §2d: the free-space accumulator that cleans the map: what a beam marks, the scan-conflict
+// DESIGN §2e: the free-space accumulator that cleans the map: what a beam marks, the scan-conflict
 // rule, the two policies, and merging chunks (sums, minima, maxima: any order, same result).
 #include <gtest/gtest.h>
 

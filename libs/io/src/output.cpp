@@ -162,7 +162,7 @@ void OutputWriter::write(const ScanResult& r, const std::optional<MosCounts>& ev
   }
 }
 
-// The spool of the map points (DESIGN §2d): per scan a header, then its full-map points with their
+// The spool of the map points (DESIGN §2e): per scan a header, then its full-map points with their
 // original index and kind, then its moving points' original indices. Read back by writeMaps().
 namespace {
 struct SpoolHeader {
@@ -215,7 +215,7 @@ void OutputWriter::spoolScan(const ScanResult& r) {
   spoolWrite(spool_, moving_index.data(), moving_index.size() * sizeof(uint32_t), spool_path_);
 }
 
-// DESIGN §2d: every spooled point is decided with the whole sequence's free space: the ground
+// DESIGN §2e: every spooled point is decided with the whole sequence's free space: the ground
 // stays, a point whose voxel the policy calls empty goes to map_removed.ply, the others to the
 // maps; map_labels/<stem>.label says what the map did with each original point.
 void OutputWriter::writeMaps(const FreeSpaceMap* free_space) {

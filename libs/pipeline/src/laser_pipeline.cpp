@@ -23,7 +23,7 @@ struct LaserPipeline::Prepared {
   BeamIndex beams;
   std::vector<uint8_t> in_crop;    // DESIGN §2.2
   std::vector<uint8_t> ground;     // DESIGN §2a, within the crop and the map radius
-  std::vector<uint8_t> far;        // beyond the crop, within the map radius (DESIGN §2d)
+  std::vector<uint8_t> far;        // beyond the crop, within the map radius (DESIGN §2e)
   std::vector<uint8_t> candidate;  // in the crop and not ground: what the stages decide
   Eigen::Isometry3d world_to_sensor;
   PoseInfo pose_info;
@@ -177,7 +177,7 @@ std::unique_ptr<LaserPipeline::Prepared> LaserPipeline::prepare(Frame&& f) {
   }
   st.ms.ground = msSince(t0);
 
-  // DESIGN §2d: every beam of the scan adds to the sequence's free space.
+  // DESIGN §2e: every beam of the scan adds to the sequence's free space.
   if (free_) {
     t0 = Clock::now();
     free_->insertScan(pts, s->scan.pose, static_cast<int64_t>(s->index));
@@ -354,7 +354,7 @@ ScanResult LaserPipeline::collect(Prepared& s, const Work& w) const {
   r.labels.assign(s.stats.points, kUnclassified);
   const auto& pts = s.scan.points;
   for (uint32_t i = 0; i < pts.size(); ++i) {
-    if (s.far[i]) {  // DESIGN §2d: beyond the crop, in the map; its label stays unclassified
+    if (s.far[i]) {  // DESIGN §2e: beyond the crop, in the map; its label stays unclassified
       const Eigen::Vector3d wd = s.scan.pose * pts[i].xyz().cast<double>();
       r.static_full.push_back({static_cast<float>(wd.x()), static_cast<float>(wd.y()),
                                static_cast<float>(wd.z()), pts[i].intensity});

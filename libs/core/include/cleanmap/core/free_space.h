@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: BSD-3-Clause
-// DESIGN §2d: the long-horizon free-space accumulator that cleans the map. Every beam of every scan
+// DESIGN §2e: the long-horizon free-space accumulator that cleans the map. Every beam of every scan
 // marks the voxels it passed through as seen empty by that scan, stopping a margin short of its
 // return (the beam model's noise, DESIGN §2b) and skipping the voxels that scan itself hits (the
 // scan-conflict rule, doc/SCAN_CONFLICT.md). Per voxel it keeps how many scans saw it empty and

@@ -92,7 +92,7 @@ struct RegistrationParams {
   double cone_noise = 0.0;
 };
 
-/// What the map keeps (DESIGN §2d).
+/// What the map keeps (DESIGN §2e).
 enum class MapPolicy {
   /// The benchmark's convention: remove what was moving when scanned: a point whose space was
   /// seen empty both before and after its scan (something came and went).
@@ -102,7 +102,7 @@ enum class MapPolicy {
   kTransient,
 };
 
-/// DESIGN §2d: the map's coverage and its long-horizon cleaning.
+/// DESIGN §2e: the map's coverage and its long-horizon cleaning.
 struct MapParams {
   /// m; the map holds every point within this horizontal distance of its sensor (the DynamicMap
   /// benchmark's 50 m), classified for the map beyond the per-point crop.

@@ -25,7 +25,7 @@ struct ScanStats {
   std::size_t in_crop = 0, ground = 0, duplicates = 0, candidates = 0, tested = 0;
   std::size_t moving = 0, static_points = 0;
   std::size_t window = 0;   ///< scans in the window
-  std::size_t map_far = 0;  ///< points beyond the crop within the map radius (DESIGN §2d)
+  std::size_t map_far = 0;  ///< points beyond the crop within the map radius (DESIGN §2e)
   std::size_t total_conflicts = 0, no_evidence = 0;
   std::size_t conflicting_scans = 0;  ///< empty scan votes made unknown (doc/SCAN_CONFLICT.md)
   std::size_t objects_moving = 0, consensus_points = 0, consensus_removed = 0;  ///< doc/OBJECTS.md
@@ -49,7 +49,7 @@ struct PoseInfo {
   double ms_downsample = 0, ms_covariances = 0, ms_align = 0, ms_map = 0;
 };
 
-/// What a point of the full map is (DESIGN §2d): inside the crop and decided by the windowed test,
+/// What a point of the full map is (DESIGN §2e): inside the crop and decided by the windowed test,
 /// or beyond it within the map radius; ground or not. Ground is never removed by the cleaning.
 enum MapKind : uint8_t { kMapStatic = 0, kMapGround = 1, kMapFar = 2, kMapFarGround = 3 };
 inline bool isGroundKind(uint8_t k) {
@@ -69,7 +69,7 @@ struct ScanResult {
   std::vector<PointXYZI> static_full;     ///< world frame: every static point (ground included)
   std::vector<PointXYZI> moving;          ///< world frame
   /// Per static_full point: its index in the original scan and its kind (MapKind); per moving
-  /// point, its original index. The map's cleaning and map_labels/ use them (DESIGN §2d).
+  /// point, its original index. The map's cleaning and map_labels/ use them (DESIGN §2e).
   std::vector<uint32_t> static_full_index, moving_index;
   std::vector<uint8_t> static_full_kind;
   /// The scan as read (sensor frame, valid points, original_index), only when the pipeline keeps

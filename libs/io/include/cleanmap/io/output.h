@@ -47,7 +47,7 @@ class OutputWriter {
   void write(const ScanResult& r, const std::optional<MosCounts>& eval);
   /// Wall time (ms, whole run) of another writer of the run (report.json `output_ms`).
   void addOutputTime(const std::string& name, double ms) { output_ms_[name] += ms; }
-  /// Cleans the maps with the sequence's free space (DESIGN §2d; null: no cleaning), writes
+  /// Cleans the maps with the sequence's free space (DESIGN §2e; null: no cleaning), writes
   /// static_map(_full).ply, map_removed.ply, map_labels/, poses and the report, and publishes the
   /// folder as OUTDIR. `wall_s`: whole run, seconds.
   void finish(double wall_s, const FreeSpaceMap* free_space = nullptr);

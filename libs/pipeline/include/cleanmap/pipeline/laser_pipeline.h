@@ -41,7 +41,7 @@ class LaserPipeline {
   /// results to `sink`: fed the same scans, it decides them exactly as this pipeline would.
   std::unique_ptr<LaserPipeline> clone(Sink sink) const;
   const PipelineParams& params() const { return p_; }
-  /// DESIGN §2d: the free space every scan pushed so far has seen (null with map.clean off).
+  /// DESIGN §2e: the free space every scan pushed so far has seen (null with static_map.clean off).
   const FreeSpaceMap* freeSpace() const { return free_.get(); }
   /// Hand each scan's points to the sink too (ScanResult::scan), for outputs made per scan.
   void keepScans(bool on) { keep_scans_ = on; }
@@ -75,7 +75,7 @@ class LaserPipeline {
   long prev_index_ = -1;
   std::unordered_set<uint64_t> prev_moving_cells_;  // last decided scan's moving cells, dilated
   std::unique_ptr<Work> work_;
-  std::unique_ptr<FreeSpaceMap> free_;              // DESIGN §2d, whole sequence
+  std::unique_ptr<FreeSpaceMap> free_;              // DESIGN §2e, whole sequence
   PoseSource source_;                               // resolved on the first scan
   std::unique_ptr<reg::Odometry> odo_;              // with gicp / refine
   std::optional<Eigen::Isometry3d> prev_odometry_;  // the last scan's input odometry ...
