@@ -61,8 +61,9 @@ class CMovingObjectsMap : public mrpt::maps::CMetricMap {
   /// The classifier's parameters (creationOpts). Changing them is allowed only while the map has
   /// no scan in its window; throws cleanmap::Error otherwise.
   const cleanmap::PipelineParams& params() const { return params_; }
-  /// DESIGN §2e: the free space of every scan inserted (null before the first, or with static_map.clean
-  /// off). The app cleans its map files with it; this layer's own points are not cleaned.
+  /// DESIGN §2e: the free space of every scan inserted (null before the first, or with
+  /// static_map.clean off). The app cleans its map files with it; this layer's own points are not
+  /// cleaned.
   const cleanmap::FreeSpaceMap* freeSpace() const;
   TInsertionOptions insertionOptions;
   void setParams(const cleanmap::PipelineParams& params);
