@@ -173,9 +173,8 @@ struct SpoolHeader {
 struct SpoolPoint {
   PointXYZI p;
   uint32_t orig;
-  uint32_t kind;  // MapKind | kSpoolCompact
+  uint32_t kind;  // MapKind
 };
-constexpr uint32_t kSpoolCompact = 0x100;  // also in the compact map (not a duplicate)
 
 void spoolWrite(std::FILE* f, const void* data, std::size_t bytes, const std::string& path) {
   if (bytes && std::fwrite(data, 1, bytes, f) != bytes)
@@ -188,29 +187,22 @@ void spoolRead(std::FILE* f, void* data, std::size_t bytes, const std::string& p
 }  // namespace
 
 void OutputWriter::spoolScan(const ScanResult& r) {
-  // A result made without the pipeline may lack the indices: its points are then static and
-  // stay out of map_labels/.
+  // A result made without the pipeline may lack the indices and kinds: its points are then
+  // static, outside the compact map and map_labels/.
   const bool indexed = r.static_full_index.size() == r.static_full.size() &&
                        r.static_full_kind.size() == r.static_full.size();
+  if (!indexed && !r.static_compact.empty())
+    throw Error(staging_, "scan " + r.stem +
+                              ": a compact map without static_full_kind (which points are in it)");
   std::vector<uint32_t> moving_index = r.moving_index;
   moving_index.resize(r.moving.size(), ~uint32_t(0));
   const SpoolHeader h{static_cast<int64_t>(r.index), r.pose.translation().z(), r.labels.size(),
                       r.static_full.size(), r.moving.size()};
   spoolWrite(spool_, &h, sizeof h, spool_path_);
-  // The compact points are the full map's non-duplicate static points, in the same order.
-  std::size_t c = 0;
   std::vector<SpoolPoint> pts(r.static_full.size());
-  for (std::size_t i = 0; i < pts.size(); ++i) {
-    uint32_t kind = indexed ? uint32_t{r.static_full_kind[i]} : uint32_t{kMapStatic};
-    if (c < r.static_compact.size() && kind == kMapStatic &&
-        std::memcmp(&r.static_compact[c], &r.static_full[i], sizeof(PointXYZI)) == 0) {
-      kind |= kSpoolCompact;
-      ++c;
-    }
-    pts[i] = {r.static_full[i], indexed ? r.static_full_index[i] : ~uint32_t(0), kind};
-  }
-  if (c != r.static_compact.size())
-    throw Error(staging_, "scan " + r.stem + ": compact map points missing from the full map");
+  for (std::size_t i = 0; i < pts.size(); ++i)
+    pts[i] = {r.static_full[i], indexed ? r.static_full_index[i] : ~uint32_t(0),
+              indexed ? uint32_t{r.static_full_kind[i]} : uint32_t{kMapDuplicate}};
   spoolWrite(spool_, pts.data(), pts.size() * sizeof(SpoolPoint), spool_path_);
   spoolWrite(spool_, moving_index.data(), moving_index.size() * sizeof(uint32_t), spool_path_);
 }
@@ -237,7 +229,7 @@ void OutputWriter::writeMaps(const FreeSpaceMap* free_space) {
     compact.clear();
     removed.clear();
     for (const auto& q : pts) {
-      const auto kind = static_cast<uint8_t>(q.kind & 0xFF);
+      const auto kind = static_cast<uint8_t>(q.kind);
       const bool gone = free_space && !isGroundKind(kind) &&
                         removedByPolicy(free_space->evidence(q.p.xyz()), h.index, params_.map);
       if (q.orig < map_labels.size())
@@ -247,7 +239,7 @@ void OutputWriter::writeMaps(const FreeSpaceMap* free_space) {
         continue;
       }
       full.push_back(q.p);
-      if (q.kind & kSpoolCompact) compact.push_back(q.p);
+      if (kind == kMapStatic) compact.push_back(q.p);
       map_far_kept_ += kind == kMapFar || kind == kMapFarGround;
     }
     for (const uint32_t o : moving)

@@ -383,7 +383,7 @@ ScanResult LaserPipeline::collect(Prepared& s, const Work& w) const {
       r.labels[orig] = kStatic;
       r.static_full.push_back(p);
       r.static_full_index.push_back(orig);
-      r.static_full_kind.push_back(kMapStatic);
+      r.static_full_kind.push_back(w.duplicate[i] ? kMapDuplicate : kMapStatic);
       ++s.stats.static_points;
       if (!w.duplicate[i]) r.static_compact.push_back(p);
     }

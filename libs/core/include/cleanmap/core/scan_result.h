@@ -51,7 +51,15 @@ struct PoseInfo {
 
 /// What a point of the full map is (DESIGN §2e): inside the crop and decided by the windowed test,
 /// or beyond it within the map radius; ground or not. Ground is never removed by the cleaning.
-enum MapKind : uint8_t { kMapStatic = 0, kMapGround = 1, kMapFar = 2, kMapFarGround = 3 };
+/// kMapStatic points are also in static_compact; kMapDuplicate ones (static, duplicates of the
+/// recent map, DESIGN §2.3) are not.
+enum MapKind : uint8_t {
+  kMapStatic = 0,
+  kMapGround = 1,
+  kMapFar = 2,
+  kMapFarGround = 3,
+  kMapDuplicate = 4
+};
 inline bool isGroundKind(uint8_t k) {
   return k == kMapGround || k == kMapFarGround;
 }
