@@ -83,6 +83,12 @@ INPUT                a KITTI odometry/SemanticKITTI or raw folder, or an MRPT .r
                      gicp: GICP scan-to-map odometry (DESIGN §2.1; a given first pose anchors it);
                      refine: GICP started from each given pose. Default: given when the first
                      scan has a pose, gicp otherwise. report.json says what each scan used.
+--images MODE        on: check every moving candidate in the camera images of its window and
+                     relabel static what looks the same in all of them (DESIGN §3; an error if
+                     INPUT has no images and calibration); off: laser only; auto (default): on
+                     where the input has images (KITTI image_2/, rawlog CObservationImage)
+--save-overlays      write overlays/<stem>.png: each camera image with the scan's points, static
+                     green, moving red, relabelled static by the camera yellow
 --no-mrpt-outputs    skip the .3Dscene, .simplemap and the two rawlogs
 --viewer-voxel M     voxel of the .3Dscene's decimation, metres (default 0.1; files keep every point)
 --quiet              no progress line (there is none when stderr is not a terminal)
@@ -96,10 +102,10 @@ interrupted by SIGINT / SIGTERM (nothing written to DIR).
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::string input, outdir, config, map_section, poses = "auto";
+  std::string input, outdir, config, map_section, poses = "auto", images = "auto";
   long threads = -1, first = 0, last = -1;
   long long seed = -1;
-  bool quiet = false, progress_shown = false, force = false, mrpt_outputs = true;
+  bool quiet = false, progress_shown = false, force = false, mrpt_outputs = true, overlays = false;
   double viewer_voxel = 0.1;
   cleanmap::cli::Args args("cleanmap", argc, argv);
   while (!args.done()) {
@@ -123,6 +129,10 @@ int main(int argc, char** argv) {
       last = args.integer(a);
     else if (a == "--poses")
       poses = args.value(a);
+    else if (a == "--images")
+      images = args.value(a);
+    else if (a == "--save-overlays")
+      overlays = true;
     else if (a == "--quiet")
       quiet = true;
     else if (a == "--force")
@@ -140,6 +150,9 @@ int main(int argc, char** argv) {
   if (poses != "auto" && poses != "given" && poses != "gicp" && poses != "refine")
     args.fail("--poses is given, gicp or refine");
   if (last >= 0 && last < first) args.fail("--last must be >= --first");
+  if (images != "auto" && images != "on" && images != "off")
+    args.fail("--images is on, off or auto");
+  if (overlays && images == "off") args.fail("--save-overlays needs the images (not --images off)");
   if (!(viewer_voxel > 0)) args.fail("--viewer-voxel must be > 0");
 
   quiet = quiet || !::isatty(STDERR_FILENO);  // progress lines only on a terminal, not in logs
@@ -188,6 +201,8 @@ int main(int argc, char** argv) {
                    : poses == "gicp"   ? cleanmap::PoseSource::kGicp
                    : poses == "refine" ? cleanmap::PoseSource::kRefine
                                        : cleanmap::PoseSource::kAuto;
+    if (images == "off") params.image.enabled = false;
+    if (images == "on") params.image.enabled = true;
     moving->setParams(params);
     if (ground) {  // it is given the moving map's ground labels: the two must agree
       const auto g = ground->groundParams();
@@ -210,11 +225,22 @@ int main(int argc, char** argv) {
     }
 
     cleanmap::mrpt::InputOptions in_opts;
-    in_opts.allow_empty_scans = true;  // counted in the report
-    in_opts.load_images = false;       // the laser pipeline does not use them
+    in_opts.allow_empty_scans = true;            // counted in the report
+    in_opts.load_images = params.image.enabled;  // DESIGN §3
     auto src = cleanmap::mrpt::openInput(input, in_opts);
     const auto* kitti = dynamic_cast<const cleanmap::io::KittiSequence*>(src.get());
     const bool evaluate = kitti && kitti->hasLabels();
+    if (params.image.enabled) {
+      const bool has_images = !kitti || kitti->hasImages();  // a rawlog's show as they come
+      if (images == "on" && (!src->camera() || !has_images))
+        throw cleanmap::Error(input,
+                              "--images on, but the input has no " +
+                                  std::string(src->camera() ? "images" : "camera calibration") +
+                                  " (KITTI: image_2/ and P2 in calib.txt; rawlog: "
+                                  "CObservationImage)");
+      moving->setCamera(src->camera());
+      moving->setSaveOverlays(overlays);
+    }
 
     if (const auto n = src->sizeHint(); n && first >= static_cast<long>(*n))
       throw cleanmap::Error(input, "--first " + std::to_string(first) +
@@ -245,9 +271,17 @@ int main(int argc, char** argv) {
         ground_ms += cleanmap::msSince(t);
       }
       std::optional<cleanmap::MosCounts> eval;
-      if (evaluate)
-        eval = cleanmap::compareLabels(r.labels, kitti->loadLabels(r.index, r.labels.size()),
-                                       kitti->labelPath(r.index));
+      if (evaluate) {
+        const auto truth = kitti->loadLabels(r.index, r.labels.size());
+        eval = cleanmap::compareLabels(r.labels, truth, kitti->labelPath(r.index));
+        std::size_t st = 0, mv = 0;  // were the camera's relabellings right? (DESIGN §3)
+        for (const uint32_t i : r.relabelled_index) {
+          const auto g = cleanmap::gtClass(truth[i]);
+          st += g == cleanmap::GtClass::kStatic;
+          mv += g == cleanmap::GtClass::kMoving;
+        }
+        if (params.image.enabled) out.addRelabelledTruth(st, mv);
+      }
       out.write(r, eval);
       if (mrpt_out) mrpt_out->write(std::move(r));
       if (!quiet) {

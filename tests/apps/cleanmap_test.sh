@@ -143,6 +143,17 @@ expect_error 1 "unknown key 'ds.windw_k'; did you mean 'ds.window_k'?" "$bin/cle
 sed 's/^sensor_height = -1.73/sensor_height = -1.9/' "$ini" >"$scratch/ground.ini"
 expect_error 1 "the cleanmap_ground map's sensor_height (-1.9) differs from cleanmap_moving's ground.sensor_height (-1.73)" "$bin/cleanmap" "$seq" -o "$scratch/t" -c "$scratch/ground.ini"
 [[ -e $scratch/t ]] && fail "a refused configuration produced an output folder"
+# DESIGN §3, the camera check: --images on needs images; with them, overlays and the report.
+expect_error 1 "--images on, but the input has no camera calibration" "$bin/cleanmap" "$seq" -o "$scratch/t" --images on
+expect_error 2 "--images is on, off or auto" "$bin/cleanmap" "$seq" -o "$scratch/t" --images yes
+"$bin/cleanmap-sim" -o "$scratch/cam" --frames 8 --threads 2 --no-rawlog >/dev/null 2>&1 || fail "sim with images failed"
+"$bin/cleanmap" "$scratch/cam" -o "$scratch/cam_out" --quiet --images on --save-overlays --no-mrpt-outputs >/dev/null ||
+  fail "run with images failed"
+[[ $(ls "$scratch/cam_out/overlays" 2>/dev/null | grep -c '\.png$') -eq 8 ]] || fail "expected 8 overlay images"
+grep -q '"scans_with_image": 8' "$scratch/cam_out/report.json" || fail "report.json: images.scans_with_image is not 8"
+"$bin/cleanmap" "$scratch/cam" -o "$scratch/cam_off" --quiet --images off --no-mrpt-outputs >/dev/null || fail "--images off failed"
+grep -q '"scans_with_image": 0' "$scratch/cam_off/report.json" || fail "--images off still used the images"
+
 sed 's/^static_map.policy = transient/static_map.policy = transiant/' "$ini" >"$scratch/policy.ini"
 expect_error 1 "'static_map.policy' needs one of moving, transient; got 'transiant'" "$bin/cleanmap" "$seq" -o "$scratch/t" -c "$scratch/policy.ini"
 

@@ -61,6 +61,19 @@ void validate(const PipelineParams& p, const std::string& name) {
           "static_map.margin, static_map.min_range and static_map.beam_spacing must be >= 0");
   require(m.policy == MapPolicy::kMoving || m.policy == MapPolicy::kTransient,
           "static_map.policy must be moving or transient");
+  const auto& im = p.image;
+  require(im.patch_height > 0, "image.patch_height must be > 0");
+  require(im.min_patch >= 3 && im.max_patch >= im.min_patch && im.max_patch <= 256,
+          "need 3 <= image.min_patch <= image.max_patch <= 256");
+  require(im.search_margin >= 0, "image.search_margin must be >= 0");
+  require(im.uniform_std >= 0 && im.uniform_std < 0.5, "image.uniform_std must be in [0, 0.5)");
+  require(im.ncc_threshold > 0 && im.ncc_threshold <= 2, "image.ncc_threshold must be in (0, 2]");
+  require(im.depth_threshold > 0, "image.depth_threshold must be > 0");
+  require(im.dilation_radius >= 0 && im.dilation_radius <= 20,
+          "image.dilation_radius must be in [0, 20] px");
+  require(im.occlusion > 0, "image.occlusion must be > 0");
+  require(im.cell >= 0, "image.cell must be >= 0 (0 = one decision per point)");
+  require(im.min_views >= 1, "image.min_views must be >= 1");
 }
 
 }  // namespace cleanmap

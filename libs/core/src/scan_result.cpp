@@ -12,6 +12,7 @@ StageTimes& StageTimes::operator+=(const StageTimes& o) {
   classify += o.classify;
   objects += o.objects;
   free_space += o.free_space;
+  images += o.images;
   total += o.total;
   return *this;
 }
@@ -36,6 +37,14 @@ ScanStats& ScanStats::operator+=(const ScanStats& o) {
   consensus_removed += o.consensus_removed;
   objects_persisted += o.objects_persisted;
   empty += o.empty;
+  image_scans += o.image_scans;
+  image_units += o.image_units;
+  image_confirmed_colour += o.image_confirmed_colour;
+  image_confirmed_depth += o.image_confirmed_depth;
+  image_rejected_colour += o.image_rejected_colour;
+  image_rejected_depth += o.image_rejected_depth;
+  image_unseen += o.image_unseen;
+  image_relabelled += o.image_relabelled;
   ms += o.ms;
   return *this;
 }

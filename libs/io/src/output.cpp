@@ -16,6 +16,7 @@
 #include <filesystem>
 #include <map>
 #include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
 
 #include "cleanmap/core/error.h"
 #include "cleanmap/io/config.h"
@@ -147,6 +148,16 @@ OutputWriter::~OutputWriter() {
 
 void OutputWriter::write(const ScanResult& r, const std::optional<MosCounts>& eval) {
   writeLabels(staging_ + "/labels/" + r.stem + ".label", r.labels);
+  if (!r.overlay.empty()) {  // --save-overlays (DESIGN §3)
+    std::vector<uchar> png;
+    if (!cv::imencode(".png", r.overlay, png))
+      throw Error(staging_ + "/overlays/" + r.stem + ".png", "cannot encode the overlay image");
+    std::error_code ec;
+    fs::create_directories(staging_ + "/overlays", ec);
+    writeFileAtomic(staging_ + "/overlays/" + r.stem + ".png", [&](std::ostream& os) {
+      os.write(reinterpret_cast<const char*>(png.data()), std::streamsize(png.size()));
+    });
+  }
   const double z = r.pose.translation().z();
   moving_->append(r.moving, z);
   spoolScan(r);
@@ -300,7 +311,7 @@ void OutputWriter::finish(double wall_s, const FreeSpaceMap* free_space) {
   writeFileAtomic(staging_ + "/params.ini", [&](std::ostream& os) { os << toIni(params_); });
 
   ScanStats total;
-  std::vector<double> t_total, t_reg, t_index, t_ground, t_dup, t_oct, t_cls, t_obj, t_free;
+  std::vector<double> t_total, t_reg, t_index, t_ground, t_dup, t_oct, t_cls, t_obj, t_free, t_img;
   for (const auto& s : stats_) {
     total += s;
     t_total.push_back(s.ms.total);
@@ -312,6 +323,7 @@ void OutputWriter::finish(double wall_s, const FreeSpaceMap* free_space) {
     t_cls.push_back(s.ms.classify);
     t_obj.push_back(s.ms.objects);
     t_free.push_back(s.ms.free_space);
+    if (s.image_scans) t_img.push_back(s.ms.images);
   }
   const std::size_t empty = total.empty;
   nlohmann::json j;
@@ -350,11 +362,29 @@ void OutputWriter::finish(double wall_s, const FreeSpaceMap* free_space) {
                 {"clean_ms", map_ms_},
                 {"free_space_mib", free_space ? double(free_space->bytes()) / (1 << 20) : 0.0}};
   }
+  {  // DESIGN §3: the camera check
+    const auto& im = params_.image;
+    j["images"] = {{"enabled", im.enabled && total.image_scans > 0},
+                   {"scans_with_image", total.image_scans},
+                   {"units_tested", total.image_units},
+                   {"unit", im.cell > 0 ? "cell of " + shortestDouble(im.cell) + " m" : "point"},
+                   {"confirmed_by_colour", total.image_confirmed_colour},
+                   {"confirmed_by_depth", total.image_confirmed_depth},
+                   {"rejected_by_colour", total.image_rejected_colour},
+                   {"rejected_with_depth", total.image_rejected_depth},
+                   {"unseen", total.image_unseen},
+                   {"points_relabelled_static", total.image_relabelled}};
+    if (has_relabel_truth_) {
+      j["images"]["relabelled_truly_static"] = relabelled_static_;
+      j["images"]["relabelled_truly_moving"] = relabelled_moving_;
+    }
+  }
   nlohmann::json timing;
   const std::pair<const char*, std::vector<double>*> stages[] = {
       {"total", &t_total},        {"registration", &t_reg}, {"beam_index", &t_index},
       {"crop_ground", &t_ground}, {"duplicates", &t_dup},   {"octree", &t_oct},
-      {"classify", &t_cls},       {"objects", &t_obj},      {"free_space", &t_free}};
+      {"classify", &t_cls},       {"objects", &t_obj},      {"free_space", &t_free},
+      {"images", &t_img}};
   for (const auto& [name, v] : stages) {
     const Spread s = spread(*v);
     timing[name] = {{"median_ms", s.median}, {"p95_ms", s.p95}, {"mean_ms", s.mean}};

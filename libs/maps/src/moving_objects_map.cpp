@@ -110,6 +110,8 @@ void CMovingObjectsMap::copyFrom(const CMovingObjectsMap& o) {
   sink_ = nullptr;  // the copy's results are its own
   store_points_ = o.store_points_;
   keep_scans_ = o.keep_scans_;
+  overlays_ = o.overlays_;
+  camera_ = o.camera_;
   next_index_ = o.next_index_;
   static_ = o.static_;
   moving_ = o.moving_;
@@ -130,6 +132,18 @@ void CMovingObjectsMap::setKeepScans(bool on) {
   if (pipe_) pipe_->keepScans(on);
 }
 
+void CMovingObjectsMap::setCamera(std::optional<cleanmap::PinholeCamera> camera) {
+  if (pending() > 0)
+    throw cleanmap::Error("cleanmap_moving", "the camera cannot change while scans are pending");
+  camera_ = std::move(camera);
+  if (pipe_) pipe_->setCamera(camera_);
+}
+
+void CMovingObjectsMap::setSaveOverlays(bool on) {
+  overlays_ = on;
+  if (pipe_) pipe_->saveOverlays(on);
+}
+
 std::size_t CMovingObjectsMap::pending() const {
   return pipe_ ? pipe_->pending() : 0;
 }
@@ -139,6 +153,8 @@ void CMovingObjectsMap::ensurePipeline() {
   pipe_ = std::make_unique<cleanmap::LaserPipeline>(
       params_, [this](cleanmap::ScanResult&& r) { onDecided(std::move(r)); });
   pipe_->keepScans(keep_scans_);
+  pipe_->setCamera(camera_);
+  pipe_->saveOverlays(overlays_);
 }
 
 void CMovingObjectsMap::insertFrame(cleanmap::Frame&& frame) {

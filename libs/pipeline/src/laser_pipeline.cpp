@@ -3,6 +3,7 @@
 
 #include <cmath>
 #include <random>
+#include <unordered_map>
 
 #include "cleanmap/core/beam_index.h"
 #include "cleanmap/core/cell_key.h"
@@ -13,6 +14,7 @@
 #include "cleanmap/core/parallel.h"
 #include "cleanmap/core/stopwatch.h"
 #include "cleanmap/registration/odometry.h"
+#include "cleanmap/vision/image_validation.h"
 
 namespace cleanmap {
 
@@ -28,6 +30,7 @@ struct LaserPipeline::Prepared {
   Eigen::Isometry3d world_to_sensor;
   PoseInfo pose_info;
   ScanStats stats;
+  std::optional<vision::CameraView> view;  // DESIGN §3, when the frame has an image
 };
 
 /// The scan being decided, computed once and passed down the stages. One instance lives as long
@@ -42,6 +45,7 @@ struct LaserPipeline::Work {
     tested.clear();
     moving_tested.clear();
     moving.clear();
+    relabelled.clear();
   }
   std::vector<Eigen::Vector3d> world;  // candidates' world coordinates (others left zero)
   std::vector<uint8_t> duplicate;      // DESIGN §2.3
@@ -51,6 +55,7 @@ struct LaserPipeline::Work {
   std::vector<uint32_t> tested;        // indices into `cand`
   std::vector<uint8_t> moving_tested;  // per `cand` entry, the test's answer where tested
   std::vector<uint8_t> moving;         // per scan point, the final decision
+  std::vector<uint8_t> relabelled;     // per scan point: moving, relabelled static by the camera
 };
 
 LaserPipeline::LaserPipeline(const PipelineParams& params, Sink sink)
@@ -73,6 +78,8 @@ std::unique_ptr<LaserPipeline> LaserPipeline::clone(Sink sink) const {
   c->next_ = next_;
   c->decided_ = decided_;
   c->keep_scans_ = keep_scans_;
+  c->overlays_ = overlays_;
+  c->camera_ = camera_;
   c->prev_index_ = prev_index_;
   c->prev_moving_cells_ = prev_moving_cells_;
   c->source_ = source_;
@@ -177,6 +184,17 @@ std::unique_ptr<LaserPipeline::Prepared> LaserPipeline::prepare(Frame&& f) {
   }
   st.ms.ground = msSince(t0);
 
+  // DESIGN §3: the scan's camera view (image, sparse depth map, camera pose), built once and
+  // used by every scan whose window holds this one.
+  if (camera_ && p_.image.enabled && f.image && !f.image->bgr.empty()) {
+    t0 = Clock::now();
+    s->view = vision::makeCameraView(f.image->bgr, pts, s->scan.pose, *camera_, s->index,
+                                     s->source.empty() ? "scan " + s->stem : s->source,
+                                     p_.image.dilation_radius);
+    st.ms.images = msSince(t0);
+    st.image_scans = 1;
+  }
+
   // DESIGN §2e: every beam of the scan adds to the sequence's free space.
   if (free_) {
     t0 = Clock::now();
@@ -227,12 +245,13 @@ void LaserPipeline::decide(std::size_t pos) {
   classify(window, s, w);        // §2b
   decideLeaves(s, w);            // §2c
   objectConsensus(s, w);         // doc/OBJECTS.md
+  validateImages(pos, s, w);     // §3
   ScanResult r = collect(s, w);  // §2.7: labels, static map, dynamic layer
   remember(r, static_cast<long>(s.index));
   if (odo_)
     odo_->dropPoints(static_cast<int64_t>(s.index), w.moving);  // movers leave the local map
   r.stats.ms.total = msSince(t_start) + s.stats.ms.registration + s.stats.ms.index +
-                     s.stats.ms.ground + s.stats.ms.free_space;
+                     s.stats.ms.ground + s.stats.ms.free_space + s.stats.ms.images;
   ++decided_;
   sink_(std::move(r));
 }
@@ -341,6 +360,126 @@ void LaserPipeline::objectConsensus(Prepared& s, Work& w) const {
   s.stats.ms.objects = msSince(t0);
 }
 
+// DESIGN §3: the moving points in cells of image.cell, the cells in objects (26-connected).
+// An object stays moving if any of its cells looks different in some window camera (the
+// farthest in time first); otherwise its cells that the cameras saw, all similar, are relabelled
+// static. Deciding per object keeps a mover whose flat side slides along itself (same look, same
+// depth) moving by its ends and textured parts; cells no camera sees keep the laser label.
+void LaserPipeline::validateImages(std::size_t pos, Prepared& s, Work& w) const {
+  if (!s.view) return;
+  const auto t0 = Clock::now();
+  const ImageParams& ip = p_.image;
+  std::vector<std::pair<std::size_t, const vision::CameraView*>> order;
+  for (std::size_t j = 0; j < buf_.size(); ++j)
+    if (j != pos && buf_[j]->view) order.emplace_back(j > pos ? j - pos : pos - j, &*buf_[j]->view);
+  std::stable_sort(order.begin(), order.end(),
+                   [](const auto& a, const auto& b) { return a.first > b.first; });
+  std::vector<const vision::CameraView*> window;
+  for (const auto& o : order) window.push_back(o.second);
+  // Cells of moving points (one per point with image.cell = 0).
+  std::vector<std::vector<uint32_t>> cells;
+  std::unordered_map<uint64_t, std::size_t> cell_at;
+  const double inv = 1.0 / (ip.cell > 0 ? ip.cell : p_.object.voxel);
+  std::vector<uint64_t> keys;
+  for (uint32_t i = 0; i < s.scan.size(); ++i) {
+    if (!w.moving[i]) continue;
+    const Eigen::Vector3d& x = w.world[i];
+    const uint64_t key = cellKeyOf(x.x(), x.y(), x.z(), inv);
+    if (ip.cell > 0) {
+      const auto [it, fresh] = cell_at.emplace(key, cells.size());
+      if (fresh) cells.emplace_back(), keys.push_back(key);
+      cells[it->second].push_back(i);
+    } else {
+      cell_at.emplace(key, cells.size());
+      cells.push_back({i});
+      keys.push_back(key);
+    }
+  }
+  // Objects: connected components of the cells.
+  std::vector<int> obj_of(cells.size(), -1);
+  std::vector<std::vector<std::size_t>> objects;
+  for (std::size_t c0 = 0; c0 < cells.size(); ++c0) {
+    if (obj_of[c0] >= 0) continue;
+    const int id = static_cast<int>(objects.size());
+    objects.push_back({c0});
+    obj_of[c0] = id;
+    for (std::size_t q = 0; q < objects.back().size(); ++q) {
+      const uint64_t k = keys[objects.back()[q]];
+      forEachNeighbour27([&](int dx, int dy, int dz) {
+        const auto it = cell_at.find(cellKeyShift(k, dx, dy, dz));
+        if (it == cell_at.end() || obj_of[it->second] >= 0) return;
+        obj_of[it->second] = id;
+        objects[static_cast<std::size_t>(id)].push_back(it->second);
+      });
+    }
+  }
+  // Each cell's point nearest its mean speaks for it.
+  std::vector<Eigen::Vector3d> rep(cells.size());
+  for (std::size_t c = 0; c < cells.size(); ++c) {
+    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+    for (uint32_t i : cells[c]) mean += w.world[i];
+    mean /= double(cells[c].size());
+    rep[c] = w.world[cells[c].front()];
+    for (uint32_t i : cells[c])
+      if ((w.world[i] - mean).squaredNorm() < (rep[c] - mean).squaredNorm()) rep[c] = w.world[i];
+  }
+  enum Outcome : uint8_t {
+    kUnseen,
+    kConfirmedColour,
+    kConfirmedDepth,
+    kRejectedColour,
+    kRejectedDepth
+  };
+  std::vector<Outcome> outcome(objects.size(), kUnseen);
+  std::vector<uint8_t> relabel_cell(cells.size(), 0);
+  parallelFor(objects.size(), p_.threads, [&](std::size_t o) {
+    auto& members = objects[o];
+    // Extremes first: a mover's leading and trailing ends differ most from frame to frame.
+    Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+    for (std::size_t c : members) centre += rep[c];
+    centre /= double(members.size());
+    std::stable_sort(members.begin(), members.end(), [&](std::size_t a, std::size_t b) {
+      return (rep[a] - centre).squaredNorm() > (rep[b] - centre).squaredNorm();
+    });
+    bool similar = false, depth = false;
+    for (std::size_t c : members) {
+      const vision::Decision d = vision::decide(*s.view, window, rep[c], ip);
+      if (!d.seen) continue;
+      if (!d.relabel_static && (d.decisive == vision::Verdict::kDifferentColour ||
+                                d.decisive == vision::Verdict::kDifferentDepth)) {
+        outcome[o] =
+            d.decisive == vision::Verdict::kDifferentColour ? kConfirmedColour : kConfirmedDepth;
+        for (std::size_t m : members) relabel_cell[m] = 0;
+        return;
+      }
+      if (d.relabel_static) {
+        relabel_cell[c] = 1;
+        similar = true;
+        depth = depth || d.used_depth;
+      }
+    }
+    if (similar) outcome[o] = depth ? kRejectedDepth : kRejectedColour;
+  });
+  w.relabelled.assign(s.scan.size(), 0);
+  auto& st = s.stats;
+  st.image_units += objects.size();
+  for (const Outcome oc : outcome) {
+    st.image_unseen += oc == kUnseen;
+    st.image_confirmed_colour += oc == kConfirmedColour;
+    st.image_confirmed_depth += oc == kConfirmedDepth;
+    st.image_rejected_colour += oc == kRejectedColour;
+    st.image_rejected_depth += oc == kRejectedDepth;
+  }
+  for (std::size_t c = 0; c < cells.size(); ++c)
+    if (relabel_cell[c])
+      for (uint32_t i : cells[c]) {
+        w.moving[i] = 0;
+        w.relabelled[i] = 1;
+        ++st.image_relabelled;
+      }
+  st.ms.images += msSince(t0);
+}
+
 // DESIGN §2.7 and §4: labels in the original order; static points to the map (the compact map
 // without duplicates), moving points to the dynamic layer, all in the world frame.
 ScanResult LaserPipeline::collect(Prepared& s, const Work& w) const {
@@ -387,6 +526,16 @@ ScanResult LaserPipeline::collect(Prepared& s, const Work& w) const {
       ++s.stats.static_points;
       if (!w.duplicate[i]) r.static_compact.push_back(p);
     }
+  }
+  if (!w.relabelled.empty())
+    for (uint32_t i = 0; i < pts.size(); ++i)
+      if (w.relabelled[i]) r.relabelled_index.push_back(s.scan.originalIndex(i));
+  if (overlays_ && s.view) {  // --save-overlays: static green, moving red, relabelled yellow
+    std::vector<uint8_t> kind(pts.size(), 0);
+    for (uint32_t i = 0; i < pts.size(); ++i)
+      if (s.in_crop[i] && !s.ground[i])
+        kind[i] = !w.relabelled.empty() && w.relabelled[i] ? 3 : w.moving[i] ? 2 : 1;
+    r.overlay = vision::drawOverlay(*s.view, pts, s.scan.pose, kind);
   }
   r.stats = s.stats;
   if (keep_scans_) r.scan = s.scan;

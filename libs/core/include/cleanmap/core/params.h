@@ -125,6 +125,27 @@ struct MapParams {
   double beam_spacing = 0.003;
 };
 
+/// DESIGN §3 (paper §III): the camera check of moving candidates, where a sequence has images and
+/// calibration. Sizes are metres at the point's distance, turned into pixels by f / d.
+struct ImageParams {
+  bool enabled = true;         ///< validate with the images when they exist (--images on|off)
+  double patch_height = 0.15;  ///< m; h, the patch side b = h f / d pixels
+  int min_patch = 5;           ///< px; smallest patch side (farther points get this)
+  int max_patch = 24;          ///< px; larger patches are compared downsampled to this side
+  /// m; the patch in the other image is searched within this distance around its projection:
+  /// the registration noise sigma_r (DESIGN §2b), so a static point still finds itself.
+  double search_margin = 0.15;
+  double uniform_std = 0.02;   ///< intensity std (in [0, 1]) above which a patch is textured
+  double ncc_threshold = 0.1;  ///< similar iff E_c = 1 - max NCC_c < this for every channel
+  /// Depth test: mean squared difference of the two patches' depths relative to the point's own
+  /// depth (each patch minus the point's expected depth in its camera, over d): similar below.
+  double depth_threshold = 0.01;
+  int dilation_radius = 4;  ///< px; disk that closes the gaps of the lidar depth map
+  double occlusion = 0.5;   ///< m; a lidar return this much nearer at the pixel hides the point
+  double cell = 0.3;        ///< m; one decision per cell of moving points (0 = per point)
+  int min_views = 1;        ///< window cameras that must see the point to relabel it
+};
+
 /// Where scan poses come from (DESIGN §2.1): `kAuto` is `kGiven` when the first scan has a pose
 /// and `kGicp` otherwise; `kRefine` starts GICP from the given poses.
 enum class PoseSource { kAuto, kGiven, kGicp, kRefine };
@@ -137,6 +158,7 @@ struct PipelineParams {
   ObjectParams object;
   RegistrationParams registration;
   MapParams map;
+  ImageParams image;
   PoseSource poses = PoseSource::kAuto;  ///< a run option (--poses), not an ini key
   uint64_t seed = 42;                    ///< octree sampling; a run is reproducible bit for bit
   int threads = 2;                       ///< worker threads for the moving-point test (1 = serial)

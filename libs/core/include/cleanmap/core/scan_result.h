@@ -4,6 +4,7 @@
 #pragma once
 #include <Eigen/Geometry>
 #include <cstddef>
+#include <opencv2/core/mat.hpp>
 #include <string>
 #include <vector>
 
@@ -14,7 +15,7 @@ namespace cleanmap {
 /// Per-stage wall time of one scan, milliseconds.
 struct StageTimes {
   double registration = 0, index = 0, ground = 0, duplicates = 0, octree = 0, classify = 0,
-         objects = 0, free_space = 0, total = 0;
+         objects = 0, free_space = 0, images = 0, total = 0;
   StageTimes& operator+=(const StageTimes& o);
 };
 
@@ -31,6 +32,13 @@ struct ScanStats {
   std::size_t objects_moving = 0, consensus_points = 0, consensus_removed = 0;  ///< doc/OBJECTS.md
   std::size_t objects_persisted = 0;  ///< of objects_moving, kept moving by the hysteresis
   std::size_t empty = 0;              ///< 1 for a scan without valid points (summed: empty scans)
+  /// DESIGN §3, the camera check: scans that had an image; decision units (cells of moving
+  /// points) tested, of which confirmed moving by the colour / depth test, relabelled static
+  /// when every camera found them similar (by colour only / with the depth test), and unseen
+  /// (no camera to compare with: the laser label stays); points relabelled static.
+  std::size_t image_scans = 0, image_units = 0, image_confirmed_colour = 0,
+              image_confirmed_depth = 0, image_rejected_colour = 0, image_rejected_depth = 0,
+              image_unseen = 0, image_relabelled = 0;
   StageTimes ms;
   /// Sums every count and time (window: sum too; divide by scans for a mean).
   ScanStats& operator+=(const ScanStats& o);
@@ -80,6 +88,10 @@ struct ScanResult {
   /// point, its original index. The map's cleaning and map_labels/ use them (DESIGN §2e).
   std::vector<uint32_t> static_full_index, moving_index;
   std::vector<uint8_t> static_full_kind;
+  /// Original indices of the points the camera check relabelled static (DESIGN §3).
+  std::vector<uint32_t> relabelled_index;
+  /// With LaserPipeline::saveOverlays: the camera image with the scan's points drawn over it.
+  cv::Mat overlay;
   /// The scan as read (sensor frame, valid points, original_index), only when the pipeline keeps
   /// scans (LaserPipeline::keepScans): the cleaned and labelled rawlogs are made from it.
   Scan scan;

@@ -47,6 +47,13 @@ class OutputWriter {
   void write(const ScanResult& r, const std::optional<MosCounts>& eval);
   /// Wall time (ms, whole run) of another writer of the run (report.json `output_ms`).
   void addOutputTime(const std::string& name, double ms) { output_ms_[name] += ms; }
+  /// Where ground truth exists: how many points the camera check relabelled static were truly
+  /// static / truly moving (report.json "images").
+  void addRelabelledTruth(std::size_t truly_static, std::size_t truly_moving) {
+    relabelled_static_ += truly_static;
+    relabelled_moving_ += truly_moving;
+    has_relabel_truth_ = true;
+  }
   /// Cleans the maps with the sequence's free space (DESIGN §2e; null: no cleaning), writes
   /// static_map(_full).ply, map_removed.ply, map_labels/, poses and the report, and publishes the
   /// folder as OUTDIR. `wall_s`: whole run, seconds.
@@ -83,6 +90,8 @@ class OutputWriter {
   MosCounts eval_;
   bool has_eval_ = false;
   std::map<std::string, double> output_ms_;
+  std::size_t relabelled_static_ = 0, relabelled_moving_ = 0;
+  bool has_relabel_truth_ = false;
 };
 
 /// Peak resident memory of this process, MiB.

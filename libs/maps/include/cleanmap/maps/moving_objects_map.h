@@ -83,6 +83,10 @@ class CMovingObjectsMap : public mrpt::maps::CMetricMap {
   void setStorePoints(bool on) { store_points_ = on; }
   /// Hand each scan's own points to the sink too (ScanResult::scan).
   void setKeepScans(bool on);
+  /// DESIGN §3: the camera of the inserted frames' images (LaserPipeline::setCamera), and whether
+  /// each scan's overlay image is handed to the sink (ScanResult::overlay).
+  void setCamera(std::optional<cleanmap::PinholeCamera> camera);
+  void setSaveOverlays(bool on);
 
   /// One point per voxel: the static map (ground included) and the moving points, sorted by voxel.
   std::vector<cleanmap::PointXYZI> staticPoints() const;
@@ -125,7 +129,8 @@ class CMovingObjectsMap : public mrpt::maps::CMetricMap {
   double map_voxel_ = 0.1;
   std::unique_ptr<cleanmap::LaserPipeline> pipe_;
   std::function<void(cleanmap::ScanResult&&)> sink_;
-  bool store_points_ = true, keep_scans_ = false;
+  bool store_points_ = true, keep_scans_ = false, overlays_ = false;
+  std::optional<cleanmap::PinholeCamera> camera_;
   std::optional<std::pair<double, mrpt::poses::CPose3D>> pose_obs_;  // use_pose_observations
   std::size_t next_index_ = 0;  // index given to the next observation inserted through MRPT
   std::unordered_map<uint64_t, cleanmap::PointXYZI> static_, moving_;  // voxel key -> first point

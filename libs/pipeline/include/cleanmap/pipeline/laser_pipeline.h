@@ -45,6 +45,13 @@ class LaserPipeline {
   const FreeSpaceMap* freeSpace() const { return free_.get(); }
   /// Hand each scan's points to the sink too (ScanResult::scan), for outputs made per scan.
   void keepScans(bool on) { keep_scans_ = on; }
+  /// DESIGN §3: the camera of the frames' images (FrameSource::camera()). With a camera and
+  /// params().image.enabled, every frame with an image has its moving candidates checked in the
+  /// images of its window; frames without one keep the laser labels. Set before the first push.
+  void setCamera(std::optional<PinholeCamera> camera) { camera_ = std::move(camera); }
+  const std::optional<PinholeCamera>& camera() const { return camera_; }
+  /// Hand each scan's camera image with its points drawn over it to the sink (ScanResult::overlay).
+  void saveOverlays(bool on) { overlays_ = on; }
 
  private:
   struct Prepared;  // a buffered scan: beams, crop and ground masks
@@ -61,6 +68,7 @@ class LaserPipeline {
   void classify(const std::vector<WindowScan>& window, Prepared& s, Work& w) const;
   void decideLeaves(const Prepared& s, Work& w) const;
   void objectConsensus(Prepared& s, Work& w) const;
+  void validateImages(std::size_t pos, Prepared& s, Work& w) const;
   ScanResult collect(Prepared& s, const Work& w) const;
   void remember(const ScanResult& r, long index);
 
@@ -72,6 +80,8 @@ class LaserPipeline {
   std::size_t next_ = 0;                       // position in buf_ of the next scan to decide
   std::size_t decided_ = 0;
   bool keep_scans_ = false;
+  bool overlays_ = false;
+  std::optional<PinholeCamera> camera_;  // DESIGN §3
   long prev_index_ = -1;
   std::unordered_set<uint64_t> prev_moving_cells_;  // last decided scan's moving cells, dilated
   std::unique_ptr<Work> work_;

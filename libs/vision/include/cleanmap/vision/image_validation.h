@@ -1,0 +1,102 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// DESIGN §3 (paper §III, SPEC §3): a moving candidate that looks the same in every camera of its
+// window is a false positive. OpenCV and Eigen only, beside the laser stages; no MRPT.
+#pragma once
+#include <cstdint>
+#include <optional>
+#include <vector>
+
+#include <opencv2/core/mat.hpp>
+
+#include "cleanmap/core/params.h"
+#include "cleanmap/core/types.h"
+
+namespace cleanmap::vision {
+
+/// One scan's camera, prepared once when the scan arrives and reused by every scan whose window
+/// holds it: the image, the sparse lidar depth map and where the camera was.
+struct CameraView {
+  cv::Mat image;  ///< CV_8UC3, BGR
+  /// CV_32F, camera-to-point distance (m) of the nearest lidar return per pixel, gaps closed by a
+  /// disk dilation (the nearest return within the disk); +inf where none is near.
+  cv::Mat depth;
+  cv::Mat sparse;  ///< CV_32F, the same before the dilation: what the occlusion test reads
+  Eigen::Isometry3d optical_from_world = Eigen::Isometry3d::Identity();
+  Eigen::Vector3d centre = Eigen::Vector3d::Zero();  ///< camera centre, world frame
+  double fx = 0, fy = 0, cx = 0, cy = 0;
+  std::size_t index = 0;  ///< the scan's index
+
+  bool empty() const { return image.empty(); }
+};
+
+/// Builds the view of scan `index`: `points` in the lidar frame, `pose` the lidar's pose in the
+/// world, `radius` the depth map's dilation (px). Throws cleanmap::Error (naming `source`) if the
+/// image is not the camera's size.
+CameraView makeCameraView(const cv::Mat& bgr, const std::vector<PointXYZI>& points,
+                          const Eigen::Isometry3d& pose, const PinholeCamera& cam,
+                          std::size_t index, const std::string& source, int radius);
+
+/// A world point seen by a camera: pixel and distance from the camera centre.
+struct Projection {
+  Eigen::Vector2d px = Eigen::Vector2d::Zero();
+  double distance = 0;
+};
+/// Nullopt when the point is behind the camera or outside the image.
+std::optional<Projection> project(const CameraView& v, const Eigen::Vector3d& world);
+
+/// The (gap-closed) depth map at a pixel inside the image.
+float depthAt(const CameraView& v, const Eigen::Vector2d& px);
+/// The nearest lidar return at the pixel or its 8 neighbours (+inf if none): a point farther than
+/// it by image.occlusion is hidden from the camera. The undilated map, so a foreground edge does
+/// not hide what lies a few pixels beside it.
+float nearestReturn(const CameraView& v, const Eigen::Vector2d& px);
+
+/// True iff the intensity (mean of the channels, in [0, 1]) of a CV_32FC3 patch varies by more
+/// than `min_std` and no channel is flat (NCC divides by each channel's deviation), over the
+/// pixels of `mask` (CV_8U; empty = all).
+bool isTextured(const cv::Mat& patch, double min_std, const cv::Mat& mask = cv::Mat());
+/// Colour test: the largest over channels of E_c = 1 - max over shifts of the NCC of `tmpl`
+/// (CV_32FC3) slid over `region` (CV_32FC3, at least as large), over the template pixels of
+/// `mask` (CV_8U, the template's size; empty = all).
+double colourError(const cv::Mat& tmpl, const cv::Mat& region, const cv::Mat& mask = cv::Mat());
+/// Depth test: the smallest over shifts of the mean squared difference between the template's
+/// depths and the region's, each relative to its own expected depth of the point (`d_t`, `d_r`)
+/// and divided by `d_t`. Pixels without a return in either are left out; nullopt when fewer than
+/// half of the template's pixels can be compared at every shift.
+std::optional<double> depthError(const cv::Mat& tmpl, double d_t, const cv::Mat& region,
+                                 double d_r);
+
+/// What one camera of the window says about a point.
+enum class Verdict : uint8_t {
+  kUnseen,         ///< behind, outside the image, occluded, or no depth to compare
+  kSimilarColour,  ///< the colour test matched: same appearance
+  kSimilarDepth,   ///< uniform patch, the depth test matched
+  kDifferentColour,
+  kDifferentDepth,
+};
+/// Compares the point's patch in its own scan's view `ref` with its patch in `other`.
+Verdict compareViews(const CameraView& ref, const CameraView& other, const Eigen::Vector3d& world,
+                     const ImageParams& p);
+
+/// The decision for one point (DESIGN §3): moving stays moving unless every window camera that
+/// sees it finds it similar (and at least `min_views` do).
+struct Decision {
+  bool relabel_static = false;
+  bool seen = false;  ///< the reference camera sees it and at least one window camera
+  Verdict decisive = Verdict::kUnseen;  ///< the verdict that settled it (first different, or last
+                                        ///< similar)
+  bool used_depth = false;              ///< some window camera needed the depth test
+  int views = 0;                        ///< window cameras compared
+};
+/// `window` in the order to try (the farthest in time first: a mover has left its place there,
+/// so a real one is usually confirmed by the first camera).
+Decision decide(const CameraView& ref, const std::vector<const CameraView*>& window,
+                const Eigen::Vector3d& world, const ImageParams& p);
+
+/// The overlay of `--save-overlays`: the scan's points over its image, static green, moving red,
+/// relabelled static by the camera yellow. `kind` per point: 0 skip, 1 static, 2 moving,
+/// 3 relabelled; `points` in the lidar frame.
+cv::Mat drawOverlay(const CameraView& v, const std::vector<PointXYZI>& points,
+                    const Eigen::Isometry3d& pose, const std::vector<uint8_t>& kind);
+
+}  // namespace cleanmap::vision

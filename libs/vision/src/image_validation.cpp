@@ -1,0 +1,241 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#include "cleanmap/vision/image_validation.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include <opencv2/imgproc.hpp>
+
+#include "cleanmap/core/error.h"
+
+namespace cleanmap::vision {
+namespace {
+
+constexpr float kInf = std::numeric_limits<float>::infinity();
+
+int clampInt(double v, int lo, int hi) {
+  return static_cast<int>(std::clamp(std::lround(v), long(lo), long(hi)));
+}
+
+// Square of side `side` centred at px.
+cv::Rect squareAt(const Eigen::Vector2d& px, int side) {
+  return {static_cast<int>(std::floor(px.x() - 0.5 * side + 0.5)),
+          static_cast<int>(std::floor(px.y() - 0.5 * side + 0.5)), side, side};
+}
+
+}  // namespace
+
+CameraView makeCameraView(const cv::Mat& bgr, const std::vector<PointXYZI>& points,
+                          const Eigen::Isometry3d& pose, const PinholeCamera& cam,
+                          std::size_t index, const std::string& source, int radius) {
+  if (bgr.empty() || bgr.type() != CV_8UC3)
+    throw Error(source, "the camera image is not an 8-bit, 3-channel image");
+  if (cam.width > 0 && (bgr.cols != cam.width || bgr.rows != cam.height))
+    throw Error(source, "the camera image is " + std::to_string(bgr.cols) + "x" +
+                            std::to_string(bgr.rows) + " but the calibration (" + cam.name +
+                            ") is for " + std::to_string(cam.width) + "x" +
+                            std::to_string(cam.height));
+  CameraView v;
+  v.image = bgr;
+  v.index = index;
+  const Eigen::Isometry3d opt_lidar = cam.opticalFromLidar();
+  v.optical_from_world = opt_lidar * pose.inverse();
+  v.centre = pose * opt_lidar.inverse().translation();
+  const Eigen::Matrix3d K = cam.K();
+  v.fx = K(0, 0);
+  v.fy = K(1, 1);
+  v.cx = K(0, 2);
+  v.cy = K(1, 2);
+  // The sparse depth map: the nearest return per pixel (SPEC §3, depth test).
+  v.depth = cv::Mat(bgr.rows, bgr.cols, CV_32F, cv::Scalar(kInf));
+  const Eigen::Matrix3f R = opt_lidar.linear().cast<float>();
+  const Eigen::Vector3f t = opt_lidar.translation().cast<float>();
+  for (const auto& p : points) {
+    const Eigen::Vector3f q = R * p.xyz() + t;
+    if (q.z() < 0.3f) continue;
+    const int u = static_cast<int>(std::floor(v.fx * q.x() / q.z() + v.cx));
+    const int w = static_cast<int>(std::floor(v.fy * q.y() / q.z() + v.cy));
+    if (u < 0 || w < 0 || u >= bgr.cols || w >= bgr.rows) continue;
+    float& d = v.depth.at<float>(w, u);
+    d = std::min(d, q.norm());
+  }
+  // Gaps closed by a disk dilation of the nearness (a min filter of the distance), SPEC §3.
+  v.sparse = v.depth.clone();
+  if (radius > 0)
+    cv::erode(
+        v.sparse, v.depth,
+        cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * radius + 1, 2 * radius + 1)),
+        cv::Point(-1, -1), 1, cv::BORDER_CONSTANT, cv::Scalar(kInf));
+  return v;
+}
+
+float depthAt(const CameraView& v, const Eigen::Vector2d& px) {
+  return v.depth.at<float>(static_cast<int>(px.y()), static_cast<int>(px.x()));
+}
+
+float nearestReturn(const CameraView& v, const Eigen::Vector2d& px) {
+  const int u = static_cast<int>(px.x()), w = static_cast<int>(px.y());
+  float best = kInf;
+  for (int y = std::max(0, w - 1); y <= std::min(v.sparse.rows - 1, w + 1); ++y)
+    for (int x = std::max(0, u - 1); x <= std::min(v.sparse.cols - 1, u + 1); ++x)
+      best = std::min(best, v.sparse.at<float>(y, x));
+  return best;
+}
+
+std::optional<Projection> project(const CameraView& v, const Eigen::Vector3d& world) {
+  const Eigen::Vector3d q = v.optical_from_world * world;
+  if (q.z() <= 0.3) return std::nullopt;
+  Projection pr;
+  pr.px = {v.fx * q.x() / q.z() + v.cx, v.fy * q.y() / q.z() + v.cy};
+  if (pr.px.x() < 0 || pr.px.y() < 0 || pr.px.x() >= v.image.cols || pr.px.y() >= v.image.rows)
+    return std::nullopt;
+  pr.distance = q.norm();
+  return pr;
+}
+
+bool isTextured(const cv::Mat& patch, double min_std, const cv::Mat& mask) {
+  cv::Scalar mean, sd;
+  cv::meanStdDev(patch, mean, sd, mask);
+  for (int c = 0; c < patch.channels(); ++c)
+    if (sd[c] < 1e-3) return false;  // a flat channel: NCC is undefined there (paper §III)
+  cv::Mat grey;
+  cv::transform(patch, grey, cv::Matx13f(1.f / 3, 1.f / 3, 1.f / 3));
+  cv::meanStdDev(grey, mean, sd, mask);
+  return sd[0] > min_std;
+}
+
+double colourError(const cv::Mat& tmpl, const cv::Mat& region, const cv::Mat& mask) {
+  cv::Mat t[3], r[3], res;
+  cv::split(tmpl, t);
+  cv::split(region, r);
+  double worst = 0;
+  for (int c = 0; c < tmpl.channels(); ++c) {
+    cv::matchTemplate(r[c], t[c], res, cv::TM_CCOEFF_NORMED, mask);
+    cv::patchNaNs(res, -1.0);  // a flat window of the region: no correlation
+    double lo = 0, hi = 0;
+    cv::minMaxLoc(res, &lo, &hi);
+    worst = std::max(worst, 1.0 - std::min(hi, 1.0));
+  }
+  return worst;
+}
+
+std::optional<double> depthError(const cv::Mat& tmpl, double d_t, const cv::Mat& region,
+                                 double d_r) {
+  const int n = tmpl.rows * tmpl.cols;
+  const double inv = 1.0 / d_t;
+  std::optional<double> best;
+  for (int sy = 0; sy + tmpl.rows <= region.rows; ++sy)
+    for (int sx = 0; sx + tmpl.cols <= region.cols; ++sx) {
+      double sum = 0;
+      int used = 0;
+      for (int y = 0; y < tmpl.rows; ++y) {
+        const float* a = tmpl.ptr<float>(y);
+        const float* b = region.ptr<float>(sy + y) + sx;
+        for (int x = 0; x < tmpl.cols; ++x) {
+          if (!std::isfinite(a[x]) || !std::isfinite(b[x])) continue;
+          const double ea = std::clamp((a[x] - d_t) * inv, -1.0, 1.0);
+          const double eb = std::clamp((b[x] - d_r) * inv, -1.0, 1.0);
+          sum += (ea - eb) * (ea - eb);
+          ++used;
+        }
+      }
+      if (2 * used < n) continue;
+      const double mse = sum / used;
+      if (!best || mse < *best) best = mse;
+    }
+  return best;
+}
+
+Verdict compareViews(const CameraView& ref, const CameraView& other, const Eigen::Vector3d& world,
+                     const ImageParams& p) {
+  const auto pk = project(ref, world);
+  const auto pl = project(other, world);
+  if (!pk || !pl) return Verdict::kUnseen;
+  // Occlusion: a nearer return at the pixel hides the point from that camera.
+  if (nearestReturn(ref, pk->px) < pk->distance - p.occlusion ||
+      nearestReturn(other, pl->px) < pl->distance - p.occlusion)
+    return Verdict::kUnseen;
+  // Patch sides b = h f / d and the search margin in the other image (SPEC §3).
+  const int bk = clampInt(p.patch_height * ref.fx / pk->distance, p.min_patch, 512);
+  const int bl = clampInt(p.patch_height * other.fx / pl->distance, p.min_patch, 512);
+  const int ml = clampInt(p.search_margin * other.fx / pl->distance, 0, 4 * bl);
+  const cv::Rect tk = squareAt(pk->px, bk);
+  if ((tk & cv::Rect(0, 0, ref.image.cols, ref.image.rows)) != tk) return Verdict::kUnseen;
+  const cv::Rect pl_rect = squareAt(pl->px, bl);
+  const cv::Rect region = cv::Rect(pl_rect.x - ml, pl_rect.y - ml, bl + 2 * ml, bl + 2 * ml) &
+                          cv::Rect(0, 0, other.image.cols, other.image.rows);
+  if (region.width < bl || region.height < bl) return Verdict::kUnseen;
+  // The smaller patch is resized to the other's size; both are then brought to at most
+  // max_patch (finer detail adds cost, not evidence).
+  const int side = std::min(std::max(bk, bl), p.max_patch);
+  const double sl = double(side) / bl;
+  const cv::Size region_size(std::max(side, int(std::lround(region.width * sl))),
+                             std::max(side, int(std::lround(region.height * sl))));
+  cv::Mat tmpl, reg, patch_l, mask;
+  cv::resize(ref.image(tk), tmpl, cv::Size(side, side), 0, 0, cv::INTER_AREA);
+  // Only the template's pixels on the point's own surface (depth within the occlusion tolerance)
+  // are compared: at a silhouette, the background behind shifts with the viewpoint (parallax)
+  // and would make a static edge look changed. Too few such pixels: the whole patch (paper).
+  {
+    cv::Mat d;
+    cv::resize(ref.depth(tk), d, cv::Size(side, side), 0, 0, cv::INTER_NEAREST);
+    const float lo = float(pk->distance - p.occlusion), hi = float(pk->distance + p.occlusion);
+    mask = (d >= lo) & (d <= hi);
+    if (4 * cv::countNonZero(mask) < side * side) mask = cv::Mat();
+  }
+  cv::resize(other.image(region), reg, region_size, 0, 0, cv::INTER_AREA);
+  tmpl.convertTo(tmpl, CV_32FC3, 1.0 / 255);
+  reg.convertTo(reg, CV_32FC3, 1.0 / 255);
+  // The other patch itself (at the projection, no margin) for the uniformity check.
+  const cv::Rect own_l = squareAt(pl->px, bl) & cv::Rect(0, 0, other.image.cols, other.image.rows);
+  cv::resize(other.image(own_l), patch_l, cv::Size(side, side), 0, 0, cv::INTER_AREA);
+  patch_l.convertTo(patch_l, CV_32FC3, 1.0 / 255);
+  if (isTextured(tmpl, p.uniform_std, mask) && isTextured(patch_l, p.uniform_std, mask))
+    return colourError(tmpl, reg, mask) < p.ncc_threshold ? Verdict::kSimilarColour
+                                                          : Verdict::kDifferentColour;
+  // Depth test where a patch is uniform: the depth maps, gaps closed, each patch relative to the
+  // point's own expected depth in its camera (the motion correction, DESIGN §3).
+  cv::Mat dt, dr;
+  cv::resize(ref.depth(tk), dt, cv::Size(side, side), 0, 0, cv::INTER_NEAREST);
+  cv::resize(other.depth(region), dr, region_size, 0, 0, cv::INTER_NEAREST);
+  const auto e = depthError(dt, pk->distance, dr, pl->distance);
+  if (!e) return Verdict::kUnseen;
+  return *e < p.depth_threshold ? Verdict::kSimilarDepth : Verdict::kDifferentDepth;
+}
+
+Decision decide(const CameraView& ref, const std::vector<const CameraView*>& window,
+                const Eigen::Vector3d& world, const ImageParams& p) {
+  Decision d;
+  for (const CameraView* v : window) {
+    const Verdict vd = compareViews(ref, *v, world, p);
+    if (vd == Verdict::kUnseen) continue;
+    ++d.views;
+    d.decisive = vd;
+    d.used_depth = d.used_depth || vd == Verdict::kSimilarDepth || vd == Verdict::kDifferentDepth;
+    if (vd == Verdict::kDifferentColour || vd == Verdict::kDifferentDepth) break;
+  }
+  d.seen = d.views > 0;
+  d.relabel_static = d.views >= p.min_views && (d.decisive == Verdict::kSimilarColour ||
+                                                d.decisive == Verdict::kSimilarDepth);
+  return d;
+}
+
+cv::Mat drawOverlay(const CameraView& v, const std::vector<PointXYZI>& points,
+                    const Eigen::Isometry3d& pose, const std::vector<uint8_t>& kind) {
+  cv::Mat out = v.image.clone();
+  const Eigen::Isometry3d opt_lidar = v.optical_from_world * pose;
+  const cv::Scalar colour[4] = {{0, 0, 0}, {0, 200, 0}, {0, 0, 255}, {0, 255, 255}};  // BGR
+  for (uint8_t pass = 1; pass <= 3; ++pass)  // moving and relabelled drawn over static
+    for (std::size_t i = 0; i < points.size() && i < kind.size(); ++i) {
+      if (kind[i] != pass) continue;
+      const Eigen::Vector3d q = opt_lidar * points[i].xyz().cast<double>();
+      if (q.z() <= 0.3) continue;
+      const cv::Point px(int(v.fx * q.x() / q.z() + v.cx), int(v.fy * q.y() / q.z() + v.cy));
+      if (px.x < 0 || px.y < 0 || px.x >= out.cols || px.y >= out.rows) continue;
+      cv::circle(out, px, pass == 1 ? 1 : 2, colour[pass], cv::FILLED);
+    }
+  return out;
+}
+
+}  // namespace cleanmap::vision
