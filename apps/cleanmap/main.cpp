@@ -230,17 +230,16 @@ int main(int argc, char** argv) {
     auto src = cleanmap::mrpt::openInput(input, in_opts);
     const auto* kitti = dynamic_cast<const cleanmap::io::KittiSequence*>(src.get());
     const bool evaluate = kitti && kitti->hasLabels();
-    if (params.image.enabled) {
-      const bool has_images = !kitti || kitti->hasImages();  // a rawlog's show as they come
-      if (images == "on" && (!src->camera() || !has_images))
+    if (params.image.enabled && kitti) {  // a rawlog's camera is known from its first image
+      if (images == "on" && (!src->camera() || !kitti->hasImages()))
         throw cleanmap::Error(input,
                               "--images on, but the input has no " +
                                   std::string(src->camera() ? "images" : "camera calibration") +
                                   " (KITTI: image_2/ and P2 in calib.txt; rawlog: "
                                   "CObservationImage)");
       moving->setCamera(src->camera());
-      moving->setSaveOverlays(overlays);
     }
+    moving->setSaveOverlays(overlays);
 
     if (const auto n = src->sizeHint(); n && first >= static_cast<long>(*n))
       throw cleanmap::Error(input, "--first " + std::to_string(first) +
@@ -310,10 +309,16 @@ int main(int argc, char** argv) {
       if (idx < first) continue;
       if (last >= 0 && idx > last) break;
       empty += f->scan.empty();
+      if (params.image.enabled && !moving->camera() && f->image && src->camera())
+        moving->setCamera(src->camera());  // a rawlog's, from its first image
       moving->insertFrame(std::move(*f));
     }
     moving->flush();
     checkSignal();
+    if (images == "on" && moving->totals().image_scans == 0)
+      throw cleanmap::Error(input,
+                            "--images on, but no scan came with a camera image and "
+                            "calibration (rawlog: CObservationImage with its camera)");
     if (out.scans() == 0)
       throw cleanmap::Error(input, "no scans in the requested range: the input has " +
                                        std::to_string(seen) + " scans (--first " +

@@ -153,6 +153,11 @@ expect_error 2 "--images is on, off or auto" "$bin/cleanmap" "$seq" -o "$scratch
 grep -q '"scans_with_image": 8' "$scratch/cam_out/report.json" || fail "report.json: images.scans_with_image is not 8"
 "$bin/cleanmap" "$scratch/cam" -o "$scratch/cam_off" --quiet --images off --no-mrpt-outputs >/dev/null || fail "--images off failed"
 grep -q '"scans_with_image": 0' "$scratch/cam_off/report.json" || fail "--images off still used the images"
+expect_error 1 "--images on, but no scan came with a camera image" "$bin/cleanmap" "$seq/sequence.rawlog" -o "$scratch/t" --images on --no-mrpt-outputs
+"$bin/cleanmap-sim" -o "$scratch/cam_rl" --frames 4 --threads 2 >/dev/null 2>&1 || fail "sim with images and rawlog failed"
+"$bin/cleanmap" "$scratch/cam_rl/sequence.rawlog" -o "$scratch/cam_rl_out" --quiet --images on --save-overlays --no-mrpt-outputs >/dev/null ||
+  fail "rawlog run with images failed"
+[[ $(ls "$scratch/cam_rl_out/overlays" 2>/dev/null | grep -c '\.png$') -eq 4 ]] || fail "rawlog: expected 4 overlay images"
 
 sed 's/^static_map.policy = transient/static_map.policy = transiant/' "$ini" >"$scratch/policy.ini"
 expect_error 1 "'static_map.policy' needs one of moving, transient; got 'transiant'" "$bin/cleanmap" "$seq" -o "$scratch/t" -c "$scratch/policy.ini"

@@ -133,8 +133,6 @@ void CMovingObjectsMap::setKeepScans(bool on) {
 }
 
 void CMovingObjectsMap::setCamera(std::optional<cleanmap::PinholeCamera> camera) {
-  if (pending() > 0)
-    throw cleanmap::Error("cleanmap_moving", "the camera cannot change while scans are pending");
   camera_ = std::move(camera);
   if (pipe_) pipe_->setCamera(camera_);
 }

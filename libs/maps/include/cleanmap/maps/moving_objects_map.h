@@ -83,10 +83,12 @@ class CMovingObjectsMap : public mrpt::maps::CMetricMap {
   void setStorePoints(bool on) { store_points_ = on; }
   /// Hand each scan's own points to the sink too (ScanResult::scan).
   void setKeepScans(bool on);
-  /// DESIGN §3: the camera of the inserted frames' images (LaserPipeline::setCamera), and whether
-  /// each scan's overlay image is handed to the sink (ScanResult::overlay).
+  /// DESIGN §3: the camera of the inserted frames' images (LaserPipeline::setCamera; it applies to
+  /// the frames inserted after it), and whether each scan's overlay image is handed to the sink
+  /// (ScanResult::overlay).
   void setCamera(std::optional<cleanmap::PinholeCamera> camera);
   void setSaveOverlays(bool on);
+  const std::optional<cleanmap::PinholeCamera>& camera() const { return camera_; }
 
   /// One point per voxel: the static map (ground included) and the moving points, sorted by voxel.
   std::vector<cleanmap::PointXYZI> staticPoints() const;

@@ -47,7 +47,8 @@ class LaserPipeline {
   void keepScans(bool on) { keep_scans_ = on; }
   /// DESIGN §3: the camera of the frames' images (FrameSource::camera()). With a camera and
   /// params().image.enabled, every frame with an image has its moving candidates checked in the
-  /// images of its window; frames without one keep the laser labels. Set before the first push.
+  /// images of its window; frames without one keep the laser labels. It applies to the frames
+  /// pushed after it (a rawlog's camera is known from its first image).
   void setCamera(std::optional<PinholeCamera> camera) { camera_ = std::move(camera); }
   const std::optional<PinholeCamera>& camera() const { return camera_; }
   /// Hand each scan's camera image with its points drawn over it to the sink (ScanResult::overlay).
