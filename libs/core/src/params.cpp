@@ -72,7 +72,7 @@ void validate(const PipelineParams& p, const std::string& name) {
   require(im.dilation_radius >= 0 && im.dilation_radius <= 20,
           "image.dilation_radius must be in [0, 20] px");
   require(im.occlusion > 0, "image.occlusion must be > 0");
-  require(im.cell >= 0, "image.cell must be >= 0 (0 = one decision per point)");
+  require(im.cell > 0, "image.cell must be > 0");
   require(im.min_views >= 1, "image.min_views must be >= 1");
 }
 

@@ -367,7 +367,7 @@ void OutputWriter::finish(double wall_s, const FreeSpaceMap* free_space) {
     j["images"] = {{"enabled", im.enabled && total.image_scans > 0},
                    {"scans_with_image", total.image_scans},
                    {"units_tested", total.image_units},
-                   {"unit", im.cell > 0 ? "cell of " + shortestDouble(im.cell) + " m" : "point"},
+                   {"unit", "object (cells of " + shortestDouble(im.cell) + " m)"},
                    {"confirmed_by_colour", total.image_confirmed_colour},
                    {"confirmed_by_depth", total.image_confirmed_depth},
                    {"rejected_by_colour", total.image_rejected_colour},

@@ -376,24 +376,18 @@ void LaserPipeline::validateImages(std::size_t pos, Prepared& s, Work& w) const 
                    [](const auto& a, const auto& b) { return a.first > b.first; });
   std::vector<const vision::CameraView*> window;
   for (const auto& o : order) window.push_back(o.second);
-  // Cells of moving points (one per point with image.cell = 0).
+  // Cells of moving points.
   std::vector<std::vector<uint32_t>> cells;
   std::unordered_map<uint64_t, std::size_t> cell_at;
-  const double inv = 1.0 / (ip.cell > 0 ? ip.cell : p_.object.voxel);
+  const double inv = 1.0 / ip.cell;
   std::vector<uint64_t> keys;
   for (uint32_t i = 0; i < s.scan.size(); ++i) {
     if (!w.moving[i]) continue;
     const Eigen::Vector3d& x = w.world[i];
     const uint64_t key = cellKeyOf(x.x(), x.y(), x.z(), inv);
-    if (ip.cell > 0) {
-      const auto [it, fresh] = cell_at.emplace(key, cells.size());
-      if (fresh) cells.emplace_back(), keys.push_back(key);
-      cells[it->second].push_back(i);
-    } else {
-      cell_at.emplace(key, cells.size());
-      cells.push_back({i});
-      keys.push_back(key);
-    }
+    const auto [it, fresh] = cell_at.emplace(key, cells.size());
+    if (fresh) cells.emplace_back(), keys.push_back(key);
+    cells[it->second].push_back(i);
   }
   // Objects: connected components of the cells.
   std::vector<int> obj_of(cells.size(), -1);
@@ -445,8 +439,7 @@ void LaserPipeline::validateImages(std::size_t pos, Prepared& s, Work& w) const 
     for (std::size_t c : members) {
       const vision::Decision d = vision::decide(*s.view, window, rep[c], ip);
       if (!d.seen) continue;
-      if (!d.relabel_static && (d.decisive == vision::Verdict::kDifferentColour ||
-                                d.decisive == vision::Verdict::kDifferentDepth)) {
+      if (d.confirmed) {
         outcome[o] =
             d.decisive == vision::Verdict::kDifferentColour ? kConfirmedColour : kConfirmedDepth;
         for (std::size_t m : members) relabel_cell[m] = 0;

@@ -70,10 +70,6 @@ CameraView makeCameraView(const cv::Mat& bgr, const std::vector<PointXYZI>& poin
   return v;
 }
 
-float depthAt(const CameraView& v, const Eigen::Vector2d& px) {
-  return v.depth.at<float>(static_cast<int>(px.y()), static_cast<int>(px.x()));
-}
-
 float nearestReturn(const CameraView& v, const Eigen::Vector2d& px) {
   const int u = static_cast<int>(px.x()), w = static_cast<int>(px.y());
   float best = kInf;
@@ -147,21 +143,35 @@ std::optional<double> depthError(const cv::Mat& tmpl, double d_t, const cv::Mat&
   return best;
 }
 
-Verdict compareViews(const CameraView& ref, const CameraView& other, const Eigen::Vector3d& world,
-                     const ImageParams& p) {
+namespace {
+
+// The point in its own scan's camera: projected, not occluded (a nearer return at the pixel hides
+// it), its patch of side b = h f / d (SPEC §3) inside the image. Nullopt otherwise.
+struct RefPatch {
+  Projection pk;
+  int bk = 0;
+  cv::Rect tk;
+};
+std::optional<RefPatch> refPatch(const CameraView& ref, const Eigen::Vector3d& world,
+                                 const ImageParams& p) {
   const auto pk = project(ref, world);
+  if (!pk || nearestReturn(ref, pk->px) < pk->distance - p.occlusion) return std::nullopt;
+  RefPatch r{*pk, clampInt(p.patch_height * ref.fx / pk->distance, p.min_patch, 512), {}};
+  r.tk = squareAt(pk->px, r.bk);
+  if ((r.tk & cv::Rect(0, 0, ref.image.cols, ref.image.rows)) != r.tk) return std::nullopt;
+  return r;
+}
+
+Verdict compareWith(const CameraView& ref, const RefPatch& rp, const CameraView& other,
+                    const Eigen::Vector3d& world, const ImageParams& p) {
   const auto pl = project(other, world);
-  if (!pk || !pl) return Verdict::kUnseen;
-  // Occlusion: a nearer return at the pixel hides the point from that camera.
-  if (nearestReturn(ref, pk->px) < pk->distance - p.occlusion ||
-      nearestReturn(other, pl->px) < pl->distance - p.occlusion)
-    return Verdict::kUnseen;
-  // Patch sides b = h f / d and the search margin in the other image (SPEC §3).
-  const int bk = clampInt(p.patch_height * ref.fx / pk->distance, p.min_patch, 512);
+  if (!pl || nearestReturn(other, pl->px) < pl->distance - p.occlusion) return Verdict::kUnseen;
+  const Projection* pk = &rp.pk;
+  const int bk = rp.bk;
+  const cv::Rect& tk = rp.tk;
+  // The patch side and the search margin in the other image (SPEC §3).
   const int bl = clampInt(p.patch_height * other.fx / pl->distance, p.min_patch, 512);
   const int ml = clampInt(p.search_margin * other.fx / pl->distance, 0, 4 * bl);
-  const cv::Rect tk = squareAt(pk->px, bk);
-  if ((tk & cv::Rect(0, 0, ref.image.cols, ref.image.rows)) != tk) return Verdict::kUnseen;
   const cv::Rect pl_rect = squareAt(pl->px, bl);
   const cv::Rect region = cv::Rect(pl_rect.x - ml, pl_rect.y - ml, bl + 2 * ml, bl + 2 * ml) &
                           cv::Rect(0, 0, other.image.cols, other.image.rows);
@@ -188,7 +198,7 @@ Verdict compareViews(const CameraView& ref, const CameraView& other, const Eigen
   tmpl.convertTo(tmpl, CV_32FC3, 1.0 / 255);
   reg.convertTo(reg, CV_32FC3, 1.0 / 255);
   // The other patch itself (at the projection, no margin) for the uniformity check.
-  const cv::Rect own_l = squareAt(pl->px, bl) & cv::Rect(0, 0, other.image.cols, other.image.rows);
+  const cv::Rect own_l = pl_rect & cv::Rect(0, 0, other.image.cols, other.image.rows);
   cv::resize(other.image(own_l), patch_l, cv::Size(side, side), 0, 0, cv::INTER_AREA);
   patch_l.convertTo(patch_l, CV_32FC3, 1.0 / 255);
   if (isTextured(tmpl, p.uniform_std, mask) && isTextured(patch_l, p.uniform_std, mask))
@@ -204,11 +214,21 @@ Verdict compareViews(const CameraView& ref, const CameraView& other, const Eigen
   return *e < p.depth_threshold ? Verdict::kSimilarDepth : Verdict::kDifferentDepth;
 }
 
+}  // namespace
+
+Verdict compareViews(const CameraView& ref, const CameraView& other, const Eigen::Vector3d& world,
+                     const ImageParams& p) {
+  const auto rp = refPatch(ref, world, p);
+  return rp ? compareWith(ref, *rp, other, world, p) : Verdict::kUnseen;
+}
+
 Decision decide(const CameraView& ref, const std::vector<const CameraView*>& window,
                 const Eigen::Vector3d& world, const ImageParams& p) {
   Decision d;
+  const auto rp = refPatch(ref, world, p);  // once for the whole window
+  if (!rp) return d;
   for (const CameraView* v : window) {
-    const Verdict vd = compareViews(ref, *v, world, p);
+    const Verdict vd = compareWith(ref, *rp, *v, world, p);
     if (vd == Verdict::kUnseen) continue;
     ++d.views;
     d.decisive = vd;
@@ -216,6 +236,7 @@ Decision decide(const CameraView& ref, const std::vector<const CameraView*>& win
     if (vd == Verdict::kDifferentColour || vd == Verdict::kDifferentDepth) break;
   }
   d.seen = d.views > 0;
+  d.confirmed = d.decisive == Verdict::kDifferentColour || d.decisive == Verdict::kDifferentDepth;
   d.relabel_static = d.views >= p.min_views && (d.decisive == Verdict::kSimilarColour ||
                                                 d.decisive == Verdict::kSimilarDepth);
   return d;

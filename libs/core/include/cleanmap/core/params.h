@@ -142,7 +142,7 @@ struct ImageParams {
   double depth_threshold = 0.01;
   int dilation_radius = 4;  ///< px; disk that closes the gaps of the lidar depth map
   double occlusion = 0.5;   ///< m; a lidar return this much nearer at the pixel hides the point
-  double cell = 0.3;        ///< m; one decision per cell of moving points (0 = per point)
+  double cell = 0.3;        ///< m; cells of moving points: one tested point each
   int min_views = 1;        ///< window cameras that must see the point to relabel it
 };
 

@@ -44,8 +44,6 @@ struct Projection {
 /// Nullopt when the point is behind the camera or outside the image.
 std::optional<Projection> project(const CameraView& v, const Eigen::Vector3d& world);
 
-/// The (gap-closed) depth map at a pixel inside the image.
-float depthAt(const CameraView& v, const Eigen::Vector2d& px);
 /// The nearest lidar return at the pixel or its 8 neighbours (+inf if none): a point farther than
 /// it by image.occlusion is hidden from the camera. The undilated map, so a foreground edge does
 /// not hide what lies a few pixels beside it.
@@ -82,7 +80,8 @@ Verdict compareViews(const CameraView& ref, const CameraView& other, const Eigen
 /// sees it finds it similar (and at least `min_views` do).
 struct Decision {
   bool relabel_static = false;
-  bool seen = false;  ///< the reference camera sees it and at least one window camera
+  bool confirmed = false;  ///< some window camera found it different: it stays moving
+  bool seen = false;       ///< the reference camera sees it and at least one window camera
   Verdict decisive = Verdict::kUnseen;  ///< the verdict that settled it (first different, or last
                                         ///< similar)
   bool used_depth = false;              ///< some window camera needed the depth test
