@@ -4,6 +4,9 @@
 #pragma once
 #include <cstdlib>
 #include <exception>
+#if defined(__GLIBC__)
+#include <malloc.h>
+#endif
 #include <iostream>
 #include <sstream>
 #include <string>
@@ -17,6 +20,17 @@ inline std::string errorLine(const std::exception& e) {
   std::string what = e.what();
   if (const auto m = what.rfind("Message: "); m != std::string::npos) what = what.substr(m + 9);
   return what.substr(0, what.find('\n'));
+}
+
+/// Each scan allocates and frees a few MB (beam index, masks, spooled points). glibc returns such
+/// blocks to the kernel (mmap above 128 KiB, heap trimming), so the next scan page-faults them
+/// back, zeroed: 10 ms a scan on the beam index alone in a VM (doc/BENCHMARK.md, Clean map).
+/// The apps keep freed memory for reuse instead; peak RSS is unchanged within a few MiB.
+inline void keepFreedMemory() {
+#if defined(__GLIBC__)
+  mallopt(M_MMAP_THRESHOLD, 32 << 20);  // glibc's largest
+  mallopt(M_TRIM_THRESHOLD, 256 << 20);
+#endif
 }
 
 class Args {

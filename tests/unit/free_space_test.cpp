@@ -107,3 +107,30 @@ TEST(FreeSpace, ChunksMergeInAnyOrderToTheWholeRun) {
     }
   EXPECT_GT(checked, 1000);
 }
+
+TEST(FreeSpace, SpaceOnlyEmptyAfterItsLastReturnWasVacated) {
+  // A truck side at x = 10 returns in scans 0..19, then leaves: scans 20..25 see through to the
+  // wall. Fewer empty scans than hits (6 < 0.5 x 20), but every scan after the last return saw it
+  // empty for 6 >= vacated_scans scans: it goes. Foliage at the same place (hit in 30 scans,
+  // empty in 10 others among them, the last one a scan after the last hit) stays.
+  MapParams p = params();
+  p.free_ratio = 0.5;
+  p.vacated_scans = 5;
+  const PointXYZI side{10.05f, 0.f, 0.f, 0.f};
+  FreeSpaceMap truck(p), foliage(p);
+  for (int k = 0; k < 26; ++k) truck.insertScan(k < 20 ? ring(20.f, {side}) : ring(20.f), at(0), k);
+  for (int k = 0; k < 40; ++k)
+    foliage.insertScan(k % 4 == 3 ? ring(20.f) : ring(20.f, {side}), at(0), k);
+  const FreeEvidence t = truck.evidence(side.xyz()), f = foliage.evidence(side.xyz());
+  EXPECT_EQ(t.count, 6);
+  EXPECT_EQ(t.hits, 20);
+  EXPECT_EQ(t.last_hit, 19);
+  EXPECT_EQ(f.count, 10);
+  EXPECT_EQ(f.last_hit, 38);
+  EXPECT_TRUE(removedByPolicy(t, 3, p));
+  EXPECT_FALSE(removedByPolicy(f, 3, p));
+  p.vacated_scans = 0;  // off: the hit ratio alone keeps the truck
+  EXPECT_FALSE(removedByPolicy(t, 3, p));
+  p.vacated_scans = 7;  // 6 scans of empty space are not enough
+  EXPECT_FALSE(removedByPolicy(t, 3, p));
+}

@@ -30,6 +30,7 @@ struct FreeSpaceMap::Block {
   uint64_t seen[kVoxels / 64] = {};  // voxels that scan has already counted
   struct Voxel {
     int32_t first = -1, last = -1;  // the first and last scan that saw it empty
+    int32_t last_hit = -1;          // the last scan that returned from it
     uint16_t count = 0;             // scans that saw it empty (saturating)
     uint16_t hits = 0;              // scans that returned from it (saturating)
   };
@@ -48,7 +49,10 @@ bool removedByPolicy(const FreeEvidence& e, int64_t scan, const MapParams& p) {
   if (!p.clean || e.count < p.min_free_scans) return false;
   // Seen empty by fewer scans than return from it (times free_ratio): see-through (foliage,
   // fences, windows) or grazing beams past a surface, not a place something left.
-  if (double(e.count) < p.free_ratio * double(e.hits)) return false;
+  // Unless only empty for vacated_scans after its last return: it stood there, then left (every
+  // scan after the last hit saw it empty, by definition; see-through space is hit again).
+  const bool vacated = p.vacated_scans > 0 && e.last - e.last_hit >= p.vacated_scans;
+  if (!vacated && double(e.count) < p.free_ratio * double(e.hits)) return false;
   if (p.policy == MapPolicy::kTransient) return true;
   return e.first < scan && e.last > scan;  // kMoving: empty before and after (it came and went)
 }
@@ -63,7 +67,10 @@ FreeSpaceMap::FreeSpaceMap(const FreeSpaceMap& o) : p_(o.p_), inv_(o.inv_), mark
 FreeSpaceMap::Block& FreeSpaceMap::block(uint64_t key, int64_t scan) {
   auto& b = blocks_[key];
   if (!b) b = std::make_unique<Block>();
-  b->restamp(scan);
+  if (b->stamp != scan) {
+    b->restamp(scan);
+    touched_.push_back(b.get());
+  }
   return *b;
 }
 
@@ -95,7 +102,9 @@ void FreeSpaceMap::insertScan(const std::vector<PointXYZI>& points, const Eigen:
       const int li = localIndex(x, y, z);
       if (!Block::bit(b->hit, li)) {
         Block::set(b->hit, li);
-        if (b->v[li].hits < 0xFFFF) ++b->v[li].hits;
+        auto& x = b->v[li];
+        if (x.hits < 0xFFFF) ++x.hits;
+        x.last_hit = std::max(x.last_hit, static_cast<int32_t>(scan));
       }
     }
   }
@@ -153,28 +162,50 @@ void FreeSpaceMap::insertScan(const std::vector<PointXYZI>& points, const Eigen:
         tdelta[i] = tmax[i] = std::numeric_limits<double>::infinity();
       }
     }
+    // The same walk with the axes unrolled into scalars (an indexed tmax[i] spills to memory);
+    // ties go to the lower axis.
+    int64_t vx = v[0], vy = v[1], vz = v[2];
+    double tx = tmax[0], ty = tmax[1], tz = tmax[2];
     for (double t = 0; t <= len;) {
-      const uint64_t k = blockKey(v[0], v[1], v[2]);
+      const uint64_t k = blockKey(vx, vy, vz);
       if (k != cached) {
         b = &block(k, scan);
         cached = k;
       }
-      const int li = localIndex(v[0], v[1], v[2]);
-      if (!Block::bit(b->hit, li) && !Block::bit(b->seen, li)) {
-        Block::set(b->seen, li);
-        auto& x = b->v[li];
+      const int li = localIndex(vx, vy, vz);
+      b->seen[li >> 6] |= ~b->hit[li >> 6] & (uint64_t(1) << (li & 63));
+      if (tx < ty) {
+        if (tx < tz) {
+          t = tx;
+          tx += tdelta[0];
+          vx += step[0];
+          continue;
+        }
+      } else if (ty < tz) {
+        t = ty;
+        ty += tdelta[1];
+        vy += step[1];
+        continue;
+      }
+      t = tz;
+      tz += tdelta[2];
+      vz += step[2];
+    }
+  }
+  // The walk only set bits (two cache lines per block); the voxels it saw empty are counted here,
+  // block by block in memory order, instead of one cache miss per step.
+  const auto s32 = static_cast<int32_t>(scan);
+  for (Block* tb : touched_) {
+    for (int w = 0; w < kVoxels / 64; ++w)
+      for (uint64_t m = tb->seen[w]; m; m &= m - 1) {
+        auto& x = tb->v[w * 64 + __builtin_ctzll(m)];
         if (x.count < 0xFFFF) ++x.count;
-        const auto s32 = static_cast<int32_t>(scan);
         if (x.first < 0 || s32 < x.first) x.first = s32;
         x.last = std::max(x.last, s32);
         ++marked_;
       }
-      const int i = tmax[0] < tmax[1] ? (tmax[0] < tmax[2] ? 0 : 2) : (tmax[1] < tmax[2] ? 1 : 2);
-      t = tmax[i];
-      tmax[i] += tdelta[i];
-      v[i] += step[i];
-    }
   }
+  touched_.clear();
 }
 
 FreeEvidence FreeSpaceMap::evidence(const Eigen::Vector3f& p) const {
@@ -188,6 +219,7 @@ FreeEvidence FreeSpaceMap::evidence(const Eigen::Vector3f& p) const {
   e.hits = static_cast<int>(b->v[li].hits);
   e.first = b->v[li].first;
   e.last = b->v[li].last;
+  e.last_hit = b->v[li].last_hit;
   return e;
 }
 
@@ -203,6 +235,7 @@ void FreeSpaceMap::merge(const FreeSpaceMap& o) {
       m.hits = static_cast<uint16_t>(std::min(0xFFFF, m.hits + theirs.hits));
       if (theirs.first >= 0 && (m.first < 0 || theirs.first < m.first)) m.first = theirs.first;
       m.last = std::max(m.last, theirs.last);
+      m.last_hit = std::max(m.last_hit, theirs.last_hit);
     }
   }
   marked_ += o.marked_;

@@ -2,7 +2,9 @@
 #include "cleanmap/pipeline/laser_pipeline.h"
 
 #include <cmath>
+#include <exception>
 #include <random>
+#include <thread>
 #include <unordered_map>
 
 #include "cleanmap/core/beam_index.h"
@@ -30,6 +32,7 @@ struct LaserPipeline::Prepared {
   Eigen::Isometry3d world_to_sensor;
   PoseInfo pose_info;
   ScanStats stats;
+  double ms_prepared = 0;  // wall time of prepare() after registration (its stages may overlap)
   std::optional<vision::CameraView> view;  // DESIGN §3, when the frame has an image
 };
 
@@ -156,6 +159,29 @@ std::unique_ptr<LaserPipeline::Prepared> LaserPipeline::prepare(Frame&& f) {
   st.invalid = s->scan.dropped_invalid;
   st.empty = s->scan.empty() ? 1 : 0;
 
+  const auto t_prep = Clock::now();
+  // DESIGN §2e: every beam of the scan adds to the sequence's free space. Nothing below reads or
+  // writes that map, so with two threads or more it is filled beside the other stages (the
+  // result does not depend on it: one thread owns the map).
+  std::exception_ptr free_error;
+  auto fill_free_space = [&] {
+    try {
+      const auto t = Clock::now();
+      free_->insertScan(s->scan.points, s->scan.pose, static_cast<int64_t>(s->index));
+      s->stats.ms.free_space = msSince(t);
+    } catch (...) {
+      free_error = std::current_exception();
+    }
+  };
+  std::thread free_thread;
+  struct Join {  // also when a stage below throws (a std::thread must not be destroyed running)
+    std::thread& t;
+    ~Join() {
+      if (t.joinable()) t.join();
+    }
+  } join{free_thread};
+  if (free_ && p_.threads > 1) free_thread = std::thread(fill_free_space);
+
   auto t0 = Clock::now();
   // Every valid point is a beam (ground and far points included, DESIGN §2.4).
   s->beams = BeamIndex(s->scan.points, test_.searchRadius());
@@ -195,12 +221,12 @@ std::unique_ptr<LaserPipeline::Prepared> LaserPipeline::prepare(Frame&& f) {
     st.image_scans = 1;
   }
 
-  // DESIGN §2e: every beam of the scan adds to the sequence's free space.
-  if (free_) {
-    t0 = Clock::now();
-    free_->insertScan(pts, s->scan.pose, static_cast<int64_t>(s->index));
-    st.ms.free_space = msSince(t0);
-  }
+  if (free_thread.joinable())
+    free_thread.join();
+  else if (free_)
+    fill_free_space();
+  if (free_error) std::rethrow_exception(free_error);
+  s->ms_prepared = msSince(t_prep);
   return s;
 }
 
@@ -250,8 +276,7 @@ void LaserPipeline::decide(std::size_t pos) {
   remember(r, static_cast<long>(s.index));
   if (odo_)
     odo_->dropPoints(static_cast<int64_t>(s.index), w.moving);  // movers leave the local map
-  r.stats.ms.total = msSince(t_start) + s.stats.ms.registration + s.stats.ms.index +
-                     s.stats.ms.ground + s.stats.ms.free_space + s.stats.ms.images;
+  r.stats.ms.total = msSince(t_start) + s.stats.ms.registration + s.ms_prepared;
   ++decided_;
   sink_(std::move(r));
 }

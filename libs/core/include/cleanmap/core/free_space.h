@@ -23,6 +23,7 @@ struct FreeEvidence {
   int count = 0;
   int hits = 0;  ///< scans that returned from the voxel
   int64_t first = -1, last = -1;
+  int64_t last_hit = -1;  ///< the last scan that returned from it
 };
 
 /// Is a map point (non-ground) of scan `scan` removed, given its voxel's evidence?
@@ -57,6 +58,7 @@ class FreeSpaceMap {
   MapParams p_;
   double inv_;
   std::unordered_map<uint64_t, std::unique_ptr<Block>> blocks_;
+  std::vector<Block*> touched_;  // blocks the scan being inserted visits (its voxels updated last)
   std::size_t marked_ = 0;
 };
 

@@ -115,6 +115,10 @@ struct MapParams {
   /// ... and by at least free_ratio times as many scans as returned from it (0 = off): see-through
   /// foliage and grazing beams past a surface are seen empty less often than they are hit.
   double free_ratio = 0.5;
+  /// ... unless every scan for at least this many scans after its last return saw it empty
+  /// (0 = off): what stood there has left (a slow truck, a queue), whereas see-through space is
+  /// hit again now and then (DESIGN §2e).
+  int vacated_scans = 5;
   /// m; a beam marks space empty up to this distance short of its return, beyond the voxel's
   /// half diagonal: 2 sigma of the beam model (sqrt(sigma_m^2 + sigma_r^2) = 0.16 m).
   double margin = 0.32;

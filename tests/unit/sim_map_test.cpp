@@ -1,0 +1,157 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// The clean map on simulated hard cases with exact truth (issue #12, item 4): slow movers beside a
+// standing ego, a car that stops for 5 s, a parked car that leaves, a queue that stops and goes.
+// Each run goes through the pipeline and the OutputWriter as the app does; static_map_full.ply is
+// then scored the benchmark's way (DESIGN §5: a truth point is kept if the map has a point within
+// 0.05 m, truth within 50 m horizontally of its sensor), per kind of truth point. Bounds sit a
+// little below the values measured (doc/BENCHMARK.md, "Clean map: simulated hard cases").
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <map>
+#include <optional>
+
+#include "cleanmap/core/map_score.h"
+#include "cleanmap/io/output.h"
+#include "cleanmap/io/ply.h"
+#include "cleanmap/pipeline/laser_pipeline.h"
+#include "cleanmap/sim/world.h"
+#include "test_data.h"
+
+using namespace cleanmap;
+namespace fs = std::filesystem;
+
+namespace {
+
+sim::Scenario scenario(const std::string& name) {
+  return sim::loadScenario(
+      (fs::path(CLEANMAP_SOURCE_DIR) / "datasets/scenarios" / (name + ".ini")).string());
+}
+
+// Truth points by kind: "world" (static scenery and ground), "<mover>" (a mover's points while it
+// moves: the map should not hold them) and "<mover>/standing" (a mover's points while it stands,
+// static in the truth). "<kind>/vacated" are those of them whose place no mover holds at the last
+// frame: only there can the sensor have seen the space empty for good (a truck's side still
+// beside the car at the end was never seen through; a queue's next car fills the space again).
+struct MapCase {
+  std::map<std::string, MapScore> kinds;
+  double kept(const std::string& k) const { return kinds.at(k).sa(); }
+  double removed(const std::string& k) const { return kinds.at(k).da(); }
+};
+
+MapCase runMapCase(const sim::Scenario& sc, const PipelineParams& params, const std::string& tag) {
+  const fs::path out = test::scratchDir(sc.name + "_" + tag);
+  fs::remove_all(out);
+  {
+    io::OutputWriter writer(out.string(), "sim:" + sc.name, params);
+    LaserPipeline pipe(params, [&](ScanResult&& r) { writer.write(r, std::nullopt); });
+    for (int k = 0; k < sc.frames; ++k) {
+      sim::SimScan s = sim::simulateScan(sc, k, 2);
+      Frame f;
+      f.index = static_cast<std::size_t>(k);
+      char stem[16];
+      std::snprintf(stem, sizeof stem, "%06d", k);
+      f.stem = stem;
+      f.scan.original_size = s.points.size();
+      f.scan.points = std::move(s.points);
+      f.scan.pose = s.reported_pose;
+      f.scan.has_pose = true;
+      f.scan.timestamp = s.time;
+      pipe.push(std::move(f));
+    }
+    pipe.finish();
+    writer.finish(0.0, pipe.freeSpace());
+  }
+  std::vector<Eigen::Vector3f> map;
+  for (const auto& p : io::readPly((out / "static_map_full.ply").string())) map.push_back(p.xyz());
+  const RadiusIndex index(std::move(map), 0.05);
+  std::map<std::string, MapScorer> scorers;
+  auto scorer = [&](const std::string& k) -> MapScorer& {
+    return scorers.try_emplace(k, index).first->second;
+  };
+  const sim::World w_end(sc, double(sc.frames - 1) / sc.rate_hz);
+  auto inside_at_end = [&](const Eigen::Vector3d& p) {  // any mover's box at the last frame
+    for (const auto& b : w_end.solids())
+      if (b.surface == sim::Surface::kMover && b.kind == sim::Solid::kBox) {
+        const Eigen::Vector3d d = p - b.center;
+        const double u = b.c * d.x() + b.s * d.y(), v = -b.s * d.x() + b.c * d.y();
+        constexpr double kMargin = 0.15;  // the map's 0.05 m match and the voxel's size
+        if (std::abs(u) <= b.half.x() + kMargin && std::abs(v) <= b.half.y() + kMargin &&
+            std::abs(d.z()) <= b.half.z() + kMargin)
+          return true;
+      }
+    return false;
+  };
+  for (int k = 0; k < sc.frames; ++k) {  // the same frames again (the simulation is seeded)
+    const sim::SimScan s = sim::simulateScan(sc, k, 2);
+    const sim::World w(sc, s.time);
+    for (std::size_t i = 0; i < s.points.size(); ++i) {
+      const uint32_t l = s.labels[i];
+      const auto& p = s.points[i];
+      if ((l != 9 && l != 251) || double(p.x) * p.x + double(p.y) * p.y > 50.0 * 50.0) continue;
+      const bool mover = s.solid[i] >= 0 && w.solids()[s.solid[i]].surface == sim::Surface::kMover;
+      const std::string kind =
+          !mover ? "world" : w.solids()[s.solid[i]].name + (l == 251 ? "" : "/standing");
+      const Eigen::Vector3d pw = s.pose * p.xyz().cast<double>();
+      scorer(kind).add(pw.cast<float>(), l == 251);
+      if (mover && !inside_at_end(pw)) scorer(kind + "/vacated").add(pw.cast<float>(), l == 251);
+    }
+  }
+  MapCase res;
+  for (const auto& [k, sc_k] : scorers) {
+    res.kinds[k] = sc_k.score();
+    const MapScore& m = sc_k.score();
+    if (m.moving_total)
+      std::printf("  %s (%s): %s removed %.4f of %llu moving points\n", sc.name.c_str(),
+                  tag.c_str(), k.c_str(), m.da(), (unsigned long long)m.moving_total);
+    if (m.static_total)
+      std::printf("  %s (%s): %s kept %.4f of %llu static points\n", sc.name.c_str(), tag.c_str(),
+                  k.c_str(), m.sa(), (unsigned long long)m.static_total);
+  }
+  return res;
+}
+
+PipelineParams withPolicy(MapPolicy p) {
+  PipelineParams params;
+  params.map.policy = p;
+  return params;
+}
+
+}  // namespace
+
+TEST(SimMap, TruckCrawlingBesideAStandingEgo) {
+  // The truck's side slides along itself: only where it has passed can free space be seen (its
+  // rear 14 % of the points). The windowed test finds none of it (recall 0, doc/BENCHMARK.md).
+  const auto r = runMapCase(scenario("truck_crawl"), {}, "default");
+  EXPECT_GE(r.removed("truck/vacated"), 0.60);  // measured 0.687 (0.12 without vacated_scans)
+  EXPECT_GE(r.kept("world"), 0.999);            // measured 1.0000
+}
+
+TEST(SimMap, CarStoppingFor5sThenLeaving) {
+  const auto r = runMapCase(scenario("car_stops_5s"), {}, "default");
+  EXPECT_GE(r.removed("stopping_car"), 0.90);        // measured 0.934
+  EXPECT_LE(r.kept("stopping_car/standing"), 0.25);  // measured 0.145 (0.80 without vacated)
+  EXPECT_GE(r.kept("world"), 0.995);                 // measured 0.9978
+}
+
+TEST(SimMap, ParkedCarThatDrivesOff) {
+  const auto t =
+      runMapCase(scenario("parked_leaves"), withPolicy(MapPolicy::kTransient), "transient");
+  EXPECT_LE(t.kept("leaving_car/standing"), 0.20);    // measured 0.121: it stood, then left
+  EXPECT_GE(t.removed("leaving_car/vacated"), 0.90);  // measured 0.930
+  EXPECT_GE(t.kept("world"), 0.985);                  // measured 0.9885
+  const auto m = runMapCase(scenario("parked_leaves"), withPolicy(MapPolicy::kMoving), "moving");
+  EXPECT_GE(m.kept("leaving_car/standing"), 0.95);  // measured 0.979: static while scanned
+  EXPECT_GE(m.kept("world"), 0.99);                 // measured 0.9952
+}
+
+TEST(SimMap, QueueThatStopsAndGoes) {
+  // The next car of the queue fills the space the one before left: only the space no car holds
+  // at the end was seen empty for good.
+  const auto r = runMapCase(scenario("queue_stop_go"), {}, "default");
+  EXPECT_GE(r.removed("queue_1/vacated"), 0.85);  // measured 0.922
+  EXPECT_GE(r.removed("queue_2/vacated"), 0.68);  // measured 0.755
+  EXPECT_GE(r.removed("queue_3/vacated"), 0.55);  // measured 0.614
+  EXPECT_GE(r.kept("world"), 0.999);              // measured 1.0000
+}
