@@ -134,3 +134,29 @@ TEST(FreeSpace, SpaceOnlyEmptyAfterItsLastReturnWasVacated) {
   p.vacated_scans = 7;  // 6 scans of empty space are not enough
   EXPECT_FALSE(removedByPolicy(t, 3, p));
 }
+
+TEST(FreeSpace, AScanSeesNothingEmptyNextToItsOwnStaticReturns) {
+  // A post at (8.05, 0): the ring's beams pass its side through the neighbouring voxel (y in
+  // [0.2, 0.4)). With hit_inflate 0 that voxel is seen empty by the post's own scan; with 0.2 m it
+  // is not, unless the post's return is flagged moving (a slow mover's neighbourhood is what it
+  // leaves empty next).
+  const PointXYZI post{8.05f, 0.f, 0.f, 0.f};
+  const Eigen::Vector3f beside(8.05f, 0.25f, 0.f);
+  const auto pts = ring(20.f, {post});
+  MapParams p = params();
+  p.hit_inflate = 0;
+  FreeSpaceMap plain(p);
+  plain.insertScan(pts, at(0), 0);
+  EXPECT_EQ(plain.evidence(beside).count, 1);
+  p.hit_inflate = 0.2;
+  FreeSpaceMap inflated(p), flagged(p);
+  inflated.insertScan(pts, at(0), 0);
+  EXPECT_EQ(inflated.evidence(beside).count, 0);
+  EXPECT_EQ(inflated.evidence({10.f, 0.f, 0.f}).count, 1);  // the beam behind the post still marks
+  std::vector<uint8_t> moving(pts.size(), 0);
+  moving[0] = 1;  // the post
+  flagged.insertScan(pts, at(0), 0, &moving);
+  EXPECT_EQ(flagged.evidence(beside).count, 1);
+  moving.pop_back();
+  EXPECT_THROW(flagged.insertScan(pts, at(0), 1, &moving), std::invalid_argument);
+}

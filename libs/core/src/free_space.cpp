@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <stdexcept>
 
 #include "cleanmap/core/cell_key.h"
 
@@ -28,6 +29,7 @@ struct FreeSpaceMap::Block {
   int64_t stamp = std::numeric_limits<int64_t>::min();  // the scan the masks below are about
   uint64_t hit[kVoxels / 64] = {};   // voxels holding a return of that scan (not marked by it)
   uint64_t seen[kVoxels / 64] = {};  // voxels that scan has already counted
+  uint64_t near[kVoxels / 64] = {};  // voxels within hit_inflate of a return of that scan
   struct Voxel {
     int32_t first = -1, last = -1;  // the first and last scan that saw it empty
     int32_t last_hit = -1;          // the last scan that returned from it
@@ -40,6 +42,7 @@ struct FreeSpaceMap::Block {
     stamp = scan;
     std::memset(hit, 0, sizeof hit);
     std::memset(seen, 0, sizeof seen);
+    std::memset(near, 0, sizeof near);
   }
   static bool bit(const uint64_t* m, int i) { return (m[i >> 6] >> (i & 63)) & 1u; }
   static void set(uint64_t* m, int i) { m[i >> 6] |= uint64_t(1) << (i & 63); }
@@ -84,14 +87,16 @@ std::size_t FreeSpaceMap::bytes() const {
 }
 
 void FreeSpaceMap::insertScan(const std::vector<PointXYZI>& points, const Eigen::Isometry3d& pose,
-                              int64_t scan) {
+                              int64_t scan, const std::vector<uint8_t>* moving) {
+  if (moving && moving->size() != points.size())
+    throw std::invalid_argument("FreeSpaceMap::insertScan: one moving flag per point needed");
   const Eigen::Vector3d o = pose.translation();
   // The scan-conflict rule: the voxels this scan returns from are not seen empty by it.
   {
     uint64_t cached = ~uint64_t(0);
     Block* b = nullptr;
-    for (const auto& p : points) {
-      const Eigen::Vector3d w = pose * p.xyz().cast<double>();
+    for (std::size_t n = 0; n < points.size(); ++n) {
+      const Eigen::Vector3d w = pose * points[n].xyz().cast<double>();
       const int64_t x = floorToCell(w.x(), inv_), y = floorToCell(w.y(), inv_),
                     z = floorToCell(w.z(), inv_);
       const uint64_t k = blockKey(x, y, z);
@@ -100,12 +105,30 @@ void FreeSpaceMap::insertScan(const std::vector<PointXYZI>& points, const Eigen:
         cached = k;
       }
       const int li = localIndex(x, y, z);
+      Block::set(b->near, li);
       if (!Block::bit(b->hit, li)) {
         Block::set(b->hit, li);
-        auto& x = b->v[li];
-        if (x.hits < 0xFFFF) ++x.hits;
-        x.last_hit = std::max(x.last_hit, static_cast<int32_t>(scan));
+        auto& v = b->v[li];
+        if (v.hits < 0xFFFF) ++v.hits;
+        v.last_hit = std::max(v.last_hit, static_cast<int32_t>(scan));
       }
+      if (p_.hit_inflate <= 0 || (moving && (*moving)[n])) continue;
+      // The voxels within hit_inflate of the return (per axis) are not seen empty by this scan
+      // either: a beam passing a surface's edge crosses the edge's voxel beside the return.
+      const double h = p_.hit_inflate;
+      const int64_t x0 = floorToCell(w.x() - h, inv_), x1 = floorToCell(w.x() + h, inv_);
+      const int64_t y0 = floorToCell(w.y() - h, inv_), y1 = floorToCell(w.y() + h, inv_);
+      const int64_t z0 = floorToCell(w.z() - h, inv_), z1 = floorToCell(w.z() + h, inv_);
+      for (int64_t i = x0; i <= x1; ++i)
+        for (int64_t j = y0; j <= y1; ++j)
+          for (int64_t l = z0; l <= z1; ++l) {
+            const uint64_t kn = blockKey(i, j, l);
+            if (kn != cached) {
+              b = &block(kn, scan);
+              cached = kn;
+            }
+            Block::set(b->near, localIndex(i, j, l));
+          }
     }
   }
   // Each beam, voxel by voxel (Amanatides & Woo), to the margin before its return; a beam longer
@@ -173,7 +196,7 @@ void FreeSpaceMap::insertScan(const std::vector<PointXYZI>& points, const Eigen:
         cached = k;
       }
       const int li = localIndex(vx, vy, vz);
-      b->seen[li >> 6] |= ~b->hit[li >> 6] & (uint64_t(1) << (li & 63));
+      b->seen[li >> 6] |= ~b->near[li >> 6] & (uint64_t(1) << (li & 63));
       if (tx < ty) {
         if (tx < tz) {
           t = tx;

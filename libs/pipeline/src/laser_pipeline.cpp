@@ -4,7 +4,6 @@
 #include <cmath>
 #include <exception>
 #include <random>
-#include <thread>
 #include <unordered_map>
 
 #include "cleanmap/core/beam_index.h"
@@ -71,7 +70,9 @@ LaserPipeline::LaserPipeline(const PipelineParams& params, Sink sink)
   if (p_.map.clean) free_ = std::make_unique<FreeSpaceMap>(p_.map);
 }
 
-LaserPipeline::~LaserPipeline() = default;
+LaserPipeline::~LaserPipeline() {
+  if (free_job_.joinable()) free_job_.join();
+}
 
 std::unique_ptr<LaserPipeline> LaserPipeline::clone(Sink sink) const {
   auto c = std::make_unique<LaserPipeline>(p_, std::move(sink));
@@ -89,6 +90,7 @@ std::unique_ptr<LaserPipeline> LaserPipeline::clone(Sink sink) const {
   if (odo_) c->odo_ = std::make_unique<reg::Odometry>(*odo_);
   c->prev_odometry_ = prev_odometry_;
   c->prev_pose_ = prev_pose_;
+  joinFreeSpace();
   if (free_) c->free_ = std::make_unique<FreeSpaceMap>(*free_);
   return c;
 }
@@ -160,28 +162,6 @@ std::unique_ptr<LaserPipeline::Prepared> LaserPipeline::prepare(Frame&& f) {
   st.empty = s->scan.empty() ? 1 : 0;
 
   const auto t_prep = Clock::now();
-  // DESIGN §2e: every beam of the scan adds to the sequence's free space. Nothing below reads or
-  // writes that map, so with two threads or more it is filled beside the other stages (the
-  // result does not depend on it: one thread owns the map).
-  std::exception_ptr free_error;
-  auto fill_free_space = [&] {
-    try {
-      const auto t = Clock::now();
-      free_->insertScan(s->scan.points, s->scan.pose, static_cast<int64_t>(s->index));
-      s->stats.ms.free_space = msSince(t);
-    } catch (...) {
-      free_error = std::current_exception();
-    }
-  };
-  std::thread free_thread;
-  struct Join {  // also when a stage below throws (a std::thread must not be destroyed running)
-    std::thread& t;
-    ~Join() {
-      if (t.joinable()) t.join();
-    }
-  } join{free_thread};
-  if (free_ && p_.threads > 1) free_thread = std::thread(fill_free_space);
-
   auto t0 = Clock::now();
   // Every valid point is a beam (ground and far points included, DESIGN §2.4).
   s->beams = BeamIndex(s->scan.points, test_.searchRadius());
@@ -221,11 +201,6 @@ std::unique_ptr<LaserPipeline::Prepared> LaserPipeline::prepare(Frame&& f) {
     st.image_scans = 1;
   }
 
-  if (free_thread.joinable())
-    free_thread.join();
-  else if (free_)
-    fill_free_space();
-  if (free_error) std::rethrow_exception(free_error);
   s->ms_prepared = msSince(t_prep);
   return s;
 }
@@ -238,8 +213,44 @@ void LaserPipeline::push(Frame&& frame) {
   decideReady(static_cast<std::size_t>(p_.ds.window_k));
 }
 
+// DESIGN §2e: every beam of a decided scan adds to the sequence's free space, the voxels near its
+// static returns protected (hit_inflate). Nothing else reads or writes that map until the run's
+// end, so with two threads or more the insertion runs beside the next scan's work (the map is the
+// same: one insertion at a time, in scan order). Its time is reported with the next decided scan
+// (`free_space` is then not in `total`); with one thread it runs here and is.
+void LaserPipeline::insertFreeSpace(const Prepared& s, const Work& w) {
+  if (!free_) return;
+  joinFreeSpace();
+  free_mask_.resize(s.scan.size());
+  for (std::size_t i = 0; i < free_mask_.size(); ++i) free_mask_[i] = w.moving[i] || s.ground[i];
+  auto job = [this, &s] {
+    try {
+      const auto t = Clock::now();
+      free_->insertScan(s.scan.points, s.scan.pose, static_cast<int64_t>(s.index), &free_mask_);
+      free_ms_ = msSince(t);
+    } catch (...) {
+      free_error_ = std::current_exception();
+    }
+  };
+  if (p_.threads > 1)
+    free_job_ = std::thread(job);  // `s` stays in the window for K more decisions
+  else
+    job();
+  if (free_error_) joinFreeSpace();  // rethrows
+}
+
+void LaserPipeline::joinFreeSpace() const {
+  if (free_job_.joinable()) free_job_.join();
+  if (free_error_) {
+    auto e = free_error_;
+    free_error_ = nullptr;
+    std::rethrow_exception(e);
+  }
+}
+
 void LaserPipeline::finish() {
   decideReady(0);  // the windows shrink at the end
+  joinFreeSpace();
   buf_.clear();
   next_ = 0;
 }
@@ -276,6 +287,8 @@ void LaserPipeline::decide(std::size_t pos) {
   remember(r, static_cast<long>(s.index));
   if (odo_)
     odo_->dropPoints(static_cast<int64_t>(s.index), w.moving);  // movers leave the local map
+  insertFreeSpace(s, w);  // DESIGN §2e, beside the next scan's work
+  r.stats.ms.free_space = free_ms_;
   r.stats.ms.total = msSince(t_start) + s.stats.ms.registration + s.ms_prepared;
   ++decided_;
   sink_(std::move(r));

@@ -37,9 +37,11 @@ class FreeSpaceMap {
   FreeSpaceMap& operator=(const FreeSpaceMap&) = delete;
 
   /// Adds one scan: `points` in the sensor frame (every valid return is a beam), `pose` sensor to
-  /// world, `scan` its index in the sequence (scans may come in any order, each once).
-  void insertScan(const std::vector<PointXYZI>& points, const Eigen::Isometry3d& pose,
-                  int64_t scan);
+  /// world, `scan` its index in the sequence (scans may come in any order, each once). `moving`
+  /// (optional, per point): the returns decided moving, around which hit_inflate does not apply
+  /// (a slow mover's own neighbourhood is what it leaves empty next).
+  void insertScan(const std::vector<PointXYZI>& points, const Eigen::Isometry3d& pose, int64_t scan,
+                  const std::vector<uint8_t>* moving = nullptr);
   /// The evidence of the voxel holding world point p.
   FreeEvidence evidence(const Eigen::Vector3f& p) const;
   /// Adds another accumulator of the same parameters (another chunk of the sequence); the result

@@ -6,6 +6,7 @@
 #include <functional>
 #include <memory>
 #include <optional>
+#include <thread>
 #include <unordered_set>
 #include <vector>
 
@@ -41,8 +42,12 @@ class LaserPipeline {
   /// results to `sink`: fed the same scans, it decides them exactly as this pipeline would.
   std::unique_ptr<LaserPipeline> clone(Sink sink) const;
   const PipelineParams& params() const { return p_; }
-  /// DESIGN §2e: the free space every scan pushed so far has seen (null with static_map.clean off).
-  const FreeSpaceMap* freeSpace() const { return free_.get(); }
+  /// DESIGN §2e: the free space every scan decided so far has seen (null with static_map.clean
+  /// off). Waits for the last decided scan's insertion, which runs beside the next scan's work.
+  const FreeSpaceMap* freeSpace() const {
+    joinFreeSpace();
+    return free_.get();
+  }
   /// Hand each scan's points to the sink too (ScanResult::scan), for outputs made per scan.
   void keepScans(bool on) { keep_scans_ = on; }
   /// DESIGN §3: the camera of the frames' images (FrameSource::camera()). With a camera and
@@ -86,9 +91,16 @@ class LaserPipeline {
   long prev_index_ = -1;
   std::unordered_set<uint64_t> prev_moving_cells_;  // last decided scan's moving cells, dilated
   std::unique_ptr<Work> work_;
-  std::unique_ptr<FreeSpaceMap> free_;              // DESIGN §2e, whole sequence
-  PoseSource source_;                               // resolved on the first scan
-  std::unique_ptr<reg::Odometry> odo_;              // with gicp / refine
+  std::unique_ptr<FreeSpaceMap> free_;  // DESIGN §2e, whole sequence
+  // A decided scan's free-space insertion runs on its own thread beside the next scan's work.
+  void insertFreeSpace(const Prepared& s, const Work& w);
+  void joinFreeSpace() const;  // waits for it; rethrows its error
+  mutable std::thread free_job_;
+  mutable std::exception_ptr free_error_;
+  mutable double free_ms_ = 0;          // the last insertion's time
+  std::vector<uint8_t> free_mask_;      // its returns that are not inflated (moving, ground)
+  PoseSource source_;                   // resolved on the first scan
+  std::unique_ptr<reg::Odometry> odo_;  // with gicp / refine
   std::optional<Eigen::Isometry3d> prev_odometry_;  // the last scan's input odometry ...
   Eigen::Isometry3d prev_pose_ = Eigen::Isometry3d::Identity();  // ... and its estimated pose
 };
