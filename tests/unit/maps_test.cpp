@@ -9,6 +9,7 @@
 #include <random>
 #include <set>
 #include <sstream>
+#include <tuple>
 
 #include <mrpt/config/CConfigFileMemory.h>
 #include <mrpt/io/CFileGZInputStream.h>
@@ -244,6 +245,62 @@ TEST(MovingObjectsMap, InsertedObservationsDecidedAsThePipelineDecides) {
 // cleanmap-kitti2rawlog --external: every observation inserted in order at the odometry pose
 // (none here: the origin). With use_pose_observations our layer takes the logged 3D poses and
 // loads the lazy clouds, and decides as the pipeline does.
+// DESIGN §2e in the layer: a box 8 m ahead stands in scans 0-9 and is gone in 10-19, a round wall
+// at 20 m stays. The windowed test (K = 3) calls the box static in scans 0-6; the free space of
+// the scans after it left removes those points from staticPoints() (policy transient), and only
+// them: with static_map.clean off they stay.
+TEST(MovingObjectsMap, StaticPointsAreCleanedWithTheFreeSpace) {
+  auto scan = [](bool box) {
+    std::vector<PointXYZI> pts;
+    for (int e = 0; e < 16; ++e)
+      for (int a = 0; a < 2094; ++a) {  // 0.003 rad apart, static_map.beam_spacing
+        const double az = 2 * M_PI * a / 2094, el = (-8.0 + e) * M_PI / 180;
+        const Eigen::Vector3d d(std::cos(el) * std::cos(az), std::cos(el) * std::sin(az),
+                                std::sin(el));
+        double r = 20.0 / std::cos(el);
+        if (box && d.x() > 0) {  // the box's face x = 8, |y| <= 0.6, z in [-1, 0.4]
+          const double t = 8.0 / d.x();
+          const Eigen::Vector3d q = t * d;
+          if (std::abs(q.y()) <= 0.6 && q.z() >= -1.0 && q.z() <= 0.4) r = t;
+        }
+        const Eigen::Vector3d q = r * d;
+        pts.push_back({float(q.x()), float(q.y()), float(q.z()), 0.5f});
+      }
+    return pts;
+  };
+  auto run = [&](bool clean) {
+    PipelineParams p;
+    p.ds.window_k = 3;
+    p.map.clean = clean;
+    CMovingObjectsMap m(p, 0.1);
+    for (int k = 0; k < 20; ++k) {
+      Frame f;
+      f.index = static_cast<std::size_t>(k);
+      f.stem = std::to_string(k);
+      f.scan.points = scan(k < 10);
+      f.scan.original_size = f.scan.points.size();
+      f.scan.pose = Eigen::Isometry3d::Identity();
+      f.scan.has_pose = true;
+      f.scan.timestamp = 0.1 * k;
+      m.insertFrame(std::move(f));
+    }
+    m.flush();
+    std::size_t box = 0, wall = 0;
+    for (const auto& q : m.staticPoints()) (q.xyz().norm() < 12 ? box : wall) += 1;
+    std::size_t removed_box = 0;
+    for (const auto& q : m.removedPoints()) removed_box += q.xyz().norm() < 12;
+    return std::tuple(box, wall, removed_box, m.removedPoints().size());
+  };
+  const auto [box0, wall0, rb0, r0] = run(false);
+  const auto [box1, wall1, rb1, r1] = run(true);
+  EXPECT_GT(box0, 100u);  // the windowed test keeps the box it saw standing
+  EXPECT_EQ(r0, 0u);
+  EXPECT_EQ(box1, 0u);  // the free space removes all of it ...
+  EXPECT_EQ(rb1, box0);
+  EXPECT_EQ(wall1, wall0);  // ... and nothing else
+  EXPECT_EQ(r1, rb1);
+}
+
 TEST(MovingObjectsMap, RawLogViewerMapFromOdometryOnAnExternalRawlog) {
   CLEANMAP_REQUIRE_DATASET("kitti_city");
   auto seq = io::KittiSequence::open(test::dataDir() + "/kitti_city");

@@ -41,15 +41,21 @@ std::vector<cleanmap::PointXYZI> sortedPoints(
   return out;
 }
 
-// The voxel of a point; with map_voxel 0 every point is its own entry (keyed by arrival).
+// The voxel of a point; with map_voxel 0 every point is its own entry (keyed by arrival). Calls
+// added(key, i) for each point i that took a new entry.
+template <class F>
+void addPoints(std::unordered_map<uint64_t, cleanmap::PointXYZI>& m,
+               const std::vector<cleanmap::PointXYZI>& pts, double voxel, F&& added) {
+  const float inv = voxel > 0 ? static_cast<float>(1.0 / voxel) : 0.f;
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    const auto& p = pts[i];
+    const uint64_t key = voxel > 0 ? cleanmap::cellKeyOf(p.x, p.y, p.z, inv) : m.size();
+    if (m.emplace(key, p).second) added(key, i);
+  }
+}
 void addPoints(std::unordered_map<uint64_t, cleanmap::PointXYZI>& m,
                const std::vector<cleanmap::PointXYZI>& pts, double voxel) {
-  if (voxel <= 0) {
-    for (const auto& p : pts) m.emplace(m.size(), p);
-    return;
-  }
-  const float inv = static_cast<float>(1.0 / voxel);
-  for (const auto& p : pts) m.emplace(cleanmap::cellKeyOf(p.x, p.y, p.z, inv), p);
+  addPoints(m, pts, voxel, [](uint64_t, std::size_t) {});
 }
 
 void writePoints(mrpt::serialization::CArchive& out, const std::vector<cleanmap::PointXYZI>& v) {
@@ -114,6 +120,7 @@ void CMovingObjectsMap::copyFrom(const CMovingObjectsMap& o) {
   camera_ = o.camera_;
   next_index_ = o.next_index_;
   static_ = o.static_;
+  static_scan_ = o.static_scan_;
   moving_ = o.moving_;
   trajectory_ = o.trajectory_;
   totals_ = o.totals_;
@@ -173,14 +180,33 @@ void CMovingObjectsMap::onDecided(cleanmap::ScanResult&& r) {
   trajectory_.push_back({r.index, r.timestamp, r.pose});
   totals_ += r.stats;
   if (store_points_) {
-    addPoints(static_, r.static_full, map_voxel_);
+    // Non-ground points remember their scan: the free space may remove them (DESIGN §2e).
+    const bool kinds = r.static_full_kind.size() == r.static_full.size();
+    addPoints(static_, r.static_full, map_voxel_, [&](uint64_t key, std::size_t i) {
+      if (kinds && !cleanmap::isGroundKind(r.static_full_kind[i]))
+        static_scan_[key] = static_cast<int64_t>(r.index);
+    });
     addPoints(moving_, r.moving, map_voxel_);
   }
   if (sink_) sink_(std::move(r));
 }
 
+std::vector<cleanmap::PointXYZI> CMovingObjectsMap::cleanedStatic(bool removed) const {
+  const cleanmap::FreeSpaceMap* fs = freeSpace();
+  std::unordered_map<uint64_t, cleanmap::PointXYZI> out;
+  for (const auto& [key, p] : static_) {
+    const auto it = static_scan_.find(key);
+    const bool gone = fs && it != static_scan_.end() &&
+                      cleanmap::removedByPolicy(fs->evidence(p.xyz()), it->second, params_.map);
+    if (gone == removed) out.emplace(key, p);
+  }
+  return sortedPoints(out);
+}
 std::vector<cleanmap::PointXYZI> CMovingObjectsMap::staticPoints() const {
-  return sortedPoints(static_);
+  return cleanedStatic(false);
+}
+std::vector<cleanmap::PointXYZI> CMovingObjectsMap::removedPoints() const {
+  return cleanedStatic(true);
 }
 std::vector<cleanmap::PointXYZI> CMovingObjectsMap::movingPoints() const {
   return sortedPoints(moving_);
@@ -194,6 +220,7 @@ void CMovingObjectsMap::internal_clear() {
   pipe_.reset();
   next_index_ = 0;
   static_.clear();
+  static_scan_.clear();
   moving_.clear();
   trajectory_.clear();
   totals_ = {};

@@ -61,9 +61,9 @@ class CMovingObjectsMap : public mrpt::maps::CMetricMap {
   /// The classifier's parameters (creationOpts). Changing them is allowed only while the map has
   /// no scan in its window; throws cleanmap::Error otherwise.
   const cleanmap::PipelineParams& params() const { return params_; }
-  /// DESIGN §2e: the free space of every scan inserted (null before the first, or with
-  /// static_map.clean off). The app cleans its map files with it; this layer's own points are not
-  /// cleaned.
+  /// DESIGN §2e: the free space of every scan decided (null before the first, or with
+  /// static_map.clean off). The app cleans its map files with it, and staticPoints() this layer's
+  /// own points.
   const cleanmap::FreeSpaceMap* freeSpace() const;
   TInsertionOptions insertionOptions;
   void setParams(const cleanmap::PipelineParams& params);
@@ -91,7 +91,12 @@ class CMovingObjectsMap : public mrpt::maps::CMetricMap {
   const std::optional<cleanmap::PinholeCamera>& camera() const { return camera_; }
 
   /// One point per voxel: the static map (ground included) and the moving points, sorted by voxel.
+  /// The static map is cleaned with the free space seen so far (DESIGN §2e, static_map.policy):
+  /// a non-ground point whose space the scans decided so far saw empty is left out (and kept in
+  /// the layer: later scans do not bring it back, a merge or an ini change may).
   std::vector<cleanmap::PointXYZI> staticPoints() const;
+  /// The static points staticPoints() leaves out, sorted by voxel.
+  std::vector<cleanmap::PointXYZI> removedPoints() const;
   std::vector<cleanmap::PointXYZI> movingPoints() const;
   const std::vector<TrajectoryPoint>& trajectory() const { return trajectory_; }
   /// Counts summed over the decided scans.
@@ -136,6 +141,8 @@ class CMovingObjectsMap : public mrpt::maps::CMetricMap {
   std::optional<std::pair<double, mrpt::poses::CPose3D>> pose_obs_;  // use_pose_observations
   std::size_t next_index_ = 0;  // index given to the next observation inserted through MRPT
   std::unordered_map<uint64_t, cleanmap::PointXYZI> static_, moving_;  // voxel key -> first point
+  std::unordered_map<uint64_t, int64_t> static_scan_;  // non-ground static_ entries: their scan
+  std::vector<cleanmap::PointXYZI> cleanedStatic(bool removed) const;
   std::vector<TrajectoryPoint> trajectory_;
   cleanmap::ScanStats totals_;
 };
