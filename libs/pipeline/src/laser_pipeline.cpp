@@ -218,9 +218,10 @@ void LaserPipeline::push(Frame&& frame) {
 // end, so with two threads or more the insertion runs beside the next scan's work (the map is the
 // same: one insertion at a time, in scan order). Its time is reported with the next decided scan
 // (`free_space` is then not in `total`); with one thread it runs here and is.
-void LaserPipeline::insertFreeSpace(const Prepared& s, const Work& w) {
-  if (!free_) return;
+double LaserPipeline::insertFreeSpace(const Prepared& s, const Work& w) {
+  if (!free_) return 0.0;
   joinFreeSpace();
+  const double previous_ms = free_ms_;  // read before the next job may write it
   free_mask_.resize(s.scan.size());
   for (std::size_t i = 0; i < free_mask_.size(); ++i) free_mask_[i] = w.moving[i] || s.ground[i];
   auto job = [this, &s] {
@@ -232,11 +233,13 @@ void LaserPipeline::insertFreeSpace(const Prepared& s, const Work& w) {
       free_error_ = std::current_exception();
     }
   };
-  if (p_.threads > 1)
+  if (p_.threads > 1) {
     free_job_ = std::thread(job);  // `s` stays in the window for K more decisions
-  else
-    job();
-  if (free_error_) joinFreeSpace();  // rethrows
+    return previous_ms;
+  }
+  job();
+  joinFreeSpace();  // rethrows its error
+  return free_ms_;
 }
 
 void LaserPipeline::joinFreeSpace() const {
@@ -287,8 +290,7 @@ void LaserPipeline::decide(std::size_t pos) {
   remember(r, static_cast<long>(s.index));
   if (odo_)
     odo_->dropPoints(static_cast<int64_t>(s.index), w.moving);  // movers leave the local map
-  insertFreeSpace(s, w);  // DESIGN §2e, beside the next scan's work
-  r.stats.ms.free_space = free_ms_;
+  r.stats.ms.free_space = insertFreeSpace(s, w);  // DESIGN §2e, beside the next scan's work
   r.stats.ms.total = msSince(t_start) + s.stats.ms.registration + s.ms_prepared;
   ++decided_;
   sink_(std::move(r));

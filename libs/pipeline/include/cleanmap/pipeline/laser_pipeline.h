@@ -93,8 +93,8 @@ class LaserPipeline {
   std::unique_ptr<Work> work_;
   std::unique_ptr<FreeSpaceMap> free_;  // DESIGN §2e, whole sequence
   // A decided scan's free-space insertion runs on its own thread beside the next scan's work.
-  void insertFreeSpace(const Prepared& s, const Work& w);
-  void joinFreeSpace() const;  // waits for it; rethrows its error
+  double insertFreeSpace(const Prepared& s, const Work& w);  // ms of the insertion reported now
+  void joinFreeSpace() const;                                // waits for it; rethrows its error
   mutable std::thread free_job_;
   mutable std::exception_ptr free_error_;
   mutable double free_ms_ = 0;          // the last insertion's time
