@@ -208,21 +208,23 @@ int main(int argc, char** argv) {
     if (ground) {  // it is given the moving map's ground labels: the two must agree
       const auto g = ground->groundParams();
       const auto& m = params.ground;
-      auto same = [&](const char* key, double a, double b) {
+      auto value = [](double v, bool autoable) {
+        return autoable && v == 0 ? std::string("auto") : cleanmap::io::shortestDouble(v);
+      };
+      auto same = [&](const char* key, const std::string& moving_key, double a, double b,
+                      bool autoable = false) {
         if (a != b)
           throw cleanmap::Error(
               config_name, std::string("the cleanmap_ground map's ") + key + " (" +
-                               cleanmap::io::shortestDouble(a) +
-                               ") differs from cleanmap_moving's "
-                               "ground." +
-                               key + " (" + cleanmap::io::shortestDouble(b) +
+                               value(a, autoable) + ") differs from cleanmap_moving's " +
+                               moving_key + " (" + value(b, autoable) +
                                "): cleanmap gives the ground map the moving map's ground labels");
       };
-      same("cell", g.cell, m.cell);
-      same("step", g.step, m.step);
-      same("sensor_height", g.sensor_height, m.sensor_height);
-      same("point_refine", g.point_refine, m.point_refine);
-      same("max_gap_cells", g.max_gap_cells, m.max_gap_cells);
+      same("cell", "ground.cell", g.cell, m.cell);
+      same("step", "ground.step", g.step, m.step);
+      same("height", "sensor.height", ground->insertionOptions.height, params.sensor.height, true);
+      same("point_refine", "ground.point_refine", g.point_refine, m.point_refine);
+      same("max_gap_cells", "ground.max_gap_cells", g.max_gap_cells, m.max_gap_cells);
     }
 
     cleanmap::mrpt::InputOptions in_opts;
@@ -342,6 +344,15 @@ int main(int argc, char** argv) {
                    "cleanmap: warning: %zu empty scans (no valid point) kept, labelled 0 "
                    "(report.json: empty_scans)\n",
                    empty);
+    // DESIGN §2a: a configured mounting height the data contradicts (0.3 m: a curb, a bump).
+    if (const auto h = out.measuredSensorHeight();
+        h && params.sensor.height > 0 && std::abs(*h - params.sensor.height) > 0.3)
+      std::fprintf(stderr,
+                   "cleanmap: warning: %s: [sensor] height = %s m, but the ground measured in the "
+                   "scans lies %.2f m below the sensor (report.json: sensor); set height = auto "
+                   "or the right value\n",
+                   config_name.c_str(), cleanmap::io::shortestDouble(params.sensor.height).c_str(),
+                   *h);
     std::printf("cleanmap: %zu scans in %.1f s; results in %s\n", out.scans(), wall,
                 outdir.c_str());
     if (const auto e = out.evaluation())

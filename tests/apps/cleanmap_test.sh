@@ -140,8 +140,16 @@ sed 's/^cleanmap_moving_count/cleanmap_movin_count/' "$ini" >"$scratch/typo.ini"
 expect_error 1 "typo.ini: [MappingApplication]: unknown map 'cleanmap_movin'" "$bin/cleanmap" "$seq" -o "$scratch/t" -c "$scratch/typo.ini"
 sed 's/^ds.window_k = 10/ds.windw_k = 10/' "$ini" >"$scratch/key.ini"
 expect_error 1 "unknown key 'ds.windw_k'; did you mean 'ds.window_k'?" "$bin/cleanmap" "$seq" -o "$scratch/t" -c "$scratch/key.ini"
-sed 's/^sensor_height = -1.73/sensor_height = -1.9/' "$ini" >"$scratch/ground.ini"
-expect_error 1 "the cleanmap_ground map's sensor_height (-1.9) differs from cleanmap_moving's ground.sensor_height (-1.73)" "$bin/cleanmap" "$seq" -o "$scratch/t" -c "$scratch/ground.ini"
+sed 's/^height = auto/height = 1.9/' "$ini" >"$scratch/ground.ini"
+expect_error 1 "the cleanmap_ground map's height (1.9) differs from cleanmap_moving's sensor.height (auto)" "$bin/cleanmap" "$seq" -o "$scratch/t" -c "$scratch/ground.ini"
+# Issue #15: the old key names its replacement; a mounting height the scans contradict is warned.
+printf '[ground]\nsensor_height = -1.73\n' >"$scratch/old.ini"
+expect_error 1 "old.ini:2: 'sensor_height' in [ground] is now [sensor] height" "$bin/cleanmap" "$seq" -o "$scratch/t" -c "$scratch/old.ini"
+sed 's/^height = auto.*/sensor_height = -1.73/' "$ini" >"$scratch/old_mrpt.ini"
+expect_error 1 "'sensor_height' is now 'height'" "$bin/cleanmap" "$seq" -o "$scratch/t" -c "$scratch/old_mrpt.ini"
+printf '[sensor]\nheight = 0.8\n' >"$scratch/low.ini"
+"$bin/cleanmap" "$seq" -o "$scratch/low" --quiet --last 12 --no-mrpt-outputs -c "$scratch/low.ini" 2>"$scratch/low.err" >/dev/null || fail "a run with [sensor] height = 0.8 failed"
+grep -q "warning: .*low.ini: \[sensor\] height = 0.8 m, but the ground measured in the scans lies 1.[6-9][0-9] m below the sensor" "$scratch/low.err" || fail "no warning for a wrong sensor height: $(cat "$scratch/low.err")"
 [[ -e $scratch/t ]] && fail "a refused configuration produced an output folder"
 # DESIGN §3, the camera check: --images on needs images; with them, overlays and the report.
 expect_error 1 "--images on, but the input has no camera calibration" "$bin/cleanmap" "$seq" -o "$scratch/t" --images on

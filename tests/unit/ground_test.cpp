@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <functional>
+#include <limits>
 #include <random>
 
 #include "cleanmap/core/ground.h"
@@ -99,7 +100,7 @@ constexpr double kH = -1.73;
 
 TEST(Ground, FlatGroundFoundCarKept) {
   const Scene s = makeScene([](double, double) { return kH; });
-  const Score sc = score(s, segmentGround(s.points, kParams, 30.0));
+  const Score sc = score(s, segmentGround(s.points, kParams, 30.0, kH));
   EXPECT_GT(sc.ground_recall, 0.97);
   EXPECT_GT(sc.object_kept, 0.98);
 }
@@ -109,7 +110,7 @@ TEST(Ground, SlopeOf10PercentFoundWhereAThresholdFails) {
   // for noise-free returns; within-cell spread and noise use part of it (at 15 % with 1 cm noise
   // one failing cell stalls the propagation uphill: measured 0.71 ground recall).
   const Scene s = makeScene([](double x, double) { return kH + 0.10 * x; });
-  const Score ours = score(s, segmentGround(s.points, kParams, 30.0));
+  const Score ours = score(s, segmentGround(s.points, kParams, 30.0, kH));
   EXPECT_GT(ours.ground_recall, 0.95);
   EXPECT_GT(ours.object_kept, 0.98);
   const Score thr = score(s, fixedThreshold(s, kH + 0.2));
@@ -123,7 +124,7 @@ TEST(Ground, CurbAndRampFoundWhereARansacPlaneFails) {
     return kH + (y > 4 ? 0.07 : 0.0) + (x > 5 ? 0.08 * (x - 5) : 0.0);
   };
   const Scene s = makeScene(ground);
-  const Score ours = score(s, segmentGround(s.points, kParams, 30.0));
+  const Score ours = score(s, segmentGround(s.points, kParams, 30.0, kH));
   EXPECT_GT(ours.ground_recall, 0.93);
   EXPECT_GT(ours.object_kept, 0.98);
   const Score plane = score(s, ransacPlane(s));
@@ -136,7 +137,7 @@ TEST(Ground, WallIsNotGroundAndSteepStepStopsPropagation) {
   // A 0.5 m step (a wall base) at x = 10: beyond it the raised plateau is not reachable with
   // s = 0.09 m per cell, so it is not ground; the road before it is.
   const Scene s = makeScene([](double x, double) { return x > 10 ? kH + 0.5 : kH; });
-  const auto g = segmentGround(s.points, kParams, 30.0);
+  const auto g = segmentGround(s.points, kParams, 30.0, kH);
   std::size_t before = 0, before_g = 0, after = 0, after_g = 0;
   for (std::size_t i = 0; i < g.size(); ++i) {
     if (!s.is_ground[i]) continue;
@@ -149,7 +150,31 @@ TEST(Ground, WallIsNotGroundAndSteepStepStopsPropagation) {
 }
 
 TEST(Ground, EmptyAndOutOfExtentInputs) {
-  EXPECT_TRUE(segmentGround({}, kParams, 30.0).empty());
+  EXPECT_TRUE(segmentGround({}, kParams, 30.0, kH).empty());
   const std::vector<PointXYZI> far = {{100, 0, kH, 0}};
-  EXPECT_EQ(segmentGround(far, kParams, 30.0)[0], 0);  // outside the grid: never ground
+  EXPECT_EQ(segmentGround(far, kParams, 30.0, kH)[0], 0);  // outside the grid: never ground
+}
+
+// Issue #15: the ground below the sensor is measured from the scan, whatever the mounting; a car,
+// a curb, a slope and stray returns below the road do not move it by more than a few cm.
+TEST(Ground, HeightBelowTheSensorMeasuredAtAnyMounting) {
+  for (const double h : {-0.5, -0.8, -1.73, -2.5, -3.5}) {
+    Scene s = makeScene([h](double x, double y) { return h + (y > 4 ? 0.12 : 0.0) + 0.03 * x; });
+    for (int i = 0; i < 3; ++i) s.points.push_back({6.0f + i, 6.0f, float(h - 2.0), 0.f});
+    const auto g = estimateGroundHeight(s.points);
+    ASSERT_TRUE(g) << h;
+    EXPECT_NEAR(*g, h, 0.05) << "mounted " << -h << " m above the road";
+  }
+}
+
+TEST(Ground, HeightNotMeasuredWithoutEnoughOfTheSurroundingsSeen) {
+  EXPECT_FALSE(estimateGroundHeight({}));
+  // Returns in only a few azimuth sectors (a scan cut to a narrow view, a wall beside the car).
+  std::vector<PointXYZI> narrow;
+  for (double x = 3; x < 20; x += 0.1)
+    for (double y = -1; y <= 1; y += 0.2) narrow.push_back({float(x), float(y), -1.73f, 0.f});
+  EXPECT_FALSE(estimateGroundHeight(narrow));
+  // Non-finite heights are not returns.
+  std::vector<PointXYZI> nan(1000, {5.f, 5.f, std::numeric_limits<float>::quiet_NaN(), 0.f});
+  EXPECT_FALSE(estimateGroundHeight(nan));
 }

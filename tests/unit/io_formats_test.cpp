@@ -102,6 +102,37 @@ TEST(Config, IniRoundTripRestoresEveryParameter) {
   EXPECT_FALSE(q.ground.point_refine);
 }
 
+// Issue #15: [sensor] height is metres above the ground or auto; the old key names the new one.
+TEST(Config, SensorHeightAndModel) {
+  PipelineParams p;
+  EXPECT_EQ(p.sensor.height, 0.0);  // auto
+  EXPECT_NE(io::toIni(p).find("[sensor]\nheight = auto\n"), std::string::npos);
+  io::parseParams("[sensor]\nheight = 2.2\n", "x.ini", p);
+  EXPECT_DOUBLE_EQ(p.sensor.height, 2.2);
+  PipelineParams q;
+  io::parseParams(io::toIni(p), "roundtrip", q);
+  EXPECT_DOUBLE_EQ(q.sensor.height, 2.2);
+  io::parseParams("[sensor]\nheight = auto\n", "x.ini", q);
+  EXPECT_EQ(q.sensor.height, 0.0);
+  test::expectError([&] { io::parseParams("[sensor]\nheight = tall\n", "x.ini", p); }, "x.ini:2",
+                    "'height' needs a number or auto, got 'tall'");
+  test::expectError(
+      [] {
+        PipelineParams r;
+        io::parseParams("[sensor]\nheight = -1.73\n", "x.ini", r);
+      },
+      "x.ini", "sensor.height must be auto or in [0.1, 10] m above the ground");
+  io::parseParams("[sensor]\nmodel = vlp16\n", "x.ini", q);
+  EXPECT_EQ(q.sensor.model, SensorModel::kVlp16);
+  EXPECT_NE(io::toIni(q).find("model = vlp16\n"), std::string::npos);
+  test::expectError([&] { io::parseParams("[sensor]\nmodel = vlp-16\n", "x.ini", p); }, "x.ini:2",
+                    "needs one of auto, hdl64, hdl32, vlp16, os1-64, os1-128; got 'vlp-16'");
+  test::expectError([&] { io::parseParams("[ground]\nsensor_height = -1.73\n", "x.ini", p); },
+                    "x.ini:2", "'sensor_height' in [ground] is now [sensor] height");
+  test::expectError([&] { io::setParam(p, "ground.sensor_height", "-1.73", "[s]"); }, "[s]",
+                    "'ground.sensor_height' is now [sensor] height");
+}
+
 // (config/cleanmap.ini is an MRPT map file now: tests/unit/maps_test.cpp checks it.)
 TEST(Config, SetParamByKeyAndListValues) {
   PipelineParams p;

@@ -94,7 +94,7 @@ TEST(MapConfig, DefaultIniCreatesBothMapsWithTheDefaults) {
   EXPECT_EQ(io::toIni(moving->params()), io::toIni(PipelineParams{}));
   EXPECT_DOUBLE_EQ(moving->mapVoxel(), 0.1);
   EXPECT_DOUBLE_EQ(ground->cellSize(), PipelineParams{}.ground.cell);
-  EXPECT_DOUBLE_EQ(ground->insertionOptions.sensor_height, PipelineParams{}.ground.sensor_height);
+  EXPECT_DOUBLE_EQ(ground->insertionOptions.height, PipelineParams{}.sensor.height);
   // Every parameter of the table is written out in the file (nothing left to a hidden default).
   std::set<std::string> in_file;
   io::IniHandlers on;

@@ -50,6 +50,9 @@ MosCounts runSet(const std::string& set, OutputDigest* digest = nullptr) {
 // that moves any label or map point fails here; an intended change of results updates these
 // numbers in the same commit and says why. Issue #12 changed the full map on purpose: it holds
 // the points beyond the 30 m crop within static_map.radius (50 m) too; the other digests stayed.
+// Issue #15 changed every digest on purpose: the ground segmentation starts from the ground
+// height measured in the scans (sensor.height = auto, 1.81-1.90 m on these sets) instead of
+// KITTI's nominal 1.73 m (recall up on all three sets, doc/BENCHMARK.md).
 void expectDigest(const OutputDigest& d, uint64_t labels, uint64_t compact, uint64_t full,
                   uint64_t moving) {
   EXPECT_EQ(d.labels, labels) << "labels differ from the reference run";
@@ -67,24 +70,24 @@ TEST(Regression, OutputsByteIdenticalToTheReference) {
   runSet("kitti_city", &city);
   runSet("kitti_highway", &highway);
   runSet("kitti_residential", &residential);
-  expectDigest(city, 0x24a33c4c73c35b1full, 0xb261996e3f7ad817ull, 0xc7a6082a430dabb8ull,
-               0x8fa276e4a375d311ull);
-  expectDigest(highway, 0xef3b97fd9458c52dull, 0x05468047f5115d18ull, 0x6e156677ec234bdfull,
-               0x56cb3c29945082c3ull);
-  expectDigest(residential, 0x47f39ecdacc70ae7ull, 0xbc71851dc5afee49ull, 0xc4b53301954534a9ull,
-               0x982f1628fa1b4670ull);
+  expectDigest(city, 0xe6503807ad3d06bcull, 0x7eb7ed012f3a1fc7ull, 0xb137387dc6583b49ull,
+               0x0273601384a59ac0ull);
+  expectDigest(highway, 0x612aa65e1c11970eull, 0x9ba0b1221c1a02cbull, 0xdc16afb13cd95c31ull,
+               0x769de5db8c58e281ull);
+  expectDigest(residential, 0x0429edf7ae4c8167ull, 0xad062af9b96b7417ull, 0x57278e46f91ae27bull,
+               0x3fbeafc779a54342ull);
 }
 
 TEST(Regression, City) {
   CLEANMAP_REQUIRE_DATASET("kitti_city");
-  const MosCounts c = runSet("kitti_city");  // measured: P 0.580, R 0.992 (bar: R 0.75, P 0.50)
+  const MosCounts c = runSet("kitti_city");  // measured: P 0.581, R 0.999 (bar: R 0.75, P 0.50)
   EXPECT_GE(c.recall(), 0.96);
   EXPECT_GE(c.precision(), 0.55);
 }
 
 TEST(Regression, Highway) {
   CLEANMAP_REQUIRE_DATASET("kitti_highway");
-  const MosCounts c = runSet("kitti_highway");  // measured: P 0.945, R 0.885 (bar: R 0.75, P 0.50)
+  const MosCounts c = runSet("kitti_highway");  // measured: P 0.939, R 0.903 (bar: R 0.75, P 0.50)
   EXPECT_GE(c.recall(), 0.86);
   EXPECT_GE(c.precision(), 0.92);
 }

@@ -3,6 +3,7 @@
 // folder read back by our KITTI reader, the camera seeing what the lidar sees.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <map>
 #include <opencv2/imgcodecs.hpp>
@@ -76,6 +77,68 @@ TEST(SimScenario, BadFilesAreOneLineErrorsWithTheLine) {
   test::expectError([] { sim::parseScenario("[ego]\npose_drift = 0.5\n", "s.ini"); }, "s.ini:2",
                     "outside");
   test::expectError([] { sim::loadScenario("/nonexistent/x.ini"); }, "x.ini", "");
+}
+
+// Issue #15: the lidar is a preset or rings over a vertical field of view.
+TEST(SimScenario, SensorModelsAndRingsParse) {
+  auto sc = sim::parseScenario("[sensor]\nmodel = vlp16\n", "s.ini");
+  ASSERT_EQ(sc.sensor.elevations.size(), 16u);
+  EXPECT_NEAR(sc.sensor.elevations.front() * 180 / M_PI, 15.0, 1e-9);
+  EXPECT_NEAR(sc.sensor.elevations.back() * 180 / M_PI, -15.0, 1e-9);
+  EXPECT_DOUBLE_EQ(sc.sensor.azimuth_step_deg, 0.2);
+  sc = sim::parseScenario("[sensor]\nvertical_fov_deg = -25 5\nrings = 31\n", "s.ini");
+  ASSERT_EQ(sc.sensor.elevations.size(), 31u);
+  EXPECT_NEAR(sc.sensor.elevations[1] * 180 / M_PI, 4.0, 1e-9);  // 1 degree apart
+  EXPECT_DOUBLE_EQ(sc.sensor.azimuth_step_deg, 0.18);            // the HDL-64E's
+  sc = sim::parseScenario("[sensor]\nmodel = os1-128\nrings = 64\nazimuth_step_deg = 0.5\n",
+                          "s.ini");
+  ASSERT_EQ(sc.sensor.elevations.size(), 64u);
+  EXPECT_NEAR(sc.sensor.elevations.back() * 180 / M_PI, -22.5, 1e-9);
+  EXPECT_DOUBLE_EQ(sc.sensor.azimuth_step_deg, 0.5);
+  EXPECT_EQ(sim::defaultScenario().sensor.elevations, sim::hdl64Elevations());
+  test::expectError([] { sim::parseScenario("[sensor]\nmodel = hdl65\n", "s.ini"); }, "s.ini:2",
+                    "expected one of hdl64, hdl32, vlp16, os1-64, os1-128");
+  test::expectError([] { sim::parseScenario("[sensor]\nrings = 16.5\n", "s.ini"); }, "s.ini:2",
+                    "expected an integer");
+  test::expectError([] { sim::parseScenario("[sensor]\nvertical_fov_deg = 5 -25\n", "s.ini"); },
+                    "s.ini:2", "lo < hi");
+}
+
+TEST(SimLidar, ScansHaveTheRingsOfTheirModel) {
+  for (const auto m : {SensorModel::kVlp16, SensorModel::kHdl32, SensorModel::kOs1_128}) {
+    auto sc = sim::defaultScenario();
+    sc.sensor.elevations = ringElevations(m);
+    sc.sensor.range_noise = 0;
+    const auto s = sim::simulateScan(sc, 0, 2);
+    std::vector<double> el;  // degrees; rings are runs of elevations less than 0.05 deg apart
+    for (const auto& p : s.points) el.push_back(std::atan2(p.z, std::hypot(p.x, p.y)) * 180 / M_PI);
+    std::sort(el.begin(), el.end());
+    int rings = el.empty() ? 0 : 1;
+    for (std::size_t i = 1; i < el.size(); ++i) rings += el[i] - el[i - 1] > 0.05;
+    EXPECT_EQ(rings, sensorPreset(m).rings) << sensorPreset(m).name;
+  }
+}
+
+// DESIGN §2d: a sparse lidar's angular resolution is measured from its scan; the HDL-64E's rings
+// blur together (0.33-0.5 degrees apart) and count as the reference density.
+TEST(SimLidar, ResolutionOfSparseLidarsIsMeasuredInTheScan) {
+  auto sc = sim::defaultScenario();
+  for (const auto m : {SensorModel::kVlp16, SensorModel::kHdl32}) {
+    sc.sensor.elevations = ringElevations(m);
+    sc.sensor.azimuth_step_deg = sensorPreset(m).azimuth_step_deg;
+    const auto r = measureResolution(sim::simulateScan(sc, 5, 2).points);
+    ASSERT_TRUE(r) << sensorPreset(m).name;
+    const auto want = presetResolution(m);
+    EXPECT_NEAR(r->vertical_deg, want.vertical_deg, 0.02) << sensorPreset(m).name;
+    EXPECT_NEAR(r->azimuth_deg, want.azimuth_deg, 0.01) << sensorPreset(m).name;
+    EXPECT_NEAR(densityScale(*r), densityScale(want), 0.02);
+  }
+  EXPECT_NEAR(densityScale(presetResolution(SensorModel::kVlp16)), 0.19, 0.01);
+  EXPECT_DOUBLE_EQ(densityScale(presetResolution(SensorModel::kHdl64)), 1.0);
+  sc.sensor.elevations = ringElevations(SensorModel::kHdl64);
+  sc.sensor.azimuth_step_deg = 0.18;
+  EXPECT_FALSE(measureResolution(sim::simulateScan(sc, 5, 2).points));
+  EXPECT_FALSE(measureResolution({}));
 }
 
 TEST(SimScenario, PoseDriftIsASeededRandomWalkOfTheRequestedSize) {

@@ -2,13 +2,14 @@
 #include "cleanmap/core/ground.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 
 namespace cleanmap {
 
 std::vector<uint8_t> segmentGround(const std::vector<PointXYZI>& points, const GroundParams& p,
-                                   double half_extent) {
+                                   double half_extent, double ground_z) {
   const int n = static_cast<int>(std::ceil(half_extent / p.cell - 0.5));  // cells each side of 0
   const int side = 2 * n + 1;
   const float kInf = std::numeric_limits<float>::infinity();
@@ -43,7 +44,7 @@ std::vector<uint8_t> segmentGround(const std::vector<PointXYZI>& points, const G
     hG[c] = ground ? H[c] : hat_h;
     gap[c] = ground ? 0 : hat_gap + (has_points ? 0 : 1);
   };
-  visit(0, 0, static_cast<float>(p.sensor_height), 0);
+  visit(0, 0, static_cast<float>(ground_z), 0);
   for (int ring = 1; ring <= n; ++ring) {
     for (int i = -ring; i <= ring; ++i) {
       for (int j = -ring; j <= ring; ++j) {
@@ -73,6 +74,32 @@ std::vector<uint8_t> segmentGround(const std::vector<PointXYZI>& points, const G
     out[k] = ground_cell[c] || (p.point_refine && points[k].z < hG[c] + p.step);
   }
   return out;
+}
+
+std::optional<double> estimateGroundHeight(const std::vector<PointXYZI>& points) {
+  constexpr int kSectors = 36;
+  constexpr float kNear2 = 2.0f * 2.0f, kFar2 = 25.0f * 25.0f;
+  const float kInf = std::numeric_limits<float>::infinity();
+  std::array<std::array<float, 3>, kSectors> low;  // the three lowest z per sector, ascending
+  for (auto& l : low) l.fill(kInf);
+  for (const auto& q : points) {
+    const float r2 = q.x * q.x + q.y * q.y;
+    if (!(r2 >= kNear2 && r2 <= kFar2) || !std::isfinite(q.z)) continue;
+    const int s = std::min(kSectors - 1, static_cast<int>((std::atan2(q.y, q.x) + float(M_PI)) *
+                                                          float(kSectors / (2 * M_PI))));
+    auto& l = low[static_cast<std::size_t>(std::max(0, s))];
+    if (q.z >= l[2]) continue;
+    l[2] = q.z;
+    if (l[2] < l[1]) std::swap(l[2], l[1]);
+    if (l[1] < l[0]) std::swap(l[1], l[0]);
+  }
+  std::vector<float> third;
+  for (const auto& l : low)
+    if (l[2] < kInf) third.push_back(l[2]);
+  if (third.size() < kSectors / 4) return std::nullopt;
+  const auto mid = third.begin() + static_cast<std::ptrdiff_t>(third.size() / 2);
+  std::nth_element(third.begin(), mid, third.end());
+  return double(*mid);
 }
 
 }  // namespace cleanmap

@@ -12,6 +12,8 @@ void validate(const PipelineParams& p, const std::string& name) {
   require(p.filter.crop_tau > 0, "filter.crop_tau must be > 0");
   require(p.filter.dup_window >= 0, "filter.dup_window must be >= 0");
   require(p.filter.dup_distance > 0, "filter.dup_distance must be > 0");
+  require(p.sensor.height == 0 || (p.sensor.height >= 0.1 && p.sensor.height <= 10),
+          "sensor.height must be auto or in [0.1, 10] m above the ground");
   require(p.ground.cell > 0, "ground.cell must be > 0");
   require(p.ground.step > 0, "ground.step must be > 0");
   require(p.ds.sigma_m >= 0 && p.ds.sigma_r >= 0 && p.ds.sigma_m + p.ds.sigma_r > 0,

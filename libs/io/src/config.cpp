@@ -21,11 +21,27 @@ struct Key {
   std::function<double()> get;
   bool integer;
   std::vector<std::string> names = {};  ///< a named choice: the value is the index of its name
+  bool auto_zero = false;               ///< a number, or "auto" (stored as 0)
 };
+
+// Keys that moved: where they went (an old ini gets one clear error).
+const std::map<std::string, std::string>& movedKeys() {
+  static const std::map<std::string, std::string> m = {
+      {"ground.sensor_height",
+       "is now [sensor] height: metres above the ground, positive (1.73 for KITTI's HDL-64E), or "
+       "auto to measure it from the scans"},
+  };
+  return m;
+}
 
 // A key's value from ini text: a number, or one of its names.
 std::optional<double> parseValue(const Key& k, const std::string& text, std::string& why) {
-  if (k.names.empty()) return parseNumber(text, k.integer, why);
+  if (k.auto_zero && text == "auto") return 0.0;
+  if (k.names.empty()) {
+    auto v = parseNumber(text, k.integer, why);
+    if (!v && k.auto_zero) why = "needs a number or auto, got '" + text + "'";
+    return v;
+  }
   for (std::size_t i = 0; i < k.names.size(); ++i)
     if (k.names[i] == text) return double(i);
   why = "needs one of";
@@ -35,6 +51,7 @@ std::optional<double> parseValue(const Key& k, const std::string& text, std::str
 }
 
 std::string formatValue(const Key& k) {
+  if (k.auto_zero && k.get() == 0) return "auto";
   if (k.names.empty()) return shortestDouble(k.get());
   return k.names.at(static_cast<std::size_t>(k.get()));
 }
@@ -45,13 +62,19 @@ std::map<std::string, Key> table(PipelineParams& p) {
   auto i = [](int& f) {
     return Key{[&f](double v) { f = static_cast<int>(v); }, [&f] { return double(f); }, true};
   };
+  Key height = d(p.sensor.height);
+  height.auto_zero = true;
   return {
+      {"sensor.height", height},
+      {"sensor.model", Key{[&p](double v) { p.sensor.model = static_cast<SensorModel>(int(v)); },
+                           [&p] { return double(int(p.sensor.model)); },
+                           true,
+                           {"auto", "hdl64", "hdl32", "vlp16", "os1-64", "os1-128"}}},
       {"filter.crop_tau", d(p.filter.crop_tau)},
       {"filter.dup_window", i(p.filter.dup_window)},
       {"filter.dup_distance", d(p.filter.dup_distance)},
       {"ground.cell", d(p.ground.cell)},
       {"ground.step", d(p.ground.step)},
-      {"ground.sensor_height", d(p.ground.sensor_height)},
       {"ground.point_refine", Key{[&p](double v) { p.ground.point_refine = v != 0; },
                                   [&p] { return p.ground.point_refine ? 1.0 : 0.0; }, true}},
       {"ground.max_gap_cells", i(p.ground.max_gap_cells)},
@@ -150,6 +173,8 @@ void setParam(PipelineParams& params, const std::string& key, const std::string&
               const std::string& where) {
   auto keys = table(params);
   const auto it = keys.find(key);
+  if (const auto m = movedKeys().find(key); m != movedKeys().end())
+    throw Error(where, "'" + key + "' " + m->second);
   if (it == keys.end()) throw Error(where, "unknown key '" + key + "'");
   std::string why;
   const auto v = parseValue(it->second, trimBlanks(value), why);
@@ -182,6 +207,8 @@ void parseParams(const std::string& text, const std::string& name, PipelineParam
   };
   on.entry = [&](const IniLine& e) {
     const std::string full = e.section + "." + e.key;
+    if (const auto m = movedKeys().find(full); m != movedKeys().end())
+      iniError(name, e.line, "'" + e.key + "' in [" + e.section + "] " + m->second);
     const auto it = keys.find(full);
     if (it == keys.end())
       iniError(name, e.line, "unknown key '" + e.key + "' in [" + e.section + "]");

@@ -146,6 +146,16 @@ OutputWriter::~OutputWriter() {
   }
 }
 
+std::optional<double> OutputWriter::measuredSensorHeight() const {
+  std::vector<double> m;
+  for (const double g : ground_measured_)
+    if (std::isfinite(g)) m.push_back(-g);
+  if (m.empty()) return std::nullopt;
+  const auto mid = m.begin() + static_cast<std::ptrdiff_t>(m.size() / 2);
+  std::nth_element(m.begin(), mid, m.end());
+  return *mid;
+}
+
 void OutputWriter::write(const ScanResult& r, const std::optional<MosCounts>& eval) {
   writeLabels(staging_ + "/labels/" + r.stem + ".label", r.labels);
   if (!r.overlay.empty()) {  // --save-overlays (DESIGN §3)
@@ -164,6 +174,9 @@ void OutputWriter::write(const ScanResult& r, const std::optional<MosCounts>& ev
   poses_.push_back(r.pose);
   times_.push_back(r.timestamp);
   pose_info_.push_back(r.pose_info);
+  ground_measured_.push_back(r.ground_measured);
+  ground_z_.push_back(r.ground_z);
+  density_.push_back(r.density);
   stats_.push_back(r.stats);
   stems_.push_back(r.stem);
   if (eval) {
@@ -421,6 +434,27 @@ void OutputWriter::finish(double wall_s, const FreeSpaceMap* free_space) {
                          {"status_counts", by_status},
                          {"timing_per_step", steps},
                          {"per_scan", per}};
+  }
+  {  // DESIGN §2a: the ground below the sensor, configured or measured
+    std::vector<double> measured;
+    for (const double g : ground_measured_)
+      if (std::isfinite(g)) measured.push_back(-g);
+    std::vector<double> used;
+    for (const double g : ground_z_) used.push_back(-g);
+    const auto range = [](std::vector<double> v) {
+      nlohmann::json o;
+      if (v.empty()) return o;
+      std::sort(v.begin(), v.end());
+      o = {{"median", v[v.size() / 2]}, {"min", v.front()}, {"max", v.back()}};
+      return o;
+    };
+    j["sensor"] = {{"height", params_.sensor.height > 0 ? nlohmann::json(params_.sensor.height)
+                                                        : nlohmann::json("auto")},
+                   {"model", sensorModelName(params_.sensor.model)},
+                   {"density_scale", range(density_)},
+                   {"height_measured_m", range(measured)},
+                   {"height_used_m", range(used)},
+                   {"scans_not_measured", ground_measured_.size() - measured.size()}};
   }
   j["wall_s"] = wall_s;
   if (!output_ms_.empty()) j["output_ms"] = output_ms_;

@@ -15,7 +15,9 @@
 
 #include "cleanmap/core/error.h"
 #include "cleanmap/core/ground.h"
+#include "cleanmap/io/config.h"
 #include "cleanmap/io/files.h"
+#include "cleanmap/io/ini.h"
 #include "cleanmap/io/ply.h"
 #include "cleanmap/mrpt/convert.h"
 #include "map_options.h"
@@ -42,7 +44,22 @@ int32_t keyY(uint64_t k) {
 // The map's option table: creationOpts `cell`; insertOpts the segmentation of SPEC §2a.
 void insertOptionKeys(OptionTable& t, CGroundModelMap::TInsertionOptions& o) {
   t.real("step", o.step);
-  t.real("sensor_height", o.sensor_height);
+  t.custom("height", [&o](const std::string& v, const std::string& where) {
+    const std::string text = cleanmap::io::trimBlanks(v);
+    if (text == "auto") {
+      o.height = 0;
+      return;
+    }
+    std::string why;
+    const auto x = cleanmap::io::parseNumber(text, false, why);
+    if (!x) throw cleanmap::Error(where, "'height' needs a number or auto, got '" + text + "'");
+    o.height = *x;
+  });
+  t.custom("sensor_height", [](const std::string&, const std::string& where) {
+    throw cleanmap::Error(where,
+                          "'sensor_height' is now 'height': metres above the ground, positive "
+                          "(1.73 for KITTI's HDL-64E), or auto to measure it from the scans");
+  });
   t.flag("point_refine", o.point_refine);
   t.integer("max_gap_cells", o.max_gap_cells);
   t.real("extent", o.extent);
@@ -56,6 +73,8 @@ void checkOptions(double cell, const CGroundModelMap::TInsertionOptions& o,
   if (!(o.step > 0)) bad("step must be > 0");
   if (!(o.extent > 0)) bad("extent must be > 0");
   if (o.max_gap_cells < 1) bad("max_gap_cells must be >= 1");
+  if (!(o.height == 0 || (o.height >= 0.1 && o.height <= 10)))
+    bad("height must be auto or in [0.1, 10] m above the ground");
 }
 
 }  // namespace
@@ -68,7 +87,6 @@ cleanmap::GroundParams CGroundModelMap::groundParams() const {
   cleanmap::GroundParams g;
   g.cell = cell_;
   g.step = insertionOptions.step;
-  g.sensor_height = insertionOptions.sensor_height;
   g.point_refine = insertionOptions.point_refine;
   g.max_gap_cells = insertionOptions.max_gap_cells;
   return g;
@@ -90,6 +108,22 @@ CGroundModelMap::sortedCells() const {
   return out;
 }
 
+// As the pipeline (DESIGN §2a): a configured height, else the median of this scan's and the 10
+// previous scans' measurements.
+double CGroundModelMap::groundBelowSensor(const cleanmap::Scan& scan) {
+  const auto measured = cleanmap::estimateGroundHeight(scan.points);
+  if (insertionOptions.height > 0) return -insertionOptions.height;
+  if (measured) {
+    recent_ground_.push_back(*measured);
+    if (recent_ground_.size() > 11) recent_ground_.pop_front();
+  }
+  if (recent_ground_.empty()) return -cleanmap::kDefaultSensorHeight;
+  std::vector<double> m(recent_ground_.begin(), recent_ground_.end());
+  const auto mid = m.begin() + static_cast<std::ptrdiff_t>(m.size() / 2);
+  std::nth_element(m.begin(), mid, m.end());
+  return *mid;
+}
+
 void CGroundModelMap::insertGround(const cleanmap::Scan& scan, const std::vector<uint8_t>& ground) {
   const double inv = 1.0 / cell_;
   for (std::size_t i = 0; i < scan.points.size() && i < ground.size(); ++i) {
@@ -104,7 +138,8 @@ void CGroundModelMap::insertGround(const cleanmap::Scan& scan, const std::vector
 }
 
 const std::vector<uint8_t>& CGroundModelMap::insertScan(const cleanmap::Scan& scan) {
-  last_flags_ = cleanmap::segmentGround(scan.points, groundParams(), insertionOptions.extent);
+  last_flags_ = cleanmap::segmentGround(scan.points, groundParams(), insertionOptions.extent,
+                                        groundBelowSensor(scan));
   insertGround(scan, last_flags_);
   return last_flags_;
 }
@@ -188,30 +223,32 @@ std::string CGroundModelMap::asString() const {
   return os.str();
 }
 
+// Version 1: insertOpts `height` (above the ground, 0 = auto) replaced version 0's
+// `sensor_height` (the ground below the sensor, negative).
 uint8_t CGroundModelMap::serializeGetVersion() const {
-  return 0;
+  return 1;
 }
 
 void CGroundModelMap::serializeTo(mrpt::serialization::CArchive& out) const {
   out << genericMapParams;
-  out << cell_ << insertionOptions.step << insertionOptions.sensor_height
-      << insertionOptions.point_refine << static_cast<int32_t>(insertionOptions.max_gap_cells)
-      << insertionOptions.extent << insertionOptions.use_pose_observations
-      << static_cast<uint64_t>(scans_);
+  out << cell_ << insertionOptions.step << insertionOptions.height << insertionOptions.point_refine
+      << static_cast<int32_t>(insertionOptions.max_gap_cells) << insertionOptions.extent
+      << insertionOptions.use_pose_observations << static_cast<uint64_t>(scans_);
   const auto cells = sortedCells();  // sorted: equal maps serialize to equal bytes
   out << static_cast<uint64_t>(cells.size());
   for (const auto& [ij, c] : cells) out << ij.first << ij.second << c.sum_z << c.count;
 }
 
 void CGroundModelMap::serializeFrom(mrpt::serialization::CArchive& in, uint8_t version) {
-  if (version != 0) MRPT_THROW_UNKNOWN_SERIALIZATION_VERSION(version);
+  if (version > 1) MRPT_THROW_UNKNOWN_SERIALIZATION_VERSION(version);
   in >> genericMapParams;
   int32_t gap = 0;
   uint64_t scans = 0, n = 0;
-  in >> cell_ >> insertionOptions.step >> insertionOptions.sensor_height >>
+  in >> cell_ >> insertionOptions.step >> insertionOptions.height >>
       insertionOptions.point_refine >> gap >> insertionOptions.extent >>
       insertionOptions.use_pose_observations >> scans;
   insertionOptions.max_gap_cells = gap;
+  if (version == 0) insertionOptions.height = -insertionOptions.height;  // was sensor_height
   scans_ = scans;
   in >> n;
   cells_.clear();
@@ -242,8 +279,8 @@ void CGroundModelMap::TMapDefinition::loadFromConfigFile_map_specific(
 }
 
 void CGroundModelMap::TMapDefinition::dumpToTextStream_map_specific(std::ostream& out) const {
-  out << "cell = " << cell << "\nstep = " << insertionOpts.step
-      << "\nsensor_height = " << insertionOpts.sensor_height
+  out << "cell = " << cell << "\nstep = " << insertionOpts.step << "\nheight = "
+      << (insertionOpts.height > 0 ? cleanmap::io::shortestDouble(insertionOpts.height) : "auto")
       << "\npoint_refine = " << insertionOpts.point_refine
       << "\nmax_gap_cells = " << insertionOpts.max_gap_cells
       << "\nextent = " << insertionOpts.extent

@@ -206,7 +206,9 @@ std::string mapConfigText(const cleanmap::PipelineParams& params, const std::str
      << cleanmap::io::shortestDouble(params.ground.cell) << "\n\n";
   os << "[" << section << "_cleanmap_ground_00_insertOpts]\n"
      << "step = " << cleanmap::io::shortestDouble(params.ground.step) << "\n"
-     << "sensor_height = " << cleanmap::io::shortestDouble(params.ground.sensor_height) << "\n"
+     << "height = "
+     << (params.sensor.height > 0 ? cleanmap::io::shortestDouble(params.sensor.height) : "auto")
+     << "\n"
      << "point_refine = " << (params.ground.point_refine ? 1 : 0) << "\n"
      << "max_gap_cells = " << params.ground.max_gap_cells << "\n"
      << "extent = " << cleanmap::io::shortestDouble(ground_extent) << "\n"

@@ -1,8 +1,10 @@
 // SPDX-License-Identifier: BSD-3-Clause
 #include "cleanmap/pipeline/laser_pipeline.h"
 
+#include <algorithm>
 #include <cmath>
 #include <exception>
+#include <limits>
 #include <random>
 #include <unordered_map>
 
@@ -28,6 +30,9 @@ struct LaserPipeline::Prepared {
   std::vector<uint8_t> ground;     // DESIGN §2a, within the crop and the map radius
   std::vector<uint8_t> far;        // beyond the crop, within the map radius (DESIGN §2e)
   std::vector<uint8_t> candidate;  // in the crop and not ground: what the stages decide
+  double ground_measured = std::numeric_limits<double>::quiet_NaN();  // estimateGroundHeight
+  double ground_z = 0;  // h_G below the sensor used for this scan (DESIGN §2a)
+  double density = 1;   // returns per solid angle relative to the HDL-64E (DESIGN §2d)
   Eigen::Isometry3d world_to_sensor;
   PoseInfo pose_info;
   ScanStats stats;
@@ -171,7 +176,12 @@ std::unique_ptr<LaserPipeline::Prepared> LaserPipeline::prepare(Frame&& f) {
   // The ground grid covers the map radius too (inner cells do not depend on outer ones, so the
   // labels inside the crop are the same).
   const double r_map = p_.map.radius;
-  s->ground = segmentGround(pts, p_.ground, std::max(p_.filter.crop_tau, r_map));
+  s->ground_z = groundBelowSensor(*s);
+  if (p_.sensor.model != SensorModel::kAuto)
+    s->density = densityScale(presetResolution(p_.sensor.model));
+  else if (const auto r = measureResolution(pts))
+    s->density = densityScale(*r);
+  s->ground = segmentGround(pts, p_.ground, std::max(p_.filter.crop_tau, r_map), s->ground_z);
   s->in_crop.resize(pts.size());
   s->candidate.resize(pts.size());
   s->far.assign(pts.size(), 0);
@@ -200,6 +210,27 @@ std::unique_ptr<LaserPipeline::Prepared> LaserPipeline::prepare(Frame&& f) {
   }
 
   return s;
+}
+
+// DESIGN §2a / issue #15: h_G under the sensor. A configured sensor.height is the user's word;
+// auto measures every scan and takes the median of this scan's and its K predecessors'
+// measurements (a run cut into chunks overlapping by K scans gets the same), KITTI's 1.73 m when
+// none of them could be measured.
+double LaserPipeline::groundBelowSensor(Prepared& s) const {
+  const auto measured = estimateGroundHeight(s.scan.points);
+  if (measured) s.ground_measured = *measured;
+  if (p_.sensor.height > 0) return -p_.sensor.height;
+  std::vector<double> m;
+  if (measured) m.push_back(*measured);
+  const std::size_t K = static_cast<std::size_t>(p_.ds.window_k);
+  for (std::size_t i = 0; i < std::min(K, buf_.size()); ++i) {
+    const double g = buf_[buf_.size() - 1 - i]->ground_measured;
+    if (std::isfinite(g)) m.push_back(g);
+  }
+  if (m.empty()) return -kDefaultSensorHeight;
+  const auto mid = m.begin() + static_cast<std::ptrdiff_t>(m.size() / 2);
+  std::nth_element(m.begin(), mid, m.end());
+  return *mid;
 }
 
 void LaserPipeline::push(Frame&& frame) {
@@ -389,7 +420,11 @@ void LaserPipeline::objectConsensus(Prepared& s, Work& w) const {
         near_prev[i] = prev_moving_cells_.count(
                            cellKeyOf(w.world[i].x(), w.world[i].y(), w.world[i].z(), inv)) > 0;
   }
-  const auto oc = cleanmap::objectConsensus(s.scan.points, s.candidate, w.moving, p_.object,
+  // A sparser lidar returns fewer points from the same object (DESIGN §2d): min_moving is an
+  // HDL-64E count.
+  ObjectParams op = p_.object;
+  op.min_moving = std::max(1, static_cast<int>(std::lround(op.min_moving * s.density)));
+  const auto oc = cleanmap::objectConsensus(s.scan.points, s.candidate, w.moving, op,
                                             near_prev.empty() ? nullptr : &near_prev);
   s.stats.objects_persisted = oc.persisted;
   s.stats.objects_moving = oc.moving_objects;
@@ -521,6 +556,9 @@ ScanResult LaserPipeline::collect(Prepared& s, const Work& w) const {
   r.timestamp = s.scan.timestamp;
   r.pose = s.scan.pose;
   r.pose_info = s.pose_info;
+  r.ground_measured = s.ground_measured;
+  r.ground_z = s.ground_z;
+  r.density = s.density;
   r.labels.assign(s.stats.points, kUnclassified);
   const auto& pts = s.scan.points;
   for (uint32_t i = 0; i < pts.size(); ++i) {

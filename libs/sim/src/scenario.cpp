@@ -98,11 +98,33 @@ Scenario parseScenario(const std::string& text, const std::string& name) {
       return false;
     return true;
   };
+  // The lidar's rings, resolved after the file is read (the keys come in any order).
+  std::optional<SensorModel> model;
+  std::optional<int> rings;
+  std::optional<std::vector<double>> fov;
+  bool azimuth_given = false;
   handlers["sensor"] = [&](const std::string& k, const std::string& v) {
     auto& s = sc.sensor;
-    if (k == "azimuth_step_deg")
+    if (k == "azimuth_step_deg") {
       s.azimuth_step_deg = r.number(k, v, 0.05, 5);
-    else if (k == "range_noise")
+      azimuth_given = true;
+    } else if (k == "model") {
+      model = sensorModelByName(v);
+      if (!model || *model == SensorModel::kAuto) {
+        std::string names;
+        for (const auto& p : sensorPresets())
+          names += std::string(names.empty() ? "" : ", ") + p.name;
+        r.fail("model: expected one of " + names + ", got '" + v + "'");
+      }
+    } else if (k == "rings") {
+      const double x = r.number(k, v, 2, 256);
+      if (x != std::floor(x)) r.fail("rings: expected an integer, got '" + v + "'");
+      rings = static_cast<int>(x);
+    } else if (k == "vertical_fov_deg") {
+      fov = r.numbers(k, v, 2, 2);
+      if (!((*fov)[0] < (*fov)[1]) || (*fov)[0] < -90 || (*fov)[1] > 90)
+        r.fail("vertical_fov_deg: expected lo hi with -90 <= lo < hi <= 90 (degrees)");
+    } else if (k == "range_noise")
       s.range_noise = r.number(k, v, 0, 1);
     else if (k == "dropout")
       s.dropout = r.number(k, v, 0, 0.99);
@@ -244,6 +266,15 @@ Scenario parseScenario(const std::string& text, const std::string& name) {
   };
   io::parseIni(text, name, on);
   r.line = 0;
+  const SensorPreset& preset = sensorPreset(model.value_or(SensorModel::kHdl64));
+  sc.sensor.model = preset.model;
+  if (rings || fov) {
+    const double lo = fov ? (*fov)[0] : preset.fov_lo_deg, hi = fov ? (*fov)[1] : preset.fov_hi_deg;
+    sc.sensor.elevations = evenElevations(rings.value_or(preset.rings), lo, hi);
+  } else {
+    sc.sensor.elevations = ringElevations(preset.model);
+  }
+  if (!azimuth_given) sc.sensor.azimuth_step_deg = preset.azimuth_step_deg;
   for (const auto& m : sc.movers)
     if (m.path.size() < 2)
       throw Error(name, "mover '" + m.name + "' has no path (at least two waypoints)");

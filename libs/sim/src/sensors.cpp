@@ -70,7 +70,7 @@ Eigen::Isometry3d reportedPose(const Scenario& sc, int k) {
 }
 
 SimScan simulateScan(const Scenario& sc, int k, int threads) {
-  const auto& elev = hdl64Elevations();
+  const auto& elev = sc.sensor.elevations;
   const int rings = static_cast<int>(elev.size());
   const int ncol =
       std::max(kSlices, static_cast<int>(std::lround(360.0 / sc.sensor.azimuth_step_deg)));
@@ -112,9 +112,10 @@ SimScan simulateScan(const Scenario& sc, int k, int threads) {
                                      std::sin(elev[r]));
             const Eigen::Vector3d dw = pose.linear() * dl;
             if (!w.intersect(pose.translation(), dw, sc.sensor.max_range, hit, &cand)) continue;
+            // Rings beyond the 64th draw from their own stream (the 64-ring ids stay as they were).
             const uint64_t id =
-                (static_cast<uint64_t>(k) * 64 + static_cast<uint64_t>(r)) * 100000 +
-                static_cast<uint64_t>(c);
+                (static_cast<uint64_t>(k) * 64 + static_cast<uint64_t>(r % 64)) * 100000 +
+                static_cast<uint64_t>(c) + (static_cast<uint64_t>(r / 64) << 56);
             const uint64_t h = splitmix(sc.seed * 0x2545F4914F6CDD1Dull ^ id);
             if (uniform(splitmix(h ^ 1)) < sc.sensor.dropout) continue;
             const double g = std::sqrt(-2 * std::log(uniform(splitmix(h ^ 2)))) *

@@ -45,13 +45,7 @@ Eigen::Vector3d alongPath(const std::vector<Eigen::Vector2d>& path, double s) {
 }
 
 const std::vector<double>& hdl64Elevations() {
-  // HDL-64E S2: upper block +2.0 .. -8.33 deg (32 lasers), lower block -8.83 .. -24.33 deg.
-  static const std::vector<double> e = [] {
-    std::vector<double> v;
-    for (int i = 0; i < 32; ++i) v.push_back((2.0 - i * (10.33 / 31.0)) * M_PI / 180);
-    for (int i = 0; i < 32; ++i) v.push_back((-8.83 - i * (15.5 / 31.0)) * M_PI / 180);
-    return v;
-  }();
+  static const std::vector<double> e = ringElevations(SensorModel::kHdl64);
   return e;
 }
 

@@ -5,6 +5,8 @@
 #include <cstdint>
 #include <string>
 
+#include "cleanmap/core/sensor.h"
+
 namespace cleanmap {
 
 /// DESIGN §2.2-2.3: range crop and duplicate filter.
@@ -14,11 +16,26 @@ struct FilterParams {
   double dup_distance = 0.10;  ///< m; d_dup
 };
 
+/// m; the height assumed when sensor.height is auto and a scan's ground cannot be measured
+/// (KITTI's HDL-64E).
+constexpr double kDefaultSensorHeight = 1.73;
+
+/// DESIGN §2a: the lidar and its mounting (issue #15).
+struct SensorParams {
+  /// m; the sensor origin's height above the ground under the vehicle: h_G = -height starts the
+  /// ground propagation (§2a). 0 = auto: measured in every scan (estimateGroundHeight), the median
+  /// of the scan's and its K predecessors' measurements.
+  double height = 0.0;
+  /// The lidar (cleanmap/core/sensor.h presets): its angular resolution scales the point counts
+  /// tuned on the HDL-64E (object.min_moving, DESIGN §2d). kAuto: measured in every scan where
+  /// its rings stand apart (sparse sensors), else the HDL-64E's.
+  SensorModel model = SensorModel::kAuto;
+};
+
 /// DESIGN §2a: ground removal by height propagation.
 struct GroundParams {
-  double cell = 0.4;             ///< m; grid cell side
-  double step = 0.09;            ///< m; s, the largest rise within / between cells (22 % slope)
-  double sensor_height = -1.73;  ///< m; initial ground height h_G below the sensor origin
+  double cell = 0.4;   ///< m; grid cell side
+  double step = 0.09;  ///< m; s, the largest rise within / between cells (22 % slope)
   /// In non-ground cells, also label ground the points below h_G + s (our addition, the paper is
   /// cell-level only; see doc/SWEEP.md for its effect).
   bool point_refine = true;
@@ -159,6 +176,7 @@ struct ImageParams {
 enum class PoseSource { kAuto, kGiven, kGicp, kRefine };
 
 struct PipelineParams {
+  SensorParams sensor;
   FilterParams filter;
   GroundParams ground;
   DsParams ds;

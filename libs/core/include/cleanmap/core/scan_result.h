@@ -4,6 +4,7 @@
 #pragma once
 #include <Eigen/Geometry>
 #include <cstddef>
+#include <limits>
 #include <opencv2/core/mat.hpp>
 #include <string>
 #include <vector>
@@ -80,7 +81,12 @@ struct ScanResult {
   double timestamp = 0;
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
   PoseInfo pose_info;
-  Labels labels;                          ///< one per original point, original order (DESIGN §4)
+  /// DESIGN §2a: the ground height below the sensor measured in this scan (NaN: not measurable)
+  /// and the one its ground segmentation started from (-sensor.height, or the median measured).
+  double ground_measured = std::numeric_limits<double>::quiet_NaN();
+  double ground_z = 0;
+  double density = 1;  ///< the lidar's returns per solid angle relative to the HDL-64E (§2d)
+  Labels labels;       ///< one per original point, original order (DESIGN §4)
   std::vector<PointXYZI> static_compact;  ///< world frame: static points not already in the map
   std::vector<PointXYZI> static_full;     ///< world frame: every static point (ground included)
   std::vector<PointXYZI> moving;          ///< world frame

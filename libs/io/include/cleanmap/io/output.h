@@ -64,6 +64,9 @@ class OutputWriter {
     return staging_;
   }  ///< where files are written until finish()
   std::size_t scans() const { return stats_.size(); }
+  /// DESIGN §2a: the sensor's height above the ground measured over the run so far (the median of
+  /// the scans' measurements), nullopt if no scan could be measured.
+  std::optional<double> measuredSensorHeight() const;
   std::optional<MosCounts> evaluation() const {
     return has_eval_ ? std::optional(eval_) : std::nullopt;
   }
@@ -86,6 +89,7 @@ class OutputWriter {
   std::vector<std::string> stems_;
   std::vector<double> times_;
   std::vector<PoseInfo> pose_info_;
+  std::vector<double> ground_measured_, ground_z_, density_;  // per scan (DESIGN §2a, §2d)
   std::vector<MosCounts> scan_eval_;
   MosCounts eval_;
   bool has_eval_ = false;

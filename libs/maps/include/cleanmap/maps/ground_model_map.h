@@ -13,6 +13,7 @@
 #include <mrpt/poses/CPose3D.h>
 
 #include <cstdint>
+#include <deque>
 #include <memory>
 #include <optional>
 #include <unordered_map>
@@ -37,8 +38,10 @@ class CGroundModelMap : public mrpt::maps::CMetricMap {
 
   struct TInsertionOptions {
     /// Segmentation of each inserted scan (SPEC §2a); `cell` is the map's (creationOpts).
-    double step = 0.09;            ///< m; s
-    double sensor_height = -1.73;  ///< m; ground height below the sensor origin, h_G
+    double step = 0.09;  ///< m; s
+    /// m; the sensor origin's height above the ground (h_G = -height); 0 = auto: measured in
+    /// each scan, the median of the last 11 measurements (DESIGN §2a)
+    double height = 0.0;
     bool point_refine = true;
     int max_gap_cells = 10;
     double extent = 30.0;  ///< m; half side of the square around the sensor that is segmented
@@ -100,6 +103,8 @@ class CGroundModelMap : public mrpt::maps::CMetricMap {
   std::unordered_map<uint64_t, Cell> cells_;  // key: (ix, iy) packed
   std::size_t scans_ = 0;
   std::vector<uint8_t> last_flags_;
+  std::deque<double> recent_ground_;  // the last scans' measured ground heights (height = auto)
+  double groundBelowSensor(const cleanmap::Scan& scan);
   std::optional<std::pair<double, mrpt::poses::CPose3D>> pose_obs_;  // use_pose_observations
 };
 

@@ -10,6 +10,8 @@
 #include <string>
 #include <vector>
 
+#include "cleanmap/core/sensor.h"
+
 namespace cleanmap::sim {
 
 enum class Texture { kChecker, kFlat };
@@ -22,6 +24,10 @@ struct SensorSpec {
   double height = 1.73;       ///< above the ground under the ego
   bool sweep_motion = false;  ///< ego and movers move during the 0.1 s sweep (no de-skew)
   bool camera = true;         ///< render image_2/ (KITTI size and calibration)
+  /// Lidar model (issue #15): `model` (a preset of cleanmap/core/sensor.h: its rings and
+  /// azimuth step), or `rings` evenly spaced over `vertical_fov_deg`. Default: the HDL-64E.
+  SensorModel model = SensorModel::kHdl64;
+  std::vector<double> elevations = ringElevations(SensorModel::kHdl64);  ///< rad, top to bottom
 };
 
 struct GroundSpec {

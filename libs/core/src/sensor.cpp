@@ -1,0 +1,136 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#include "cleanmap/core/sensor.h"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+namespace cleanmap {
+
+const std::vector<SensorPreset>& sensorPresets() {
+  // Datasheets: HDL-64E S2 (+2 .. -24.33 deg, 0.17 deg at 10 Hz), HDL-32E (+10.67 .. -30.67,
+  // 0.16), VLP-16 (+-15, 0.2), Ouster OS1-64 gen 1 (+-16.6) and OS1-128 (+-22.5) at 1024 x 10.
+  static const std::vector<SensorPreset> p = {
+      {SensorModel::kHdl64, "hdl64", 64, -24.33, 2.0, 0.18},
+      {SensorModel::kHdl32, "hdl32", 32, -30.67, 10.67, 0.16},
+      {SensorModel::kVlp16, "vlp16", 16, -15.0, 15.0, 0.2},
+      {SensorModel::kOs1_64, "os1-64", 64, -16.6, 16.6, 360.0 / 1024},
+      {SensorModel::kOs1_128, "os1-128", 128, -22.5, 22.5, 360.0 / 1024},
+  };
+  return p;
+}
+
+const SensorPreset& sensorPreset(SensorModel m) {
+  for (const auto& p : sensorPresets())
+    if (p.model == m) return p;
+  throw std::invalid_argument("sensorPreset: no preset for sensor model auto");
+}
+
+std::optional<SensorModel> sensorModelByName(const std::string& name) {
+  if (name == "auto") return SensorModel::kAuto;
+  for (const auto& p : sensorPresets())
+    if (name == p.name) return p.model;
+  return std::nullopt;
+}
+
+const char* sensorModelName(SensorModel m) {
+  return m == SensorModel::kAuto ? "auto" : sensorPreset(m).name;
+}
+
+std::vector<double> evenElevations(int rings, double lo_deg, double hi_deg) {
+  if (rings < 2 || !(lo_deg < hi_deg))
+    throw std::invalid_argument("evenElevations: need rings >= 2 and lo < hi");
+  std::vector<double> e;
+  for (int i = 0; i < rings; ++i)
+    e.push_back((hi_deg - i * (hi_deg - lo_deg) / (rings - 1)) * M_PI / 180);
+  return e;
+}
+
+std::vector<double> ringElevations(SensorModel m) {
+  if (m == SensorModel::kHdl64) {
+    std::vector<double> v;
+    for (int i = 0; i < 32; ++i) v.push_back((2.0 - i * (10.33 / 31.0)) * M_PI / 180);
+    for (int i = 0; i < 32; ++i) v.push_back((-8.83 - i * (15.5 / 31.0)) * M_PI / 180);
+    return v;
+  }
+  const auto& p = sensorPreset(m);
+  return evenElevations(p.rings, p.fov_lo_deg, p.fov_hi_deg);
+}
+
+AngularResolution presetResolution(SensorModel m) {
+  const auto& p = sensorPreset(m);
+  return {(p.fov_hi_deg - p.fov_lo_deg) / (p.rings - 1), p.azimuth_step_deg};
+}
+
+std::optional<AngularResolution> measureResolution(const std::vector<PointXYZI>& points) {
+  constexpr double kBin = 0.05;  // degrees
+  constexpr int kBins = static_cast<int>(180 / kBin);
+  std::vector<uint32_t> count(kBins, 0);
+  std::vector<double> sum(kBins, 0.0);
+  std::size_t used = 0;
+  for (const auto& p : points) {
+    const double rh = std::hypot(double(p.x), double(p.y));
+    if (!(rh >= 5 && rh <= 100) || !std::isfinite(p.z)) continue;
+    const double el = std::atan2(double(p.z), rh) * 180 / M_PI;
+    const int b = std::clamp(static_cast<int>(std::floor((el + 90) / kBin)), 0, kBins - 1);
+    ++count[static_cast<std::size_t>(b)];
+    sum[static_cast<std::size_t>(b)] += el;
+    ++used;
+  }
+  if (used < 1000) return std::nullopt;
+  // Rings: runs of bins holding returns; a bin with a few stray returns (0.02 % of the used ones)
+  // does not join two rings.
+  const auto min_count = static_cast<uint32_t>(std::max<std::size_t>(1, used / 5000));
+  struct Ring {
+    double el_sum = 0;
+    std::size_t n = 0;
+    int first = 0, last = 0;
+  };
+  std::vector<Ring> rings;
+  for (int b = 0; b < kBins; ++b) {
+    const auto i = static_cast<std::size_t>(b);
+    if (count[i] < min_count) continue;
+    if (rings.empty() || b > rings.back().last + 1) rings.push_back({0, 0, b, b});
+    rings.back().el_sum += sum[i];
+    rings.back().n += count[i];
+    rings.back().last = b;
+  }
+  if (rings.size() < 8) return std::nullopt;
+  std::vector<double> gaps;
+  for (std::size_t k = 1; k < rings.size(); ++k)
+    gaps.push_back(rings[k].el_sum / double(rings[k].n) -
+                   rings[k - 1].el_sum / double(rings[k - 1].n));
+  std::nth_element(gaps.begin(), gaps.begin() + static_cast<std::ptrdiff_t>(gaps.size() / 2),
+                   gaps.end());
+  const double vertical = gaps[gaps.size() / 2];
+  if (vertical < 0.8) return std::nullopt;
+  // The azimuth step: the median gap between neighbouring returns of the fullest ring.
+  const Ring& full = *std::max_element(rings.begin(), rings.end(),
+                                       [](const Ring& a, const Ring& b) { return a.n < b.n; });
+  std::vector<double> az;
+  for (const auto& p : points) {
+    const double rh = std::hypot(double(p.x), double(p.y));
+    if (!(rh >= 5 && rh <= 100) || !std::isfinite(p.z)) continue;
+    const int b =
+        static_cast<int>(std::floor((std::atan2(double(p.z), rh) * 180 / M_PI + 90) / kBin));
+    if (b >= full.first && b <= full.last)
+      az.push_back(std::atan2(double(p.y), double(p.x)) * 180 / M_PI);
+  }
+  std::sort(az.begin(), az.end());
+  std::vector<double> steps;
+  for (std::size_t k = 1; k < az.size(); ++k)
+    if (az[k] - az[k - 1] > 1e-4) steps.push_back(az[k] - az[k - 1]);
+  if (steps.size() < 100) return std::nullopt;
+  std::nth_element(steps.begin(), steps.begin() + static_cast<std::ptrdiff_t>(steps.size() / 2),
+                   steps.end());
+  return AngularResolution{vertical, steps[steps.size() / 2]};
+}
+
+double densityScale(const AngularResolution& r) {
+  const AngularResolution ref = presetResolution(SensorModel::kHdl64);
+  if (!(r.vertical_deg > 0 && r.azimuth_deg > 0)) return 1.0;
+  return std::clamp(ref.vertical_deg * ref.azimuth_deg / (r.vertical_deg * r.azimuth_deg), 0.05,
+                    4.0);
+}
+
+}  // namespace cleanmap
