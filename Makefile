@@ -8,7 +8,7 @@ DATA        ?= $(abspath ../shared/data)
 DEMO_INPUT  ?=
 DEMO_OUT    ?= $(abspath demo-out)
 
-.PHONY: all deps build test test-asan demo benchmark install clean format
+.PHONY: all deps build test test-asan demo benchmark fuzz install clean format
 
 all: build
 
@@ -43,6 +43,15 @@ benchmark: deps
 	cmake --build build-release -j $(JOBS)
 	./cmake/benchmark.sh build-release $(DATA) $(abspath build-release/benchmark) $(or $(ROC),1)
 
+# libFuzzer on every reader (tests/fuzz), FUZZ_SECONDS per target (clang from Debian, build-fuzz/).
+# `make test` replays the committed corpus only; this searches for new findings.
+fuzz:
+	@./cmake/install-deps.sh fuzz
+	CC=clang-14 CXX=clang++-14 cmake -S . -B build-fuzz -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+	  -DCLEANMAP_FUZZ=ON
+	cmake --build build-fuzz -j $(JOBS)
+	./cmake/fuzz.sh build-fuzz $(or $(FUZZ_SECONDS),60) $(FUZZ_TARGETS)
+
 install: build
 	cmake --install $(BUILD) --prefix $(or $(PREFIX),/usr/local)
 
@@ -51,4 +60,4 @@ format: deps
 	clang-format-14 -i --style=file $$(git ls-files '*.cpp' '*.h')
 
 clean:
-	rm -rf $(BUILD) $(BUILD_ASAN) build-release $(DEMO_OUT)
+	rm -rf $(BUILD) $(BUILD_ASAN) build-release build-fuzz $(DEMO_OUT)

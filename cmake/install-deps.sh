@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # SPDX-License-Identifier: BSD-3-Clause
 # Installs the Debian 12 packages cleanmap needs that are missing (apt-get; sudo when not root).
+# `install-deps.sh fuzz` adds clang and its libFuzzer runtime for `make fuzz`.
 set -euo pipefail
 PACKAGES=(
   build-essential cmake pkg-config
@@ -9,6 +10,9 @@ PACKAGES=(
   libgtest-dev libbenchmark-dev
   clang-format-14  # pinned: `make format` and the style.format test use this exact version
 )
+if [[ "${1:-}" == "fuzz" ]]; then
+  PACKAGES+=(clang-14 libclang-rt-14-dev)
+fi
 missing=()
 for p in "${PACKAGES[@]}"; do
   status=$(dpkg-query -W -f='${Status}' "$p" 2>/dev/null || true)

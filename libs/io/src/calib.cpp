@@ -77,4 +77,13 @@ Eigen::Isometry3d exactInverse(const Eigen::Isometry3d& T) {
   return inv;
 }
 
+void requireRigid(const Eigen::Isometry3d& T, const std::string& path, const std::string& what) {
+  if (!T.matrix().allFinite()) throw Error(path, what + " is not finite");
+  const Eigen::Matrix3d R = T.linear();
+  const double off = (R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
+  if (off > 1e-2 || R.determinant() < 0)
+    throw Error(path,
+                what + " is not a rigid transform (its rotation is not orthonormal with det +1)");
+}
+
 }  // namespace cleanmap::io

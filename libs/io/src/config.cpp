@@ -166,6 +166,10 @@ std::optional<double> parseNumber(const std::string& text, bool integer, std::st
     why = "needs an integer, got '" + text + "'";
     return std::nullopt;
   }
+  if (integer && std::abs(v) > 2147483647.0) {
+    why = "needs an integer of magnitude below 2^31, got '" + text + "'";
+    return std::nullopt;
+  }
   return v;
 }
 

@@ -21,7 +21,9 @@ std::vector<char> readBinary(const std::string& path) {
   if (fs::is_directory(path, ec)) throw Error(path, "is a directory, expected a file");
   std::ifstream f(path, std::ios::binary | std::ios::ate);
   if (!f) throw Error(path, "cannot open for reading");
-  const auto size = static_cast<std::size_t>(f.tellg());
+  const auto end = f.tellg();
+  if (end < 0) throw Error(path, "cannot tell its size (not a regular file?)");
+  const auto size = static_cast<std::size_t>(end);
   std::vector<char> bytes(size);
   f.seekg(0);
   if (size > 0 && !f.read(bytes.data(), static_cast<std::streamsize>(size)))

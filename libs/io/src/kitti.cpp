@@ -50,11 +50,12 @@ std::vector<double> readNumberLines(const std::string& path) {
   while (std::getline(in, line)) {
     ++lineno;
     if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
-    try {
-      v.push_back(std::stod(line));
-    } catch (const std::exception&) {
-      throw Error(path, "line " + std::to_string(lineno) + " is not a number");
-    }
+    std::istringstream ls(line);
+    double x = 0;
+    std::string rest;
+    if (!(ls >> x) || (ls >> rest) || !std::isfinite(x))
+      throw Error(path, "line " + std::to_string(lineno) + " is not a finite number");
+    v.push_back(x);
   }
   return v;
 }
@@ -67,6 +68,13 @@ std::vector<double> readTimestampLines(const std::string& path) {
     if (line.find_first_not_of(" \t\r") != std::string::npos)
       v.push_back(parseKittiTimestamp(line, path));
   return v;
+}
+
+// A rectified camera's 3x4 projection: finite, with a positive focal length.
+void requireProjection(const Eigen::Matrix<double, 3, 4>& P, const std::string& path,
+                       const std::string& key) {
+  if (!P.allFinite() || !(P(0, 0) > 0) || !(P(1, 1) > 0) || P(2, 2) != 1)
+    throw Error(path, key + " is not a camera projection (finite, fx, fy > 0, P(3,3) = 1)");
 }
 
 // Image size without decoding the whole file would need a PNG parser; one decode at open is fine.
@@ -101,8 +109,11 @@ std::vector<Eigen::Isometry3d> readPosesFile(const std::string& path) {
       if (!(ls >> m(k / 4, k % 4)))
         throw Error(path, "line " + std::to_string(lineno) + " does not hold 12 numbers");
     }
-    if (!m.allFinite()) throw Error(path, "line " + std::to_string(lineno) + " is not finite");
+    std::string rest;
+    if (ls >> rest)
+      throw Error(path, "line " + std::to_string(lineno) + " holds more than 12 numbers");
     poses.push_back(isometryFrom3x4(m));
+    requireRigid(poses.back(), path, "pose on line " + std::to_string(lineno));
   }
   return poses;
 }
@@ -139,10 +150,14 @@ double parseKittiTimestamp(const std::string& text, const std::string& file) {
   double frac = 0.0;
   std::string rest;
   in >> rest;
-  if (!rest.empty()) {
-    if (rest[0] != '.') throw Error(file, "bad timestamp '" + text + "'");
+  if (!rest.empty()) {  // the fraction of a second: '.' and up to 12 digits
+    if (rest[0] != '.' || rest.size() > 13 ||
+        rest.find_first_not_of("0123456789", 1) != std::string::npos)
+      throw Error(file, "bad timestamp '" + text + "'");
     frac = std::stod("0" + rest);
   }
+  std::string extra;
+  if (in >> extra) throw Error(file, "bad timestamp '" + text + "'");
   return static_cast<double>(timegm(&tm)) + frac;
 }
 
@@ -183,6 +198,7 @@ void KittiSequence::openOdometry() {
   if (has_poses) {
     // poses.txt is in the camera-0 frame: T_world_velo = Tr^-1 * P_i * Tr.
     const Eigen::Isometry3d Tr = isometryFrom3x4(calib->matrix3x4("Tr"));
+    requireRigid(Tr, calib->path(), "Tr");
     const std::string path = (d / "poses.txt").string();
     const auto cam_poses = readPosesFile(path);
     requireCount(path, "poses", cam_poses.size(), n);
@@ -207,6 +223,8 @@ void KittiSequence::openOdometry() {
     cam.name = "image_2";
     cam.P = calib->matrix3x4("P2");
     cam.T_cam_lidar = isometryFrom3x4(calib->matrix3x4("Tr"));
+    requireRigid(cam.T_cam_lidar, calib->path(), "Tr");
+    requireProjection(cam.P, calib->path(), "P2");
     std::tie(cam.width, cam.height) = imageSize(image_files_.front());
     camera_ = cam;
   }
@@ -239,7 +257,9 @@ void KittiSequence::openRaw() {
   if (isDir(oxts)) {
     const auto files = listFiles(oxts.string(), ".txt");
     requireCount(oxts.string(), "OXTS records", files.size(), n);
-    const auto imu_to_velo = KeyValueFile::load(findCalib("calib_imu_to_velo.txt")).rigidRT();
+    const auto imu_calib = KeyValueFile::load(findCalib("calib_imu_to_velo.txt"));
+    const auto imu_to_velo = imu_calib.rigidRT();
+    requireRigid(imu_to_velo, imu_calib.path(), "R, T");
     const Eigen::Isometry3d velo_to_imu = exactInverse(imu_to_velo);
     double scale = 0.0;
     Eigen::Isometry3d first_inv = Eigen::Isometry3d::Identity();
@@ -249,11 +269,14 @@ void KittiSequence::openRaw() {
       for (double& x : v)
         if (!(in >> x) || !std::isfinite(x))
           throw Error(files[i], "OXTS record does not start with 6 finite numbers");
+      if (std::abs(v[0]) >= 85 || std::abs(v[1]) > 180)
+        throw Error(files[i], "OXTS latitude / longitude out of range (|lat| < 85, |lon| <= 180)");
       if (i == 0) scale = std::cos(v[0] * M_PI / 180.0);
       const Eigen::Isometry3d T_imu = oxtsToMercatorPose(v[0], v[1], v[2], v[3], v[4], v[5], scale);
       if (i == 0) first_inv = exactInverse(T_imu);
       // Lidar pose with the first lidar frame as world origin.
       poses_.push_back(imu_to_velo * first_inv * T_imu * velo_to_imu);
+      requireRigid(poses_.back(), files[i], "the OXTS pose");
     }
   }
 
@@ -266,11 +289,17 @@ void KittiSequence::openRaw() {
     PinholeCamera cam;
     cam.name = "image_02";
     cam.P = c2c.matrix3x4("P_rect_02");
+    requireProjection(cam.P, c2c.path(), "P_rect_02");
     Eigen::Isometry3d R_rect = Eigen::Isometry3d::Identity();
     const auto& r = c2c.numbers("R_rect_00", 9);
     for (int i = 0; i < 9; ++i) R_rect.matrix()(i / 3, i % 3) = r[static_cast<std::size_t>(i)];
+    requireRigid(R_rect, c2c.path(), "R_rect_00");
+    requireRigid(v2c.rigidRT(), v2c.path(), "R, T");
     cam.T_cam_lidar = R_rect * v2c.rigidRT();
     const auto& s = c2c.numbers("S_rect_02", 2);
+    for (const double x : s)
+      if (!(x >= 1 && x <= 100000 && x == std::floor(x)))
+        throw Error(c2c.path(), "S_rect_02 must be two whole pixel counts in [1, 100000]");
     cam.width = static_cast<int>(s[0]);
     cam.height = static_cast<int>(s[1]);
     camera_ = cam;

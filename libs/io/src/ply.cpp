@@ -215,6 +215,11 @@ std::vector<PointXYZI> readPly(const std::string& path) {
       vertex = &e;
       break;
     }
+    // Every record takes at least a byte: a count beyond the file's size is a lie (and would
+    // overflow the sums below).
+    if (e.count > data.size())
+      throw Error(path, "PLY element '" + e.name + "' claims " + std::to_string(e.count) +
+                            " records, more than the file's bytes");
     skip_records += e.count;
     for (const auto& prop : e.props) {
       if (prop.list && h.format != PlyHeader::Format::kAscii)

@@ -17,6 +17,7 @@
 #include "cleanmap/io/files.h"
 #include "cleanmap/maps/ground_model_map.h"
 #include "cleanmap/maps/moving_objects_map.h"
+#include "cleanmap/mrpt/convert.h"
 #include "map_options.h"
 
 namespace cleanmap_maps {
@@ -55,9 +56,10 @@ bool isOurs(const std::string& map_name) {
 
 }  // namespace
 
-MapConfig parseMapConfig(const std::string& text, const std::string& name,
-                         const std::string& section, bool require_moving) {
-  registerMaps();
+namespace {
+
+MapConfig parseChecked(const std::string& text, const std::string& name, const std::string& section,
+                       bool require_moving) {
   mrpt::config::CConfigFileMemory cfg(text);
   std::vector<std::string> sections;
   cfg.getAllSections(sections);
@@ -107,6 +109,10 @@ MapConfig parseMapConfig(const std::string& text, const std::string& name,
       if (v.empty() ||
           !std::all_of(v.begin(), v.end(), [](unsigned char c) { return std::isdigit(c); }))
         throw cleanmap::Error(name, "[" + S + "]: '" + k + "' needs a count, got '" + v + "'");
+      // MRPT numbers map sections with two digits: more than 100 maps cannot be configured.
+      if (v.size() > 3 || std::stoul(v) > 100)
+        throw cleanmap::Error(name, "[" + S + "]: '" + k + "' = " + v.substr(0, 20) +
+                                        " maps: at most 100 can be configured");
       counts[map_name] = std::stoull(v);
     } else if (k.rfind("cleanmap", 0) == 0) {
       std::vector<std::string> count_keys;
@@ -167,6 +173,20 @@ MapConfig parseMapConfig(const std::string& text, const std::string& name,
   }
   mc.maps.loadFromConfigFile(cfg, S);
   return mc;
+}
+
+}  // namespace
+
+MapConfig parseMapConfig(const std::string& text, const std::string& name,
+                         const std::string& section, bool require_moving) {
+  registerMaps();
+  try {
+    return parseChecked(text, name, section, require_moving);
+  } catch (const cleanmap::Error&) {
+    throw;
+  } catch (const std::exception& e) {  // MRPT's ini parser ($eval{...}, @include) and loaders
+    throw cleanmap::Error(name, "MRPT cannot read it: " + cleanmap::mrpt::briefMessage(e));
+  }
 }
 
 MapConfig loadMapConfig(const std::string& path, const std::string& section) {

@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <sstream>
 
 #include <mrpt/maps/CSimplePointsMap.h>
 #include <mrpt/math/CMatrixFixed.h>
@@ -16,6 +17,31 @@
 namespace cleanmap::mrpt {
 
 using ::mrpt::poses::CPose3D;
+
+namespace {
+
+// Bytes of a corrupt file end up in MRPT's messages (class names read from the stream): keep
+// printable ASCII only, and not too much of it.
+std::string printable(const std::string& s) {
+  std::string out;
+  for (const char c : s)
+    if (c >= 32 && c < 127) out += c;
+  return out.size() > 120 ? out.substr(0, 120) + "..." : out;
+}
+
+}  // namespace
+
+std::string briefMessage(const std::exception& e) {
+  std::istringstream in(e.what());
+  std::string line, last;
+  while (std::getline(in, line)) {
+    if (line.find_first_not_of(" \t=") == std::string::npos) continue;
+    if (line.find("MRPT exception") != std::string::npos) continue;
+    if (line.rfind("Message:", 0) == 0) return printable(line.substr(9));
+    if (last.empty()) last = line;
+  }
+  return last.empty() ? std::string("unknown error") : printable(last);
+}
 
 ::mrpt::Clock::time_point toMrptTime(double t) {
   return ::mrpt::Clock::fromDouble(t < 1e8 ? t + kRelativeTimeEpoch : t);

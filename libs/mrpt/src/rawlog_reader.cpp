@@ -1,8 +1,10 @@
 // SPDX-License-Identifier: BSD-3-Clause
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <deque>
 #include <filesystem>
+#include <mutex>
 #include <sstream>
 
 #include <opencv2/imgproc.hpp>
@@ -26,27 +28,36 @@ namespace fs = std::filesystem;
 namespace cleanmap::mrpt {
 namespace {
 
-// Bytes of a corrupt file end up in MRPT's messages (class names read from the stream): keep
-// printable ASCII only, and not too much of it.
-std::string printable(const std::string& s) {
-  std::string out;
-  for (const char c : s)
-    if (c >= 32 && c < 127) out += c;
-  return out.size() > 120 ? out.substr(0, 120) + "..." : out;
+// MRPT decodes a JPEG image inside a rawlog with libjpeg's default error handler, which ends the
+// process (exit(1), "Not a JPEG file") on corrupt data: nothing can be caught. The entry being
+// deserialized is recorded so that the process at least says which file and entry killed it.
+std::mutex g_reading_mutex;
+std::string g_reading;  // "<path> entry <n>" while an entry is deserialized, else empty
+
+void sayWhatWasRead() {
+  std::lock_guard<std::mutex> lock(g_reading_mutex);
+  if (!g_reading.empty())
+    std::fprintf(stderr,
+                 "cleanmap: %s: corrupt rawlog entry: MRPT's decoder ended the process while "
+                 "reading it (a corrupt JPEG image?)\n",
+                 g_reading.c_str());
 }
 
-// MRPT exception texts span several lines (with call stacks): keep the most telling one.
-std::string briefMessage(const std::exception& e) {
-  std::istringstream in(e.what());
-  std::string line, last;
-  while (std::getline(in, line)) {
-    if (line.find_first_not_of(" \t=") == std::string::npos) continue;
-    if (line.find("MRPT exception") != std::string::npos) continue;
-    if (line.rfind("Message:", 0) == 0) return printable(line.substr(9));
-    if (last.empty()) last = line;
+class ReadingGuard {
+ public:
+  ReadingGuard(const std::string& path, std::size_t entry) {
+    static const bool registered = std::atexit(sayWhatWasRead) == 0;
+    (void)registered;
+    std::lock_guard<std::mutex> lock(g_reading_mutex);
+    g_reading = path + " entry " + std::to_string(entry);
   }
-  return last.empty() ? std::string("unknown error") : printable(last);
-}
+  ~ReadingGuard() {
+    std::lock_guard<std::mutex> lock(g_reading_mutex);
+    g_reading.clear();
+  }
+  ReadingGuard(const ReadingGuard&) = delete;
+  ReadingGuard& operator=(const ReadingGuard&) = delete;
+};
 
 struct Item {
   enum Kind { kScan, kPose, kImage, kOdometry } kind = kScan;
@@ -137,6 +148,7 @@ struct RawlogSource::Impl {
     const uint64_t before = in.getPosition();
     ::mrpt::serialization::CSerializable::Ptr obj;
     try {
+      const ReadingGuard guard(path, entry);
       obj = arch.ReadObject();
     } catch (const ::mrpt::serialization::CExceptionEOF&) {
       if (in.getPosition() == before) {

@@ -39,4 +39,8 @@ Eigen::Isometry3d isometryFrom3x4(const Eigen::Matrix<double, 3, 4>& m);
 /// exact also for calibration rotations that are orthonormal to a few digits only.
 Eigen::Isometry3d exactInverse(const Eigen::Isometry3d& T);
 
+/// Throws Error(path, "<what> is not a rigid transform ...") unless T is finite with a rotation
+/// block orthonormal within 1e-2 (rounded hand-typed values pass, garbage does not) and det +1.
+void requireRigid(const Eigen::Isometry3d& T, const std::string& path, const std::string& what);
+
 }  // namespace cleanmap::io

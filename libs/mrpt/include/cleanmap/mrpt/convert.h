@@ -15,6 +15,9 @@ namespace cleanmap::mrpt {
 /// sequence-relative (KITTI odometry `times.txt` starts at 0): they are stamped from the epoch
 /// kRelativeTimeEpoch, 2000-01-01T00:00:00Z; real epoch times (KITTI raw) are kept as they are.
 constexpr double kRelativeTimeEpoch = 946684800.0;
+
+/// MRPT exception texts span several lines (with call stacks): the most telling one, printable.
+std::string briefMessage(const std::exception& e);
 ::mrpt::Clock::time_point toMrptTime(double t);
 
 ::mrpt::poses::CPose3D toCPose3D(const Eigen::Isometry3d& T);
