@@ -1,7 +1,5 @@
 // SPDX-License-Identifier: BSD-3-Clause
 // MRPT rawlogs, both formats (cleanmap::mrpt::RawlogSource): every frame is read.
-#include <cmath>
-
 #include "cleanmap/mrpt/rawlog.h"
 #include "fuzz_support.h"
 
@@ -13,9 +11,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, std::size_t size) {
     opts.allow_empty_scans = size > 0 && (data[0] & 1);
     mrpt::RawlogSource src(path, opts);
     while (auto f = src.next()) {
-      for (const auto& p : f->scan.points)
-        if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z))
-          fuzz::finding("a non-finite point was delivered", path);
+      fuzz::requireFinitePoints(f->scan.points, path);
       if (f->scan.has_pose && !f->scan.pose.matrix().allFinite())
         fuzz::finding("a non-finite pose was delivered", path);
     }

@@ -3,6 +3,7 @@
 
 #include <unistd.h>
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 
@@ -43,6 +44,12 @@ std::string writeInput(const std::string& name, const uint8_t* data, std::size_t
 
 std::string writeInput(const std::string& name, const std::string& text) {
   return writeInput(name, reinterpret_cast<const uint8_t*>(text.data()), text.size());
+}
+
+void requireFinitePoints(const std::vector<PointXYZI>& points, const std::string& path) {
+  for (const auto& p : points)
+    if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z))
+      finding("a non-finite point was delivered", path);
 }
 
 void finding(const std::string& why, const std::string& message) {

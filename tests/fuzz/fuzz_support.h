@@ -11,7 +11,10 @@
 #include <cstdlib>
 #include <string>
 
+#include <vector>
+
 #include "cleanmap/core/error.h"
+#include "cleanmap/core/types.h"
 
 namespace cleanmap::fuzz {
 
@@ -24,6 +27,10 @@ std::string writeInput(const std::string& name, const std::string& text);
 
 /// Aborts (a finding) with `why` and the message.
 [[noreturn]] void finding(const std::string& why, const std::string& message);
+
+/// A finding unless every point is finite (readers drop NaN and infinite points, never deliver
+/// them).
+void requireFinitePoints(const std::vector<PointXYZI>& points, const std::string& path);
 
 /// Runs `fn`. A cleanmap::Error is the expected outcome of bad input: its message must be one
 /// line that names `must_name` (the file, or the text's name). Other exceptions escape: a finding.

@@ -18,6 +18,7 @@ constexpr double kRelativeTimeEpoch = 946684800.0;
 
 /// MRPT exception texts span several lines (with call stacks): the most telling one, printable.
 std::string briefMessage(const std::exception& e);
+
 ::mrpt::Clock::time_point toMrptTime(double t);
 
 ::mrpt::poses::CPose3D toCPose3D(const Eigen::Isometry3d& T);
