@@ -6,6 +6,8 @@
 #include <cmath>
 #include <limits>
 
+#include "cleanmap/core/median.h"
+
 namespace cleanmap {
 
 std::vector<uint8_t> segmentGround(const std::vector<PointXYZI>& points, const GroundParams& p,
@@ -97,9 +99,7 @@ std::optional<double> estimateGroundHeight(const std::vector<PointXYZI>& points)
   for (const auto& l : low)
     if (l[2] < kInf) third.push_back(l[2]);
   if (third.size() < kSectors / 4) return std::nullopt;
-  const auto mid = third.begin() + static_cast<std::ptrdiff_t>(third.size() / 2);
-  std::nth_element(third.begin(), mid, third.end());
-  return double(*mid);
+  return double(median(std::move(third)));
 }
 
 }  // namespace cleanmap

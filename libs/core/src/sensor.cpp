@@ -5,6 +5,8 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "cleanmap/core/median.h"
+
 namespace cleanmap {
 
 const std::vector<SensorPreset>& sensorPresets() {
@@ -68,6 +70,8 @@ std::optional<AngularResolution> measureResolution(const std::vector<PointXYZI>&
   std::vector<uint32_t> count(kBins, 0);
   std::vector<double> sum(kBins, 0.0);
   std::size_t used = 0;
+  std::vector<std::pair<int, const PointXYZI*>> binned;  // elevation bin of each used return
+  binned.reserve(points.size());
   for (const auto& p : points) {
     const double rh = std::hypot(double(p.x), double(p.y));
     if (!(rh >= 5 && rh <= 100) || !std::isfinite(p.z)) continue;
@@ -75,6 +79,7 @@ std::optional<AngularResolution> measureResolution(const std::vector<PointXYZI>&
     const int b = std::clamp(static_cast<int>(std::floor((el + 90) / kBin)), 0, kBins - 1);
     ++count[static_cast<std::size_t>(b)];
     sum[static_cast<std::size_t>(b)] += el;
+    binned.emplace_back(b, &p);
     ++used;
   }
   if (used < 1000) return std::nullopt;
@@ -100,30 +105,21 @@ std::optional<AngularResolution> measureResolution(const std::vector<PointXYZI>&
   for (std::size_t k = 1; k < rings.size(); ++k)
     gaps.push_back(rings[k].el_sum / double(rings[k].n) -
                    rings[k - 1].el_sum / double(rings[k - 1].n));
-  std::nth_element(gaps.begin(), gaps.begin() + static_cast<std::ptrdiff_t>(gaps.size() / 2),
-                   gaps.end());
-  const double vertical = gaps[gaps.size() / 2];
+  const double vertical = median(std::move(gaps));
   if (vertical < 0.8) return std::nullopt;
   // The azimuth step: the median gap between neighbouring returns of the fullest ring.
   const Ring& full = *std::max_element(rings.begin(), rings.end(),
                                        [](const Ring& a, const Ring& b) { return a.n < b.n; });
   std::vector<double> az;
-  for (const auto& p : points) {
-    const double rh = std::hypot(double(p.x), double(p.y));
-    if (!(rh >= 5 && rh <= 100) || !std::isfinite(p.z)) continue;
-    const int b =
-        static_cast<int>(std::floor((std::atan2(double(p.z), rh) * 180 / M_PI + 90) / kBin));
+  for (const auto& [b, p] : binned)
     if (b >= full.first && b <= full.last)
-      az.push_back(std::atan2(double(p.y), double(p.x)) * 180 / M_PI);
-  }
+      az.push_back(std::atan2(double(p->y), double(p->x)) * 180 / M_PI);
   std::sort(az.begin(), az.end());
   std::vector<double> steps;
   for (std::size_t k = 1; k < az.size(); ++k)
     if (az[k] - az[k - 1] > 1e-4) steps.push_back(az[k] - az[k - 1]);
   if (steps.size() < 100) return std::nullopt;
-  std::nth_element(steps.begin(), steps.begin() + static_cast<std::ptrdiff_t>(steps.size() / 2),
-                   steps.end());
-  return AngularResolution{vertical, steps[steps.size() / 2]};
+  return AngularResolution{vertical, median(std::move(steps))};
 }
 
 double densityScale(const AngularResolution& r) {

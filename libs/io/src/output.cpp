@@ -19,6 +19,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "cleanmap/core/error.h"
+#include "cleanmap/core/median.h"
 #include "cleanmap/io/config.h"
 #include "cleanmap/io/files.h"
 #include "cleanmap/io/kitti.h"
@@ -151,9 +152,7 @@ std::optional<double> OutputWriter::measuredSensorHeight() const {
   for (const double g : ground_measured_)
     if (std::isfinite(g)) m.push_back(-g);
   if (m.empty()) return std::nullopt;
-  const auto mid = m.begin() + static_cast<std::ptrdiff_t>(m.size() / 2);
-  std::nth_element(m.begin(), mid, m.end());
-  return *mid;
+  return median(std::move(m));
 }
 
 void OutputWriter::write(const ScanResult& r, const std::optional<MosCounts>& eval) {

@@ -15,6 +15,7 @@
 
 #include "cleanmap/core/error.h"
 #include "cleanmap/core/ground.h"
+#include "cleanmap/core/median.h"
 #include "cleanmap/io/config.h"
 #include "cleanmap/io/files.h"
 #include "cleanmap/io/ini.h"
@@ -118,10 +119,7 @@ double CGroundModelMap::groundBelowSensor(const cleanmap::Scan& scan) {
     if (recent_ground_.size() > 11) recent_ground_.pop_front();
   }
   if (recent_ground_.empty()) return -cleanmap::kDefaultSensorHeight;
-  std::vector<double> m(recent_ground_.begin(), recent_ground_.end());
-  const auto mid = m.begin() + static_cast<std::ptrdiff_t>(m.size() / 2);
-  std::nth_element(m.begin(), mid, m.end());
-  return *mid;
+  return cleanmap::median(std::vector<double>(recent_ground_.begin(), recent_ground_.end()));
 }
 
 void CGroundModelMap::insertGround(const cleanmap::Scan& scan, const std::vector<uint8_t>& ground) {

@@ -12,6 +12,7 @@
 #include "cleanmap/core/cell_key.h"
 #include "cleanmap/core/error.h"
 #include "cleanmap/core/ground.h"
+#include "cleanmap/core/median.h"
 #include "cleanmap/core/object_consensus.h"
 #include "cleanmap/core/octree_sampling.h"
 #include "cleanmap/core/parallel.h"
@@ -228,9 +229,7 @@ double LaserPipeline::groundBelowSensor(Prepared& s) const {
     if (std::isfinite(g)) m.push_back(g);
   }
   if (m.empty()) return -kDefaultSensorHeight;
-  const auto mid = m.begin() + static_cast<std::ptrdiff_t>(m.size() / 2);
-  std::nth_element(m.begin(), mid, m.end());
-  return *mid;
+  return median(std::move(m));
 }
 
 void LaserPipeline::push(Frame&& frame) {
