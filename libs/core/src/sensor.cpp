@@ -100,6 +100,19 @@ std::optional<AngularResolution> measureResolution(const std::vector<PointXYZI>&
     rings.back().n += count[i];
     rings.back().last = b;
   }
+  // Real rings hold a turn of returns; short runs between them are returns whose elevation is
+  // shifted (a laser's offset from the sensor origin, seen at short range: KITTI's HDL-64E) and
+  // would halve the gaps. Keep runs with an eighth of a typical (upper-quartile) ring's returns.
+  if (rings.size() < 8) return std::nullopt;
+  {
+    std::vector<std::size_t> n;
+    for (const auto& r : rings) n.push_back(r.n);
+    std::nth_element(n.begin(), n.begin() + std::ptrdiff_t(n.size() * 3 / 4), n.end());
+    const std::size_t keep = n[n.size() * 3 / 4] / 8;
+    rings.erase(
+        std::remove_if(rings.begin(), rings.end(), [keep](const Ring& r) { return r.n < keep; }),
+        rings.end());
+  }
   if (rings.size() < 8) return std::nullopt;
   std::vector<double> gaps;
   for (std::size_t k = 1; k < rings.size(); ++k)
@@ -107,19 +120,26 @@ std::optional<AngularResolution> measureResolution(const std::vector<PointXYZI>&
                    rings[k - 1].el_sum / double(rings[k - 1].n));
   const double vertical = median(std::move(gaps));
   if (vertical < 0.8) return std::nullopt;
-  // The azimuth step: the median gap between neighbouring returns of the fullest ring.
-  const Ring& full = *std::max_element(rings.begin(), rings.end(),
-                                       [](const Ring& a, const Ring& b) { return a.n < b.n; });
-  std::vector<double> az;
-  for (const auto& [b, p] : binned)
-    if (b >= full.first && b <= full.last)
-      az.push_back(std::atan2(double(p->y), double(p->x)) * 180 / M_PI);
-  std::sort(az.begin(), az.end());
-  std::vector<double> steps;
-  for (std::size_t k = 1; k < az.size(); ++k)
-    if (az[k] - az[k - 1] > 1e-4) steps.push_back(az[k] - az[k - 1]);
-  if (steps.size() < 100) return std::nullopt;
-  return AngularResolution{vertical, median(std::move(steps))};
+  // The azimuth step: per ring, the median gap between neighbouring returns; the median over
+  // rings, so that a run where several lasers blur together (a smaller gap) is outvoted.
+  std::vector<std::vector<double>> az(rings.size());
+  for (const auto& [b, p] : binned) {
+    const auto r = std::partition_point(rings.begin(), rings.end(),
+                                        [b = b](const Ring& g) { return g.last < b; });
+    if (r != rings.end() && b >= r->first)
+      az[std::size_t(r - rings.begin())].push_back(std::atan2(double(p->y), double(p->x)) * 180 /
+                                                   M_PI);
+  }
+  std::vector<double> ring_steps;
+  for (auto& a : az) {
+    std::sort(a.begin(), a.end());
+    std::vector<double> steps;
+    for (std::size_t k = 1; k < a.size(); ++k)
+      if (a[k] - a[k - 1] > 1e-4) steps.push_back(a[k] - a[k - 1]);
+    if (steps.size() >= 100) ring_steps.push_back(median(std::move(steps)));
+  }
+  if (ring_steps.size() < 4) return std::nullopt;
+  return AngularResolution{vertical, median(std::move(ring_steps))};
 }
 
 double densityScale(const AngularResolution& r) {

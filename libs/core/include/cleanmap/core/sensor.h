@@ -44,8 +44,10 @@ struct AngularResolution {
 AngularResolution presetResolution(SensorModel m);
 /// Measured in one scan (sensor frame) from the elevations and azimuths of its returns 5-100 m
 /// away horizontally: rings are runs of 0.05-degree elevation bins with returns, separated by
-/// empty bins. nullopt where fewer than 8 rings stand apart, or they lie less than 0.8 degrees
-/// apart (dense sensors such as the HDL-64E, whose rings blur together; KITTI's do).
+/// empty bins, holding at least an eighth of a typical ring's returns; the azimuth step is the
+/// median over rings of each ring's median gap. nullopt where fewer than 8 rings stand apart, or
+/// they lie less than 0.8 degrees apart (dense sensors such as the HDL-64E, whose rings blur
+/// together; KITTI's do).
 std::optional<AngularResolution> measureResolution(const std::vector<PointXYZI>& points);
 /// Returns per solid angle relative to the HDL-64E's (DESIGN §2d): what a point count tuned on it
 /// (object.min_moving) is multiplied by for this sensor.
