@@ -39,7 +39,7 @@ struct CaseResult {
 CaseResult runCase(const sim::Scenario& sc, const PipelineParams& params = {},
                    std::vector<std::pair<Eigen::Isometry3d, Eigen::Isometry3d>>* poses = nullptr,
                    std::vector<PoseInfo>* pose_info = nullptr, bool odometry = false,
-                   bool images = false) {
+                   bool images = false, const Eigen::Matrix3d* mount = nullptr) {
   std::vector<sim::SimScan> truth(sc.frames);
   CaseResult res;
   LaserPipeline pipe(params, [&](ScanResult&& r) {
@@ -69,6 +69,14 @@ CaseResult runCase(const sim::Scenario& sc, const PipelineParams& params = {},
     f.stem = std::to_string(k);
     f.scan.points = truth[k].points;
     f.scan.pose = truth[k].reported_pose;
+    if (mount) {  // the same rays from a lidar tilted by `mount` on the vehicle
+      for (auto& p : f.scan.points) {
+        const Eigen::Vector3f q = mount->transpose().cast<float>() * p.xyz();
+        p.x = q.x(), p.y = q.y(), p.z = q.z();
+      }
+      f.scan.pose.linear() = f.scan.pose.linear() * *mount;
+      f.mount = Eigen::Isometry3d(*mount);
+    }
     f.scan.has_pose = true;
     f.scan.timestamp = truth[k].time;
     f.scan.original_size = truth[k].points.size();
@@ -350,4 +358,19 @@ TEST(SimSensors, GroundBelowTheSensorIsMeasuredInEveryScan) {
             << sc.name << " frame " << k;
       }
     }
+}
+
+// Issue #15: a lidar tilted on its vehicle (pitched 10 degrees down and rolled 4, as on robots
+// that look at the ground ahead) is levelled by its mount (Frame::mount, a rawlog's sensorPose)
+// before the ground stage; the same rays, in the tilted sensor's frame.
+TEST(SimSensors, TiltedMountIsLevelledByItsSensorPose) {
+  const auto sc = sensorScene(SensorModel::kHdl64, 1.73);
+  const double ref = runCase(sc).all.iou();
+  const Eigen::Matrix3d mount =
+      (Eigen::AngleAxisd(0.07, Eigen::Vector3d::UnitX()) *  // roll, then pitch nose down
+       Eigen::AngleAxisd(0.17, Eigen::Vector3d::UnitY()))
+          .toRotationMatrix();
+  const double tilted =
+      runCase(sc, PipelineParams{}, nullptr, nullptr, false, false, &mount).all.iou();
+  EXPECT_GE(tilted, ref - 0.03) << "level: IoU " << ref;
 }

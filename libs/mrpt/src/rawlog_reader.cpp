@@ -253,6 +253,7 @@ std::optional<Frame> RawlogSource::next() {
   f.source = I.path + " entry " + std::to_string(cur.entry);
   f.scan = std::move(cur.scan);
   f.scan.timestamp = cur.t;
+  f.mount = toIsometry(cur.sensor_pose);  // issue #15: a tilted lidar is levelled by its mount
   if (f.scan.empty() && !I.opts.allow_empty_scans)
     throw Error(f.source, "scan " + f.stem + " is empty (0 valid points)");
   if (const Item* p = I.nearest(Item::kPose, cur.t, I.opts.pose_time_tolerance, end)) {

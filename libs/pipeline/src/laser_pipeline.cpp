@@ -177,12 +177,29 @@ std::unique_ptr<LaserPipeline::Prepared> LaserPipeline::prepare(Frame&& f) {
   // The ground grid covers the map radius too (inner cells do not depend on outer ones, so the
   // labels inside the crop are the same).
   const double r_map = p_.map.radius;
-  s->ground_z = groundBelowSensor(*s);
+  // Issue #15: a tilted mount (a rawlog's sensorPose with roll or pitch) is levelled for the
+  // ground stage, whose grid and heights assume z up (DESIGN §2a); yaw does not matter.
+  std::vector<PointXYZI> levelled;
+  if (f.mount) {
+    const Eigen::Matrix3d m = f.mount->rotation();
+    const Eigen::Matrix3f level =
+        (Eigen::AngleAxisd(-std::atan2(m(1, 0), m(0, 0)), Eigen::Vector3d::UnitZ()) * m)
+            .cast<float>();
+    if (!level.isIdentity(1e-6f)) {
+      levelled = pts;
+      for (auto& p : levelled) {
+        const Eigen::Vector3f q = level * Eigen::Vector3f(p.x, p.y, p.z);
+        p.x = q.x(), p.y = q.y(), p.z = q.z();
+      }
+    }
+  }
+  const auto& gpts = levelled.empty() ? pts : levelled;
+  s->ground_z = groundBelowSensor(*s, gpts);
   if (p_.sensor.model != SensorModel::kAuto)
     s->density = densityScale(presetResolution(p_.sensor.model));
   else if (const auto r = measureResolution(pts))
     s->density = densityScale(*r);
-  s->ground = segmentGround(pts, p_.ground, std::max(p_.filter.crop_tau, r_map), s->ground_z);
+  s->ground = segmentGround(gpts, p_.ground, std::max(p_.filter.crop_tau, r_map), s->ground_z);
   s->in_crop.resize(pts.size());
   s->candidate.resize(pts.size());
   s->far.assign(pts.size(), 0);
@@ -217,8 +234,8 @@ std::unique_ptr<LaserPipeline::Prepared> LaserPipeline::prepare(Frame&& f) {
 // auto measures every scan and takes the median of this scan's and its K predecessors'
 // measurements (a run cut into chunks overlapping by K scans gets the same), KITTI's 1.73 m when
 // none of them could be measured.
-double LaserPipeline::groundBelowSensor(Prepared& s) const {
-  const auto measured = estimateGroundHeight(s.scan.points);
+double LaserPipeline::groundBelowSensor(Prepared& s, const std::vector<PointXYZI>& levelled) const {
+  const auto measured = estimateGroundHeight(levelled);
   if (measured) s.ground_measured = *measured;
   if (p_.sensor.height > 0) return -p_.sensor.height;
   std::vector<double> m;

@@ -28,6 +28,10 @@ struct Frame {
   /// The sensor's pose in the frame of the robot's odometry, where the input has odometry (rawlog
   /// CActionRobotMovement2D/3D or CObservationOdometry): GICP's initial guess (DESIGN §2.1).
   std::optional<Eigen::Isometry3d> odometry;
+  /// The sensor's mounting on the vehicle (a rawlog's sensorPose), where the input says: its roll
+  /// and pitch level the scan for the ground stage (DESIGN §2a), so a tilted lidar is handled.
+  /// Absent: the sensor is level (KITTI).
+  std::optional<Eigen::Isometry3d> mount;
 };
 
 /// A forward-only stream of frames: lets the pipeline keep only its window in memory.

@@ -63,7 +63,7 @@ class LaserPipeline {
   struct Prepared;  // a buffered scan: beams, crop and ground masks
   struct Work;      // the scan being decided: world points, candidates, tests, moving mask
   std::unique_ptr<Prepared> prepare(Frame&& f);
-  double groundBelowSensor(Prepared& s) const;
+  double groundBelowSensor(Prepared& s, const std::vector<PointXYZI>& levelled) const;
   PoseInfo registerScan(Frame& f);
   void decideReady(std::size_t future);
   void decide(std::size_t pos);
