@@ -41,9 +41,15 @@ for t in "${TARGETS[@]}"; do
     for f in "$work"/findings/*; do
       [[ -f "$f" ]] || continue
       out=$(TMPDIR="$work" "$exe" -malloc_limit_mb=1024 -rss_limit_mb=2048 "$f" 2>&1 || true)
+      if grep -q "out-of-memory (used:" <<<"$out"; then  # over the RSS limit: find the allocation
+        out=$(TMPDIR="$work" "$exe" -malloc_limit_mb=100 -rss_limit_mb=8000 "$f" 2>&1 || true)
+      fi
+      # Upstream: the JPEG exit, or an allocation made by MRPT's deserialization (an object's
+      # serializeFrom, or the length of a class name read by CArchive).
       if grep -q "corrupt rawlog entry: MRPT's decoder ended the process" <<<"$out" ||
          { grep -q "out-of-memory (malloc(" <<<"$out" &&
-           grep -A12 "HandleMalloc" <<<"$out" | grep -q "serializeFrom"; }; then
+           grep -A12 "HandleMalloc" <<<"$out" |
+             grep -qE "serializeFrom|mrpt::serialization::"; }; then
         upstream=$((upstream + 1))
         mkdir -p "$work/upstream" && mv "$f" "$work/upstream/"
       else

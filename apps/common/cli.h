@@ -46,20 +46,20 @@ class Args {
     if (done()) fail(flag + " needs a value");
     return next();
   }
-  /// An integer >= min (0 or 1 in practice) after `flag`.
+  /// An integer >= min (0 or 1 in practice) and below 2^31 (what an ini file takes) after `flag`.
   long integer(const std::string& flag, long min = 0) {
     const std::string v = value(flag);
     try {
       std::size_t used = 0;
       const long x = std::stol(v, &used);
-      if (used == v.size() && x >= min) return x;
+      if (used == v.size() && x >= min && x <= 2147483647L) return x;
     } catch (const std::exception&) {
     }
     fail(flag + " needs a " +
          (min == 1   ? std::string("positive")
           : min == 0 ? "non-negative"
                      : ">= " + std::to_string(min)) +
-         " integer, got '" + v + "'");
+         " integer below 2^31, got '" + v + "'");
   }
   /// A number >= 0 after `flag`.
   double number(const std::string& flag) { return toNumber(flag, value(flag)); }

@@ -14,6 +14,9 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, std::size_t size) {
       fuzz::requireFinitePoints(f->scan.points, path);
       if (f->scan.has_pose && !f->scan.pose.matrix().allFinite())
         fuzz::finding("a non-finite pose was delivered", path);
+      if ((f->mount && !f->mount->matrix().allFinite()) ||
+          (f->odometry && !f->odometry->matrix().allFinite()))
+        fuzz::finding("a non-finite mount or odometry was delivered", path);
     }
   });
   return 0;

@@ -161,6 +161,9 @@ TEST(Config, BadIniIsAClearError) {
                     "needs an integer");
   test::expectError([&] { io::parseParams("[ds]\nr_sup = 0.5\n", "x.ini", p); }, "x.ini",
                     "r_inf <= ds.r_sup");
+  // Found by fuzz_params_ini (corpus finding_negative_seed): a negative seed was cast to uint64.
+  test::expectError([&] { io::parseParams("[run]\nseed = -2\n", "x.ini", p); }, "x.ini:2",
+                    "needs a non-negative integer, got '-2'");
   test::expectError(
       [] {
         PipelineParams q;

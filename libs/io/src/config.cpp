@@ -22,6 +22,7 @@ struct Key {
   bool integer;
   std::vector<std::string> names = {};  ///< a named choice: the value is the index of its name
   bool auto_zero = false;               ///< a number, or "auto" (stored as 0)
+  bool non_negative = false;            ///< refused below 0 (the seed: an unsigned integer)
 };
 
 // Keys that moved: where they went (an old ini gets one clear error).
@@ -40,6 +41,10 @@ std::optional<double> parseValue(const Key& k, const std::string& text, std::str
   if (k.names.empty()) {
     auto v = parseNumber(text, k.integer, why);
     if (!v && k.auto_zero) why = "needs a number or auto, got '" + text + "'";
+    if (v && k.non_negative && *v < 0) {
+      why = "needs a non-negative integer, got '" + text + "'";
+      return std::nullopt;
+    }
     return v;
   }
   for (std::size_t i = 0; i < k.names.size(); ++i)
@@ -143,7 +148,11 @@ std::map<std::string, Key> table(PipelineParams& p) {
       {"image.cell", d(p.image.cell)},
       {"image.min_views", i(p.image.min_views)},
       {"run.seed", Key{[&p](double v) { p.seed = static_cast<uint64_t>(v); },
-                       [&p] { return double(p.seed); }, true}},
+                       [&p] { return double(p.seed); },
+                       true,
+                       {},
+                       false,
+                       true}},
       {"run.threads", i(p.threads)},
   };
 }

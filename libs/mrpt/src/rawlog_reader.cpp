@@ -119,18 +119,21 @@ struct RawlogSource::Impl {
       Item it;
       it.kind = Item::kPose;
       it.t = t;
+      it.entry = entry - 1;
       it.robot_pose = rp->pose.mean;
       buf.push_back(std::move(it));
     } else if (auto od = std::dynamic_pointer_cast<CObservationOdometry>(obs)) {
       Item it;
       it.kind = Item::kOdometry;
       it.t = t;
+      it.entry = entry - 1;
       it.robot_pose = ::mrpt::poses::CPose3D(od->odometry);
       buf.push_back(std::move(it));
     } else if (auto im = std::dynamic_pointer_cast<CObservationImage>(obs)) {
       Item it;
       it.kind = Item::kImage;
       it.t = t;
+      it.entry = entry - 1;
       it.img = im;
       buf.push_back(std::move(it));
     } else {
@@ -254,19 +257,27 @@ std::optional<Frame> RawlogSource::next() {
   f.scan = std::move(cur.scan);
   f.scan.timestamp = cur.t;
   f.mount = toIsometry(cur.sensor_pose);  // issue #15: a tilted lidar is levelled by its mount
+  if (!f.mount->matrix().allFinite()) throw Error(f.source, "the scan's sensorPose is not finite");
   if (f.scan.empty() && !I.opts.allow_empty_scans)
     throw Error(f.source, "scan " + f.stem + " is empty (0 valid points)");
   if (const Item* p = I.nearest(Item::kPose, cur.t, I.opts.pose_time_tolerance, end)) {
     f.scan.pose = toIsometry(p->robot_pose + cur.sensor_pose);  // robot pose (+) sensor pose
     f.scan.has_pose = true;
+    if (!f.scan.pose.matrix().allFinite())
+      throw Error(I.path + " entry " + std::to_string(p->entry), "the robot pose is not finite");
   } else {
     f.scan.pose = toIsometry(cur.sensor_pose);
   }
   // Odometry (GICP's initial guess): an odometry observation near in time, else the actions.
-  if (const Item* o = I.nearest(Item::kOdometry, cur.t, I.opts.pose_time_tolerance, end))
+  if (const Item* o = I.nearest(Item::kOdometry, cur.t, I.opts.pose_time_tolerance, end)) {
     f.odometry = toIsometry(o->robot_pose + cur.sensor_pose);
-  else if (cur.action_odometry)
+    if (!f.odometry->matrix().allFinite())
+      throw Error(I.path + " entry " + std::to_string(o->entry), "the odometry is not finite");
+  } else if (cur.action_odometry) {
     f.odometry = toIsometry(*cur.action_odometry + cur.sensor_pose);
+    if (!f.odometry->matrix().allFinite())
+      throw Error(f.source, "the odometry actions before this scan sum to a non-finite pose");
+  }
   if (const Item* im = I.nearest(Item::kImage, cur.t, I.opts.image_time_tolerance, end)) {
     f.image = I.toImage(*im);
     if (!I.camera)
