@@ -2,6 +2,7 @@
 #include "cleanmap/core/free_space.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -86,6 +87,28 @@ std::size_t FreeSpaceMap::bytes() const {
   return blocks_.size() * (sizeof(Block) + sizeof(std::unique_ptr<Block>) + 3 * sizeof(void*));
 }
 
+// Sets the near bits of a voxel box (inclusive x0 x1 y0 y1 z0 z1) block by block: a mask word
+// of a block is one x plane of 8 y x 8 z voxels, so the box's share of a plane is one mask.
+void FreeSpaceMap::markNear(const std::array<int64_t, 6>& box, int64_t scan) {
+  constexpr int64_t kLast = kSide - 1;
+  for (int64_t bx = box[0] >> kBits; bx <= box[1] >> kBits; ++bx)
+    for (int64_t by = box[2] >> kBits; by <= box[3] >> kBits; ++by)
+      for (int64_t bz = box[4] >> kBits; bz <= box[5] >> kBits; ++bz) {
+        Block& b = block(cellKey(bx, by, bz), scan);
+        const auto lo = [](int64_t v, int64_t blk) { return std::max(v, blk << kBits) & kLast; };
+        const auto hi = [](int64_t v, int64_t blk) {
+          return std::min(v, (blk << kBits) + kLast) & kLast;
+        };
+        const int64_t xa = lo(box[0], bx), xb = hi(box[1], bx);
+        const int64_t ya = lo(box[2], by), yb = hi(box[3], by);
+        const int64_t za = lo(box[4], bz), zb = hi(box[5], bz);
+        const uint64_t zmask = ((uint64_t(1) << (zb - za + 1)) - 1) << za;
+        uint64_t m = 0;
+        for (int64_t y = ya; y <= yb; ++y) m |= zmask << (y << kBits);
+        for (int64_t x = xa; x <= xb; ++x) b.near[x] |= m;
+      }
+}
+
 void FreeSpaceMap::insertScan(const std::vector<PointXYZI>& points, const Eigen::Isometry3d& pose,
                               int64_t scan, const std::vector<uint8_t>* moving) {
   if (moving && moving->size() != points.size())
@@ -95,6 +118,7 @@ void FreeSpaceMap::insertScan(const std::vector<PointXYZI>& points, const Eigen:
   {
     uint64_t cached = ~uint64_t(0);
     Block* b = nullptr;
+    std::array<int64_t, 6> last_box{1, 0, 1, 0, 1, 0};  // empty
     for (std::size_t n = 0; n < points.size(); ++n) {
       const Eigen::Vector3d w = pose * points[n].xyz().cast<double>();
       const int64_t x = floorToCell(w.x(), inv_), y = floorToCell(w.y(), inv_),
@@ -116,19 +140,12 @@ void FreeSpaceMap::insertScan(const std::vector<PointXYZI>& points, const Eigen:
       // The voxels within hit_inflate of the return (per axis) are not seen empty by this scan
       // either: a beam passing a surface's edge crosses the edge's voxel beside the return.
       const double h = p_.hit_inflate;
-      const int64_t x0 = floorToCell(w.x() - h, inv_), x1 = floorToCell(w.x() + h, inv_);
-      const int64_t y0 = floorToCell(w.y() - h, inv_), y1 = floorToCell(w.y() + h, inv_);
-      const int64_t z0 = floorToCell(w.z() - h, inv_), z1 = floorToCell(w.z() + h, inv_);
-      for (int64_t i = x0; i <= x1; ++i)
-        for (int64_t j = y0; j <= y1; ++j)
-          for (int64_t l = z0; l <= z1; ++l) {
-            const uint64_t kn = blockKey(i, j, l);
-            if (kn != cached) {
-              b = &block(kn, scan);
-              cached = kn;
-            }
-            Block::set(b->near, localIndex(i, j, l));
-          }
+      const std::array<int64_t, 6> box{floorToCell(w.x() - h, inv_), floorToCell(w.x() + h, inv_),
+                                       floorToCell(w.y() - h, inv_), floorToCell(w.y() + h, inv_),
+                                       floorToCell(w.z() - h, inv_), floorToCell(w.z() + h, inv_)};
+      if (box == last_box) continue;  // neighbours on a ring mostly share it
+      last_box = box;
+      markNear(box, scan);
     }
   }
   // Each beam, voxel by voxel (Amanatides & Woo), to the margin before its return; a beam longer

@@ -8,6 +8,7 @@
 // mapped), not with the number of scans.
 #pragma once
 #include <Eigen/Geometry>
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <unordered_map>
@@ -57,6 +58,7 @@ class FreeSpaceMap {
   struct Block;
   Block& block(uint64_t key, int64_t scan);
   const Block* findBlock(uint64_t key) const;
+  void markNear(const std::array<int64_t, 6>& box, int64_t scan);
   MapParams p_;
   double inv_;
   std::unordered_map<uint64_t, std::unique_ptr<Block>> blocks_;

@@ -138,8 +138,8 @@ struct MapParams {
   int vacated_scans = 5;
   /// m; a scan does not see empty the voxels within this distance (per axis) of its own static,
   /// non-ground returns (0: only the voxel of each return): a beam that passes a surface's edge
-  /// crosses the edge's voxel beside that surface's returns. One voxel by default.
-  double hit_inflate = 0.2;
+  /// crosses the edge's voxel beside that surface's returns. 2 sigma of the beam model, as margin.
+  double hit_inflate = 0.32;
   /// m; a beam marks space empty up to this distance short of its return, beyond the voxel's
   /// half diagonal: 2 sigma of the beam model (sqrt(sigma_m^2 + sigma_r^2) = 0.16 m).
   double margin = 0.32;
