@@ -255,6 +255,7 @@ int main(int argc, char** argv) {
     if (mrpt_outputs) {
       cleanmap::mrpt::MrptOutputOptions mo;
       mo.viewer_voxel = viewer_voxel;
+      mo.map_decisions = true;  // cleaned like static_map_full.ply (DESIGN §4a)
       mrpt_out.emplace(out.staging(), mo);
     }
     std::size_t seen = 0, empty = 0;
@@ -328,6 +329,10 @@ int main(int argc, char** argv) {
                                        std::to_string(first) + ")");
     const double wall =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    // The map's decisions first: the MRPT outputs hold what static_map_full.ply holds.
+    out.writeMaps(moving->freeSpace(), [&](const cleanmap::io::MapScan& m) {
+      if (mrpt_out) mrpt_out->writeMapScan(m.index, m.map_labels, m.kept, m.removed);
+    });
     if (mrpt_out) {
       mrpt_out->finish();
       out.addOutputTime("mrpt", mrpt_out->writeMs());

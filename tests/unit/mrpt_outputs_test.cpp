@@ -6,6 +6,8 @@
 
 #include <cstring>
 #include <fstream>
+#include <set>
+#include <tuple>
 
 #include <mrpt/io/CFileGZInputStream.h>
 #include <mrpt/maps/CColouredPointsMap.h>
@@ -20,7 +22,10 @@
 #include <mrpt/serialization/CArchive.h>
 #include <mrpt/serialization/archiveFrom_std_vector.h>
 
+#include "cleanmap/io/files.h"
 #include "cleanmap/io/kitti.h"
+#include "cleanmap/io/output.h"
+#include "cleanmap/io/ply.h"
 #include "cleanmap/mrpt/convert.h"
 #include "cleanmap/mrpt/outputs.h"
 #include "cleanmap/mrpt/rawlog.h"
@@ -34,6 +39,7 @@ namespace {
 
 struct Decided {
   std::size_t index;
+  std::string stem;
   Eigen::Isometry3d pose;
   Scan scan;
   Labels labels;
@@ -47,7 +53,7 @@ std::vector<Decided> runAndWrite(const std::string& set, std::size_t n, const fs
   std::vector<Decided> out;
   cleanmap::mrpt::MrptOutputWriter w(dir.string(), opts);
   LaserPipeline pl(PipelineParams{}, [&](ScanResult&& r) {
-    out.push_back({r.index, r.pose, r.scan, r.labels, r.moving.size()});
+    out.push_back({r.index, r.stem, r.pose, r.scan, r.labels, r.moving.size()});
     w.write(std::move(r));
   });
   pl.keepScans(true);
@@ -218,4 +224,142 @@ TEST(MrptOutputs, CompressedOutputsReadBackTheSame) {
   EXPECT_TRUE(ba == bb);
   EXPECT_EQ(readObservations((gz / "labelled.rawlog").string()).size(), 9u);
   EXPECT_FALSE(fs::exists(gz / "static_map.3Dscene"));
+}
+
+// As the app writes them (map_decisions): cleaned.rawlog, the simplemap and the scene hold what
+// the cleaned map holds: every scan minus the points map_labels/ calls moving (the windowed
+// test's and those whose space the sequence saw empty, which are map_removed.ply's points).
+TEST(MrptOutputs, WithTheMapsDecisionsTheyHoldWhatTheCleanedMapHolds) {
+  CLEANMAP_REQUIRE_DATASET("kitti_city");
+  const auto dir = test::scratchDir("decided");
+  fs::remove_all(dir);
+  auto seq = io::KittiSequence::open(test::dataDir() + "/kitti_city");
+  const PipelineParams params;
+  std::vector<Decided> run;
+  std::size_t map_removed = 0;
+  {
+    io::OutputWriter writer(dir.string(), "kitti_city", params);
+    cleanmap::mrpt::MrptOutputOptions mo;
+    mo.map_decisions = true;
+    cleanmap::mrpt::MrptOutputWriter w(writer.staging(), mo);
+    LaserPipeline pl(params, [&](ScanResult&& r) {
+      run.push_back({r.index, r.stem, r.pose, r.scan, r.labels, r.moving.size()});
+      writer.write(r, std::nullopt);
+      w.write(std::move(r));
+    });
+    pl.keepScans(true);
+    for (std::size_t i = 0; i < 12; ++i) pl.push(seq.frame(i));  // the car passes at 6-10
+    pl.finish();
+    writer.writeMaps(pl.freeSpace(), [&](const io::MapScan& m) {
+      map_removed += m.removed.size();
+      w.writeMapScan(m.index, m.map_labels, m.kept, m.removed);
+    });
+    w.finish();
+    writer.finish(0.0);
+  }
+  ASSERT_GT(map_removed, 1000u) << "the cleaning must remove points for this test to mean much";
+  EXPECT_EQ(io::readPly((dir / "map_removed.ply").string()).size(), map_removed);
+
+  const auto cleaned = readObservations((dir / "cleaned.rawlog").string());
+  ASSERT_EQ(cleaned.size(), 2 * run.size());
+  ::mrpt::maps::CSimpleMap sm;
+  ASSERT_TRUE(sm.loadFromFile((dir / "static_map.simplemap").string()));
+  ASSERT_EQ(sm.size(), run.size());
+  std::size_t windowed_kept = 0, kept = 0;
+  for (std::size_t k = 0; k < run.size(); ++k) {
+    const auto& d = run[k];
+    SCOPED_TRACE("scan " + d.stem);
+    const Labels map_labels = io::readLabels((dir / "map_labels" / (d.stem + ".label")).string());
+    std::vector<PointXYZI> expect;
+    for (std::size_t i = 0; i < d.scan.size(); ++i)
+      if (map_labels.at(d.scan.originalIndex(i)) != kMoving) expect.push_back(d.scan.points[i]);
+    windowed_kept += d.scan.size() - d.moving;
+    kept += expect.size();
+    const auto pc =
+        std::dynamic_pointer_cast<::mrpt::obs::CObservationPointCloud>(cleaned[2 * k + 1]);
+    ASSERT_TRUE(pc && pc->pointcloud);
+    const auto got = cleanmap::mrpt::scanFromObservation(*pc);
+    ASSERT_TRUE(got && got->size() == expect.size());
+    EXPECT_EQ(0, std::memcmp(got->points.data(), expect.data(), expect.size() * sizeof(PointXYZI)))
+        << "cleaned scan differs from the scan minus what the map calls moving";
+    ::mrpt::poses::CPose3DPDF::Ptr pdf;
+    ::mrpt::obs::CSensoryFrame::Ptr sf;
+    sm.get(k, pdf, sf);
+    EXPECT_TRUE(cleanmap::mrpt::toIsometry(pdf->getMeanVal()).isApprox(d.pose, 1e-9));
+    const auto spc = sf->getObservationByClass<::mrpt::obs::CObservationPointCloud>();
+    ASSERT_TRUE(spc && spc->pointcloud);
+    EXPECT_EQ(spc->pointcloud->size(), expect.size());
+  }
+  EXPECT_EQ(windowed_kept - kept, map_removed)
+      << "the cleaned scans lack exactly what the map removed";
+
+  // The scene's static map: points of static_map_full.ply, none of map_removed.ply.
+  auto key = [](const PointXYZI& p) { return std::tuple(p.x, p.y, p.z); };
+  std::set<std::tuple<float, float, float>> full, removed;
+  for (const auto& p : io::readPly((dir / "static_map_full.ply").string())) full.insert(key(p));
+  for (const auto& p : io::readPly((dir / "map_removed.ply").string())) removed.insert(key(p));
+  ::mrpt::opengl::COpenGLScene scene;
+  ASSERT_TRUE(scene.loadFromFile((dir / "static_map.3Dscene").string()));
+  const auto stat =
+      std::dynamic_pointer_cast<::mrpt::opengl::CPointCloudColoured>(scene.getByName("static_map"));
+  ASSERT_TRUE(stat);
+  std::size_t outside = 0, gone = 0;
+  for (std::size_t i = 0; i < stat->size(); ++i) {
+    const auto p = stat->getPoint3Df(i);
+    PointXYZI q;
+    q.x = p.x;
+    q.y = p.y;
+    q.z = p.z;
+    outside += !full.count(key(q));
+    gone += removed.count(key(q));
+  }
+  EXPECT_GT(stat->size(), 20000u);
+  EXPECT_EQ(outside, 0u) << "scene points that are not in static_map_full.ply";
+  EXPECT_EQ(gone, 0u) << "scene points the map removed";
+}
+
+// The map's decisions must match the scans written: any other order, a missing decision or a
+// decision without map_decisions is a clear error naming the folder.
+TEST(MrptOutputs, MapDecisionsOutOfStepAreClearErrors) {
+  const auto dir = test::scratchDir("decision_errors");
+  auto scan = [](std::size_t index) {
+    ScanResult r;
+    r.index = index;
+    r.stem = "00000" + std::to_string(index);
+    r.timestamp = 1.0 + double(index);
+    r.scan.points.resize(4);
+    for (std::size_t i = 0; i < 4; ++i) r.scan.points[i].x = 1.0f + float(i);
+    r.scan.original_size = 4;
+    r.labels.assign(4, kStatic);
+    return r;
+  };
+  cleanmap::mrpt::MrptOutputOptions mo;
+  mo.background = false;
+  {
+    cleanmap::mrpt::MrptOutputWriter w(dir.string(), mo);
+    test::expectError([&] { w.writeMapScan(0, Labels(4, kStatic), {}, {}); }, dir.string(),
+                      "map_decisions");
+  }
+  mo.map_decisions = true;
+  {
+    cleanmap::mrpt::MrptOutputWriter w(dir.string(), mo);
+    w.write(scan(3));
+    test::expectError([&] { w.writeMapScan(4, Labels(4, kStatic), {}, {}); }, dir.string(),
+                      "out of order");
+  }
+  {
+    cleanmap::mrpt::MrptOutputWriter w(dir.string(), mo);
+    w.write(scan(3));
+    w.write(scan(4));
+    w.writeMapScan(3, Labels(4, kStatic), {}, {});
+    test::expectError([&] { w.finish(); }, dir.string(), "1 of 2 scans were not decided");
+  }
+  {
+    cleanmap::mrpt::MrptOutputWriter w(dir.string(), mo);
+    test::expectError([&] { w.writeMapScan(0, Labels(4, kStatic), {}, {}); }, dir.string(),
+                      "never written");
+  }
+  for (const auto& e : fs::directory_iterator(dir))
+    EXPECT_EQ(e.path().filename().string().find(".mrpt_spool"), std::string::npos)
+        << "a spool was left behind: " << e.path();
 }

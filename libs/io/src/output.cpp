@@ -233,7 +233,9 @@ void OutputWriter::spoolScan(const ScanResult& r) {
 // DESIGN §2e: every spooled point is decided with the whole sequence's free space: the ground
 // stays, a point whose voxel the policy calls empty goes to map_removed.ply, the others to the
 // maps; map_labels/<stem>.label says what the map did with each original point.
-void OutputWriter::writeMaps(const FreeSpaceMap* free_space) {
+void OutputWriter::writeMaps(const FreeSpaceMap* free_space, const MapScanSink& sink) {
+  if (maps_written_) throw Error(staging_, "the maps were already written (writeMaps twice)");
+  maps_written_ = true;
   const auto t0 = std::chrono::steady_clock::now();
   if (std::fflush(spool_) != 0 || std::fseek(spool_, 0, SEEK_SET) != 0)
     throw Error(spool_path_, "cannot read the map spool back");
@@ -272,6 +274,7 @@ void OutputWriter::writeMaps(const FreeSpaceMap* free_space) {
     compact_->append(compact, h.z);
     removed_->append(removed, h.z);
     writeLabels(staging_ + "/map_labels/" + stems_[s] + ".label", map_labels);
+    if (sink) sink(MapScan{h.index, stems_[s], map_labels, full, removed});
   }
   std::fclose(spool_);
   spool_ = nullptr;
@@ -304,7 +307,7 @@ void OutputWriter::publish() {
 }
 
 void OutputWriter::finish(double wall_s, const FreeSpaceMap* free_space) {
-  writeMaps(free_space);
+  if (!maps_written_) writeMaps(free_space);
   compact_->close();
   full_->close();
   moving_->close();

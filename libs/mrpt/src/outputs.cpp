@@ -4,8 +4,10 @@
 
 #include <unistd.h>
 
+#include <cerrno>
 #include <condition_variable>
 #include <cstdio>
+#include <cstring>
 #include <deque>
 #include <exception>
 #include <filesystem>
@@ -180,6 +182,26 @@ class CellSet {
 // they come, the header with the final count to another, and the two members are concatenated
 // (gzip readers, zlib's included, read concatenated members as one stream). The header is taken
 // from MRPT's own serialization of an empty map, so a changed format is detected, never guessed.
+// A queued piece of work of the writer thread: a decided scan, or the map's decision of one.
+struct MrptOutputWriter::Job {
+  bool map = false;
+  ScanResult scan;
+  int64_t index = 0;
+  Labels map_labels;
+  std::vector<PointXYZI> kept, removed;
+};
+
+namespace {
+// The spool of a scan awaiting the map's decision: header, points (sensor frame), their original
+// indices.
+struct SpoolHeader {
+  int64_t index;
+  double timestamp;
+  double pose[16];  // column-major 4x4
+  uint64_t points;
+};
+}  // namespace
+
 struct MrptOutputWriter::Impl {
   std::string folder;
   std::unique_ptr<OutFile> cleaned, labelled, simplemap_body;
@@ -193,8 +215,12 @@ struct MrptOutputWriter::Impl {
   std::thread worker;
   std::mutex mu;
   std::condition_variable cv;
-  std::deque<ScanResult> queue;
+  std::deque<Job> queue;
   bool closing = false;
+  // map_decisions: the scans wait in a spool until the map decides them (writeMapScan).
+  std::FILE* spool = nullptr;
+  std::string spool_path;
+  std::size_t spooled = 0, decided = 0;
   std::exception_ptr error;
   // Scene: voxel-decimated points and the trajectory.
   CellSet static_cells, moving_cells;
@@ -204,10 +230,9 @@ struct MrptOutputWriter::Impl {
 
   // Consecutive points of a scan (neighbours on a ring) mostly share a voxel: the last key is
   // checked first, which spares most lookups in the large set.
-  void addToScene(const ScanResult& r, double inv_voxel) {
-    const double z0 = r.pose.translation().z();
+  void addStatic(const std::vector<PointXYZI>& pts, double z0, double inv_voxel) {
     uint64_t last = ~uint64_t(0);
-    for (const auto& p : r.static_full) {  // the ground too: it gives the scene its shape
+    for (const auto& p : pts) {  // the ground too: it gives the scene its shape
       const uint64_t key = cellKeyOf<double>(p.x, p.y, p.z, inv_voxel);
       if (key == last) continue;
       last = key;
@@ -216,13 +241,67 @@ struct MrptOutputWriter::Impl {
         scene_static_rgb.push_back(io::heightColour(double(p.z) - z0));
       }
     }
-    last = ~uint64_t(0);
-    for (const auto& p : r.moving) {
+  }
+  void addMoving(const std::vector<PointXYZI>& pts, double inv_voxel) {
+    uint64_t last = ~uint64_t(0);
+    for (const auto& p : pts) {
       const uint64_t key = cellKeyOf<double>(p.x, p.y, p.z, inv_voxel);
       if (key != last && moving_cells.insert(key)) scene_moving.push_back(p);
       last = key;
     }
-    trajectory.push_back(r.pose.translation());
+  }
+
+  // The cleaned cloud of a scan (every point `keep` says) into cleaned.rawlog and the simplemap.
+  template <class Keep>
+  void writeCleaned(const std::vector<PointXYZI>& pts, const Eigen::Isometry3d& pose,
+                    double timestamp, Keep&& keep) {
+    using namespace ::mrpt::obs;
+    auto& kept = *kept_map;
+    kept.resize(pts.size());
+    std::size_t k = 0;
+    for (std::size_t i = 0; i < pts.size(); ++i)
+      if (keep(i)) kept.setPointRGB(k++, pts[i].x, pts[i].y, pts[i].z, pts[i].intensity, 0, 0);
+    kept.resize(k);
+    kept.mark_as_modified();
+    const auto [pb, pn] = enc(*poseObservation(pose, timestamp));
+    cleaned->write(pb, pn);
+    auto o = CObservationPointCloud::Create();
+    o->sensorLabel = "LIDAR";
+    o->timestamp = toMrptTime(timestamp);
+    o->pointcloud = kept_map;
+    CSensoryFrame sf;
+    sf.insert(o);
+    // The cleaned cloud is serialized once, for the rawlog and the simplemap.
+    const auto [cb, cn] = enc(*o);
+    cleaned->write(cb, cn);
+    const auto [sb, sn] = enc(::mrpt::poses::CPose3DPDFGaussian(toCPose3D(pose)), sf);
+    simplemap_body->write(sb, sn);
+    ++simplemap_count;
+  }
+
+  static ::mrpt::obs::CObservationRobotPose::Ptr poseObservation(const Eigen::Isometry3d& pose,
+                                                                 double timestamp) {
+    auto o = ::mrpt::obs::CObservationRobotPose::Create();
+    o->sensorLabel = "POSE";
+    o->timestamp = toMrptTime(timestamp);
+    o->pose.mean = toCPose3D(pose);
+    o->pose.cov.setZero();
+    return o;
+  }
+
+  void closeSpool() {
+    if (!spool) return;
+    std::fclose(spool);
+    spool = nullptr;
+    std::remove(spool_path.c_str());
+  }
+  void spoolWrite(const void* data, std::size_t bytes) {
+    if (bytes && std::fwrite(data, 1, bytes, spool) != bytes)
+      throw Error(spool_path, "cannot write the spool (disk full?)");
+  }
+  void spoolRead(void* data, std::size_t bytes) {
+    if (bytes && std::fread(data, 1, bytes, spool) != bytes)
+      throw Error(spool_path, "the spool is truncated");
   }
 
   void writeScene(const std::string& path) const {
@@ -360,42 +439,62 @@ MrptOutputWriter::MrptOutputWriter(const std::string& folder, const MrptOutputOp
     impl_->cleaned = std::make_unique<OutFile>(folder + "/cleaned.rawlog", opts_.gzip_level);
     impl_->labelled = std::make_unique<OutFile>(folder + "/labelled.rawlog", opts_.gzip_level);
     impl_->startSimplemap(folder + "/static_map.simplemap", opts_.gzip_level);
+    if (opts_.map_decisions) {
+      impl_->spool_path = folder + "/.mrpt_spool." + std::to_string(::getpid());
+      impl_->spool = std::fopen(impl_->spool_path.c_str(), "w+b");
+      if (!impl_->spool)
+        throw Error(impl_->spool_path, "cannot create: " + std::string(std::strerror(errno)));
+    }
   }
   if (opts_.background) impl_->worker = std::thread([this] { work(); });
 }
 
 MrptOutputWriter::~MrptOutputWriter() {
-  stopWorker(false);
-}  // an error or a signal: stop now
+  stopWorker(false);  // an error or a signal: stop now
+  impl_->closeSpool();
+}
 
 std::size_t MrptOutputWriter::scenePoints() const {
   return impl_->scene_static.size() + impl_->scene_moving.size();
 }
 
 void MrptOutputWriter::write(ScanResult&& r) {
+  Job j;
+  j.scan = std::move(r);
+  enqueue(std::move(j));
+}
+
+void MrptOutputWriter::run(const Job& j) {
+  if (j.map)
+    writeMapNow(j);
+  else
+    writeNow(j.scan);
+}
+
+void MrptOutputWriter::enqueue(Job&& j) {
   auto& I = *impl_;
-  if (!opts_.background) return writeNow(r);
+  if (!opts_.background) return run(j);
   std::unique_lock<std::mutex> lock(I.mu);
   I.cv.wait(lock, [&] { return I.queue.size() < 2 || I.error; });
   if (I.error) std::rethrow_exception(I.error);
-  I.queue.push_back(std::move(r));
+  I.queue.push_back(std::move(j));
   I.cv.notify_all();
 }
 
 void MrptOutputWriter::work() {
   auto& I = *impl_;
   for (;;) {
-    ScanResult r;
+    Job j;
     {
       std::unique_lock<std::mutex> lock(I.mu);
       I.cv.wait(lock, [&] { return !I.queue.empty() || I.closing; });
       if (I.queue.empty()) return;
-      r = std::move(I.queue.front());
+      j = std::move(I.queue.front());
       I.queue.pop_front();
       I.cv.notify_all();
     }
     try {
-      writeNow(r);
+      run(j);
     } catch (...) {
       std::lock_guard<std::mutex> lock(I.mu);
       I.error = std::current_exception();
@@ -419,81 +518,126 @@ void MrptOutputWriter::stopWorker(bool drain) {
 }
 
 void MrptOutputWriter::writeNow(const ScanResult& r) {
-  using namespace ::mrpt::obs;
   const auto t0 = Clock::now();
   auto& I = *impl_;
-  if (opts_.scene) I.addToScene(r, 1.0 / opts_.viewer_voxel);
+  const double inv_voxel = 1.0 / opts_.viewer_voxel;
+  if (opts_.scene) {
+    if (!opts_.map_decisions) I.addStatic(r.static_full, r.pose.translation().z(), inv_voxel);
+    I.addMoving(r.moving, inv_voxel);
+    I.trajectory.push_back(r.pose.translation());
+  }
   if (opts_.rawlogs) {
     if (r.scan.original_size == 0 && !r.labels.empty())
       throw Error(r.source, "scan " + r.stem + ": its points were not kept for the MRPT outputs");
-    const auto stamp = toMrptTime(r.timestamp);
-    const ::mrpt::poses::CPose3D pose = toCPose3D(r.pose);
-    auto pose_obs = CObservationRobotPose::Create();
-    pose_obs->sensorLabel = "POSE";
-    pose_obs->timestamp = stamp;
-    pose_obs->pose.mean = pose;
-    pose_obs->pose.cov.setZero();
-
     // The maps live as long as the writer: no fresh pages per scan.
-    auto& kept = *I.kept_map;
     auto& lab = *I.labelled_map;
     auto& mov = *I.moving_map;
     const std::size_t n = r.scan.size();
-    std::size_t k = 0, m = 0;
-    kept.resize(n);
+    std::size_t m = 0;
     lab.resize(n);
     mov.resize(n);
     for (std::size_t i = 0; i < n; ++i) {
       const auto& p = r.scan.points[i];
       const uint32_t l = r.labels[r.scan.originalIndex(i)];
-      if (l != kMoving)
-        kept.setPointRGB(k++, p.x, p.y, p.z, p.intensity, 0, 0);
-      else
-        mov.setPointRGB(m++, p.x, p.y, p.z, p.intensity, 0, 0);
+      if (l == kMoving) mov.setPointRGB(m++, p.x, p.y, p.z, p.intensity, 0, 0);
       const auto c = labelColour(l);
       lab.setPointRGB(i, p.x, p.y, p.z, c[0], c[1], c[2]);
     }
-    kept.resize(k);
     mov.resize(m);
-    kept.mark_as_modified();
     mov.mark_as_modified();
     lab.mark_as_modified();
     auto cloud = [&](const char* label, const ::mrpt::maps::CPointsMap::Ptr& map) {
-      auto o = CObservationPointCloud::Create();
+      auto o = ::mrpt::obs::CObservationPointCloud::Create();
       o->sensorLabel = label;
-      o->timestamp = stamp;
+      o->timestamp = toMrptTime(r.timestamp);
       o->pointcloud = map;
       return o;
     };
-    const auto cleaned = cloud("LIDAR", I.kept_map);
-    const auto labelled = cloud("LIDAR_LABELLED", I.labelled_map);
+    const auto [pb, pn] = I.enc(*Impl::poseObservation(r.pose, r.timestamp));
+    I.labelled->write(pb, pn);
+    const auto [lb, ln] = I.enc(*cloud("LIDAR_LABELLED", I.labelled_map));
+    I.labelled->write(lb, ln);
     // RawLogViewer 2.5.8 draws a point cloud without its colours (doc/MRPT.md): the moving
     // points also come as their own cloud, a LIDAR_MOVING row in its timeline.
-    const auto moving = cloud("LIDAR_MOVING", I.moving_map);
-
-    // The cleaned cloud is serialized once, for the rawlog and the simplemap.
-    const auto [pb, pn] = I.enc(*pose_obs);
-    I.cleaned->write(pb, pn);
-    I.labelled->write(pb, pn);
-    const auto [lb, ln] = I.enc(*labelled);
-    I.labelled->write(lb, ln);
-    const auto [mb, mn] = I.enc(*moving);
+    const auto [mb, mn] = I.enc(*cloud("LIDAR_MOVING", I.moving_map));
     I.labelled->write(mb, mn);
-    CSensoryFrame sf;
-    sf.insert(cleaned);
-    const auto [cb, cn] = I.enc(*cleaned);
-    I.cleaned->write(cb, cn);
-    const auto [sb, sn] = I.enc(::mrpt::poses::CPose3DPDFGaussian(pose), sf);
-    I.simplemap_body->write(sb, sn);
-    ++I.simplemap_count;
+    if (!opts_.map_decisions) {
+      I.writeCleaned(r.scan.points, r.pose, r.timestamp,
+                     [&](std::size_t i) { return r.labels[r.scan.originalIndex(i)] != kMoving; });
+    } else {  // the cleaned scan waits for the map's decision (writeMapScan)
+      SpoolHeader h{static_cast<int64_t>(r.index), r.timestamp, {}, n};
+      std::copy(r.pose.matrix().data(), r.pose.matrix().data() + 16, h.pose);
+      I.spoolWrite(&h, sizeof h);
+      I.spoolWrite(r.scan.points.data(), n * sizeof(PointXYZI));
+      std::vector<uint32_t> orig(n);
+      for (std::size_t i = 0; i < n; ++i) orig[i] = static_cast<uint32_t>(r.scan.originalIndex(i));
+      I.spoolWrite(orig.data(), n * sizeof(uint32_t));
+    }
+  }
+  if (opts_.map_decisions) ++I.spooled;
+  ms_ += msSince(t0);
+}
+
+// The map's decision of the next spooled scan (DESIGN §4a): its cleaned cloud holds the points
+// the cleaned map keeps (map_labels other than moving: the windowed test's moving points and those
+// whose space the sequence saw empty), the scene the map's points.
+void MrptOutputWriter::writeMapNow(const Job& j) {
+  const auto t0 = Clock::now();
+  auto& I = *impl_;
+  if (I.decided >= I.spooled)
+    throw Error(I.folder, "the map decided scan " + std::to_string(j.index) +
+                              ", which was never written (writeMapScan before write)");
+  ++I.decided;
+  if (opts_.scene) {
+    const double inv_voxel = 1.0 / opts_.viewer_voxel;
+    const double z0 = I.trajectory[I.decided - 1].z();
+    I.addStatic(j.kept, z0, inv_voxel);
+    I.addMoving(j.removed, inv_voxel);
+  }
+  if (opts_.rawlogs) {
+    if (I.decided == 1 && (std::fflush(I.spool) != 0 || std::fseek(I.spool, 0, SEEK_SET) != 0))
+      throw Error(I.spool_path, "cannot read the spool back");
+    SpoolHeader h;
+    I.spoolRead(&h, sizeof h);
+    if (h.index != j.index)
+      throw Error(I.folder, "the map decided scan " + std::to_string(j.index) + " where scan " +
+                                std::to_string(h.index) + " was written (out of order)");
+    std::vector<PointXYZI> pts(h.points);
+    std::vector<uint32_t> orig(h.points);
+    I.spoolRead(pts.data(), pts.size() * sizeof(PointXYZI));
+    I.spoolRead(orig.data(), orig.size() * sizeof(uint32_t));
+    Eigen::Isometry3d pose;
+    std::copy(h.pose, h.pose + 16, pose.matrix().data());
+    I.writeCleaned(pts, pose, h.timestamp, [&](std::size_t i) {
+      return orig[i] >= j.map_labels.size() || j.map_labels[orig[i]] != kMoving;
+    });
   }
   ms_ += msSince(t0);
+}
+
+void MrptOutputWriter::writeMapScan(int64_t index, const Labels& map_labels,
+                                    const std::vector<PointXYZI>& kept,
+                                    const std::vector<PointXYZI>& removed) {
+  if (!opts_.map_decisions)
+    throw Error(impl_->folder, "writeMapScan needs MrptOutputOptions::map_decisions");
+  Job j;
+  j.map = true;
+  j.index = index;
+  j.map_labels = map_labels;
+  j.kept = kept;
+  j.removed = removed;
+  enqueue(std::move(j));
 }
 
 void MrptOutputWriter::finish() {
   stopWorker(true);
   auto& I = *impl_;
   if (I.error) std::rethrow_exception(I.error);
+  if (I.decided < I.spooled)
+    throw Error(I.folder, std::to_string(I.spooled - I.decided) + " of " +
+                              std::to_string(I.spooled) +
+                              " scans were not decided by the map (writeMapScan)");
+  I.closeSpool();
   const auto t0 = Clock::now();
   if (opts_.rawlogs) {
     I.cleaned->close();

@@ -3,6 +3,7 @@
 // how it is published: everything is written into a staging folder beside OUTDIR and moved into
 // place only when the run is complete, so OUTDIR always holds one whole run (or nothing new).
 #pragma once
+#include <functional>
 #include <map>
 #include <memory>
 #include <optional>
@@ -29,6 +30,16 @@ void checkOutputFolder(const std::string& outdir, const OutputOptions& opts);
 
 /// True if `dir` holds a finished cleanmap run (a report.json written by cleanmap).
 bool isCleanmapRun(const std::string& dir);
+
+/// One scan's share of the cleaned map, as OutputWriter::writeMaps decides it (DESIGN §2e).
+struct MapScan {
+  int64_t index = 0;                   ///< the scan's index in the input
+  const std::string& stem;             ///< its file stem
+  const Labels& map_labels;            ///< per original point: what the map did (map_labels/<stem>)
+  const std::vector<PointXYZI>& kept;  ///< world frame: its points in static_map_full.ply
+  const std::vector<PointXYZI>& removed;  ///< world frame: its points in map_removed.ply
+};
+using MapScanSink = std::function<void(const MapScan&)>;
 
 /// Writes labels/<stem>.label, static_map.ply, static_map_full.ply, dynamic.ply, poses.txt,
 /// params.ini, report.md and, last, report.json (which marks a finished run) into a staging folder
@@ -58,6 +69,11 @@ class OutputWriter {
   /// static_map(_full).ply, map_removed.ply, map_labels/, poses and the report, and publishes the
   /// folder as OUTDIR. `wall_s`: whole run, seconds.
   void finish(double wall_s, const FreeSpaceMap* free_space = nullptr);
+  /// The map part of finish(), for a caller that needs the map's decisions first (the MRPT
+  /// outputs): decides every spooled point and streams the maps and map_labels/, handing each
+  /// scan's share to `sink` in scan order. finish() then does not decide again (its free_space
+  /// is ignored). Call it once.
+  void writeMaps(const FreeSpaceMap* free_space, const MapScanSink& sink = {});
 
   const std::string& dir() const { return dir_; }  ///< OUTDIR
   const std::string& staging() const {
@@ -78,7 +94,7 @@ class OutputWriter {
   bool published_ = false;
   PipelineParams params_;
   void spoolScan(const ScanResult& r);
-  void writeMaps(const FreeSpaceMap* free_space);
+  bool maps_written_ = false;
   std::unique_ptr<PlyStreamWriter> compact_, full_, moving_, removed_;
   std::FILE* spool_ = nullptr;  // the map points of every scan until finish() decides them
   std::string spool_path_;

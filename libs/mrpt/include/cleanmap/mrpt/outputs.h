@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "cleanmap/core/scan_result.h"
 
@@ -26,6 +27,12 @@ struct MrptOutputOptions {
   /// Write on a thread of its own (one scan queued at most besides the one being written), so the
   /// work overlaps the pipeline's single-threaded stages. Output bytes do not depend on it.
   bool background = true;
+  /// The caller hands the cleaned map's decision of every scan (writeMapScan, in the order the
+  /// scans were written; the app does it from io::OutputWriter::writeMaps): cleaned.rawlog, the
+  /// simplemap and the scene's static map then hold what static_map_full.ply holds, and the
+  /// cleaned scans wait in a spool in `folder` until then. Off: they hold every point the
+  /// windowed labels do not call moving, written as the scans come.
+  bool map_decisions = false;
 };
 
 /// Colour of a label in labelled.rawlog (RGB in [0, 1]); exact binary fractions, so a reader
@@ -37,7 +44,8 @@ uint32_t labelFromColour(float r, float g, float b);
 /// Writes the MRPT outputs of a run into `folder` (the run's staging folder), scan by scan.
 /// Each scan, as decided (ScanResult with its scan kept), adds to
 ///  - cleaned.rawlog: CObservationRobotPose "POSE" + CObservationPointCloud "LIDAR" (XYZI, sensor
-///    frame, sensorPose identity) holding every point but the moving ones;
+///    frame, sensorPose identity) holding every point but the moving ones (with map_decisions:
+///    but those the map's decision calls moving, written when writeMapScan decides the scan);
 ///  - labelled.rawlog: the same pose + a CObservationPointCloud "LIDAR_LABELLED" of every valid
 ///    point, a CColouredPointsMap coloured by label (labelColour);
 ///  - static_map.simplemap: (CPose3DPDFGaussian, sensory frame of the cleaned point cloud);
@@ -54,14 +62,24 @@ class MrptOutputWriter {
   /// Takes the scan (queued with `background`). Throws cleanmap::Error if the scan's points were
   /// not kept (with rawlogs on), or an error of an earlier scan's writing.
   void write(ScanResult&& r);
-  /// Writes the rest and closes every file; rethrows an error of the worker.
+  /// With map_decisions: the map's decision of the next scan written (its index checked):
+  /// `map_labels` per original point (kMoving: not in the cleaned scan), `kept` / `removed` its
+  /// points in the map / removed from it (world frame, for the scene). Queued like write().
+  void writeMapScan(int64_t index, const Labels& map_labels, const std::vector<PointXYZI>& kept,
+                    const std::vector<PointXYZI>& removed);
+  /// Writes the rest and closes every file; rethrows an error of the worker. With map_decisions,
+  /// a scan the map did not decide is an error.
   void finish();
 
   double writeMs() const { return ms_; }  ///< time spent writing (on the worker), after finish()
   std::size_t scenePoints() const;        ///< static + moving points shown in the scene
 
  private:
+  struct Job;
   void writeNow(const ScanResult& r);
+  void writeMapNow(const Job& j);
+  void run(const Job& j);
+  void enqueue(Job&& j);
   void work();
   void stopWorker(bool drain);
 
