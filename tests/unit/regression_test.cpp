@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
+#include <map>
 
 #include "cleanmap/core/metrics.h"
 #include "cleanmap/eval/evaluate.h"
@@ -139,5 +140,66 @@ TEST(Regression, CleanMapAboveDufomap) {
     RecordProperty(std::string(set) + "_AA", std::to_string(m.aa()));
     EXPECT_GT(m.aa(), dufomap) << set << ": SA " << m.sa() << ", DA " << m.da();
     EXPECT_GE(m.sa(), 0.96) << set;  // measured >= 0.971: the cleaning keeps the static world
+  }
+}
+
+// DESIGN §2f: a long drive cut into chunks for a cluster. With epochs of 10 scans and K = 5 (so
+// that the 30 scans hold two chunks), each chunk's owned scans get the whole run's labels byte
+// for byte however far before its first owned epoch the chunk starts (2K at least), and the
+// chunks' free-space accumulators, each fed only the scans it owns, merge into the whole run's.
+// Without epochs (run.epoch 0) the duplicate filter and the persistence carry the overlap's
+// different decisions into the owned scans: the chunk started at 3 labelled a whole car of scan
+// 26 otherwise, and its free space differed.
+TEST(Regression, ChunksReproduceTheWholeRun) {
+  CLEANMAP_REQUIRE_DATASET("kitti_highway");
+  auto seq = io::KittiSequence::open(test::dataDir() + "/kitti_highway");
+  PipelineParams p;
+  p.ds.window_k = 5;
+  p.epoch = 10;
+  struct Run {
+    std::map<long, Labels> labels;
+    std::vector<Eigen::Vector3f> probes;  // every return and the midpoint of its beam
+    std::unique_ptr<FreeSpaceMap> free;
+  };
+  auto run = [&](long first, long last, long own_first, long own_last) {
+    Run out;
+    LaserPipeline pl(p, [&](ScanResult&& r) {
+      out.labels[static_cast<long>(r.index)] = r.labels;
+      const Eigen::Vector3f o = r.pose.translation().cast<float>();
+      for (const auto& q : r.static_full)
+        out.probes.insert(out.probes.end(), {q.xyz(), 0.5f * (q.xyz() + o)});
+      for (const auto& q : r.moving)
+        out.probes.insert(out.probes.end(), {q.xyz(), 0.5f * (q.xyz() + o)});
+    });
+    pl.setMapScans(own_first, own_last);
+    for (long i = first; i <= last; ++i) pl.push(seq.frame(static_cast<std::size_t>(i)));
+    pl.finish();
+    out.free = std::make_unique<FreeSpaceMap>(*pl.freeSpace());
+    return out;
+  };
+  const long n = static_cast<long>(seq.size());
+  ASSERT_EQ(n, 30);
+  const Run whole = run(0, n - 1, 0, n - 1);
+  // Chunk A owns 0..19 (scan 19's window reaches 24). Chunk B owns 20..29: its start 3 lies 17
+  // scans (>= 2K) before its first owned epoch; another start, 7, must give the same.
+  const Run a = run(0, 24, 0, 19);
+  for (long s = 0; s < 20; ++s) EXPECT_TRUE(a.labels.at(s) == whole.labels.at(s)) << "scan " << s;
+  for (const long start : {3L, 7L}) {
+    const Run b = run(start, n - 1, 20, n - 1);
+    for (long s = 20; s < n; ++s)
+      EXPECT_TRUE(b.labels.at(s) == whole.labels.at(s)) << "start " << start << ", scan " << s;
+    FreeSpaceMap merged(*b.free);
+    merged.merge(*a.free);
+    EXPECT_EQ(merged.voxelsMarked(), whole.free->voxelsMarked());
+    EXPECT_EQ(merged.blocks(), whole.free->blocks());
+    std::size_t differ = 0, free_probes = 0;
+    for (const auto& q : whole.probes) {
+      const FreeEvidence x = merged.evidence(q), y = whole.free->evidence(q);
+      differ += x.count != y.count || x.hits != y.hits || x.first != y.first || x.last != y.last ||
+                x.last_hit != y.last_hit;
+      free_probes += y.count > 0;
+    }
+    EXPECT_EQ(differ, 0u) << "start " << start << ": voxels whose merged evidence differs";
+    EXPECT_GT(free_probes, whole.probes.size() / 10);  // the probes do reach free space
   }
 }

@@ -55,6 +55,7 @@ void validate(const PipelineParams& p, const std::string& name) {
   require(r.max_speed > 0 && r.max_turn_rate > 0,
           "registration.max_speed and max_turn_rate must be > 0");
   require(p.threads >= 1, "run.threads must be >= 1");
+  require(p.epoch >= 0, "run.epoch must be >= 0 (0: the whole run is one epoch)");
   const auto& m = p.map;
   require(m.radius >= 0, "static_map.radius must be >= 0 (0: the map holds the crop only)");
   require(m.voxel >= 0.02 && m.voxel <= 5, "static_map.voxel must be in [0.02, 5] m");

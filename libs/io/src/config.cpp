@@ -154,6 +154,7 @@ std::map<std::string, Key> table(PipelineParams& p) {
                        false,
                        true}},
       {"run.threads", i(p.threads)},
+      {"run.epoch", i(p.epoch)},
   };
 }
 

@@ -91,6 +91,9 @@ std::unique_ptr<LaserPipeline> LaserPipeline::clone(Sink sink) const {
   c->camera_ = camera_;
   c->prev_index_ = prev_index_;
   c->prev_moving_cells_ = prev_moving_cells_;
+  c->epoch_ = epoch_;
+  c->map_first_ = map_first_;
+  c->map_last_ = map_last_;
   c->source_ = source_;
   if (odo_) c->odo_ = std::make_unique<reg::Odometry>(*odo_);
   c->prev_odometry_ = prev_odometry_;
@@ -263,7 +266,8 @@ void LaserPipeline::push(Frame&& frame) {
 // same: one insertion at a time, in scan order). Its time is reported with the next decided scan
 // (`free_space` is then not in `total`); with one thread it runs here and is.
 double LaserPipeline::insertFreeSpace(const Prepared& s, const Work& w) {
-  if (!free_) return 0.0;
+  const long index = static_cast<long>(s.index);
+  if (!free_ || index < map_first_ || index > map_last_) return 0.0;  // §2f: another chunk's
   joinFreeSpace();
   const double previous_ms = free_ms_;  // read before the next job may write it
   free_mask_.resize(s.scan.size());
@@ -324,13 +328,14 @@ void LaserPipeline::decide(std::size_t pos) {
   s.stats.window = window.size();
   Work& w = *work_;
   w.clear();
-  findDuplicates(s, w);          // §2.3
-  sampleLeaves(s, w);            // §2c
-  classify(window, s, w);        // §2b
-  decideLeaves(s, w);            // §2c
-  objectConsensus(s, w);         // doc/OBJECTS.md
-  validateImages(pos, s, w);     // §3
-  ScanResult r = collect(s, w);  // §2.7: labels, static map, dynamic layer
+  startEpoch(static_cast<long>(s.index));  // §2f
+  findDuplicates(s, w);                    // §2.3
+  sampleLeaves(s, w);                      // §2c
+  classify(window, s, w);                  // §2b
+  decideLeaves(s, w);                      // §2c
+  objectConsensus(s, w);                   // doc/OBJECTS.md
+  validateImages(pos, s, w);               // §3
+  ScanResult r = collect(s, w);            // §2.7: labels, static map, dynamic layer
   remember(r, static_cast<long>(s.index));
   if (odo_)
     odo_->dropPoints(static_cast<int64_t>(s.index), w.moving);  // movers leave the local map
@@ -629,6 +634,17 @@ ScanResult LaserPipeline::collect(Prepared& s, const Work& w) const {
 
 // State for the next scans: the compact static points feed the duplicate filter; this scan's
 // moving points, dilated by one cell, feed the next scan's hysteresis.
+// DESIGN §2f: the first scan of an epoch starts with no memory of earlier decisions, so labels
+// depend on the epoch's scans and the 2K before it (windows, ground heights), never on where the
+// run started.
+void LaserPipeline::startEpoch(long index) {
+  const long e = p_.epoch > 0 ? index / p_.epoch : 0;
+  if (e == epoch_) return;
+  epoch_ = e;
+  dup_ = DuplicateFilter(p_.filter);
+  prev_moving_cells_.clear();
+}
+
 void LaserPipeline::remember(const ScanResult& r, long index) {
   std::vector<Eigen::Vector3f> inserted;
   inserted.reserve(r.static_compact.size());

@@ -188,6 +188,12 @@ struct PipelineParams {
   PoseSource poses = PoseSource::kAuto;  ///< a run option (--poses), not an ini key
   uint64_t seed = 42;                    ///< octree sampling; a run is reproducible bit for bit
   int threads = 2;                       ///< worker threads for the moving-point test (1 = serial)
+  /// Scans. At every multiple of this scan index the memories of earlier decisions (the
+  /// duplicate filter, the object persistence) are dropped, so a scan's labels depend only on
+  /// its epoch and the 2K scans before it: a chunk of a long drive reproduces the whole run's
+  /// labels from the first epoch that starts 2K scans after the chunk does (DESIGN §2f). 0: one
+  /// epoch, the whole run.
+  int epoch = 100;
 };
 
 /// Checks physical sense (positive sizes, r_inf <= r_sup < 1, K >= 1, ...); throws

@@ -4,6 +4,7 @@
 #pragma once
 #include <deque>
 #include <functional>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <thread>
@@ -48,6 +49,13 @@ class LaserPipeline {
     joinFreeSpace();
     return free_.get();
   }
+  /// DESIGN §2f: only the scans with an index in [first, last] add to the free space: a chunk
+  /// of a long drive inserts the scans it owns, not its overlap with the chunks beside it, so the
+  /// chunks' accumulators merge (FreeSpaceMap::merge) into the whole run's.
+  void setMapScans(long first, long last) {
+    map_first_ = first;
+    map_last_ = last;
+  }
   /// Hand each scan's points to the sink too (ScanResult::scan), for outputs made per scan.
   void keepScans(bool on) { keep_scans_ = on; }
   /// DESIGN §3: the camera of the frames' images (FrameSource::camera()). With a camera and
@@ -78,6 +86,7 @@ class LaserPipeline {
   void validateImages(std::size_t pos, Prepared& s, Work& w) const;
   ScanResult collect(Prepared& s, const Work& w) const;
   void remember(const ScanResult& r, long index);
+  void startEpoch(long index);
 
   PipelineParams p_;
   Sink sink_;
@@ -90,6 +99,8 @@ class LaserPipeline {
   bool overlays_ = false;
   std::optional<PinholeCamera> camera_;  // DESIGN §3
   long prev_index_ = -1;
+  long epoch_ = -1;  // DESIGN §2f: the epoch of the last decided scan
+  long map_first_ = std::numeric_limits<long>::min(), map_last_ = std::numeric_limits<long>::max();
   std::unordered_set<uint64_t> prev_moving_cells_;  // last decided scan's moving cells, dilated
   std::unique_ptr<Work> work_;
   std::unique_ptr<FreeSpaceMap> free_;  // DESIGN §2e, whole sequence
