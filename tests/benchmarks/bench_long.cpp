@@ -6,7 +6,7 @@
 // number of scans. Outputs are not written (the app streams them to disk, doc/BENCHMARK.md).
 // The lidar is simulated ahead of each scan and not timed.
 //
-// usage: cleanmap-bench-long [--scans N] [--every M] [--threads T] [--rings 64|32|16]
+// usage: cleanmap-bench-long [--scans N] [--every M] [--threads T] [--rings 64|32|16] [--epoch E]
 //   one line per M scans: scans, RSS and peak RSS (MiB), median / p90 / max ms per scan
 //   (LaserPipeline::push) over the block, the process CPU time per scan over the block (ms, all
 //   threads, the simulator's excluded: less sensitive than wall time to a neighbour's load), and
@@ -61,7 +61,7 @@ std::vector<Eigen::Vector2d> shuttle(const std::vector<Eigen::Vector2d>& path, i
 int usage() {
   std::fprintf(stderr,
                "usage: cleanmap-bench-long [--scans N] [--every M] [--threads T] "
-               "[--rings 64|32|16]\n");
+               "[--rings 64|32|16] [--epoch E]\n");
   return 2;
 }
 
@@ -69,11 +69,15 @@ int usage() {
 
 int main(int argc, char** argv) {
   using namespace cleanmap;
-  int scans = 10000, every = 500, threads = 2, rings = 64;
+  int scans = 10000, every = 500, threads = 2, rings = 64, epoch = PipelineParams{}.epoch;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (i + 1 >= argc) return usage();
     const int v = std::atoi(argv[++i]);
+    if (a == "--epoch" && v >= 0) {  // 0: one epoch (DESIGN §2f)
+      epoch = v;
+      continue;
+    }
     if (v <= 0) return usage();
     if (a == "--scans")
       scans = v;
@@ -103,12 +107,13 @@ int main(int argc, char** argv) {
 
     PipelineParams params;
     params.threads = threads;
+    params.epoch = epoch;
     std::size_t decided = 0;
     LaserPipeline pipe(params, [&](ScanResult&&) { ++decided; });
     std::printf(
         "# cleanmap-bench-long: %d scans of the default street driven back and forth, "
-        "%d rings, %d threads, default parameters\n",
-        scans, rings, threads);
+        "%d rings, %d threads, run.epoch %d, default parameters otherwise\n",
+        scans, rings, threads, epoch);
     std::printf("%8s %9s %9s %8s %8s %8s %8s %9s\n", "scans", "rss_mib", "peak_mib", "med_ms",
                 "p90_ms", "max_ms", "cpu_ms", "free_mib");
     std::vector<double> block;
