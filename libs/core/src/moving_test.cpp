@@ -33,12 +33,14 @@ ds::Mass MovingTest::scanMass(const Eigen::Vector3d& p_world, const WindowScan& 
   bool conflict = false;
   float e_max = 0.0f, o_max = 0.0f;  // the scan's most-empty beam, most-occupied return at P
   const float band = static_cast<float>(2.0 * model_.sigma);  // not an occluder in front of P
+  std::size_t beams = 0;
   s.beams->forEachNear(dir, radius, [&](const BeamIndex::Beam& q) {
     // Small angles: theta = |a x b| to float precision (a dot product would lose it).
     const float theta2 = dir.cross(q.dir).squaredNorm();
     if (theta2 > r2max || dir.dot(q.dir) <= 0.0f) return;
     const float r = df * std::sqrt(1.0f - theta2) - q.range;  // |OP'| - |OQ|
     if (r > r_far) return;  // far behind the hit: unknown, the identity of Dempster's rule
+    ++beams;
     const ds::Mass b = model_.beamFloat(r, theta2);
     e_max = std::max(e_max, static_cast<float>(b.e));
     if (r <= band) o_max = std::max(o_max, static_cast<float>(b.o));  // a return at P's range
@@ -53,7 +55,10 @@ ds::Mass MovingTest::scanMass(const Eigen::Vector3d& p_world, const WindowScan& 
     m = ds::Mass{};
     if (stats) ++stats->conflicting_scans;
   }
-  if (conflict && stats) ++stats->total_conflicts;
+  if (stats) {
+    stats->total_conflicts += conflict;
+    stats->beams += beams;
+  }
   return m;
 }
 
@@ -75,7 +80,11 @@ std::optional<bool> MovingTest::combineWindow(const Eigen::Vector3d& p_world,
   double lead = 0.0;  // S_e - S_o
   for (std::size_t i = 0; i < window.size(); ++i) {
     const double rest = static_cast<double>(window.size() - i) * w_max + kSafety;
-    if (stop_early && (lead > rest || -lead > rest)) return lead > 0;  // votes were cast
+    if (stop_early && (lead > rest || -lead > rest)) {  // votes were cast
+      if (stats) ++stats->early;
+      return lead > 0;
+    }
+    if (stats) ++stats->scans_visited;
     double d = 0;
     const ds::Mass m = scanMass(p_world, window[i], &d, stats);
     const ds::Mass dm = ds::discretise(m, ds::discreteBelief(d, window[i].beams->farthest(), p_));

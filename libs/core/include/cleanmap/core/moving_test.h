@@ -19,10 +19,14 @@ struct WindowScan {
   double pose_noise2 = 0.0;
 };
 
-struct MovingTestStats {
+// One per worker thread: aligned to a cache line so workers never share one (issue #16).
+struct alignas(64) MovingTestStats {
   std::size_t total_conflicts = 0;    ///< Dempster combinations with K = 1 (set to unknown)
   std::size_t no_evidence = 0;        ///< points that no window scan saw (all unknown)
   std::size_t conflicting_scans = 0;  ///< empty scan votes made unknown (DsParams::scan_conflict)
+  std::size_t scans_visited = 0;      ///< (point, window scan) pairs looked up
+  std::size_t beams = 0;              ///< beams inside the cone, each a beam mass (Eq. 2-5)
+  std::size_t early = 0;              ///< points decided before the last window scan
 };
 
 class MovingTest {

@@ -29,6 +29,9 @@ struct ScanStats {
   std::size_t window = 0;   ///< scans in the window
   std::size_t map_far = 0;  ///< points beyond the crop within the map radius (DESIGN §2e)
   std::size_t total_conflicts = 0, no_evidence = 0;
+  /// The moving-point test's work (issue #16): (tested point, window scan) pairs looked up, beams
+  /// evaluated in their cones, points decided before their last window scan.
+  std::size_t scans_visited = 0, beams = 0, early_decisions = 0;
   std::size_t conflicting_scans = 0;  ///< empty scan votes made unknown (doc/SCAN_CONFLICT.md)
   std::size_t objects_moving = 0, consensus_points = 0, consensus_removed = 0;  ///< doc/OBJECTS.md
   std::size_t objects_persisted = 0;  ///< of objects_moving, kept moving by the hysteresis
