@@ -320,6 +320,36 @@ TEST(MovingTest, VacatedSpaceStillVotesEmpty) {
                                          {{&idx2, Eigen::Isometry3d::Identity()}}, nullptr));
 }
 
+TEST(MovingTest, ItsWorkIsCounted) {
+  // Issue #16: every window scan visited and every beam inside its cone is counted, and a point
+  // whose votes can no longer be overturned is decided early. Twenty scans all see the place
+  // empty: the decision comes before the last of them.
+  const auto scan = hedgeScan([](int, int) { return false; });
+  const DsParams p;
+  const BeamIndex idx(scan, p.search_lambdas * p.lambda_theta);
+  const std::vector<WindowScan> w(20, WindowScan{&idx, Eigen::Isometry3d::Identity()});
+  const Eigen::Vector3d at(10.0, 0.03, 0.01);
+  MovingTestStats st;
+  EXPECT_TRUE(MovingTest(p).isMoving(at, w, &st));
+  EXPECT_EQ(st.early, 1u);
+  EXPECT_GE(st.scans_visited, 1u);
+  EXPECT_LT(st.scans_visited, w.size());
+  // Beams per visit: those within the cone, counted by brute force.
+  const Eigen::Vector3f dir = at.normalized().cast<float>();
+  const double r = p.search_lambdas * p.lambda_theta;
+  std::size_t in_cone = 0;
+  for (const auto& q : scan) {
+    const Eigen::Vector3f u = q.xyz().normalized();
+    in_cone += dir.dot(u) > 0 && dir.cross(u).squaredNorm() <= float(r * r);
+  }
+  ASSERT_GT(in_cone, 0u);
+  EXPECT_EQ(st.beams, st.scans_visited * in_cone);
+  MovingTestStats all;
+  MovingTest(p).windowMass(at, w, &all);  // no early stop: every scan
+  EXPECT_EQ(all.scans_visited, w.size());
+  EXPECT_EQ(all.early, 0u);
+}
+
 TEST(MovingTest, ThinPoleWithRegistrationErrorStaysStatic) {
   // A 12 cm pole at x = 10 m; another scan measured a point of its edge 4 cm off to the side
   // (a pose error along the track). Some beams near that direction hit the pole, others pass it.
