@@ -196,7 +196,7 @@ TEST(Regression, ChunksReproduceTheWholeRun) {
     for (const auto& q : whole.probes) {
       const FreeEvidence x = merged.evidence(q), y = whole.free->evidence(q);
       differ += x.count != y.count || x.hits != y.hits || x.first != y.first || x.last != y.last ||
-                x.last_hit != y.last_hit;
+                x.last_hit != y.last_hit || x.emptied_between != y.emptied_between;
       free_probes += y.count > 0;
     }
     EXPECT_EQ(differ, 0u) << "start " << start << ": voxels whose merged evidence differs";

@@ -131,7 +131,7 @@ TEST(SimMap, TruckCrawlingBesideAStandingEgo) {
 TEST(SimMap, CarStoppingFor5sThenLeaving) {
   const auto r = runMapCase(scenario("car_stops_5s"), {}, "default");
   EXPECT_GE(r.removed("stopping_car"), 0.90);        // measured 0.934
-  EXPECT_LE(r.kept("stopping_car/standing"), 0.25);  // measured 0.145 (0.80 without vacated)
+  EXPECT_LE(r.kept("stopping_car/standing"), 0.25);  // measured 0.122 (0.80 without vacated)
   EXPECT_GE(r.kept("world"), 0.995);                 // measured 0.9987
 }
 
@@ -140,19 +140,22 @@ TEST(SimMap, ParkedCarThatDrivesOff) {
       runMapCase(scenario("parked_leaves"), withPolicy(MapPolicy::kTransient), "transient");
   EXPECT_LE(t.kept("leaving_car/standing"), 0.20);    // measured 0.131: it stood, then left
   EXPECT_GE(t.removed("leaving_car/vacated"), 0.90);  // measured 0.929
-  EXPECT_GE(t.kept("world"), 0.985);                  // measured 0.9976
+  EXPECT_GE(t.kept("world"), 0.985);                  // measured 0.9958
   const auto m = runMapCase(scenario("parked_leaves"), withPolicy(MapPolicy::kMoving), "moving");
   EXPECT_GE(m.kept("leaving_car/standing"), 0.95);  // measured 0.988: static while scanned
   EXPECT_GE(m.kept("world"), 0.99);                 // measured 0.9999
 }
 
 TEST(SimMap, QueueThatStopsAndGoes) {
-  // The next car of the queue fills the space the one before left: only the space no car holds
-  // at the end was seen empty for good. The next car's returns, which the windowed test calls
-  // static, also keep their own scan from seeing the space just left empty (hit_inflate).
+  // The next car of the queue fills the space the one before left, so the lane is seen empty in
+  // about a third of the scans (the gaps): under free_ratio. But each gap is a run of empty
+  // scans between two returns (vacated_scans), which the windowed test cannot see (recall 0.06).
+  // The last car's place at the end was never seen empty: queue_3 keeps most of its points.
   const auto r = runMapCase(scenario("queue_stop_go"), {}, "default");
-  EXPECT_GE(r.removed("queue_1/vacated"), 0.80);  // measured 0.858
-  EXPECT_GE(r.removed("queue_2/vacated"), 0.62);  // measured 0.690
-  EXPECT_GE(r.removed("queue_3/vacated"), 0.52);  // measured 0.578
+  EXPECT_GE(r.removed("queue_1"), 0.90);          // measured 0.967 (0.297 without the runs)
+  EXPECT_GE(r.removed("queue_2"), 0.75);          // measured 0.829 (0.279)
+  EXPECT_GE(r.removed("queue_1/vacated"), 0.88);  // measured 0.928
+  EXPECT_GE(r.removed("queue_2/vacated"), 0.70);  // measured 0.774
+  EXPECT_GE(r.removed("queue_3/vacated"), 0.52);  // measured 0.581
   EXPECT_GE(r.kept("world"), 0.999);              // measured 1.0000
 }

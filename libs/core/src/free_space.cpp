@@ -36,6 +36,11 @@ struct FreeSpaceMap::Block {
     int32_t last_hit = -1;          // the last scan that returned from it
     uint16_t count = 0;             // scans that saw it empty (saturating)
     uint16_t hits = 0;              // scans that returned from it (saturating)
+    // Runs of empty scans (saturating at 255; scans come in order within an accumulator): those
+    // before the first return, those since the last, and whether a run of at least
+    // vacated_scans lay between two returns.
+    uint8_t lead = 0, trail = 0;
+    uint8_t emptied_between = 0;
   };
   Voxel v[kVoxels];  // one cache line per visit
   void restamp(int64_t scan) {
@@ -55,7 +60,10 @@ bool removedByPolicy(const FreeEvidence& e, int64_t scan, const MapParams& p) {
   // fences, windows) or grazing beams past a surface, not a place something left.
   // Unless only empty for vacated_scans after its last return: it stood there, then left (every
   // scan after the last hit saw it empty, by definition; see-through space is hit again).
-  const bool vacated = p.vacated_scans > 0 && e.last - e.last_hit >= p.vacated_scans;
+  // Or a run of that many scans saw it empty between two of its returns: a queue's cars, a body
+  // that left and another that came (DESIGN §2e).
+  const bool vacated =
+      p.vacated_scans > 0 && (e.last - e.last_hit >= p.vacated_scans || e.emptied_between);
   if (!vacated && double(e.count) < p.free_ratio * double(e.hits)) return false;
   if (p.policy == MapPolicy::kTransient) return true;
   return e.first < scan && e.last > scan;  // kMoving: empty before and after (it came and went)
@@ -133,6 +141,9 @@ void FreeSpaceMap::insertScan(const std::vector<PointXYZI>& points, const Eigen:
       if (!Block::bit(b->hit, li)) {
         Block::set(b->hit, li);
         auto& v = b->v[li];
+        if (v.hits > 0 && p_.vacated_scans > 0 && v.trail >= p_.vacated_scans)
+          v.emptied_between = 1;  // something stood here, left, and something came again
+        v.trail = 0;
         if (v.hits < 0xFFFF) ++v.hits;
         v.last_hit = std::max(v.last_hit, static_cast<int32_t>(scan));
       }
@@ -240,6 +251,8 @@ void FreeSpaceMap::insertScan(const std::vector<PointXYZI>& points, const Eigen:
       for (uint64_t m = tb->seen[w]; m; m &= m - 1) {
         auto& x = tb->v[w * 64 + __builtin_ctzll(m)];
         if (x.count < 0xFFFF) ++x.count;
+        if (x.trail < 0xFF) ++x.trail;
+        if (x.hits == 0 && x.lead < 0xFF) ++x.lead;
         if (x.first < 0 || s32 < x.first) x.first = s32;
         x.last = std::max(x.last, s32);
         ++marked_;
@@ -257,6 +270,7 @@ FreeEvidence FreeSpaceMap::evidence(const Eigen::Vector3f& p) const {
   const int li = localIndex(x, y, z);
   e.count = static_cast<int>(b->v[li].count);
   e.hits = static_cast<int>(b->v[li].hits);
+  e.emptied_between = b->v[li].emptied_between != 0;
   e.first = b->v[li].first;
   e.last = b->v[li].last;
   e.last_hit = b->v[li].last_hit;
@@ -271,6 +285,24 @@ void FreeSpaceMap::merge(const FreeSpaceMap& o) {
       const auto& theirs = ob->v[i];
       auto& m = mine->v[i];
       if (theirs.count == 0 && theirs.hits == 0) continue;
+      if (m.count == 0 && m.hits == 0) {
+        m = theirs;
+        continue;
+      }
+      // The runs join in scan order: the chunks own disjoint ranges of scans, so the one whose
+      // last activity is earlier holds only earlier scans.
+      const bool mine_first = std::max(m.last, m.last_hit) < std::max(theirs.last, theirs.last_hit);
+      const Block::Voxel& a = mine_first ? m : theirs;
+      const Block::Voxel& b = mine_first ? theirs : m;
+      const auto sat = [](int v) { return static_cast<uint8_t>(std::min(v, 0xFF)); };
+      const uint8_t lead = a.hits ? a.lead : sat(a.lead + b.lead);
+      const uint8_t trail = b.hits ? b.trail : sat(a.trail + b.trail);
+      const bool between =
+          a.emptied_between || b.emptied_between ||
+          (a.hits && b.hits && p_.vacated_scans > 0 && a.trail + b.lead >= p_.vacated_scans);
+      m.lead = lead;
+      m.trail = trail;
+      m.emptied_between = between;
       m.count = static_cast<uint16_t>(std::min(0xFFFF, m.count + theirs.count));
       m.hits = static_cast<uint16_t>(std::min(0xFFFF, m.hits + theirs.hits));
       if (theirs.first >= 0 && (m.first < 0 || theirs.first < m.first)) m.first = theirs.first;

@@ -3,9 +3,11 @@
 // marks the voxels it passed through as seen empty by that scan, stopping a margin short of its
 // return (the beam model's noise, DESIGN §2b) and skipping the voxels that scan itself hits (the
 // scan-conflict rule, doc/SCAN_CONFLICT.md). Per voxel it keeps how many scans saw it empty and
-// the first and last of them: sums, minima and maxima, so two accumulators of a sequence's chunks
-// merge exactly (merge() commutes) and memory grows with the volume the beams swept (the area
-// mapped), not with the number of scans.
+// the first and last of them, and the runs of empty scans before its first return, since its last
+// and whether one lay between two returns: sums, minima, maxima and runs joined in scan order, so
+// the accumulators of a sequence's chunks (disjoint ranges of scans) merge exactly (merge()
+// commutes) and memory grows with the volume the beams swept (the area mapped), not with the
+// number of scans.
 #pragma once
 #include <Eigen/Geometry>
 #include <array>
@@ -25,6 +27,8 @@ struct FreeEvidence {
   int hits = 0;  ///< scans that returned from the voxel
   int64_t first = -1, last = -1;
   int64_t last_hit = -1;  ///< the last scan that returned from it
+  /// A run of at least vacated_scans scans saw it empty between two of its returns.
+  bool emptied_between = false;
 };
 
 /// Is a map point (non-ground) of scan `scan` removed, given its voxel's evidence?
@@ -38,15 +42,16 @@ class FreeSpaceMap {
   FreeSpaceMap& operator=(const FreeSpaceMap&) = delete;
 
   /// Adds one scan: `points` in the sensor frame (every valid return is a beam), `pose` sensor to
-  /// world, `scan` its index in the sequence (scans may come in any order, each once). `moving`
-  /// (optional, per point): the returns decided moving, around which hit_inflate does not apply
-  /// (a slow mover's own neighbourhood is what it leaves empty next).
+  /// world, `scan` its index in the sequence (each once; in increasing order, or the runs of empty
+  /// scans mean nothing). `moving` (optional, per point): the returns decided moving, around which
+  /// hit_inflate does not apply (a slow mover's own neighbourhood is what it leaves empty next).
   void insertScan(const std::vector<PointXYZI>& points, const Eigen::Isometry3d& pose, int64_t scan,
                   const std::vector<uint8_t>* moving = nullptr);
   /// The evidence of the voxel holding world point p.
   FreeEvidence evidence(const Eigen::Vector3f& p) const;
-  /// Adds another accumulator of the same parameters (another chunk of the sequence); the result
-  /// does not depend on the order of merging.
+  /// Adds another accumulator of the same parameters (another chunk of the sequence, whose scans
+  /// all come before or all after this one's); the result does not depend on the order of
+  /// merging.
   void merge(const FreeSpaceMap& o);
 
   std::size_t blocks() const { return blocks_.size(); }
