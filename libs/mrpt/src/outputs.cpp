@@ -177,11 +177,6 @@ class CellSet {
 
 }  // namespace
 
-// A CSimpleMap is written as a stream: MRPT's serialization of it is the object header, a uint32
-// count, the (pose, sensory frame) pairs, and an end byte 0x88. The pairs go to one gzip member as
-// they come, the header with the final count to another, and the two members are concatenated
-// (gzip readers, zlib's included, read concatenated members as one stream). The header is taken
-// from MRPT's own serialization of an empty map, so a changed format is detected, never guessed.
 // A queued piece of work of the writer thread: a decided scan, or the map's decision of one.
 struct MrptOutputWriter::Job {
   bool map = false;
@@ -202,6 +197,11 @@ struct SpoolHeader {
 };
 }  // namespace
 
+// A CSimpleMap is written as a stream: MRPT's serialization of it is the object header, a uint32
+// count, the (pose, sensory frame) pairs, and an end byte 0x88. The pairs go to one gzip member as
+// they come, the header with the final count to another, and the two members are concatenated
+// (gzip readers, zlib's included, read concatenated members as one stream). The header is taken
+// from MRPT's own serialization of an empty map, so a changed format is detected, never guessed.
 struct MrptOutputWriter::Impl {
   std::string folder;
   std::unique_ptr<OutFile> cleaned, labelled, simplemap_body;
