@@ -98,14 +98,15 @@ std::size_t FreeSpaceMap::bytes() const {
 // Sets the near bits of a voxel box (inclusive x0 x1 y0 y1 z0 z1) block by block: a mask word
 // of a block is one x plane of 8 y x 8 z voxels, so the box's share of a plane is one mask.
 void FreeSpaceMap::markNear(const std::array<int64_t, 6>& box, int64_t scan) {
+  // A block's first voxel is blk * kSide: a left shift of a negative index is undefined.
   constexpr int64_t kLast = kSide - 1;
   for (int64_t bx = box[0] >> kBits; bx <= box[1] >> kBits; ++bx)
     for (int64_t by = box[2] >> kBits; by <= box[3] >> kBits; ++by)
       for (int64_t bz = box[4] >> kBits; bz <= box[5] >> kBits; ++bz) {
         Block& b = block(cellKey(bx, by, bz), scan);
-        const auto lo = [](int64_t v, int64_t blk) { return std::max(v, blk << kBits) & kLast; };
+        const auto lo = [](int64_t v, int64_t blk) { return std::max(v, blk * kSide) & kLast; };
         const auto hi = [](int64_t v, int64_t blk) {
-          return std::min(v, (blk << kBits) + kLast) & kLast;
+          return std::min(v, blk * kSide + kLast) & kLast;
         };
         const int64_t xa = lo(box[0], bx), xb = hi(box[1], bx);
         const int64_t ya = lo(box[2], by), yb = hi(box[3], by);
