@@ -119,15 +119,7 @@ int main(int argc, char** argv) {
     std::vector<double> block;
     double cpu = 0;
     for (int k = 0; k < scans; ++k) {
-      auto s = sim::simulateScan(sc, k, threads);
-      Frame f;
-      f.index = static_cast<std::size_t>(k);
-      f.stem = std::to_string(k);
-      f.scan.original_size = s.points.size();
-      f.scan.points = std::move(s.points);
-      f.scan.pose = s.reported_pose;
-      f.scan.has_pose = true;
-      f.scan.timestamp = s.time;
+      Frame f = sim::frameOf(sim::simulateScan(sc, k, threads), k);
       const double c0 = cpuMs();
       const auto t0 = std::chrono::steady_clock::now();
       pipe.push(std::move(f));

@@ -64,11 +64,7 @@ CaseResult runCase(const sim::Scenario& sc, const PipelineParams& params = {},
   if (images) pipe.setCamera(sim::kittiCamera());
   for (int k = 0; k < sc.frames; ++k) {
     truth[k] = sim::simulateScan(sc, k, 2);
-    Frame f;
-    f.index = static_cast<std::size_t>(k);
-    f.stem = std::to_string(k);
-    f.scan.points = truth[k].points;
-    f.scan.pose = truth[k].reported_pose;
+    Frame f = sim::frameOf(sim::SimScan(truth[k]), k);
     if (mount) {  // the same rays from a lidar tilted by `mount` on the vehicle
       for (auto& p : f.scan.points) {
         const Eigen::Vector3f q = mount->transpose().cast<float>() * p.xyz();
@@ -77,9 +73,6 @@ CaseResult runCase(const sim::Scenario& sc, const PipelineParams& params = {},
       f.scan.pose.linear() = f.scan.pose.linear() * *mount;
       f.mount = Eigen::Isometry3d(*mount);
     }
-    f.scan.has_pose = true;
-    f.scan.timestamp = truth[k].time;
-    f.scan.original_size = truth[k].points.size();
     if (odometry) f.odometry = truth[k].pose;
     if (images) f.image = Image{sim::renderImage(sc, k, sim::kittiCamera(), 2), truth[k].time};
     pipe.push(std::move(f));

@@ -46,20 +46,7 @@ MapCase runMapCase(const sim::Scenario& sc, const PipelineParams& params, const 
   {
     io::OutputWriter writer(out.string(), "sim:" + sc.name, params);
     LaserPipeline pipe(params, [&](ScanResult&& r) { writer.write(r, std::nullopt); });
-    for (int k = 0; k < sc.frames; ++k) {
-      sim::SimScan s = sim::simulateScan(sc, k, 2);
-      Frame f;
-      f.index = static_cast<std::size_t>(k);
-      char stem[16];
-      std::snprintf(stem, sizeof stem, "%06d", k);
-      f.stem = stem;
-      f.scan.original_size = s.points.size();
-      f.scan.points = std::move(s.points);
-      f.scan.pose = s.reported_pose;
-      f.scan.has_pose = true;
-      f.scan.timestamp = s.time;
-      pipe.push(std::move(f));
-    }
+    for (int k = 0; k < sc.frames; ++k) pipe.push(sim::frameOf(sim::simulateScan(sc, k, 2), k));
     pipe.finish();
     writer.finish(0.0, pipe.freeSpace());
   }

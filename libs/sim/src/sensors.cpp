@@ -2,6 +2,7 @@
 // Simulated HDL-64E and camera (issue #4): ray casting World at the sweep's instants.
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 
 #include "cleanmap/core/parallel.h"
 #include "cleanmap/sim/world.h"
@@ -229,6 +230,20 @@ cv::Mat renderImage(const Scenario& sc, int k, const PinholeCamera& cam, int thr
       },
       8);
   return img;
+}
+
+Frame frameOf(SimScan&& s, int k) {
+  Frame f;
+  f.index = static_cast<std::size_t>(k);
+  char stem[16];
+  std::snprintf(stem, sizeof stem, "%06d", k);
+  f.stem = stem;
+  f.scan.original_size = s.points.size();
+  f.scan.points = std::move(s.points);
+  f.scan.pose = s.reported_pose;
+  f.scan.has_pose = true;
+  f.scan.timestamp = s.time;
+  return f;
 }
 
 }  // namespace cleanmap::sim

@@ -6,6 +6,7 @@
 #include <opencv2/core.hpp>
 #include <vector>
 
+#include "cleanmap/core/frame.h"
 #include "cleanmap/core/types.h"
 #include "cleanmap/sim/scenario.h"
 
@@ -90,6 +91,9 @@ struct SimScan {
 /// One lidar sweep of frame `k`. Deterministic for a given scenario (noise is a hash of the seed,
 /// frame and ray), whatever `threads`.
 SimScan simulateScan(const Scenario& sc, int k, int threads = 2);
+/// The pipeline's input for frame `k`, as cleanmap reads what cleanmap-sim writes: the scan's
+/// points (moved out of `s`), its reported pose and time, stem "%06d".
+Frame frameOf(SimScan&& s, int k);
 
 /// KITTI 2011_09_26 left colour camera (rectified P2 and velodyne-to-camera Tr), 1242 x 375.
 PinholeCamera kittiCamera();
