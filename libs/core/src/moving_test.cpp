@@ -2,16 +2,23 @@
 #include "cleanmap/core/moving_test.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <optional>
 
 namespace cleanmap {
 
-MovingTest::MovingTest(const DsParams& p)
+MovingTest::MovingTest(const DsParams& p, BeamMath math)
     : p_(p),
+      math_(math),
       model_(p),
       radius_(p.search_lambdas * p.lambda_theta),
-      r_far_(std::sqrt(2.0 * model_.s1 * 40.0)) {}  // exp(-r^2 / 2(1+sigma^2)) < e^-40
+      r_far_(std::sqrt(2.0 * model_.s1 * 40.0)) {  // exp(-r^2 / 2(1+sigma^2)) < e^-40
+  // l is linear in |OP| / |OB|, so a cell's largest weight is at one of its ends.
+  const auto weight = [&](int j) { return -std::log1p(-ds::discreteBelief(j, kWeightCells, p_)); };
+  for (int j = 0; j < kWeightCells; ++j) w_bound_[j] = std::max(weight(j), weight(j + 1));
+  w_bound_[kWeightCells] = weight(kWeightCells);
+}
 
 ds::Mass MovingTest::scanMass(const Eigen::Vector3d& p_world, const WindowScan& s, double* range_p,
                               MovingTestStats* stats) const {
@@ -30,22 +37,54 @@ ds::Mass MovingTest::scanMass(const Eigen::Vector3d& p_world, const WindowScan& 
                         : radius_;
   const float r2max = static_cast<float>(radius * radius);
   const float df = static_cast<float>(d), r_far = static_cast<float>(r_far_);
-  bool conflict = false;
+  // Dempster's rule over the beams (Eq. 6) in product form: on {empty, occupied} the
+  // commonalities multiply, Q(E) = prod(1 - o), Q(O) = prod(1 - e), Q(Theta) = prod(u), and the
+  // normalised result is e = (Q(E) - Q(Theta)) / N, o = (Q(O) - Q(Theta)) / N, u = Q(Theta) / N,
+  // N = Q(E) + Q(O) - Q(Theta) = 1 - K. Equal to the pairwise rule, without its division per beam.
+  double qe = 1.0, qo = 1.0, qu = 1.0;
   float e_max = 0.0f, o_max = 0.0f;  // the scan's most-empty beam, most-occupied return at P
   const float band = static_cast<float>(2.0 * model_.sigma);  // not an occluder in front of P
   std::size_t beams = 0;
+  // The beams in the cone are gathered kBatch at a time; their masses are then computed side by
+  // side (BeamModel::massesFast) and multiplied in, in the order the index gave them.
+  constexpr int kBatch = ds::BeamModel::kBatch;
+  alignas(64) float r_b[kBatch] = {}, t2_b[kBatch] = {}, e_b[kBatch], o_b[kBatch];
+  int n = 0;
+  auto flush = [&] {
+    if (math_ == BeamMath::kFast)
+      model_.massesFast(r_b, t2_b, n, e_b, o_b);
+    else
+      model_.massesReference(r_b, t2_b, n, e_b, o_b);
+    for (int k = 0; k < n; ++k) {
+      e_max = std::max(e_max, e_b[k]);
+      if (r_b[k] <= band) o_max = std::max(o_max, o_b[k]);  // a return at P's range
+      const double e = e_b[k], o = o_b[k];
+      qe *= 1.0 - o;
+      qo *= 1.0 - e;
+      qu *= 1.0 - e - o;
+    }
+    beams += static_cast<std::size_t>(n);
+    n = 0;
+  };
   s.beams->forEachNear(dir, radius, [&](const BeamIndex::Beam& q) {
     // Small angles: theta = |a x b| to float precision (a dot product would lose it).
     const float theta2 = dir.cross(q.dir).squaredNorm();
     if (theta2 > r2max || dir.dot(q.dir) <= 0.0f) return;
     const float r = df * std::sqrt(1.0f - theta2) - q.range;  // |OP'| - |OQ|
     if (r > r_far) return;  // far behind the hit: unknown, the identity of Dempster's rule
-    ++beams;
-    const ds::Mass b = model_.beamFloat(r, theta2);
-    e_max = std::max(e_max, static_cast<float>(b.e));
-    if (r <= band) o_max = std::max(o_max, static_cast<float>(b.o));  // a return at P's range
-    m = ds::combine(m, b, &conflict);
+    r_b[n] = r;
+    t2_b[n] = theta2;
+    if (++n == kBatch) flush();
   });
+  if (n > 0) flush();
+  const double norm = qe + qo - qu;
+  const bool conflict = beams > 0 && norm <= 1e-12;  // K = 1: unknown, as ds::combine
+  if (beams > 0 && !conflict) {
+    const double inv = 1.0 / norm;
+    m.e = (qe - qu) * inv;
+    m.o = (qo - qu) * inv;
+    m.u = qu * inv;
+  }
   // doc/SCAN_CONFLICT.md: an empty vote needs a scan whose beams agree. Beams that pass P and
   // beams that return at P's range (|r| <= 2 sigma) in the same scan mean a porous or thin
   // surface (foliage, a fence, a pole), not a vacated space; Dempster's normalisation would hide
@@ -65,29 +104,59 @@ ds::Mass MovingTest::scanMass(const Eigen::Vector3d& p_world, const WindowScan& 
 // The discretised votes are simple supports of mass l on {empty} or {occupied}. Combined, the
 // empty votes give E = 1 - prod(1 - l) and the occupied ones O likewise, and the result is moving
 // iff E > O (empty then also beats unknown, as l > 0.5). So the decision is a weighted vote:
-// S_e = sum of -ln(1 - l) over empty votes against S_o over occupied ones, and a scan weighs at
-// most w_max = -ln(1 - r_sup). Once |S_e - S_o| exceeds what the unvisited scans can add, the
-// decision is final. Otherwise the result is Dempster's rule over the whole window, so a point
-// close to a tie is decided exactly as without the shortcut.
+// S_e = sum of -ln(1 - l) over empty votes against S_o over occupied ones, and scan i can add at
+// most w_i = -ln(1 - l_i), its l known from P's range before any beam is looked at (w_bound_
+// tabulates an upper bound of it). Once
+// |S_e - S_o| exceeds the sum of the unvisited scans' w_i, the decision is final; the scans are
+// visited heaviest first, so that sum shrinks fastest (issue #16). Otherwise the result is
+// Dempster's rule over the whole window, so a point close to a tie is decided exactly as without
+// the shortcut.
 std::optional<bool> MovingTest::combineWindow(const Eigen::Vector3d& p_world,
                                               const std::vector<WindowScan>& window,
                                               MovingTestStats* stats, bool stop_early,
                                               ds::Mass& acc) const {
-  const double w_max = -std::log1p(-p_.r_sup);
   constexpr double kSafety = 1e-6;  // far above the rounding of the sums
+  struct Visit {
+    double w, d;
+    std::size_t i;
+  };
+  constexpr std::size_t kInline = 64;  // windows are 2K + 1 scans; longer ones use the heap
+  std::array<Visit, kInline> inline_visits;
+  std::vector<Visit> heap_visits;
+  Visit* visits = inline_visits.data();
+  if (window.size() > kInline) {
+    heap_visits.resize(window.size());
+    visits = heap_visits.data();
+  }
+  double rest = kSafety;
+  for (std::size_t i = 0; i < window.size(); ++i) {
+    const double d = (window[i].world_to_sensor * p_world).norm();
+    const bool seen = window[i].beams && !window[i].beams->empty() && d >= 1e-3;
+    const double far = window[i].beams ? window[i].beams->farthest() : 0.0;
+    const double ratio = far > 0 ? std::min(d / far, 1.0) : 1.0;  // as ds::discreteBelief
+    const double w = seen ? w_bound_[static_cast<std::size_t>(ratio * kWeightCells)] : 0.0;
+    visits[i] = {w, d, i};
+    rest += w;
+  }
+  if (stop_early) {  // heaviest first; ties in window order, so the result is deterministic
+    std::stable_sort(visits, visits + window.size(),
+                     [](const Visit& a, const Visit& b) { return a.w > b.w; });
+  }
   acc = ds::Mass{};
   bool any = false, conflict = false;
   double lead = 0.0;  // S_e - S_o
-  for (std::size_t i = 0; i < window.size(); ++i) {
-    const double rest = static_cast<double>(window.size() - i) * w_max + kSafety;
+  for (std::size_t k = 0; k < window.size(); ++k) {
     if (stop_early && (lead > rest || -lead > rest)) {  // votes were cast
       if (stats) ++stats->early;
       return lead > 0;
     }
+    const Visit& v = visits[k];
+    rest -= v.w;
+    if (v.w == 0.0) continue;  // no beams, or P at the sensor: unknown
     if (stats) ++stats->scans_visited;
-    double d = 0;
-    const ds::Mass m = scanMass(p_world, window[i], &d, stats);
-    const ds::Mass dm = ds::discretise(m, ds::discreteBelief(d, window[i].beams->farthest(), p_));
+    const ds::Mass m = scanMass(p_world, window[v.i], nullptr, stats);
+    const ds::Mass dm =
+        ds::discretise(m, ds::discreteBelief(v.d, window[v.i].beams->farthest(), p_));
     if (dm.e > 0) lead -= std::log1p(-dm.e);
     if (dm.o > 0) lead += std::log1p(-dm.o);
     any = any || dm.u < 1.0;

@@ -55,13 +55,11 @@ void BeamIndex::forEachNear(const Eigen::Vector3f& dir, double radius, F&& f) co
   const int a_lo = static_cast<int>(std::floor((az - daz + M_PI) / bin_));
   const int a_hi = static_cast<int>(std::floor((az + daz + M_PI) / bin_));
   const int span = std::min(a_hi - a_lo, n_az_ - 1);
+  const int a_first = (a_lo % n_az_ + n_az_) % n_az_;  // the span's bins, wrapped at 2 pi
   for (int e = std::max(e0, 0); e <= std::min(e1, n_el_ - 1); ++e) {
-    for (int k = 0; k <= span; ++k) {
-      const int a = ((a_lo + k) % n_az_ + n_az_) % n_az_;
-      const std::size_t b = static_cast<std::size_t>(e) * static_cast<std::size_t>(n_az_) +
-                            static_cast<std::size_t>(a);
-      for (uint32_t q = offsets_[b]; q < offsets_[b + 1]; ++q) f(beams_[q]);
-    }
+    const uint32_t* row = offsets_.data() + static_cast<std::size_t>(e) * n_az_;
+    for (int k = 0, a = a_first; k <= span; ++k, a = (a + 1 == n_az_ ? 0 : a + 1))
+      for (uint32_t q = row[a], end = row[a + 1]; q < end; ++q) f(beams_[q]);
   }
 }
 

@@ -2,6 +2,7 @@
 // DESIGN §2b: the moving-point test of one point against the scans of its window.
 #pragma once
 #include <Eigen/Geometry>
+#include <array>
 #include <optional>
 #include <vector>
 
@@ -29,9 +30,14 @@ struct alignas(64) MovingTestStats {
   std::size_t early = 0;              ///< points decided before the last window scan
 };
 
+/// How the beam masses are computed: kFast (the default) evaluates a batch of beams on vector
+/// lanes with fast::expNeg / fast::erfc; kReference calls libm per beam (BeamModel::beamFloat).
+/// Labels agree to a few points in a million (MovingTest tests).
+enum class BeamMath { kFast, kReference };
+
 class MovingTest {
  public:
-  explicit MovingTest(const DsParams& p);
+  explicit MovingTest(const DsParams& p, BeamMath math = BeamMath::kFast);
 
   /// m(P, S_i) = (+)_Q m'(P, Q) over the beams of S_i within search radius of O_i->P (Eq. 6);
   /// unknown where that is empty but the scan's own beams conflict (DsParams::scan_conflict).
@@ -53,9 +59,13 @@ class MovingTest {
                                     const std::vector<WindowScan>& window, MovingTestStats* stats,
                                     bool stop_early, ds::Mass& acc) const;
   DsParams p_;
+  BeamMath math_;
   ds::BeamModel model_;
   double radius_;
   double r_far_;  // beyond this r (P far behind Q) a beam gives u = 1 to double precision
+  // Upper bounds of a scan's vote weight -ln(1 - l) over cells of |OP| / |OB| (combineWindow).
+  static constexpr int kWeightCells = 256;
+  std::array<double, kWeightCells + 1> w_bound_{};
 };
 
 }  // namespace cleanmap
