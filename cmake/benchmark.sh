@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # SPDX-License-Identifier: BSD-3-Clause
-# `make benchmark`: I/O and simulator benchmarks, a long simulated run (LONG_SCANS scans, default
+# `make benchmark`: I/O, simulator and per-stage benchmarks (issue #16), a long simulated run (LONG_SCANS scans, default
 # 1000; issue #15 used 10000: memory and time per scan must stay flat), then per labelled set a
 # Release run of cleanmap (2 threads) and its evaluation (DESIGN §5), one summary table, and the
 # ROC sweep. Results in $OUT.
@@ -12,6 +12,7 @@ mkdir -p "$out"
 echo "== machine: $(nproc) cores, $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs)"
 "$build/tests/benchmarks/cleanmap-bench-io" --data "$data"
 "$build/tests/benchmarks/cleanmap-bench-sim"
+"$build/tests/benchmarks/cleanmap-bench-stages" --data "$data" | tee "$out/stages.txt"
 "$build/tests/benchmarks/cleanmap-bench-long" --scans "${LONG_SCANS:-1000}" --every 250 \
   --threads "$threads" | tee "$out/long_run.txt"
 jsons=()

@@ -3,12 +3,15 @@
 
 #include <atomic>
 #include <numeric>
+#include <random>
 #include <set>
+#include <unordered_map>
 
 #include <cmath>
 #include <limits>
 
 #include "cleanmap/core/cell_key.h"
+#include "cleanmap/core/cell_map.h"
 #include "cleanmap/core/parallel.h"
 #include "cleanmap/core/types.h"
 
@@ -128,4 +131,42 @@ TEST(CellKey, FloorNeighboursAndShift) {
   // Negative and positive cells never collide within +-2^20.
   EXPECT_NE(cellKey(-1, 0, 0), cellKey(1, 0, 0));
   EXPECT_NE(cellKey(0, -(1 << 20), 0), cellKey(0, (1 << 20) - 1, 0));
+}
+
+TEST(CellMap, HoldsWhatStdUnorderedMapHolds) {
+  // Issue #16's flat cell map against std::unordered_map: random cells (negative coordinates
+  // included), growth from empty, lookups of present and absent keys, every entry visited once.
+  std::mt19937 rng(16);
+  std::uniform_int_distribution<int> c(-3000, 3000);
+  CellMap<uint32_t> flat;
+  std::unordered_map<uint64_t, uint32_t> ref;
+  for (uint32_t i = 0; i < 50000; ++i) {
+    const uint64_t k = cellKey(c(rng), c(rng), c(rng) / 100);
+    bool fresh = false;
+    uint32_t& v = flat.get(k, &fresh);
+    EXPECT_EQ(fresh, ref.count(k) == 0);
+    if (fresh) v = i;
+    ref.emplace(k, i);
+  }
+  ASSERT_EQ(flat.size(), ref.size());
+  EXPECT_LE(2 * flat.size(), flat.capacity());  // at most half full
+  for (const auto& [k, v] : ref) {
+    const uint32_t* f = flat.find(k);
+    ASSERT_NE(f, nullptr);
+    EXPECT_EQ(*f, v);
+  }
+  std::size_t absent = 0;
+  for (int i = 0; i < 10000; ++i) {
+    const uint64_t k = cellKey(c(rng), c(rng), 5000 + i);  // z outside every inserted cell
+    absent += flat.find(k) == nullptr;
+  }
+  EXPECT_EQ(absent, 10000u);
+  std::size_t visited = 0;
+  flat.forEach([&](uint64_t k, uint32_t v) {
+    ++visited;
+    EXPECT_EQ(ref.at(k), v);
+  });
+  EXPECT_EQ(visited, ref.size());
+  const CellMap<uint32_t> none;
+  EXPECT_EQ(none.find(cellKey(0, 0, 0)), nullptr);
 }

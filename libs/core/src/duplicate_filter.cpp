@@ -15,22 +15,24 @@ bool DuplicateFilter::isDuplicate(const Eigen::Vector3f& p, long scan) const {
   if (grid_.empty()) return false;
   // With cells of side 2d, the ball of radius d around p reaches one neighbour per axis: the one
   // on the side of the cell's half that p lies in.
-  int lo[3];
+  int lo[3], home[3];  // home: 1 where p's own cell is lo + 1
   for (int a = 0; a < 3; ++a) {
     const float u = p[a] * inv_;
     const float c = std::floor(u);
-    lo[a] = static_cast<int>(c) - (u - c < 0.5f ? 1 : 0);
+    home[a] = u - c < 0.5f ? 1 : 0;
+    lo[a] = static_cast<int>(c) - home[a];
   }
   const float d2 = static_cast<float>(p_.dup_distance * p_.dup_distance);
   const long oldest = scan - p_.dup_window;
-  for (int dx = 0; dx <= 1; ++dx)
-    for (int dy = 0; dy <= 1; ++dy)
-      for (int dz = 0; dz <= 1; ++dz) {
-        const auto it = grid_.find(cellKey(lo[0] + dx, lo[1] + dy, lo[2] + dz));
-        if (it == grid_.end()) continue;
-        for (const Entry& e : it->second)
-          if (e.scan >= oldest && e.scan < scan && (e.p - p).squaredNorm() <= d2) return true;
-      }
+  // p's own cell first: most duplicates lie there, and the answer does not depend on the order.
+  for (int m = 0; m < 8; ++m) {
+    const auto it =
+        grid_.find(cellKey(lo[0] + (home[0] ^ (m & 1)), lo[1] + (home[1] ^ (m >> 1 & 1)),
+                           lo[2] + (home[2] ^ (m >> 2))));
+    if (it == grid_.end()) continue;
+    for (const Entry& e : it->second)
+      if (e.scan >= oldest && e.scan < scan && (e.p - p).squaredNorm() <= d2) return true;
+  }
   return false;
 }
 

@@ -73,7 +73,9 @@ FreeSpaceMap::FreeSpaceMap(const MapParams& p) : p_(p), inv_(1.0 / p.voxel) {}
 FreeSpaceMap::~FreeSpaceMap() = default;
 FreeSpaceMap::FreeSpaceMap(const FreeSpaceMap& o) : p_(o.p_), inv_(o.inv_), marked_(o.marked_) {
   blocks_.reserve(o.blocks_.size());
-  for (const auto& [k, b] : o.blocks_) blocks_.emplace(k, std::make_unique<Block>(*b));
+  o.blocks_.forEach([&](uint64_t k, const std::unique_ptr<Block>& b) {
+    blocks_[k] = std::make_unique<Block>(*b);
+  });
 }
 
 FreeSpaceMap::Block& FreeSpaceMap::block(uint64_t key, int64_t scan) {
@@ -87,12 +89,13 @@ FreeSpaceMap::Block& FreeSpaceMap::block(uint64_t key, int64_t scan) {
 }
 
 const FreeSpaceMap::Block* FreeSpaceMap::findBlock(uint64_t key) const {
-  const auto it = blocks_.find(key);
-  return it == blocks_.end() ? nullptr : it->second.get();
+  const auto* b = blocks_.find(key);
+  return b ? b->get() : nullptr;
 }
 
 std::size_t FreeSpaceMap::bytes() const {
-  return blocks_.size() * (sizeof(Block) + sizeof(std::unique_ptr<Block>) + 3 * sizeof(void*));
+  return blocks_.size() * sizeof(Block) +
+         blocks_.capacity() * (sizeof(uint64_t) + sizeof(std::unique_ptr<Block>));
 }
 
 // Sets the near bits of a voxel box (inclusive x0 x1 y0 y1 z0 z1) block by block: a mask word
@@ -279,7 +282,7 @@ FreeEvidence FreeSpaceMap::evidence(const Eigen::Vector3f& p) const {
 }
 
 void FreeSpaceMap::merge(const FreeSpaceMap& o) {
-  for (const auto& [k, ob] : o.blocks_) {
+  o.blocks_.forEach([&](uint64_t k, const std::unique_ptr<Block>& ob) {
     auto& mine = blocks_[k];
     if (!mine) mine = std::make_unique<Block>();
     for (int i = 0; i < kVoxels; ++i) {
@@ -310,7 +313,7 @@ void FreeSpaceMap::merge(const FreeSpaceMap& o) {
       m.last = std::max(m.last, theirs.last);
       m.last_hit = std::max(m.last_hit, theirs.last_hit);
     }
-  }
+  });
   marked_ += o.marked_;
 }
 

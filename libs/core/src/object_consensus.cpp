@@ -5,9 +5,9 @@
 #include <algorithm>
 #include <cmath>
 #include <numeric>
-#include <unordered_map>
 
 #include "cleanmap/core/cell_key.h"
+#include "cleanmap/core/cell_map.h"
 
 namespace cleanmap {
 namespace {
@@ -35,7 +35,9 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
   if (!p.enabled) return st;
   const float inv = static_cast<float>(1.0 / p.voxel);
   // Voxels of the member points.
-  std::unordered_map<uint64_t, uint32_t> voxel_of;
+  CellMap<uint32_t> voxel_of;
+  voxel_of.reserve(static_cast<std::size_t>(
+      std::count_if(member.begin(), member.end(), [](uint8_t m) { return m != 0; })));
   std::vector<Eigen::Vector3i> voxels;
   std::vector<uint32_t> point_voxel(points.size(), UINT32_MAX);
   for (std::size_t i = 0; i < points.size(); ++i) {
@@ -43,18 +45,21 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
     const Eigen::Vector3i c(static_cast<int>(floorToCell(points[i].x, inv)),
                             static_cast<int>(floorToCell(points[i].y, inv)),
                             static_cast<int>(floorToCell(points[i].z, inv)));
-    const auto [it, fresh] =
-        voxel_of.emplace(cellKey(c.x(), c.y(), c.z()), static_cast<uint32_t>(voxels.size()));
-    if (fresh) voxels.push_back(c);
-    point_voxel[i] = it->second;
+    bool fresh = false;
+    uint32_t& v = voxel_of.get(cellKey(c.x(), c.y(), c.z()), &fresh);
+    if (fresh) {
+      v = static_cast<uint32_t>(voxels.size());
+      voxels.push_back(c);
+    }
+    point_voxel[i] = v;
   }
   // 26-connected components of the voxels.
   UnionFind uf(voxels.size());
   for (uint32_t v = 0; v < voxels.size(); ++v) {
     const Eigen::Vector3i& c = voxels[v];
     forEachNeighbour27([&](int dx, int dy, int dz) {  // the centre finds v itself: not < v
-      const auto it = voxel_of.find(cellKey(c.x() + dx, c.y() + dy, c.z() + dz));
-      if (it != voxel_of.end() && it->second < v) uf.unite(v, it->second);
+      const uint32_t* n = voxel_of.find(cellKey(c.x() + dx, c.y() + dy, c.z() + dz));
+      if (n && *n < v) uf.unite(v, *n);
     });
   }
   // Per component: point counts and extent.
@@ -118,8 +123,8 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
     if (!moving_in[v]) continue;
     const Eigen::Vector3i& c = voxels[v];
     forEachNeighbour27([&](int dx, int dy, int dz) {
-      const auto it = voxel_of.find(cellKey(c.x() + dx, c.y() + dy, c.z() + dz));
-      if (it != voxel_of.end() && it->second < v && moving_in[it->second]) muf.unite(v, it->second);
+      const uint32_t* n = voxel_of.find(cellKey(c.x() + dx, c.y() + dy, c.z() + dz));
+      if (n && *n < v && moving_in[*n]) muf.unite(v, *n);
     });
   }
   std::vector<uint32_t> group(voxels.size(), 0);

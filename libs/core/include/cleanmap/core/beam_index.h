@@ -55,11 +55,14 @@ void BeamIndex::forEachNear(const Eigen::Vector3f& dir, double radius, F&& f) co
   const int a_lo = static_cast<int>(std::floor((az - daz + M_PI) / bin_));
   const int a_hi = static_cast<int>(std::floor((az + daz + M_PI) / bin_));
   const int span = std::min(a_hi - a_lo, n_az_ - 1);
-  const int a_first = (a_lo % n_az_ + n_az_) % n_az_;  // the span's bins, wrapped at 2 pi
+  // A row's bins a_first .. a_first + span are one range of beams_ (two where they wrap at 2 pi).
+  const int a_first = (a_lo % n_az_ + n_az_) % n_az_;
+  const int a_end = a_first + span + 1;
   for (int e = std::max(e0, 0); e <= std::min(e1, n_el_ - 1); ++e) {
     const uint32_t* row = offsets_.data() + static_cast<std::size_t>(e) * n_az_;
-    for (int k = 0, a = a_first; k <= span; ++k, a = (a + 1 == n_az_ ? 0 : a + 1))
-      for (uint32_t q = row[a], end = row[a + 1]; q < end; ++q) f(beams_[q]);
+    for (uint32_t q = row[a_first], end = row[std::min(a_end, n_az_)]; q < end; ++q) f(beams_[q]);
+    if (a_end > n_az_)
+      for (uint32_t q = row[0], end = row[a_end - n_az_]; q < end; ++q) f(beams_[q]);
   }
 }
 

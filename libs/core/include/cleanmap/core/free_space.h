@@ -13,9 +13,9 @@
 #include <array>
 #include <cstdint>
 #include <memory>
-#include <unordered_map>
 #include <vector>
 
+#include "cleanmap/core/cell_map.h"
 #include "cleanmap/core/params.h"
 #include "cleanmap/core/types.h"
 
@@ -66,7 +66,7 @@ class FreeSpaceMap {
   void markNear(const std::array<int64_t, 6>& box, int64_t scan);
   MapParams p_;
   double inv_;
-  std::unordered_map<uint64_t, std::unique_ptr<Block>> blocks_;
+  CellMap<std::unique_ptr<Block>> blocks_;
   std::vector<Block*> touched_;  // blocks the scan being inserted visits (its voxels updated last)
   std::size_t marked_ = 0;
 };

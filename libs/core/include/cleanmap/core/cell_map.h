@@ -1,0 +1,93 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// A flat hash map from cell keys (cell_key.h) to values, for the grids that are filled and looked
+// up per point (issue #16): open addressing with linear probing in one array, so a lookup is one
+// or two cache lines where std::unordered_map follows a bucket and a node. Cell keys use 63 bits,
+// so ~0 marks an empty slot. No erase; iteration order is the slot order (callers must not
+// depend on it).
+#pragma once
+#include <cstddef>
+#include <cstdint>
+#include <utility>
+#include <vector>
+
+namespace cleanmap {
+
+template <class V>
+class CellMap {
+ public:
+  static constexpr uint64_t kEmpty = ~uint64_t(0);
+
+  /// Room for n keys without growing.
+  void reserve(std::size_t n) {
+    if (2 * n > keys_.size()) rehash(capacityFor(n));
+  }
+  std::size_t size() const { return size_; }
+  std::size_t capacity() const { return keys_.size(); }  ///< slots (key + value each)
+  bool empty() const { return size_ == 0; }
+
+  /// The value of `key`, inserted default-constructed if absent; `inserted` tells which.
+  V& get(uint64_t key, bool* inserted = nullptr) {
+    if (2 * (size_ + 1) > keys_.size()) rehash(capacityFor(size_ + 1));
+    std::size_t i = slot(key);
+    while (keys_[i] != kEmpty) {
+      if (keys_[i] == key) {
+        if (inserted) *inserted = false;
+        return values_[i];
+      }
+      i = (i + 1) & mask_;
+    }
+    keys_[i] = key;
+    ++size_;
+    if (inserted) *inserted = true;
+    return values_[i];
+  }
+  V& operator[](uint64_t key) { return get(key); }
+
+  const V* find(uint64_t key) const {
+    if (keys_.empty()) return nullptr;
+    for (std::size_t i = slot(key);; i = (i + 1) & mask_) {
+      if (keys_[i] == key) return &values_[i];
+      if (keys_[i] == kEmpty) return nullptr;
+    }
+  }
+  V* find(uint64_t key) { return const_cast<V*>(std::as_const(*this).find(key)); }
+
+  /// f(key, value) for every entry, in slot order.
+  template <class F>
+  void forEach(F&& f) const {
+    for (std::size_t i = 0; i < keys_.size(); ++i)
+      if (keys_[i] != kEmpty) f(keys_[i], values_[i]);
+  }
+
+ private:
+  static std::size_t capacityFor(std::size_t n) {  // a power of two, at most half full
+    std::size_t c = 16;
+    while (c < 2 * n) c *= 2;
+    return c;
+  }
+  std::size_t slot(uint64_t key) const {
+    return static_cast<std::size_t>((key * 0x9E3779B97F4A7C15ull) >> shift_);
+  }
+  void rehash(std::size_t capacity) {
+    std::vector<uint64_t> keys(capacity, kEmpty);
+    std::vector<V> values(capacity);
+    std::swap(keys, keys_);
+    std::swap(values, values_);
+    mask_ = capacity - 1;
+    shift_ = 64;
+    for (std::size_t c = capacity; c > 1; c >>= 1) --shift_;
+    for (std::size_t j = 0; j < keys.size(); ++j) {
+      if (keys[j] == kEmpty) continue;
+      std::size_t i = slot(keys[j]);
+      while (keys_[i] != kEmpty) i = (i + 1) & mask_;
+      keys_[i] = keys[j];
+      values_[i] = std::move(values[j]);
+    }
+  }
+  std::vector<uint64_t> keys_;
+  std::vector<V> values_;
+  std::size_t size_ = 0, mask_ = 0;
+  int shift_ = 64;
+};
+
+}  // namespace cleanmap

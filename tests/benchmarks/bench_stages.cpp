@@ -1,0 +1,192 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Issue #16: one benchmark per laser stage on fixed inputs, one thread: 21 scans of
+// kitti_highway with their given poses (--data DIR, default ../shared/data), or 21 scans of the
+// default simulated street where that set is absent. Scan 10 is the scan being decided, the
+// others its window. `BM_MovingTest/0` is the fast beam maths, `/1` the libm reference path
+// (BeamMath): their ratio is the vectorised masses' gain.
+// usage: cleanmap-bench-stages [--data DIR] [google-benchmark flags]
+#include <benchmark/benchmark.h>
+
+#include <filesystem>
+#include <iostream>
+#include <string>
+
+#include "cleanmap/core/beam_index.h"
+#include "cleanmap/core/duplicate_filter.h"
+#include "cleanmap/core/free_space.h"
+#include "cleanmap/core/ground.h"
+#include "cleanmap/core/moving_test.h"
+#include "cleanmap/core/object_consensus.h"
+#include "cleanmap/core/params.h"
+#include "cleanmap/io/kitti.h"
+#include "cleanmap/sim/world.h"
+
+namespace {
+
+using namespace cleanmap;
+
+std::string g_data = "../shared/data";
+
+struct Inputs {
+  std::string name;
+  std::vector<Scan> scans;  // sensor frame, pose set
+  std::size_t center = 10;
+  std::vector<BeamIndex> beams;
+  std::vector<WindowScan> window;
+  std::vector<Eigen::Vector3d> tested;  // every 6th point of the center scan above the road
+  std::vector<uint8_t> member;          // the center scan's points within 50 m, above the road
+};
+
+const Inputs& inputs() {
+  static const Inputs in = [] {
+    Inputs r;
+    const std::string set = g_data + "/kitti_highway";
+    if (std::filesystem::is_directory(set)) {
+      const auto seq = io::KittiSequence::open(set);
+      for (std::size_t i = 0; i <= 20; ++i) r.scans.push_back(seq.loadScan(i));
+      r.name = set;
+    } else {
+      const auto sc = sim::defaultScenario();
+      for (int k = 0; k <= 20; ++k)
+        r.scans.push_back(sim::frameOf(sim::simulateScan(sc, k), k).scan);
+      r.name = "simulated default street (" + set + " not found)";
+    }
+    const DsParams ds;
+    const double radius = ds.search_lambdas * ds.lambda_theta;
+    for (const auto& s : r.scans) r.beams.emplace_back(s.points, radius);
+    for (std::size_t i = 0; i < r.scans.size(); ++i)
+      if (i != r.center) r.window.push_back({&r.beams[i], r.scans[i].pose.inverse()});
+    const auto& c = r.scans[r.center];
+    for (std::size_t j = 0; j < c.points.size(); ++j) {
+      const auto& p = c.points[j];
+      const bool above = p.z > -1.4f && std::abs(p.x) <= 50 && std::abs(p.y) <= 50;
+      r.member.push_back(above);
+      if (above && j % 6 == 0) r.tested.push_back(c.pose * p.xyz().cast<double>());
+    }
+    std::cerr << "stages: " << r.name << ", " << r.scans.size() << " scans, "
+              << r.scans[r.center].points.size() << " points in scan " << r.center << ", "
+              << r.tested.size() << " tested\n";
+    return r;
+  }();
+  return in;
+}
+
+void BM_BeamIndex(benchmark::State& state) {
+  const auto& in = inputs();
+  const DsParams ds;
+  for (auto _ : state) {
+    const BeamIndex idx(in.scans[in.center].points, ds.search_lambdas * ds.lambda_theta);
+    benchmark::DoNotOptimize(idx.size());
+  }
+}
+
+void BM_MovingTest(benchmark::State& state) {
+  const auto& in = inputs();
+  const MovingTest t(DsParams{}, state.range(0) == 0 ? BeamMath::kFast : BeamMath::kReference);
+  MovingTestStats st;
+  std::size_t moving = 0;
+  for (auto _ : state)
+    for (const auto& p : in.tested) moving += t.isMoving(p, in.window, &st);
+  const double n = static_cast<double>(state.iterations());
+  state.counters["tested"] = static_cast<double>(in.tested.size());
+  state.counters["moving"] = static_cast<double>(moving) / n;
+  state.counters["visits/pt"] = static_cast<double>(st.scans_visited) / (n * in.tested.size());
+  state.counters["beams/visit"] = static_cast<double>(st.beams) /
+                                  static_cast<double>(std::max<std::size_t>(st.scans_visited, 1));
+}
+
+void BM_Ground(benchmark::State& state) {
+  const auto& in = inputs();
+  for (auto _ : state) {
+    const auto g = segmentGround(in.scans[in.center].points, GroundParams{}, 50.0, -1.73);
+    benchmark::DoNotOptimize(g.data());
+  }
+}
+
+void BM_DuplicateFilter(benchmark::State& state) {
+  // The static map of the 10 scans before the center (every point above the road), then one
+  // query per point of the center scan above the road.
+  const auto& in = inputs();
+  DuplicateFilter f{FilterParams{}};
+  for (std::size_t i = 0; i < in.center; ++i) {
+    std::vector<Eigen::Vector3f> pts;
+    for (const auto& p : in.scans[i].points)
+      if (p.z > -1.4f) pts.push_back((in.scans[i].pose * p.xyz().cast<double>()).cast<float>());
+    f.insert(pts, static_cast<long>(i));
+  }
+  std::vector<Eigen::Vector3f> q;
+  const auto& c = in.scans[in.center];
+  for (std::size_t j = 0; j < c.points.size(); ++j)
+    if (in.member[j]) q.push_back((c.pose * c.points[j].xyz().cast<double>()).cast<float>());
+  std::size_t dup = 0;
+  for (auto _ : state)
+    for (const auto& p : q) dup += f.isDuplicate(p, static_cast<long>(in.center));
+  state.counters["queries"] = static_cast<double>(q.size());
+  state.counters["duplicates"] = static_cast<double>(dup) / static_cast<double>(state.iterations());
+}
+
+void BM_ObjectConsensus(benchmark::State& state) {
+  // Every 20th member point called moving: groups are formed and judged as in the pipeline.
+  const auto& in = inputs();
+  const auto& c = in.scans[in.center];
+  std::vector<uint8_t> seed(c.points.size(), 0);
+  for (std::size_t j = 0; j < seed.size(); j += 20) seed[j] = in.member[j];
+  for (auto _ : state) {
+    auto moving = seed;
+    const auto st = objectConsensus(c.points, in.member, moving, ObjectParams{});
+    benchmark::DoNotOptimize(st.objects);
+  }
+}
+
+void BM_FreeSpaceInsert(benchmark::State& state) {
+  // The window's 21 scans into a fresh map: time per scan.
+  const auto& in = inputs();
+  for (auto _ : state) {
+    FreeSpaceMap m{MapParams{}};
+    for (std::size_t i = 0; i < in.scans.size(); ++i)
+      m.insertScan(in.scans[i].points, in.scans[i].pose, static_cast<int64_t>(i));
+    benchmark::DoNotOptimize(m.blocks());
+  }
+  state.counters["scans"] = static_cast<double>(in.scans.size());
+}
+
+void BM_FreeSpaceInsertKnownArea(benchmark::State& state) {
+  // The same scans again into a map that already holds them (no new blocks): time per scan.
+  const auto& in = inputs();
+  FreeSpaceMap m{MapParams{}};
+  int64_t k = 0;
+  for (const auto& s : in.scans) m.insertScan(s.points, s.pose, k++);
+  std::size_t i = 0;
+  for (auto _ : state) {
+    const auto& s = in.scans[i++ % in.scans.size()];
+    m.insertScan(s.points, s.pose, k++);
+  }
+  state.counters["blocks"] = static_cast<double>(m.blocks());
+}
+
+}  // namespace
+
+BENCHMARK(BM_BeamIndex)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_MovingTest)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_Ground)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_DuplicateFilter)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_ObjectConsensus)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_FreeSpaceInsert)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_FreeSpaceInsertKnownArea)->Unit(benchmark::kMillisecond);
+
+int main(int argc, char** argv) {
+  std::vector<char*> rest{argv[0]};
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    if (a == "--data" && i + 1 < argc)
+      g_data = argv[++i];
+    else
+      rest.push_back(argv[i]);
+  }
+  int n = static_cast<int>(rest.size());
+  benchmark::Initialize(&n, rest.data());
+  if (benchmark::ReportUnrecognizedArguments(n, rest.data())) return 1;
+  benchmark::RunSpecifiedBenchmarks();
+  benchmark::Shutdown();
+  return 0;
+}
