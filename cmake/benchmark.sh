@@ -1,9 +1,9 @@
 #!/usr/bin/env bash
 # SPDX-License-Identifier: BSD-3-Clause
-# `make benchmark`: I/O, simulator and per-stage benchmarks (issue #16), a long simulated run (LONG_SCANS scans, default
-# 1000; issue #15 used 10000: memory and time per scan must stay flat), then per labelled set a
-# Release run of cleanmap (2 threads) and its evaluation (DESIGN §5), one summary table, and the
-# ROC sweep. Results in $OUT.
+# `make benchmark`: I/O, simulator and per-stage benchmarks (issue #16), a long simulated run
+# (LONG_SCANS scans, default 1000; issue #15 used 10000: memory and time per scan must stay
+# flat), then per labelled set a Release run of cleanmap (2 threads) and its evaluation
+# (DESIGN §5), one summary table, and the ROC sweep. Results in $OUT.
 # usage: benchmark.sh BUILD_DIR DATA_DIR OUT [ROC=1]
 set -euo pipefail
 build=$1 data=$2 out=$3 roc=${4:-1}
