@@ -73,6 +73,7 @@ void insertAt(::mrpt::maps::CMultiMetricMap& maps, ::mrpt::obs::CObservation& ob
 int main(int argc, char** argv) {
   std::string input, outdir, config, section;
   bool force = false;
+  cleanmap::cli::useHugePages(argv);
   cleanmap::cli::keepFreedMemory();
   cleanmap::cli::Args args("cleanmap-build-map", argc, argv);
   while (!args.done()) {

@@ -107,6 +107,7 @@ int main(int argc, char** argv) {
   long long seed = -1;
   bool quiet = false, progress_shown = false, force = false, mrpt_outputs = true, overlays = false;
   double viewer_voxel = 0.1;
+  cleanmap::cli::useHugePages(argv);
   cleanmap::cli::keepFreedMemory();
   cleanmap::cli::Args args("cleanmap", argc, argv);
   while (!args.done()) {

@@ -6,7 +6,9 @@
 #include <exception>
 #if defined(__GLIBC__)
 #include <malloc.h>
+#include <unistd.h>
 #endif
+#include <fstream>
 #include <iostream>
 #include <sstream>
 #include <string>
@@ -30,6 +32,36 @@ inline void keepFreedMemory() {
 #if defined(__GLIBC__)
   mallopt(M_MMAP_THRESHOLD, 32 << 20);  // glibc's largest
   mallopt(M_TRIM_THRESHOLD, 256 << 20);
+#endif
+}
+
+/// Issue #16: a run's memory grows by page faults of 4 KiB, each costly in a VM: 78,000 faults on
+/// kitti_highway, 15 % of the process' CPU (doc/BENCHMARK.md, Speed). glibc (2.35 and later)
+/// backs its heap with transparent huge pages under the tunable glibc.malloc.hugetlb=1, which it
+/// reads only at start-up, so the app re-executes itself once with it set, where the kernel
+/// offers huge pages. CLEANMAP_HUGEPAGES=0 turns this off; under valgrind it is skipped.
+inline void useHugePages(char** argv) {
+#if defined(__GLIBC__) && defined(__linux__)
+  const auto env = [](const char* name) {
+    const char* v = std::getenv(name);
+    return std::string(v ? v : "");
+  };
+  if (env("CLEANMAP_HUGEPAGES") == "0" || env("LD_PRELOAD").find("vgpreload") != std::string::npos)
+    return;
+  const std::string tunables = env("GLIBC_TUNABLES");
+  if (tunables.find("glibc.malloc.hugetlb") != std::string::npos) return;  // set (by us: done)
+  std::string thp;
+  std::getline(std::ifstream("/sys/kernel/mm/transparent_hugepage/enabled"), thp);
+  if (thp.empty() || thp.find("[never]") != std::string::npos) return;
+  const std::string v = (tunables.empty() ? "" : tunables + ":") + "glibc.malloc.hugetlb=1";
+  if (setenv("GLIBC_TUNABLES", v.c_str(), 1) != 0) return;
+  execv("/proc/self/exe", argv);  // returns only if it failed: go on as we are
+  if (tunables.empty())
+    unsetenv("GLIBC_TUNABLES");
+  else
+    setenv("GLIBC_TUNABLES", tunables.c_str(), 1);
+#else
+  (void)argv;
 #endif
 }
 

@@ -78,6 +78,7 @@ int main(int argc, char** argv) {
     std::cout << kUsage;
     return argc < 2 ? 2 : 0;
   }
+  cleanmap::cli::useHugePages(argv);
   cleanmap::cli::keepFreedMemory();
   try {
     cleanmap_maps::registerMaps();
