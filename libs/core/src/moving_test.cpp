@@ -69,12 +69,16 @@ ds::Mass MovingTest::scanMass(const Eigen::Vector3d& p_world, const WindowScan& 
   s.beams->forEachNear(dir, radius, [&](const BeamIndex::Beam& q) {
     // Small angles: theta = |a x b| to float precision (a dot product would lose it).
     const float theta2 = dir.cross(q.dir).squaredNorm();
-    if (theta2 > r2max || dir.dot(q.dir) <= 0.0f) return;
-    const float r = df * std::sqrt(1.0f - theta2) - q.range;  // |OP'| - |OQ|
-    if (r > r_far) return;  // far behind the hit: unknown, the identity of Dempster's rule
+    // |OP'| - |OQ|; theta2 <= 1, so the root is real for every beam.
+    const float r = df * std::sqrt(1.0f - theta2) - q.range;
+    // In the cone, in front of the sensor, and not far behind the hit (there a beam is unknown,
+    // the identity of Dempster's rule). About half the beams of the bins pass, unpredictably:
+    // each is written and kept by a count, not a branch.
+    const bool keep = (theta2 <= r2max) & (dir.dot(q.dir) > 0.0f) & (r <= r_far);
     r_b[n] = r;
     t2_b[n] = theta2;
-    if (++n == kBatch) flush();
+    n += keep;
+    if (n == kBatch) flush();
   });
   if (n > 0) flush();
   const double norm = qe + qo - qu;
@@ -138,9 +142,13 @@ std::optional<bool> MovingTest::combineWindow(const Eigen::Vector3d& p_world,
     visits[i] = {w, d, i};
     rest += w;
   }
-  if (stop_early) {  // heaviest first; ties in window order, so the result is deterministic
-    std::stable_sort(visits, visits + window.size(),
-                     [](const Visit& a, const Visit& b) { return a.w > b.w; });
+  if (stop_early) {  // heaviest first; ties in window order (a stable insertion sort, no buffer)
+    for (std::size_t i = 1; i < window.size(); ++i) {
+      const Visit v = visits[i];
+      std::size_t j = i;
+      for (; j > 0 && visits[j - 1].w < v.w; --j) visits[j] = visits[j - 1];
+      visits[j] = v;
+    }
   }
   acc = ds::Mass{};
   bool any = false, conflict = false;
