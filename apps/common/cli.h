@@ -55,7 +55,13 @@ inline void useHugePages(char** argv) {
   if (thp.empty() || thp.find("[never]") != std::string::npos) return;
   const std::string v = (tunables.empty() ? "" : tunables + ":") + "glibc.malloc.hugetlb=1";
   if (setenv("GLIBC_TUNABLES", v.c_str(), 1) != 0) return;
-  execv("/proc/self/exe", argv);  // returns only if it failed: go on as we are
+  // The binary's own path, so the process keeps its name (ps, top) rather than "exe".
+  char self[4096];
+  const ssize_t n = readlink("/proc/self/exe", self, sizeof self - 1);
+  if (n > 0) {
+    self[n] = '\0';
+    execv(self, argv);  // returns only if it failed: go on as we are
+  }
   if (tunables.empty())
     unsetenv("GLIBC_TUNABLES");
   else
