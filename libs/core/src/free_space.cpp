@@ -88,6 +88,12 @@ FreeSpaceMap::Block& FreeSpaceMap::block(uint64_t key, int64_t scan) {
   return *b;
 }
 
+FreeSpaceMap::Block& FreeSpaceMap::recentBlock(uint64_t key, int64_t scan) {
+  Recent& r = recent_[(key * 0x9E3779B97F4A7C15ull) >> 54];
+  if (r.key != key) r = {key, &block(key, scan)};  // blocks never move: the pointer stays valid
+  return *r.block;
+}
+
 const FreeSpaceMap::Block* FreeSpaceMap::findBlock(uint64_t key) const {
   const auto* b = blocks_.find(key);
   return b ? b->get() : nullptr;
@@ -106,7 +112,7 @@ void FreeSpaceMap::markNear(const std::array<int64_t, 6>& box, int64_t scan) {
   for (int64_t bx = box[0] >> kBits; bx <= box[1] >> kBits; ++bx)
     for (int64_t by = box[2] >> kBits; by <= box[3] >> kBits; ++by)
       for (int64_t bz = box[4] >> kBits; bz <= box[5] >> kBits; ++bz) {
-        Block& b = block(cellKey(bx, by, bz), scan);
+        Block& b = recentBlock(cellKey(bx, by, bz), scan);
         const auto lo = [](int64_t v, int64_t blk) { return std::max(v, blk * kSide) & kLast; };
         const auto hi = [](int64_t v, int64_t blk) {
           return std::min(v, blk * kSide + kLast) & kLast;
@@ -126,6 +132,7 @@ void FreeSpaceMap::insertScan(const std::vector<PointXYZI>& points, const Eigen:
   if (moving && moving->size() != points.size())
     throw std::invalid_argument("FreeSpaceMap::insertScan: one moving flag per point needed");
   const Eigen::Vector3d o = pose.translation();
+  recent_.fill(Recent{});  // its blocks are restamped on their first lookup of this scan
   // The scan-conflict rule: the voxels this scan returns from are not seen empty by it.
   {
     uint64_t cached = ~uint64_t(0);
@@ -137,7 +144,7 @@ void FreeSpaceMap::insertScan(const std::vector<PointXYZI>& points, const Eigen:
                     z = floorToCell(w.z(), inv_);
       const uint64_t k = blockKey(x, y, z);
       if (k != cached) {
-        b = &block(k, scan);
+        b = &recentBlock(k, scan);
         cached = k;
       }
       const int li = localIndex(x, y, z);
@@ -224,7 +231,7 @@ void FreeSpaceMap::insertScan(const std::vector<PointXYZI>& points, const Eigen:
     for (double t = 0; t <= len;) {
       const uint64_t k = blockKey(vx, vy, vz);
       if (k != cached) {
-        b = &block(k, scan);
+        b = &recentBlock(k, scan);
         cached = k;
       }
       const int li = localIndex(vx, vy, vz);

@@ -68,6 +68,14 @@ class FreeSpaceMap {
   double inv_;
   CellMap<std::unique_ptr<Block>> blocks_;
   std::vector<Block*> touched_;  // blocks the scan being inserted visits (its voxels updated last)
+  // The scan's recent blocks, direct-mapped by key (cleared per scan): neighbouring beams and
+  // returns meet the same blocks, so most lookups end here in L1 (issue #16).
+  struct Recent {
+    uint64_t key = ~uint64_t(0);
+    Block* block = nullptr;
+  };
+  std::array<Recent, 1024> recent_{};
+  Block& recentBlock(uint64_t key, int64_t scan);
   std::size_t marked_ = 0;
 };
 
