@@ -31,6 +31,7 @@
 #include <mrpt/serialization/archiveFrom_std_vector.h>
 
 #include "cleanmap/core/cell_key.h"
+#include "cleanmap/core/cell_map.h"
 #include "cleanmap/core/error.h"
 #include "cleanmap/core/stopwatch.h"
 #include "cleanmap/io/ply.h"
@@ -137,44 +138,6 @@ std::vector<uint8_t> serialized(const ::mrpt::serialization::CSerializable& o) {
   return {static_cast<const uint8_t*>(p), static_cast<const uint8_t*>(p) + n};
 }
 
-// A growing set of cell keys, open addressing with linear probing: the scene's voxel filter sees
-// every static point of a run, where std::unordered_set's node per key cost 3 % of the run.
-class CellSet {
- public:
-  CellSet() : keys_(1 << 16, kEmpty), mask_((1 << 16) - 1) {}
-  /// True if the key was not in the set (and is now).
-  bool insert(uint64_t key) {
-    for (std::size_t i = slot(key);; i = (i + 1) & mask_) {
-      if (keys_[i] == key) return false;
-      if (keys_[i] == kEmpty) {
-        keys_[i] = key;
-        if (++size_ * 2 > keys_.size()) grow();
-        return true;
-      }
-    }
-  }
-
- private:
-  static constexpr uint64_t kEmpty = ~uint64_t(0);  // cell keys use 63 bits (cell_key.h)
-  std::size_t slot(uint64_t key) const {
-    return static_cast<std::size_t>((key * 0x9E3779B97F4A7C15ull) >> 17) & mask_;
-  }
-  void grow() {
-    std::vector<uint64_t> old(keys_.size() * 2, kEmpty);
-    old.swap(keys_);
-    mask_ = keys_.size() - 1;
-    for (const uint64_t k : old)
-      if (k != kEmpty)
-        for (std::size_t i = slot(k);; i = (i + 1) & mask_)
-          if (keys_[i] == kEmpty) {
-            keys_[i] = k;
-            break;
-          }
-  }
-  std::vector<uint64_t> keys_;
-  std::size_t mask_, size_ = 0;
-};
-
 }  // namespace
 
 // A queued piece of work of the writer thread: a decided scan, or the map's decision of one.
@@ -223,7 +186,7 @@ struct MrptOutputWriter::Impl {
   std::size_t spooled = 0, decided = 0;
   std::exception_ptr error;
   // Scene: voxel-decimated points and the trajectory.
-  CellSet static_cells, moving_cells;
+  CellMap<uint8_t> static_cells, moving_cells;  // the scene's voxel filter
   std::vector<PointXYZI> scene_static, scene_moving;
   std::vector<std::array<uint8_t, 3>> scene_static_rgb;
   std::vector<Eigen::Vector3d> trajectory;

@@ -6,7 +6,6 @@
 #include <exception>
 #include <limits>
 #include <random>
-#include <unordered_map>
 
 #include "cleanmap/core/beam_index.h"
 #include "cleanmap/core/cell_key.h"
@@ -441,8 +440,8 @@ void LaserPipeline::objectConsensus(Prepared& s, Work& w) const {
     const double inv = 1.0 / p_.object.persist_radius;
     for (uint32_t i = 0; i < s.scan.size(); ++i)
       if (s.candidate[i])
-        near_prev[i] = prev_moving_cells_.count(
-                           cellKeyOf(w.world[i].x(), w.world[i].y(), w.world[i].z(), inv)) > 0;
+        near_prev[i] = prev_moving_cells_.contains(
+            cellKeyOf(w.world[i].x(), w.world[i].y(), w.world[i].z(), inv));
   }
   // A sparser lidar returns fewer points from the same object (DESIGN §2d): min_moving is an
   // HDL-64E count.
@@ -475,16 +474,17 @@ void LaserPipeline::validateImages(std::size_t pos, Prepared& s, Work& w) const 
   for (const auto& o : order) window.push_back(o.second);
   // Cells of moving points.
   std::vector<std::vector<uint32_t>> cells;
-  std::unordered_map<uint64_t, std::size_t> cell_at;
+  CellMap<std::size_t> cell_at;
   const double inv = 1.0 / ip.cell;
   std::vector<uint64_t> keys;
   for (uint32_t i = 0; i < s.scan.size(); ++i) {
     if (!w.moving[i]) continue;
     const Eigen::Vector3d& x = w.world[i];
     const uint64_t key = cellKeyOf(x.x(), x.y(), x.z(), inv);
-    const auto [it, fresh] = cell_at.emplace(key, cells.size());
-    if (fresh) cells.emplace_back(), keys.push_back(key);
-    cells[it->second].push_back(i);
+    bool fresh = false;
+    std::size_t& at = cell_at.get(key, &fresh);
+    if (fresh) at = cells.size(), cells.emplace_back(), keys.push_back(key);
+    cells[at].push_back(i);
   }
   // Objects: connected components of the cells.
   std::vector<int> obj_of(cells.size(), -1);
@@ -497,10 +497,10 @@ void LaserPipeline::validateImages(std::size_t pos, Prepared& s, Work& w) const 
     for (std::size_t q = 0; q < objects.back().size(); ++q) {
       const uint64_t k = keys[objects.back()[q]];
       forEachNeighbour27([&](int dx, int dy, int dz) {
-        const auto it = cell_at.find(cellKeyShift(k, dx, dy, dz));
-        if (it == cell_at.end() || obj_of[it->second] >= 0) return;
-        obj_of[it->second] = id;
-        objects[static_cast<std::size_t>(id)].push_back(it->second);
+        const std::size_t* at = cell_at.find(cellKeyShift(k, dx, dy, dz));
+        if (!at || obj_of[*at] >= 0) return;
+        obj_of[*at] = id;
+        objects[static_cast<std::size_t>(id)].push_back(*at);
       });
     }
   }
@@ -656,12 +656,13 @@ void LaserPipeline::remember(const ScanResult& r, long index) {
   prev_moving_cells_.clear();
   if (!p_.object.enabled || p_.object.persist_radius <= 0) return;
   const double inv = 1.0 / p_.object.persist_radius;
-  std::unordered_set<uint64_t> cells;
+  CellMap<uint8_t> cells;
   for (const auto& p : r.moving)
     cells.insert(cellKeyOf(double(p.x), double(p.y), double(p.z), inv));
-  for (const uint64_t c : cells)
+  cells.forEach([&](uint64_t c, uint8_t) {
     forEachNeighbour27(
         [&](int dx, int dy, int dz) { prev_moving_cells_.insert(cellKeyShift(c, dx, dy, dz)); });
+  });
 }
 
 }  // namespace cleanmap

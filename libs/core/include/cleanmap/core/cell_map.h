@@ -3,8 +3,9 @@
 // up per point (issue #16): open addressing with linear probing in one array, so a lookup is one
 // or two cache lines where std::unordered_map follows a bucket and a node. Cell keys use 63 bits,
 // so ~0 marks an empty slot. No erase; iteration order is the slot order (callers must not
-// depend on it).
+// depend on it). CellMap<uint8_t> serves as a set (insert, contains).
 #pragma once
+#include <algorithm>
 #include <cstddef>
 #include <cstdint>
 #include <utility>
@@ -22,6 +23,19 @@ class CellMap {
     if (2 * n > keys_.size()) rehash(capacityFor(n));
   }
   std::size_t size() const { return size_; }
+  /// Empties the map, keeping its slots (a per-scan grid reuses its memory).
+  void clear() {
+    std::fill(keys_.begin(), keys_.end(), kEmpty);
+    for (auto& v : values_) v = V{};
+    size_ = 0;
+  }
+  /// Set use: adds `key`; true if it was not there.
+  bool insert(uint64_t key) {
+    bool fresh = false;
+    get(key, &fresh);
+    return fresh;
+  }
+  bool contains(uint64_t key) const { return find(key) != nullptr; }
   std::size_t capacity() const { return keys_.size(); }  ///< slots (key + value each)
   bool empty() const { return size_ == 0; }
 
@@ -37,6 +51,7 @@ class CellMap {
       i = (i + 1) & mask_;
     }
     keys_[i] = key;
+    values_[i] = V{};
     ++size_;
     if (inserted) *inserted = true;
     return values_[i];

@@ -8,9 +8,9 @@
 #include <memory>
 #include <optional>
 #include <thread>
-#include <unordered_set>
 #include <vector>
 
+#include "cleanmap/core/cell_map.h"
 #include "cleanmap/core/duplicate_filter.h"
 #include "cleanmap/core/frame.h"
 #include "cleanmap/core/free_space.h"
@@ -101,7 +101,7 @@ class LaserPipeline {
   long prev_index_ = -1;
   long epoch_ = -1;  // DESIGN §2f: the epoch of the last decided scan
   long map_first_ = std::numeric_limits<long>::min(), map_last_ = std::numeric_limits<long>::max();
-  std::unordered_set<uint64_t> prev_moving_cells_;  // last decided scan's moving cells, dilated
+  CellMap<uint8_t> prev_moving_cells_;  // last decided scan's moving cells, dilated
   std::unique_ptr<Work> work_;
   std::unique_ptr<FreeSpaceMap> free_;  // DESIGN §2e, whole sequence
   // A decided scan's free-space insertion runs on its own thread beside the next scan's work.
