@@ -110,11 +110,10 @@ ds::Mass MovingTest::scanMass(const Eigen::Vector3d& p_world, const WindowScan& 
 // iff E > O (empty then also beats unknown, as l > 0.5). So the decision is a weighted vote:
 // S_e = sum of -ln(1 - l) over empty votes against S_o over occupied ones, and scan i can add at
 // most w_i = -ln(1 - l_i), its l known from P's range before any beam is looked at (w_bound_
-// tabulates an upper bound of it). Once
-// |S_e - S_o| exceeds the sum of the unvisited scans' w_i, the decision is final; the scans are
-// visited heaviest first, so that sum shrinks fastest (issue #16). Otherwise the result is
-// Dempster's rule over the whole window, so a point close to a tie is decided exactly as without
-// the shortcut.
+// tabulates an upper bound of it). Once |S_e - S_o| exceeds the sum of the unvisited scans' w_i,
+// the decision is final; the scans are visited heaviest first, so that sum shrinks fastest
+// (issue #16). Otherwise the result is Dempster's rule over the whole window, so a point close to
+// a tie is decided exactly as without the shortcut.
 std::optional<bool> MovingTest::combineWindow(const Eigen::Vector3d& p_world,
                                               const std::vector<WindowScan>& window,
                                               MovingTestStats* stats, bool stop_early,
