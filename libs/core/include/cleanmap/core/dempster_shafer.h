@@ -77,9 +77,10 @@ struct BeamModel {
   }
 
   static constexpr int kBatch = 16;  ///< beams per call of massesFast
-  /// beamFloat's e and o for kBatch beams side by side, with the branch-free exp and erfc of
-  /// fast_math.h: plain arithmetic and selects, so the loop runs on vector lanes (issue #16).
-  /// Masses within 2e-6 of beamFloat (FastMath tests).
+  /// beamFloat's e and o for the first n <= kBatch beams, side by side, with the branch-free exp
+  /// and erfc of fast_math.h: plain arithmetic and selects, so the loop runs on vector lanes
+  /// (issue #16). It evaluates n rounded up to 4, 8 or 16 lanes: every array holds kBatch
+  /// entries, and those past n are ignored. Masses within 2e-6 of beamFloat (FastMath tests).
   void massesFast(const float* __restrict r, const float* __restrict theta2, int n,
                   float* __restrict e, float* __restrict o) const;  // beam_masses.cpp
   /// The same with beamFloat (libm's expf and erfcf), one beam at a time: the reference.
