@@ -15,7 +15,9 @@ MovingTest::MovingTest(const DsParams& p, BeamMath math)
       radius_(p.search_lambdas * p.lambda_theta),
       r_far_(std::sqrt(2.0 * model_.s1 * 40.0)) {  // exp(-r^2 / 2(1+sigma^2)) < e^-40
   // l is linear in |OP| / |OB|, so a cell's largest weight is at one of its ends.
-  const auto weight = [&](int j) { return -std::log1p(-ds::discreteBelief(j, kWeightCells, p_)); };
+  const auto weight = [&](int j) {
+    return -std::log1p(-ds::beliefAtRatio(double(j) / kWeightCells, p_));
+  };
   for (int j = 0; j < kWeightCells; ++j) w_bound_[j] = std::max(weight(j), weight(j + 1));
   w_bound_[kWeightCells] = weight(kWeightCells);
 }
@@ -25,8 +27,13 @@ ds::Mass MovingTest::scanMass(const Eigen::Vector3d& p_world, const WindowScan& 
   const Eigen::Vector3d pl = s.world_to_sensor * p_world;
   const double d = pl.norm();
   if (range_p) *range_p = d;
+  if (d < 1e-3 || !s.beams) return ds::Mass{};
+  return scanMassAt(pl, d, s, stats);
+}
+
+ds::Mass MovingTest::scanMassAt(const Eigen::Vector3d& pl, double d, const WindowScan& s,
+                                MovingTestStats* stats) const {
   ds::Mass m;
-  if (d < 1e-3 || !s.beams) return m;
   const Eigen::Vector3f dir = (pl / d).cast<float>();
   // The cone: search_lambdas * lambda_theta, widened to search_lambdas *
   // sqrt(lambda_theta^2 + (noise / d)^2) when the scan's pose relative to P's scan is uncertain
@@ -120,7 +127,8 @@ std::optional<bool> MovingTest::combineWindow(const Eigen::Vector3d& p_world,
                                               ds::Mass& acc) const {
   constexpr double kSafety = 1e-6;  // far above the rounding of the sums
   struct Visit {
-    double w, d;
+    Eigen::Vector3d pl;  // P in the scan's sensor frame
+    double d, ratio, w;  // |pl|, |OP| / |OB|, the bound of the scan's vote weight
     std::size_t i;
   };
   constexpr std::size_t kInline = 64;  // windows are 2K + 1 scans; longer ones use the heap
@@ -133,12 +141,12 @@ std::optional<bool> MovingTest::combineWindow(const Eigen::Vector3d& p_world,
   }
   double rest = kSafety;
   for (std::size_t i = 0; i < window.size(); ++i) {
-    const double d = (window[i].world_to_sensor * p_world).norm();
+    const Eigen::Vector3d pl = window[i].world_to_sensor * p_world;
+    const double d = pl.norm();
     const bool seen = window[i].beams && !window[i].beams->empty() && d >= 1e-3;
-    const double far = window[i].beams ? window[i].beams->farthest() : 0.0;
-    const double ratio = far > 0 ? std::min(d / far, 1.0) : 1.0;  // as ds::discreteBelief
+    const double ratio = ds::rangeRatio(d, seen ? window[i].beams->farthest() : 0.0);
     const double w = seen ? w_bound_[static_cast<std::size_t>(ratio * kWeightCells)] : 0.0;
-    visits[i] = {w, d, i};
+    visits[i] = {pl, d, ratio, w, i};
     rest += w;
   }
   if (stop_early) {  // heaviest first; ties in window order (a stable insertion sort, no buffer)
@@ -161,9 +169,8 @@ std::optional<bool> MovingTest::combineWindow(const Eigen::Vector3d& p_world,
     rest -= v.w;
     if (v.w == 0.0) continue;  // no beams, or P at the sensor: unknown
     if (stats) ++stats->scans_visited;
-    const ds::Mass m = scanMass(p_world, window[v.i], nullptr, stats);
-    const ds::Mass dm =
-        ds::discretise(m, ds::discreteBelief(v.d, window[v.i].beams->farthest(), p_));
+    const ds::Mass m = scanMassAt(v.pl, v.d, window[v.i], stats);
+    const ds::Mass dm = ds::discretise(m, ds::beliefAtRatio(v.ratio, p_));
     if (dm.e > 0) lead -= std::log1p(-dm.e);
     if (dm.o > 0) lead += std::log1p(-dm.o);
     any = any || dm.u < 1.0;

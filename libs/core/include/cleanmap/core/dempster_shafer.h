@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: BSD-3-Clause
 // DESIGN §2b / paper §II-C: Dempster-Shafer occupancy of a point from lidar beams.
 #pragma once
+#include <algorithm>
 #include <cmath>
 
 #include "cleanmap/core/params.h"
@@ -119,11 +120,18 @@ inline Consistency xiao(const Mass& a, const Mass& b) {
           a.u * (b.e + b.o) + b.u * (a.e + a.o)};
 }
 
+/// |OP| / |OB|, at most 1 (1 for a scan without extent).
+inline double rangeRatio(double range_p, double range_farthest) {
+  return range_farthest > 0 ? std::min(range_p / range_farthest, 1.0) : 1.0;
+}
+/// l for a given |OP| / |OB| (below).
+inline double beliefAtRatio(double ratio, const DsParams& p) {
+  return p.r_sup - (p.r_sup - p.r_inf) * ratio;
+}
 /// l = r_sup - (r_sup - r_inf) |OP| / |OB| (the unnumbered formula before Eq. 8): stronger belief
 /// near the sensor.
 inline double discreteBelief(double range_p, double range_farthest, const DsParams& p) {
-  const double ratio = range_farthest > 0 ? std::min(range_p / range_farthest, 1.0) : 1.0;
-  return p.r_sup - (p.r_sup - p.r_inf) * ratio;
+  return beliefAtRatio(rangeRatio(range_p, range_farthest), p);
 }
 
 /// Eq. (8)-(10): the prevailing state keeps mass l, the rest goes to unknown.

@@ -59,6 +59,10 @@ class MovingTest {
   std::optional<bool> combineWindow(const Eigen::Vector3d& p_world,
                                     const std::vector<WindowScan>& window, MovingTestStats* stats,
                                     bool stop_early, ds::Mass& acc) const;
+  // scanMass with P already in the scan's sensor frame (pl, |pl| = d > 0): combineWindow has
+  // both from its visit order.
+  ds::Mass scanMassAt(const Eigen::Vector3d& pl, double d, const WindowScan& s,
+                      MovingTestStats* stats) const;
   DsParams p_;
   BeamMath math_;
   ds::BeamModel model_;
