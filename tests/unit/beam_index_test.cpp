@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: BSD-3-Clause
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <cstring>
 #include <random>
 #include <set>
 
@@ -44,4 +46,60 @@ TEST(BeamIndex, EmptyScanHasNoBeams) {
   int n = 0;
   idx.forEachNear(Eigen::Vector3f::UnitX(), 0.01, [&](const BeamIndex::Beam&) { ++n; });
   EXPECT_EQ(n, 0);
+}
+
+TEST(BeamIndex, FindsEveryBeamInTheConeAtAnyElevation) {
+  // Directions over the whole sphere, queries up to the poles: the fast bounds (fast::asin,
+  // fast::atan2, a lower bound of the cosine) still cover the cone.
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> u(-1, 1), r(1, 60);
+  std::vector<PointXYZI> pts;
+  for (int i = 0; i < 30000; ++i) {
+    Eigen::Vector3f d(u(rng), u(rng), u(rng));
+    d = d.normalized() * r(rng);
+    pts.push_back({d.x(), d.y(), d.z(), 0});
+  }
+  for (float z : {-1.0f, 1.0f}) pts.push_back({0.0f, 0.0f, 20 * z, 0});  // the poles
+  const double radius = 0.0105;
+  const BeamIndex idx(pts, radius);
+  for (int q = 0; q < 400; ++q) {
+    Eigen::Vector3f dir(u(rng), u(rng), u(rng));
+    if (q < 4) dir = Eigen::Vector3f(q == 2 ? 0.001f : 0.0f, q == 3 ? -0.0f : 0.0f, q % 2 ? 1 : -1);
+    if (q == 4) dir = Eigen::Vector3f(-1, -0.0f, 0);
+    dir.normalize();
+    std::size_t brute = 0, found = 0;
+    for (const auto& p : pts)
+      brute += std::acos(std::min(1.0f, p.xyz().normalized().dot(dir))) <= radius;
+    idx.forEachNear(dir, radius, [&](const BeamIndex::Beam& b) {
+      found += std::acos(std::min(1.0f, b.dir.dot(dir))) <= radius;
+    });
+    ASSERT_EQ(found, brute) << "query " << q << ": " << dir.transpose();
+  }
+}
+
+TEST(BeamIndex, FastBinningEqualsTheLibmBinningOnBinEdges) {
+  // Directions placed on the bins' edges (as nearly as floats allow), the azimuth seam with both
+  // signs of zero, the poles, and random ones: kFast must give kExact's index bit for bit.
+  const double bin = 0.0105;
+  const int n_az = static_cast<int>(std::ceil(2 * M_PI / bin));
+  const double step = 2 * M_PI / n_az, el0 = -0.43;
+  std::vector<PointXYZI> pts;
+  auto add = [&](double el, double az, float r) {
+    pts.push_back({static_cast<float>(r * std::cos(el) * std::cos(az)),
+                   static_cast<float>(r * std::cos(el) * std::sin(az)),
+                   static_cast<float>(r * std::sin(el)), 0});
+  };
+  for (int e = 0; e <= 60; ++e)
+    for (int a = 0; a <= n_az; ++a) add(el0 + e * step, -M_PI + a * step, 5.0f + (a % 7));
+  for (float y : {0.0f, -0.0f}) pts.push_back({-12.0f, y, 0.5f, 0});
+  pts.push_back({0, 0, 3, 0});
+  pts.push_back({0, 0, -3, 0});
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> u(-1, 1);
+  for (int i = 0; i < 50000; ++i) pts.push_back({40 * u(rng), 40 * u(rng), 5 * u(rng), 0});
+  const BeamIndex fast(pts, bin), exact(pts, bin, BeamIndex::Binning::kExact);
+  ASSERT_EQ(fast.size(), exact.size());
+  EXPECT_EQ(fast.offsets(), exact.offsets());
+  ASSERT_EQ(0, std::memcmp(fast.beams().data(), exact.beams().data(),
+                           fast.size() * sizeof(BeamIndex::Beam)));
 }

@@ -1,12 +1,15 @@
 // SPDX-License-Identifier: BSD-3-Clause
 // Issue #16: the moving test's fast beam masses (fast_math.h, BeamModel::massesFast) against
 // libm, and the product form of Dempster's rule in MovingTest::scanMass against the pairwise
-// rule; on real scans, the fast path decides as the reference path.
+// rule; on real scans, the fast path decides as the reference path, and the beam index's fast
+// binning (fast::asin / fast::atan2 with a libm fallback at bin edges) equals libm's.
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstring>
 #include <random>
 
+#include "cleanmap/core/beam_index.h"
 #include "cleanmap/core/dempster_shafer.h"
 #include "cleanmap/core/fast_math.h"
 #include "cleanmap/core/moving_test.h"
@@ -41,6 +44,50 @@ TEST(FastMath, ErfcWithinItsBound) {
   }
   EXPECT_LT(worst_abs, 6e-7);
   EXPECT_LT(worst_rel, 2e-6);
+}
+
+TEST(FastMath, AsinAndAtan2WithinTheirBounds) {
+  // fast_math.h states 2e-7 and 3e-7 rad; BeamIndex assumes kAngleError (1e-6) for both.
+  double worst_asin = 0, worst_atan2 = 0;
+  for (int i = -4'000'000; i <= 4'000'000; ++i) {
+    const float s = static_cast<float>(i) / 4e6f;
+    worst_asin = std::max(worst_asin, std::abs(fast::asin(s) - std::asin(double(s))));
+  }
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> ua(-M_PI, M_PI), ur(1e-3, 100.0);
+  for (int i = 0; i < 4'000'000; ++i) {
+    const double a = ua(rng), r = ur(rng);
+    float x = static_cast<float>(r * std::cos(a)), y = static_cast<float>(r * std::sin(a));
+    if (i % 101 == 0) x = 0;  // the axes
+    if (i % 103 == 0) y = 0;
+    if (x == 0 && y == 0) continue;
+    worst_atan2 =
+        std::max(worst_atan2, std::abs(fast::atan2(y, x) - std::atan2(double(y), double(x))));
+  }
+  EXPECT_LT(worst_asin, 2e-7);
+  EXPECT_LT(worst_atan2, 3e-7);
+  EXPECT_LT(std::max(worst_asin, worst_atan2) * 3, BeamIndex::kAngleError);
+  EXPECT_EQ(fast::asin(1.0f), static_cast<float>(M_PI / 2));
+  EXPECT_EQ(fast::atan2(0.0f, 1.0f), 0.0f);
+}
+
+TEST(BeamIndex, FastBinningEqualsTheLibmBinningOnRealScans) {
+  // Every labelled set, first, middle and last scan: the same index, bit for bit.
+  for (const char* set : {"kitti_city", "kitti_highway", "kitti_residential"}) {
+    CLEANMAP_REQUIRE_DATASET(set);
+    const auto seq = io::KittiSequence::open(test::dataDir() + "/" + set);
+    const double bin = MovingTest(DsParams{}).searchRadius();
+    for (std::size_t i : {std::size_t{0}, seq.size() / 2, seq.size() - 1}) {
+      const auto scan = seq.loadScan(i);
+      const BeamIndex fast(scan.points, bin), exact(scan.points, bin, BeamIndex::Binning::kExact);
+      ASSERT_EQ(fast.size(), exact.size()) << set << " scan " << i;
+      ASSERT_GT(fast.size(), 50000u);
+      EXPECT_EQ(fast.offsets(), exact.offsets()) << set << " scan " << i;
+      ASSERT_EQ(0, std::memcmp(fast.beams().data(), exact.beams().data(),
+                               fast.size() * sizeof(BeamIndex::Beam)))
+          << set << " scan " << i;
+    }
+  }
 }
 
 TEST(FastMath, BeamMassesAgreeWithLibmAndDoNotDependOnTheBatch) {

@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "beam_angles.h"
+
 namespace cleanmap {
 
 int BeamIndex::azBin(double az) const {
@@ -11,41 +13,80 @@ int BeamIndex::azBin(double az) const {
   return std::clamp(a, 0, n_az_ - 1);
 }
 
-BeamIndex::BeamIndex(const std::vector<PointXYZI>& points, double bin) : bin_(bin) {
+BeamIndex::BeamIndex(const std::vector<PointXYZI>& points, double bin, Binning binning)
+    : bin_(bin) {
   n_az_ = std::max(1, static_cast<int>(std::ceil(2.0 * M_PI / bin_)));
   bin_ = 2.0 * M_PI / n_az_;  // an integral number of azimuth bins
   std::vector<Beam> beams;
-  std::vector<double> el;
+  std::vector<float> dx, dy, dz;  // the directions again, one array per axis (vector loads)
   beams.reserve(points.size());
-  el.reserve(points.size());
-  double el_max = -M_PI;
-  el_min_ = M_PI;
+  for (auto* v : {&dx, &dy, &dz}) v->reserve(points.size());
   for (const auto& p : points) {
     const Eigen::Vector3f v(p.x, p.y, p.z);
     const float r = v.norm();
     if (!(r > 1e-3f)) continue;  // no direction
     beams.push_back({v / r, r});
-    el.push_back(std::asin(std::clamp(static_cast<double>(v.z() / r), -1.0, 1.0)));
-    el_min_ = std::min(el_min_, el.back());
-    el_max = std::max(el_max, el.back());
+    dx.push_back(beams.back().dir.x());
+    dy.push_back(beams.back().dir.y());
+    dz.push_back(beams.back().dir.z());
     farthest_ = std::max(farthest_, r);
   }
   if (beams.empty()) return;
-  n_el_ = static_cast<int>(std::floor((el_max - el_min_) / bin_)) + 1;
-  const std::size_t nbins = static_cast<std::size_t>(n_el_) * static_cast<std::size_t>(n_az_);
-  std::vector<uint32_t> bin_of(beams.size());
-  offsets_.assign(nbins + 1, 0);
-  for (std::size_t i = 0; i < beams.size(); ++i) {
-    const int e = std::min(static_cast<int>(std::floor((el[i] - el_min_) / bin_)), n_el_ - 1);
-    const double az =
-        std::atan2(static_cast<double>(beams[i].dir.y()), static_cast<double>(beams[i].dir.x()));
-    bin_of[i] = static_cast<uint32_t>(e * n_az_ + azBin(az));
-    ++offsets_[bin_of[i] + 1];
+  const std::size_t n = beams.size();
+  // The reference angles (libm, double), and the bins they give.
+  auto exact_el = [&](std::size_t i) { return std::asin(std::clamp(double(dz[i]), -1.0, 1.0)); };
+  auto exact_az = [&](std::size_t i) { return std::atan2(double(dy[i]), double(dx[i])); };
+  auto el_bin = [&](double el) {
+    return std::min(static_cast<int>(std::floor((el - el_min_) / bin_)), n_el_ - 1);
+  };
+  std::vector<uint32_t> bin_of(n);
+  double el_max = -M_PI;
+  el_min_ = M_PI;
+  if (binning == Binning::kExact) {
+    std::vector<double> el(n);
+    for (std::size_t i = 0; i < n; ++i) {
+      el[i] = exact_el(i);
+      el_min_ = std::min(el_min_, el[i]);
+      el_max = std::max(el_max, el[i]);
+    }
+    n_el_ = static_cast<int>(std::floor((el_max - el_min_) / bin_)) + 1;
+    for (std::size_t i = 0; i < n; ++i)
+      bin_of[i] = static_cast<uint32_t>(el_bin(el[i]) * n_az_ + azBin(exact_az(i)));
+  } else {
+    std::vector<float> el(n), az(n);
+    detail::approxAngles(dx.data(), dy.data(), dz.data(), n, el.data(), az.data());
+    // The exact extremes are among the beams whose approximate elevation is within twice the
+    // error bound of the approximate extremes.
+    const auto [lo, hi] = std::minmax_element(el.begin(), el.end());
+    const float near_lo = *lo + 2 * float(kAngleError), near_hi = *hi - 2 * float(kAngleError);
+    for (std::size_t i = 0; i < n; ++i)
+      if (el[i] <= near_lo || el[i] >= near_hi) {
+        const double e = exact_el(i);
+        el_min_ = std::min(el_min_, e);
+        el_max = std::max(el_max, e);
+      }
+    n_el_ = static_cast<int>(std::floor((el_max - el_min_) / bin_)) + 1;
+    // A bin coordinate more than kBinTolerance from an edge floors as the exact one would;
+    // truncation is floor here, and a coordinate just below 0 has a negative fraction.
+    const double inv = 1.0 / bin_;
+    for (std::size_t i = 0; i < n; ++i) {
+      const double te = (double(el[i]) - el_min_) * inv, ta = (double(az[i]) + M_PI) * inv;
+      const int ie = static_cast<int>(te), ia = static_cast<int>(ta);
+      const double fe = te - ie, fa = ta - ia;
+      const int e = fe < kBinTolerance || fe > 1 - kBinTolerance ? el_bin(exact_el(i))
+                                                                 : std::min(ie, n_el_ - 1);
+      const int a = fa < kBinTolerance || fa > 1 - kBinTolerance ? azBin(exact_az(i))
+                                                                 : std::clamp(ia, 0, n_az_ - 1);
+      bin_of[i] = static_cast<uint32_t>(e * n_az_ + a);
+    }
   }
+  const std::size_t nbins = static_cast<std::size_t>(n_el_) * static_cast<std::size_t>(n_az_);
+  offsets_.assign(nbins + 1, 0);
+  for (std::size_t i = 0; i < n; ++i) ++offsets_[bin_of[i] + 1];
   for (std::size_t b = 0; b < nbins; ++b) offsets_[b + 1] += offsets_[b];
-  beams_.resize(beams.size());
+  beams_.resize(n);
   std::vector<uint32_t> fill(offsets_.begin(), offsets_.end() - 1);
-  for (std::size_t i = 0; i < beams.size(); ++i) beams_[fill[bin_of[i]]++] = beams[i];
+  for (std::size_t i = 0; i < n; ++i) beams_[fill[bin_of[i]]++] = beams[i];
 }
 
 }  // namespace cleanmap

@@ -3,9 +3,12 @@
 // sensor frame and reused by every frame whose window holds the scan.
 #pragma once
 #include <Eigen/Core>
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <vector>
 
+#include "cleanmap/core/fast_math.h"
 #include "cleanmap/core/types.h"
 
 namespace cleanmap {
@@ -17,19 +20,35 @@ class BeamIndex {
     float range;          ///< |OQ|, m
   };
 
+  /// How a beam's bin is found. Both give the same index, bit for bit: a beam's bins are those
+  /// of libm's double asin / atan2 of its direction. kFast computes them with the vectorised
+  /// float fast::asin / fast::atan2 and falls back to libm for the few beams that lie within
+  /// kBinTolerance of a bin edge (issue #16); kExact calls libm for every beam (the reference).
+  enum class Binning { kFast, kExact };
+  /// Error bound used for fast::asin / fast::atan2 here: 3x their measured errors (fast_math.h).
+  static constexpr double kAngleError = 1e-6;  // rad
+  /// kFast recomputes a beam exactly when its approximate bin coordinate is this close to an edge
+  /// (a fraction of a bin; 5e-6 rad, so above kAngleError and the rounding of the bin arithmetic).
+  static constexpr double kBinTolerance = 5e-4;
+
   BeamIndex() = default;
   /// Indexes every point of the scan (ground and far points included: they are beams too).
   /// `bin` is the angular bin size in rad (use the search radius).
-  BeamIndex(const std::vector<PointXYZI>& points, double bin);
+  BeamIndex(const std::vector<PointXYZI>& points, double bin, Binning binning = Binning::kFast);
 
   /// Calls f(const Beam&) for every beam whose bin could lie within `radius` rad of `dir`
-  /// (unit, sensor frame); f filters by the exact angle. radius <= bin.
+  /// (unit, sensor frame); f filters by the exact angle. radius <= bin. The bins are found with
+  /// fast::asin / fast::atan2 and widened by kAngleError, so they hold every beam within
+  /// `radius`; beams come in bin order (a full azimuth row from bin 0).
   template <class F>
   void forEachNear(const Eigen::Vector3f& dir, double radius, F&& f) const;
 
   float farthest() const { return farthest_; }  ///< |OB|
   std::size_t size() const { return beams_.size(); }
   bool empty() const { return beams_.empty(); }
+  const std::vector<Beam>& beams() const { return beams_; }  ///< sorted by bin
+  /// CSR over bins (elevation-major): the beams of bin b are [offsets()[b], offsets()[b + 1]).
+  const std::vector<uint32_t>& offsets() const { return offsets_; }
 
  private:
   int azBin(double az) const;
@@ -44,19 +63,25 @@ class BeamIndex {
 template <class F>
 void BeamIndex::forEachNear(const Eigen::Vector3f& dir, double radius, F&& f) const {
   if (beams_.empty()) return;
-  const double el = std::asin(std::clamp(static_cast<double>(dir.z()), -1.0, 1.0));
-  const double az = std::atan2(static_cast<double>(dir.y()), static_cast<double>(dir.x()));
-  const int e0 = static_cast<int>(std::floor((el - radius - el_min_) / bin_));
-  const int e1 = static_cast<int>(std::floor((el + radius - el_min_) / bin_));
+  // Approximate angles, every bound widened by their error: the bins hold all that libm's
+  // angles would give (the exact filter is f's).
+  const float z = std::clamp(dir.z(), -1.0f, 1.0f);
+  const double el = fast::asin(z), az = fast::atan2(dir.y(), dir.x());
+  const double r = radius + kAngleError;
+  const int e0 = static_cast<int>(std::floor((el - r - el_min_) / bin_));
+  const int e1 = static_cast<int>(std::floor((el + r - el_min_) / bin_));
   if (e1 < 0 || e0 >= n_el_) return;
-  // Azimuth spans widen by 1 / cos(elevation) away from the horizon.
-  const double c = std::max(std::cos(std::abs(el) + radius), 1e-3);
-  const double daz = std::min(radius / c, M_PI);
+  // Azimuth spans widen by 1 / cos(elevation) away from the horizon. A lower bound of
+  // cos(|el| + r), without trigonometry: cos|el| cos r - sin|el| sin r with cos r >= 1 - r^2 / 2,
+  // sin r <= r, cos|el| = sqrt(1 - z^2).
+  const double zd = z, cos_el = std::sqrt(std::max(0.0, 1.0 - zd * zd));
+  const double c = std::max(cos_el * (1.0 - 0.5 * r * r) - std::abs(zd) * r - 1e-9, 1e-3);
+  const double daz = std::min(r / c, M_PI);
   const int a_lo = static_cast<int>(std::floor((az - daz + M_PI) / bin_));
   const int a_hi = static_cast<int>(std::floor((az + daz + M_PI) / bin_));
   const int span = std::min(a_hi - a_lo, n_az_ - 1);
   // A row's bins a_first .. a_first + span are one range of beams_ (two where they wrap at 2 pi).
-  const int a_first = (a_lo % n_az_ + n_az_) % n_az_;
+  const int a_first = span == n_az_ - 1 ? 0 : (a_lo % n_az_ + n_az_) % n_az_;
   const int a_end = a_first + span + 1;
   for (int e = std::max(e0, 0); e <= std::min(e1, n_el_ - 1); ++e) {
     const uint32_t* row = offsets_.data() + static_cast<std::size_t>(e) * n_az_;
