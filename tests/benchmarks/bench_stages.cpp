@@ -18,6 +18,7 @@
 #include "cleanmap/core/moving_test.h"
 #include "cleanmap/core/object_consensus.h"
 #include "cleanmap/core/params.h"
+#include "cleanmap/core/sensor.h"
 #include "cleanmap/io/kitti.h"
 #include "cleanmap/sim/world.h"
 
@@ -103,6 +104,16 @@ void BM_Ground(benchmark::State& state) {
   }
 }
 
+// The per-scan sensor checks of the crop + ground stage (issue #15): the ground height under the
+// sensor and the angular resolution, measured from the scan.
+void BM_SensorChecks(benchmark::State& state) {
+  const auto& pts = inputs().scans[inputs().center].points;
+  for (auto _ : state) {
+    benchmark::DoNotOptimize(estimateGroundHeight(pts));
+    benchmark::DoNotOptimize(measureResolution(pts));
+  }
+}
+
 void BM_DuplicateFilter(benchmark::State& state) {
   // The static map of the 10 scans before the center (every point above the road), then one
   // query per point of the center scan above the road.
@@ -169,6 +180,7 @@ void BM_FreeSpaceInsertKnownArea(benchmark::State& state) {
 BENCHMARK(BM_BeamIndex)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_MovingTest)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_Ground)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_SensorChecks)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_DuplicateFilter)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_ObjectConsensus)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_FreeSpaceInsert)->Unit(benchmark::kMillisecond);

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <limits>
 
+#include "cleanmap/core/fast_math.h"
 #include "cleanmap/core/median.h"
 
 namespace cleanmap {
@@ -87,8 +88,14 @@ std::optional<double> estimateGroundHeight(const std::vector<PointXYZI>& points)
   for (const auto& q : points) {
     const float r2 = q.x * q.x + q.y * q.y;
     if (!(r2 >= kNear2 && r2 <= kFar2) || !std::isfinite(q.z)) continue;
-    const int s = std::min(kSectors - 1, static_cast<int>((std::atan2(q.y, q.x) + float(M_PI)) *
-                                                          float(kSectors / (2 * M_PI))));
+    // Issue #16: the sector from fast::atan2, libm's where that lies within kEdge of a sector's
+    // edge (its error is below 3e-7 rad, 2e-6 of a sector): the same sectors, bit for bit.
+    constexpr float kPerRad = float(kSectors / (2 * M_PI)), kEdge = 1e-4f;
+    const float t = (fast::atan2(q.y, q.x) + float(M_PI)) * kPerRad;
+    int s = static_cast<int>(t);
+    if (t - float(s) < kEdge || t - float(s) > 1 - kEdge)
+      s = static_cast<int>((std::atan2(q.y, q.x) + float(M_PI)) * kPerRad);
+    s = std::min(kSectors - 1, s);
     auto& l = low[static_cast<std::size_t>(std::max(0, s))];
     if (q.z >= l[2]) continue;
     l[2] = q.z;

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "cleanmap/core/fast_math.h"
 #include "cleanmap/core/median.h"
 
 namespace cleanmap {
@@ -72,13 +73,28 @@ std::optional<AngularResolution> measureResolution(const std::vector<PointXYZI>&
   std::size_t used = 0;
   std::vector<std::pair<int, const PointXYZI*>> binned;  // elevation bin of each used return
   binned.reserve(points.size());
+  // Issue #16: the elevation bin from fast::atan2 (float), libm's double atan2 / hypot for the
+  // returns within kEdge of a bin edge or of the 5 / 100 m bounds, so the bins are libm's; the
+  // bins' mean elevations take the fast angle (error below 1e-6 degrees).
+  constexpr double kEdge = 5e-3;  // of a bin: 25x the fast angle's error (3e-7 rad + rounding)
+  constexpr float kDeg = static_cast<float>(180 / M_PI);
   for (const auto& p : points) {
-    const double rh = std::hypot(double(p.x), double(p.y));
-    if (!(rh >= 5 && rh <= 100) || !std::isfinite(p.z)) continue;
-    const double el = std::atan2(double(p.z), rh) * 180 / M_PI;
-    const int b = std::clamp(static_cast<int>(std::floor((el + 90) / kBin)), 0, kBins - 1);
+    const double rh2 = double(p.x) * p.x + double(p.y) * p.y;
+    if (!(rh2 >= 25 * (1 - 1e-9) && rh2 <= 1e4 * (1 + 1e-9)) || !std::isfinite(p.z)) continue;
+    const bool at_bound = rh2 <= 25 * (1 + 1e-9) || rh2 >= 1e4 * (1 - 1e-9);
+    if (at_bound &&
+        !(std::hypot(double(p.x), double(p.y)) >= 5 && std::hypot(double(p.x), double(p.y)) <= 100))
+      continue;
+    const float el_fast = fast::atan2(p.z, std::sqrt(static_cast<float>(rh2))) * kDeg;
+    const double t = (double(el_fast) + 90) / kBin;
+    int b = static_cast<int>(std::floor(t));
+    if (t - b < kEdge || t - b > 1 - kEdge) {
+      const double el = std::atan2(double(p.z), std::hypot(double(p.x), double(p.y))) * 180 / M_PI;
+      b = static_cast<int>(std::floor((el + 90) / kBin));
+    }
+    b = std::clamp(b, 0, kBins - 1);
     ++count[static_cast<std::size_t>(b)];
-    sum[static_cast<std::size_t>(b)] += el;
+    sum[static_cast<std::size_t>(b)] += el_fast;
     binned.emplace_back(b, &p);
     ++used;
   }
@@ -122,20 +138,19 @@ std::optional<AngularResolution> measureResolution(const std::vector<PointXYZI>&
   if (vertical < 0.8) return std::nullopt;
   // The azimuth step: per ring, the median gap between neighbouring returns; the median over
   // rings, so that a run where several lasers blur together (a smaller gap) is outvoted.
-  std::vector<std::vector<double>> az(rings.size());
+  std::vector<std::vector<float>> az(rings.size());
   for (const auto& [b, p] : binned) {
     const auto r = std::partition_point(rings.begin(), rings.end(),
                                         [b = b](const Ring& g) { return g.last < b; });
     if (r != rings.end() && b >= r->first)
-      az[std::size_t(r - rings.begin())].push_back(std::atan2(double(p->y), double(p->x)) * 180 /
-                                                   M_PI);
+      az[std::size_t(r - rings.begin())].push_back(fast::atan2(p->y, p->x) * kDeg);
   }
   std::vector<double> ring_steps;
   for (auto& a : az) {
     std::sort(a.begin(), a.end());
     std::vector<double> steps;
     for (std::size_t k = 1; k < a.size(); ++k)
-      if (a[k] - a[k - 1] > 1e-4) steps.push_back(a[k] - a[k - 1]);
+      if (double(a[k]) - a[k - 1] > 1e-4) steps.push_back(double(a[k]) - a[k - 1]);
     if (steps.size() >= 100) ring_steps.push_back(median(std::move(steps)));
   }
   if (ring_steps.size() < 4) return std::nullopt;
