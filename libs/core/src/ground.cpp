@@ -49,9 +49,10 @@ std::vector<uint8_t> segmentGround(const std::vector<PointXYZI>& points, const G
   };
   visit(0, 0, static_cast<float>(ground_z), 0);
   for (int ring = 1; ring <= n; ++ring) {
+    // The ring's cells only (each reads the inner ring alone, so their order does not matter).
     for (int i = -ring; i <= ring; ++i) {
-      for (int j = -ring; j <= ring; ++j) {
-        if (std::max(std::abs(i), std::abs(j)) != ring) continue;
+      const int j_step = std::abs(i) == ring ? 1 : 2 * ring;
+      for (int j = -ring; j <= ring; j += j_step) {
         // Neighbours in the inner ring (Chebyshev distance ring-1) propagate to this cell.
         float hat_h = -kInf;
         int hat_gap = 0;
