@@ -9,6 +9,7 @@
 #include <stdexcept>
 
 #include "cleanmap/core/cell_key.h"
+#include "cleanmap/core/fast_math.h"
 
 namespace cleanmap {
 namespace {
@@ -192,15 +193,23 @@ void FreeSpaceMap::insertScan(const std::vector<PointXYZI>& points, const Eigen:
   for (const auto& p : points) {
     const Eigen::Vector3d ps = p.xyz().cast<double>();
     const double r = ps.norm();
-    const double rh = std::hypot(ps.x(), ps.y());
     if (!(r > 0)) continue;
     double t1 = r - p_.margin - half_diag;
-    if (rh > p_.radius) t1 = std::min(t1, r * p_.radius / rh);
+    // hypot only where the horizontal range may pass the radius (issue #16: same test, same t1).
+    if (ps.x() * ps.x() + ps.y() * ps.y() > p_.radius * p_.radius * (1 - 1e-9)) {
+      const double rh = std::hypot(ps.x(), ps.y());
+      if (rh > p_.radius) t1 = std::min(t1, r * p_.radius / rh);
+    }
     int level = kLevels;
     if (inv_spacing > 0) {
-      const auto bin = static_cast<uint64_t>(
-          static_cast<int64_t>(std::floor((std::atan2(ps.y(), ps.x()) + M_PI) * inv_spacing)));
-      level = bin == 0 ? kLevels : std::min(kLevels, __builtin_ctzll(bin));
+      // The azimuth bin from fast::atan2 (error below 3e-7 rad, 1e-4 of a bin), libm's where
+      // that lies within 2e-3 of a bin edge: the same bins (issue #16).
+      const double ta = (double(fast::atan2(p.y, p.x)) + M_PI) * inv_spacing;
+      auto bin = static_cast<int64_t>(ta);
+      if (ta - double(bin) < 2e-3 || ta - double(bin) > 1 - 2e-3)
+        bin = static_cast<int64_t>(std::floor((std::atan2(ps.y(), ps.x()) + M_PI) * inv_spacing));
+      const auto ubin = static_cast<uint64_t>(bin);
+      level = ubin == 0 ? kLevels : std::min(kLevels, __builtin_ctzll(ubin));
     }
     const double t0 = level_start[level];
     if (t1 <= t0) continue;
