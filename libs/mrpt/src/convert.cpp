@@ -64,7 +64,8 @@ Eigen::Isometry3d toIsometry(const CPose3D& p) {
   map->resize(points.size());
   for (std::size_t i = 0; i < points.size(); ++i) {
     const auto& p = points[i];
-    map->setPointRGB(i, p.x, p.y, p.z, p.intensity, 0, 0);
+    map->setPointFast(i, p.x, p.y, p.z);  // no k-d tree lock per point; marked modified below
+    map->setPointColor_fast(i, p.intensity, 0, 0);
   }
   map->mark_as_modified();
   return map;

@@ -222,8 +222,13 @@ struct MrptOutputWriter::Impl {
     auto& kept = *kept_map;
     kept.resize(pts.size());
     std::size_t k = 0;
+    // The _fast setters: setPointRGB would lock the map's k-d tree mutex once per point (issue
+    // #16); the map is marked modified once, below.
     for (std::size_t i = 0; i < pts.size(); ++i)
-      if (keep(i)) kept.setPointRGB(k++, pts[i].x, pts[i].y, pts[i].z, pts[i].intensity, 0, 0);
+      if (keep(i)) {
+        kept.setPointFast(k, pts[i].x, pts[i].y, pts[i].z);
+        kept.setPointColor_fast(k++, pts[i].intensity, 0, 0);
+      }
     kept.resize(k);
     kept.mark_as_modified();
     const auto [pb, pn] = enc(*poseObservation(pose, timestamp));
@@ -502,9 +507,13 @@ void MrptOutputWriter::writeNow(const ScanResult& r) {
     for (std::size_t i = 0; i < n; ++i) {
       const auto& p = r.scan.points[i];
       const uint32_t l = r.labels[r.scan.originalIndex(i)];
-      if (l == kMoving) mov.setPointRGB(m++, p.x, p.y, p.z, p.intensity, 0, 0);
+      if (l == kMoving) {  // the _fast setters, as in writeCleaned
+        mov.setPointFast(m, p.x, p.y, p.z);
+        mov.setPointColor_fast(m++, p.intensity, 0, 0);
+      }
       const auto c = labelColour(l);
-      lab.setPointRGB(i, p.x, p.y, p.z, c[0], c[1], c[2]);
+      lab.setPointFast(i, p.x, p.y, p.z);
+      lab.setPointColor_fast(i, c[0], c[1], c[2]);
     }
     mov.resize(m);
     mov.mark_as_modified();
