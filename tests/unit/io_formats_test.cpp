@@ -59,6 +59,18 @@ TEST(Ply, ColouredMapAndItsPcdTwin) {
   EXPECT_EQ(io::heightColour(-9.0), io::heightColour(-2.0));  // clamped
   for (double dz = -2; dz <= 3; dz += 0.25)
     EXPECT_LT(io::heightColour(dz)[0], 254) << dz;  // no red
+  // The ramp's rounding is lround's, on a fine sweep.
+  const double ramp[5][3] = {
+      {68, 1, 84}, {59, 82, 139}, {33, 145, 140}, {94, 201, 98}, {253, 231, 37}};
+  for (int i = 0; i <= 500000; ++i) {
+    const double dz = -2.5 + 6.0 * i / 500000;
+    const double t = std::clamp((dz + 2.0) / 5.0, 0.0, 1.0) * 4.0;
+    const int k = std::min(3, static_cast<int>(t));
+    for (int j = 0; j < 3; ++j)
+      ASSERT_EQ(io::heightColour(dz)[static_cast<std::size_t>(j)],
+                std::lround(ramp[k][j] + (t - k) * (ramp[k + 1][j] - ramp[k][j])))
+          << dz;
+  }
 }
 
 TEST(Ply, StreamedMapAndForeignAsciiPly) {

@@ -31,8 +31,12 @@ std::array<uint8_t, 3> heightColour(double dz) {
   const int k = std::min(3, static_cast<int>(t));
   const double f = t - k;
   std::array<uint8_t, 3> c{};
-  for (int j = 0; j < 3; ++j)
-    c[j] = static_cast<uint8_t>(std::lround(kRamp[k][j] + f * (kRamp[k + 1][j] - kRamp[k][j])));
+  for (int j = 0; j < 3; ++j) {
+    // lround of a value in [0, 255], without the libm call: half rounds up, as lround's.
+    const double v = kRamp[k][j] + f * (kRamp[k + 1][j] - kRamp[k][j]);
+    const int i = static_cast<int>(v);
+    c[j] = static_cast<uint8_t>(i + (v - i >= 0.5));
+  }
   return c;
 }
 
