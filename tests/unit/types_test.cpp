@@ -170,3 +170,35 @@ TEST(CellMap, HoldsWhatStdUnorderedMapHolds) {
   const CellMap<uint32_t> none;
   EXPECT_EQ(none.find(cellKey(0, 0, 0)), nullptr);
 }
+
+TEST(CellMap, EraseKeepsEveryOtherKeyFindable) {
+  // Keys come and go as in the duplicate filter's window, in a small key space (long probe runs
+  // that wrap around the array): after each erase every remaining key is found with its value.
+  std::mt19937 rng(17);
+  std::uniform_int_distribution<int> c(-40, 40);
+  CellMap<std::vector<int>> flat;
+  std::unordered_map<uint64_t, int> ref;
+  for (int i = 0; i < 200000; ++i) {
+    const uint64_t k = cellKey(c(rng), c(rng), 0);
+    if (i % 3 == 2) {
+      EXPECT_EQ(flat.erase(k), ref.erase(k) == 1);
+    } else {
+      flat.get(k) = {i};
+      ref[k] = i;
+    }
+    if (i % 997 == 0) {
+      ASSERT_EQ(flat.size(), ref.size());
+      for (const auto& [key, v] : ref) {
+        const auto* f = flat.find(key);
+        ASSERT_NE(f, nullptr) << "step " << i;
+        ASSERT_EQ(f->front(), v);
+      }
+      std::size_t n = 0;
+      flat.forEach([&](uint64_t, const std::vector<int>&) { ++n; });
+      ASSERT_EQ(n, ref.size());
+    }
+  }
+  for (const auto& [key, v] : ref) EXPECT_TRUE(flat.erase(key));
+  EXPECT_TRUE(flat.empty());
+  EXPECT_FALSE(flat.erase(cellKey(0, 0, 0)));
+}

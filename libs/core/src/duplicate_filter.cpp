@@ -26,11 +26,11 @@ bool DuplicateFilter::isDuplicate(const Eigen::Vector3f& p, long scan) const {
   const long oldest = scan - p_.dup_window;
   // p's own cell first: most duplicates lie there, and the answer does not depend on the order.
   for (int m = 0; m < 8; ++m) {
-    const auto it =
+    const auto* cell =
         grid_.find(cellKey(lo[0] + (home[0] ^ (m & 1)), lo[1] + (home[1] ^ (m >> 1 & 1)),
                            lo[2] + (home[2] ^ (m >> 2))));
-    if (it == grid_.end()) continue;
-    for (const Entry& e : it->second)
+    if (!cell) continue;
+    for (const Entry& e : *cell)
       if (e.scan >= oldest && e.scan < scan && (e.p - p).squaredNorm() <= d2) return true;
   }
   return false;
@@ -55,14 +55,13 @@ void DuplicateFilter::prune(long oldest) {
   // Only the cells the expiring scans filled can hold expired entries: O(expired points).
   while (!touched_.empty() && touched_.front().first < oldest) {
     for (const Key k : touched_.front().second) {
-      const auto it = grid_.find(k);
-      if (it == grid_.end()) continue;
-      auto& v = it->second;
+      auto* v = grid_.find(k);
+      if (!v) continue;
       const auto keep =
-          std::find_if(v.begin(), v.end(), [&](const Entry& e) { return e.scan >= oldest; });
-      count_ -= static_cast<std::size_t>(keep - v.begin());
-      v.erase(v.begin(), keep);
-      if (v.empty()) grid_.erase(it);
+          std::find_if(v->begin(), v->end(), [&](const Entry& e) { return e.scan >= oldest; });
+      count_ -= static_cast<std::size_t>(keep - v->begin());
+      v->erase(v->begin(), keep);
+      if (v->empty()) grid_.erase(k);
     }
     touched_.pop_front();
   }

@@ -2,8 +2,9 @@
 // A flat hash map from cell keys (cell_key.h) to values, for the grids that are filled and looked
 // up per point (issue #16): open addressing with linear probing in one array, so a lookup is one
 // or two cache lines where std::unordered_map follows a bucket and a node. Cell keys use 63 bits,
-// so ~0 marks an empty slot. No erase; iteration order is the slot order (callers must not
-// depend on it). CellMap<uint8_t> serves as a set (insert, contains).
+// so ~0 marks an empty slot. Erase shifts the following entries back (no tombstones, so a map
+// whose keys come and go keeps short probes). Iteration order is the slot order (callers must
+// not depend on it). CellMap<uint8_t> serves as a set (insert, contains).
 #pragma once
 #include <algorithm>
 #include <cstddef>
@@ -66,6 +67,27 @@ class CellMap {
     }
   }
   V* find(uint64_t key) { return const_cast<V*>(std::as_const(*this).find(key)); }
+
+  /// Removes `key` (its value is destroyed); false if it was absent. Backward-shift deletion: the
+  /// entries after the slot that probed past it move back, so every lookup still finds its key.
+  bool erase(uint64_t key) {
+    if (keys_.empty()) return false;
+    std::size_t i = slot(key);
+    for (; keys_[i] != key; i = (i + 1) & mask_)
+      if (keys_[i] == kEmpty) return false;
+    for (std::size_t j = (i + 1) & mask_; keys_[j] != kEmpty; j = (j + 1) & mask_) {
+      const std::size_t h = slot(keys_[j]);  // the entry at j may stay only if h lies in (i, j]
+      const bool stays = i <= j ? (i < h && h <= j) : (i < h || h <= j);
+      if (stays) continue;
+      keys_[i] = keys_[j];
+      values_[i] = std::move(values_[j]);
+      i = j;
+    }
+    keys_[i] = kEmpty;
+    values_[i] = V{};
+    --size_;
+    return true;
+  }
 
   /// f(key, value) for every entry, in slot order.
   template <class F>

@@ -5,9 +5,9 @@
 #include <Eigen/Core>
 #include <cstdint>
 #include <deque>
-#include <unordered_map>
 #include <vector>
 
+#include "cleanmap/core/cell_map.h"
 #include "cleanmap/core/params.h"
 
 namespace cleanmap {
@@ -34,7 +34,7 @@ class DuplicateFilter {
   FilterParams p_;
   float inv_;  // cells of side 2 d_dup: a query ball touches at most 2 x 2 x 2 of them
   // Entries of a cell are in insertion (= scan) order, so expiry trims a prefix.
-  std::unordered_map<Key, std::vector<Entry>> grid_;
+  CellMap<std::vector<Entry>> grid_;
   std::deque<std::pair<long, std::vector<Key>>> touched_;  // cells each remembered scan filled
   std::size_t count_ = 0;
 };
