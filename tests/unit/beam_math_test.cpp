@@ -9,6 +9,7 @@
 #include <cstring>
 #include <random>
 
+#include "cleanmap/core/beam_filter.h"
 #include "cleanmap/core/beam_index.h"
 #include "cleanmap/core/dempster_shafer.h"
 #include "cleanmap/core/fast_math.h"
@@ -151,6 +152,41 @@ LongMass combineLong(const LongMass& a, const ds::Mass& b) {  // ds::combine, in
 }
 
 }  // namespace
+
+TEST(MovingTest, VectorisedBeamFilterGivesTheScalarBits) {
+  // detail::filterBeams (vector lanes, no contraction) against the scalar Eigen expressions of
+  // MovingTest's reference path, bit for bit, for every run length (vector body and remainders).
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> u(-1, 1), range(0.5f, 80);
+  constexpr int kMax = 40;
+  std::vector<BeamIndex::Beam> beams(kMax);
+  for (int trial = 0; trial < 3000; ++trial) {
+    Eigen::Vector3f dir(u(rng), u(rng), 0.3f * u(rng));
+    dir.normalize();
+    const float df = range(rng), r2max = 1e-4f, r_far = 3.0f;
+    for (auto& b : beams) {  // around dir, some in the cone, some behind the sensor
+      b.dir =
+          (trial % 5 == 0 ? Eigen::Vector3f(u(rng), u(rng), u(rng))
+                          : Eigen::Vector3f(dir + 0.02f * Eigen::Vector3f(u(rng), u(rng), u(rng))))
+              .normalized();
+      b.range = range(rng);
+    }
+    const int m = 1 + trial % kMax;
+    float r[kMax], t2[kMax];
+    int32_t keep[kMax];
+    detail::filterBeams(beams[0].dir.data(), m, dir.x(), dir.y(), dir.z(), df, r2max, r_far, r, t2,
+                        keep);
+    for (int k = 0; k < m; ++k) {
+      const auto& q = beams[static_cast<std::size_t>(k)];
+      const float theta2 = dir.cross(q.dir).squaredNorm();
+      const float rr = df * std::sqrt(1.0f - theta2) - q.range;
+      const int32_t kk = (theta2 <= r2max) & (dir.dot(q.dir) > 0.0f) & (rr <= r_far);
+      ASSERT_EQ(0, std::memcmp(&t2[k], &theta2, sizeof theta2)) << trial << " " << k;
+      ASSERT_EQ(0, std::memcmp(&r[k], &rr, sizeof rr)) << trial << " " << k;
+      ASSERT_EQ(keep[k], kk) << trial << " " << k;
+    }
+  }
+}
 
 TEST(MovingTest, ProductFormEqualsThePairwiseRule) {
   // scanMass multiplies commonalities instead of folding Dempster's rule beam by beam (Eq. 6);

@@ -6,6 +6,8 @@
 #include <cmath>
 #include <optional>
 
+#include "cleanmap/core/beam_filter.h"
+
 namespace cleanmap {
 
 MovingTest::MovingTest(const DsParams& p, BeamMath math)
@@ -73,7 +75,7 @@ ds::Mass MovingTest::scanMassAt(const Eigen::Vector3d& pl, double d, const Windo
     beams += static_cast<std::size_t>(n);
     n = 0;
   };
-  s.beams->forEachNear(dir, radius, [&](const BeamIndex::Beam& q) {
+  auto filter = [&](const BeamIndex::Beam& q) {
     // Small angles: theta = |a x b| to float precision (a dot product would lose it).
     const float theta2 = dir.cross(q.dir).squaredNorm();
     // |OP'| - |OQ|; theta2 <= 1, so the root is real for every beam.
@@ -86,7 +88,32 @@ ds::Mass MovingTest::scanMassAt(const Eigen::Vector3d& pl, double d, const Windo
     t2_b[n] = theta2;
     n += keep;
     if (n == kBatch) flush();
-  });
+  };
+  if (math_ == BeamMath::kFast) {
+    // The same filter over each run of beams, kRun at a time, in vector lanes (beam_filter.cpp,
+    // the same bits); the kept ones are then gathered in order by a count, as above.
+    static_assert(sizeof(BeamIndex::Beam) == 4 * sizeof(float));
+    constexpr int kRun = 32;
+    alignas(64) float r_run[kRun], t2_run[kRun];
+    alignas(64) int32_t keep_run[kRun];
+    s.beams->forEachRunNear(
+        dir, radius, [&](const BeamIndex::Beam* q, const BeamIndex::Beam* last) {
+          while (q < last) {
+            const int m = static_cast<int>(std::min<std::ptrdiff_t>(last - q, kRun));
+            detail::filterBeams(q->dir.data(), m, dir.x(), dir.y(), dir.z(), df, r2max, r_far,
+                                r_run, t2_run, keep_run);
+            for (int k = 0; k < m; ++k) {
+              r_b[n] = r_run[k];
+              t2_b[n] = t2_run[k];
+              n += keep_run[k];
+              if (n == kBatch) flush();
+            }
+            q += m;
+          }
+        });
+  } else {
+    s.beams->forEachNear(dir, radius, filter);
+  }
   if (n > 0) flush();
   const double norm = qe + qo - qu;
   const bool conflict = beams > 0 && norm <= 1e-12;  // K = 1: unknown, as ds::combine

@@ -42,6 +42,10 @@ class BeamIndex {
   /// `radius`; beams come in bin order (a full azimuth row from bin 0).
   template <class F>
   void forEachNear(const Eigen::Vector3f& dir, double radius, F&& f) const;
+  /// The same beams as forEachNear, as runs: f(const Beam* first, const Beam* last) for each
+  /// non-empty run of consecutive beams, in the same order.
+  template <class F>
+  void forEachRunNear(const Eigen::Vector3f& dir, double radius, F&& f) const;
 
   float farthest() const { return farthest_; }  ///< |OB|
   std::size_t size() const { return beams_.size(); }
@@ -62,6 +66,13 @@ class BeamIndex {
 
 template <class F>
 void BeamIndex::forEachNear(const Eigen::Vector3f& dir, double radius, F&& f) const {
+  forEachRunNear(dir, radius, [&](const Beam* first, const Beam* last) {
+    for (const Beam* q = first; q != last; ++q) f(*q);
+  });
+}
+
+template <class F>
+void BeamIndex::forEachRunNear(const Eigen::Vector3f& dir, double radius, F&& f) const {
   if (beams_.empty()) return;
   // Approximate angles, every bound widened by their error: the bins hold all that libm's
   // angles would give (the exact filter is f's).
@@ -85,9 +96,10 @@ void BeamIndex::forEachNear(const Eigen::Vector3f& dir, double radius, F&& f) co
   const int a_end = a_first + span + 1;
   for (int e = std::max(e0, 0); e <= std::min(e1, n_el_ - 1); ++e) {
     const uint32_t* row = offsets_.data() + static_cast<std::size_t>(e) * n_az_;
-    for (uint32_t q = row[a_first], end = row[std::min(a_end, n_az_)]; q < end; ++q) f(beams_[q]);
-    if (a_end > n_az_)
-      for (uint32_t q = row[0], end = row[a_end - n_az_]; q < end; ++q) f(beams_[q]);
+    const Beam* b = beams_.data();
+    if (row[a_first] < row[std::min(a_end, n_az_)])
+      f(b + row[a_first], b + row[std::min(a_end, n_az_)]);
+    if (a_end > n_az_ && row[0] < row[a_end - n_az_]) f(b + row[0], b + row[a_end - n_az_]);
   }
 }
 
