@@ -364,18 +364,32 @@ TEST(MovingTest, ThinPoleWithRegistrationErrorStaysStatic) {
   EXPECT_FALSE(MovingTest(ours).isMoving(p, w, nullptr));
 }
 
-TEST(MovingTest, PoseNoiseWidensTheConeNearTheSensor) {
+TEST(MovingTest, PoseNoiseWidensTheConflictCheckNearTheSensor) {
   // The same pole seen 12 cm beyond its edge: outside the beam cone (3 lambda_theta = 10.5 cm
-  // at 10 m) only passing beams, so an empty vote. With a 5 cm relative pose error the cone
-  // (3 sqrt(lambda_theta^2 + (0.05 / 10)^2) = 18 cm) reaches the pole and the scan's own
-  // beams conflict: no empty vote (registration.cone_noise).
+  // at 10 m) only passing beams, so an empty vote. With a 5 cm relative pose error the conflict
+  // check's cone (3 sqrt(lambda_theta^2 + (0.05 / 10)^2) = 18 cm) reaches the pole's returns:
+  // no empty vote (registration.relative_error). The masses keep the beam cone, so a point 1 m
+  // beyond the pole still gets its empty vote, and a scan's mass where nothing conflicts is the
+  // same with or without the error.
   const auto scan = hedgeScan([](int iy, int) { return std::abs(0.02 * iy) <= 0.06; });
   const DsParams ours;
   const BeamIndex idx(scan, ours.search_lambdas * ours.lambda_theta);
-  const Eigen::Vector3d p(10.0, 0.06 + 0.12, 0.0);
-  EXPECT_TRUE(MovingTest(ours).isMoving(p, {{&idx, Eigen::Isometry3d::Identity()}}, nullptr));
-  EXPECT_FALSE(
-      MovingTest(ours).isMoving(p, {{&idx, Eigen::Isometry3d::Identity(), 0.05 * 0.05}}, nullptr));
+  const MovingTest t(ours);
+  const WindowScan exact{&idx, Eigen::Isometry3d::Identity()},
+      noisy{&idx, Eigen::Isometry3d::Identity(), 0.05 * 0.05};
+  const Eigen::Vector3d near_pole(10.0, 0.06 + 0.12, 0.0), far(10.0, 0.06 + 1.0, 0.0);
+  EXPECT_TRUE(t.isMoving(near_pole, {exact}, nullptr));
+  EXPECT_FALSE(t.isMoving(near_pole, {noisy}, nullptr));
+  EXPECT_TRUE(t.isMoving(far, {noisy}, nullptr));
+  double d = 0;
+  const ds::Mass a = t.scanMass(far, exact, &d, nullptr), b = t.scanMass(far, noisy, &d, nullptr);
+  EXPECT_GT(a.e, 0.5);
+  EXPECT_EQ(a.e, b.e);
+  EXPECT_EQ(a.o, b.o);
+  // The paper's rule alone (scan_conflict = 1) has no conflict check to widen.
+  DsParams paper = ours;
+  paper.scan_conflict = 1.0;
+  EXPECT_TRUE(MovingTest(paper).isMoving(near_pole, {noisy}, nullptr));
 }
 
 TEST(MovingTest, EarlyDecisionEqualsTheFullWindow) {

@@ -37,13 +37,7 @@ ds::Mass MovingTest::scanMassAt(const Eigen::Vector3d& pl, double d, const Windo
                                 MovingTestStats* stats) const {
   ds::Mass m;
   const Eigen::Vector3f dir = (pl / d).cast<float>();
-  // The cone: search_lambdas * lambda_theta, widened to search_lambdas *
-  // sqrt(lambda_theta^2 + (noise / d)^2) when the scan's pose relative to P's scan is uncertain
-  // (estimated poses): near the sensor that error exceeds the beam width.
-  const double radius =
-      s.pose_noise2 > 0 ? p_.search_lambdas *
-                              std::sqrt(p_.lambda_theta * p_.lambda_theta + s.pose_noise2 / (d * d))
-                        : radius_;
+  const double radius = radius_;  // the cone: search_lambdas * lambda_theta
   const float r2max = static_cast<float>(radius * radius);
   const float df = static_cast<float>(d), r_far = static_cast<float>(r_far_);
   // Dempster's rule over the beams (Eq. 6) in product form: on {empty, occupied} the
@@ -127,6 +121,23 @@ ds::Mass MovingTest::scanMassAt(const Eigen::Vector3d& pl, double d, const Windo
   // beams that return at P's range (|r| <= 2 sigma) in the same scan mean a porous or thin
   // surface (foliage, a fence, a pole), not a vacated space; Dempster's normalisation would hide
   // that conflict.
+  // Issue #11: where the scan's pose relative to P's is uncertain (estimated poses), a return at
+  // P's range within that error is the surface P lies on, displaced by it (a pole 5 m away is
+  // missed by 2 cm of error): the check looks for returns within search_lambdas *
+  // sqrt(lambda_theta^2 + (noise / d)^2), a cone that widens only near the sensor. The masses
+  // keep the beam cone, so this only takes empty votes away.
+  if (p_.scan_conflict < 1.0 && s.pose_noise2 > 0 && m.e > m.o && m.e > m.u &&
+      static_cast<double>(e_max) * o_max < p_.scan_conflict) {
+    const double wide =
+        p_.search_lambdas * std::sqrt(p_.lambda_theta * p_.lambda_theta + s.pose_noise2 / (d * d));
+    const float r2w = static_cast<float>(wide * wide);
+    s.beams->forEachNear(dir, wide, [&](const BeamIndex::Beam& q) {
+      const float theta2 = dir.cross(q.dir).squaredNorm();
+      const float r = df * std::sqrt(1.0f - theta2) - q.range;
+      if (theta2 <= r2w && dir.dot(q.dir) > 0.0f && std::abs(r) <= band)
+        o_max = std::max(o_max, static_cast<float>(model_.beamFloat(r, theta2).o));
+    });
+  }
   if (p_.scan_conflict < 1.0 && m.e > m.o && m.e > m.u &&
       static_cast<double>(e_max) * o_max >= p_.scan_conflict) {
     m = ds::Mass{};

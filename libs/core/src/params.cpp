@@ -43,7 +43,8 @@ void validate(const PipelineParams& p, const std::string& name) {
           "need 0 <= registration.min_range < max_range");
   require(r.voxel > 0 && r.align_voxel >= r.voxel, "need 0 < registration.voxel <= align_voxel");
   require(r.knn >= 5, "registration.knn must be >= 5");
-  require(r.cone_noise >= 0 && r.cone_noise <= 1, "registration.cone_noise must be in [0, 1] m");
+  require(r.relative_error >= 0 && r.relative_error <= 1,
+          "registration.relative_error must be in [0, 1] (a fraction of the path)");
   require(r.plane_epsilon > 0 && r.plane_epsilon < 1,
           "registration.plane_epsilon must be in (0, 1)");
   require(r.max_correspondence > 0 && r.kernel > 0,

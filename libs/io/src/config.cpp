@@ -31,6 +31,9 @@ const std::map<std::string, std::string>& movedKeys() {
       {"ground.sensor_height",
        "is now [sensor] height: metres above the ground, positive (1.73 for KITTI's HDL-64E), or "
        "auto to measure it from the scans"},
+      {"registration.cone_noise",
+       "is now registration.relative_error: the pose error between two scans as a fraction of the "
+       "path between them (default 0.01), and it widens only the scan-conflict check"},
   };
   return m;
 }
@@ -118,7 +121,7 @@ std::map<std::string, Key> table(PipelineParams& p) {
       {"registration.max_turn_rate", d(p.registration.max_turn_rate)},
       {"registration.deskew", Key{[&p](double v) { p.registration.deskew = v != 0; },
                                   [&p] { return p.registration.deskew ? 1.0 : 0.0; }, true}},
-      {"registration.cone_noise", d(p.registration.cone_noise)},
+      {"registration.relative_error", d(p.registration.relative_error)},
       {"static_map.radius", d(p.map.radius)},
       {"static_map.clean", Key{[&p](double v) { p.map.clean = v != 0; },
                                [&p] { return p.map.clean ? 1.0 : 0.0; }, true}},

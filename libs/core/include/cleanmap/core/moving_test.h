@@ -15,8 +15,8 @@ namespace cleanmap {
 struct WindowScan {
   const BeamIndex* beams = nullptr;
   Eigen::Isometry3d world_to_sensor = Eigen::Isometry3d::Identity();
-  /// m^2; lateral pose error of this scan relative to the scan being decided (0: given poses).
-  /// Near the sensor it widens the search cone (MovingTest::scanMass).
+  /// m^2; pose error of this scan relative to the scan being decided (0: given poses). A return
+  /// at P's range within it keeps the scan from voting empty (MovingTest::scanMass).
   double pose_noise2 = 0.0;
 };
 

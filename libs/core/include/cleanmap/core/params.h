@@ -102,11 +102,12 @@ struct RegistrationParams {
   /// Undo the motion during the sweep before aligning (constant velocity; a point's time from its
   /// azimuth, the sweep running clockwise from the rear as on KITTI's HDL-64E). 0 = off.
   bool deskew = false;
-  /// m; with gicp / refine poses, the lateral error between scans n apart is taken as
-  /// cone_noise * sqrt(n) and the moving-point test's search cone widens to cover it near the
-  /// sensor (WindowScan::pose_noise2). Given poses are exact. Off by default: it fixes
-  /// kitti_residential's pole false alarms but costs highway recall (doc/BENCHMARK.md).
-  double cone_noise = 0.0;
+  /// With gicp / refine poses, the pose error between two scans is taken as relative_error times
+  /// the path between them (odometry error grows with the distance travelled; #11's drift bar
+  /// is 1 %). A window scan that has a return at P's range within that error of P does not vote
+  /// empty (the scan-conflict rule over a cone widened by it, WindowScan::pose_noise2; issue #11,
+  /// doc/SCAN_CONFLICT.md). The masses keep the beam cone. Given poses are exact. 0: off.
+  double relative_error = 0.01;
 };
 
 /// What the map keeps (DESIGN §2e).
