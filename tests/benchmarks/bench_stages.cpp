@@ -20,6 +20,7 @@
 #include "cleanmap/core/params.h"
 #include "cleanmap/core/sensor.h"
 #include "cleanmap/io/kitti.h"
+#include "cleanmap/registration/odometry.h"
 #include "cleanmap/sim/world.h"
 
 namespace {
@@ -114,6 +115,21 @@ void BM_SensorChecks(benchmark::State& state) {
   }
 }
 
+// Issue #11's speed bar: GICP odometry alone (no pipeline beside it), the 21 scans tracked from
+// the first, default parameters, state.range(0) threads. "s/scan" is the mean per scan.
+void BM_Registration(benchmark::State& state) {
+  const auto& in = inputs();
+  for (auto _ : state) {
+    reg::Odometry odo(RegistrationParams{}, static_cast<int>(state.range(0)));
+    for (std::size_t i = 0; i < in.scans.size(); ++i)
+      benchmark::DoNotOptimize(
+          odo.track(in.scans[i].points, 0.1 * double(i), static_cast<int64_t>(i)).accepted);
+  }
+  state.counters["s/scan"] = benchmark::Counter(
+      static_cast<double>(in.scans.size()),
+      benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
+}
+
 void BM_DuplicateFilter(benchmark::State& state) {
   // The static map of the 10 scans before the center (every point above the road), then one
   // query per point of the center scan above the road.
@@ -181,6 +197,7 @@ BENCHMARK(BM_BeamIndex)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_MovingTest)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_Ground)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_SensorChecks)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_Registration)->Arg(1)->Arg(2)->UseRealTime()->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_DuplicateFilter)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_ObjectConsensus)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_FreeSpaceInsert)->Unit(benchmark::kMillisecond);

@@ -3,6 +3,7 @@
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>
+#include <array>
 #include <numeric>
 
 #include "cleanmap/core/cell_key.h"
@@ -44,44 +45,55 @@ std::vector<Eigen::Matrix3d> planeCovariances(const std::vector<Eigen::Vector3d>
   const std::size_t k = static_cast<std::size_t>(std::max(knn, 3));
   std::vector<std::vector<std::pair<double, uint32_t>>> scratch(
       static_cast<std::size_t>(std::max(threads, 1)));
+  // The points of one cell share their 27 neighbour cells: those are looked up once per cell
+  // (issue #16), and every point still meets its candidates in the same order as before.
+  std::vector<uint32_t> cells;  // each cell's begin position in `order`
+  for (uint32_t pos = 0; pos < order.size(); pos = cell_end[pos]) cells.push_back(pos);
   parallelFor(
-      points.size(), threads,
-      [&](std::size_t i, int worker) {
+      cells.size(), threads,
+      [&](std::size_t ci, int worker) {
         auto& near = scratch[static_cast<std::size_t>(worker)];
-        near.clear();
-        const Eigen::Vector3d& p = points[i];
-        const uint64_t c = cellKeyOf(p.x(), p.y(), p.z(), inv);
+        const uint32_t cb = cells[ci];
+        const uint64_t c = key[order[cb]];
+        std::array<std::pair<uint32_t, uint32_t>, 27> ranges;
+        std::size_t nr = 0;
         forEachNeighbour27([&](int dx, int dy, int dz) {
           const uint32_t* b = begin_of.find(cellKeyShift(c, dx, dy, dz));
-          if (!b) return;
-          for (uint32_t pos = *b; pos < cell_end[*b]; ++pos) {
-            const uint32_t j = order[pos];
-            const double d2 = (points[j] - p).squaredNorm();
-            if (d2 <= r2) near.emplace_back(d2, j);
-          }
+          if (b) ranges[nr++] = {*b, cell_end[*b]};
         });
-        if (near.size() > k) {
-          std::nth_element(near.begin(), near.begin() + static_cast<long>(k), near.end());
-          near.resize(k);
+        for (uint32_t at = cb; at < cell_end[cb]; ++at) {
+          const uint32_t i = order[at];
+          near.clear();
+          const Eigen::Vector3d& p = points[i];
+          for (std::size_t r = 0; r < nr; ++r)
+            for (uint32_t pos = ranges[r].first; pos < ranges[r].second; ++pos) {
+              const uint32_t j = order[pos];
+              const double d2 = (points[j] - p).squaredNorm();
+              if (d2 <= r2) near.emplace_back(d2, j);
+            }
+          if (near.size() > k) {
+            std::nth_element(near.begin(), near.begin() + static_cast<long>(k), near.end());
+            near.resize(k);
+          }
+          if (near.size() < 5) {
+            covs[i] = Eigen::Matrix3d::Identity();
+            continue;
+          }
+          Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+          for (const auto& [d2, j] : near) mean += points[j];
+          mean /= static_cast<double>(near.size());
+          Eigen::Matrix3d C = Eigen::Matrix3d::Zero();
+          for (const auto& [d2, j] : near) {
+            const Eigen::Vector3d d = points[j] - mean;
+            C += d * d.transpose();
+          }
+          Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
+          es.computeDirect(C / static_cast<double>(near.size()));
+          const Eigen::Matrix3d& V = es.eigenvectors();  // increasing eigenvalues
+          covs[i] = V * Eigen::Vector3d(eps, 1.0, 1.0).asDiagonal() * V.transpose();
         }
-        if (near.size() < 5) {
-          covs[i] = Eigen::Matrix3d::Identity();
-          return;
-        }
-        Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-        for (const auto& [d2, j] : near) mean += points[j];
-        mean /= static_cast<double>(near.size());
-        Eigen::Matrix3d C = Eigen::Matrix3d::Zero();
-        for (const auto& [d2, j] : near) {
-          const Eigen::Vector3d d = points[j] - mean;
-          C += d * d.transpose();
-        }
-        Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
-        es.computeDirect(C / static_cast<double>(near.size()));
-        const Eigen::Matrix3d& V = es.eigenvectors();  // increasing eigenvalues
-        covs[i] = V * Eigen::Vector3d(eps, 1.0, 1.0).asDiagonal() * V.transpose();
       },
-      256);
+      64);
   return covs;
 }
 

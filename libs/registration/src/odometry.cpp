@@ -74,6 +74,7 @@ OdometryStep Odometry::track(const std::vector<PointXYZI>& points, double t, int
   FlatKeyMap& voxels = scratch_->voxels;
   voxels.reset(points.size() / 8);
   const double inv = 1.0 / p_.voxel;
+  uint64_t last = ~uint64_t(0);  // neighbours along a ring mostly share a voxel: no lookup then
   for (uint32_t i = 0; i < points.size(); ++i) {
     Eigen::Vector3d q = points[i].xyz().cast<double>();
     const double d2 = q.squaredNorm();
@@ -86,7 +87,10 @@ OdometryStep Odometry::track(const std::vector<PointXYZI>& points, double t, int
           a > 0 ? Eigen::AngleAxisd(a, w / a).toRotationMatrix() : Eigen::Matrix3d::Identity();
       q = R * q + sweep->tail<3>() * s;
     }
-    if (!voxels.emplace(cellKeyOf(q.x(), q.y(), q.z(), inv), i).second) continue;
+    const uint64_t key = cellKeyOf(q.x(), q.y(), q.z(), inv);
+    if (key == last) continue;  // the voxel of the point before: already taken
+    last = key;
+    if (!voxels.emplace(key, i).second) continue;
     cloud.points.push_back(q);
     cloud.source.push_back(i);
   }
