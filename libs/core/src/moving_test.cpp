@@ -69,11 +69,16 @@ ds::Mass MovingTest::scanMassAt(const Eigen::Vector3d& pl, double d, const Windo
     beams += static_cast<std::size_t>(n);
     n = 0;
   };
+  // A beam's angle to P (theta^2) and r = |OP'| - |OQ| (the scalar expressions; filterBeams has
+  // the same bits). Small angles: theta = |a x b| to float precision (a dot product would lose
+  // it); theta2 <= 1, so the root is real for every beam.
+  auto geometry = [&](const BeamIndex::Beam& q, float& theta2, float& r) {
+    theta2 = dir.cross(q.dir).squaredNorm();
+    r = df * std::sqrt(1.0f - theta2) - q.range;
+  };
   auto filter = [&](const BeamIndex::Beam& q) {
-    // Small angles: theta = |a x b| to float precision (a dot product would lose it).
-    const float theta2 = dir.cross(q.dir).squaredNorm();
-    // |OP'| - |OQ|; theta2 <= 1, so the root is real for every beam.
-    const float r = df * std::sqrt(1.0f - theta2) - q.range;
+    float theta2, r;
+    geometry(q, theta2, r);
     // In the cone, in front of the sensor, and not far behind the hit (there a beam is unknown,
     // the identity of Dempster's rule). About half the beams of the bins pass, unpredictably:
     // each is written and kept by a count, not a branch.
@@ -132,8 +137,8 @@ ds::Mass MovingTest::scanMassAt(const Eigen::Vector3d& pl, double d, const Windo
         p_.search_lambdas * std::sqrt(p_.lambda_theta * p_.lambda_theta + s.pose_noise2 / (d * d));
     const float r2w = static_cast<float>(wide * wide);
     s.beams->forEachNear(dir, wide, [&](const BeamIndex::Beam& q) {
-      const float theta2 = dir.cross(q.dir).squaredNorm();
-      const float r = df * std::sqrt(1.0f - theta2) - q.range;
+      float theta2, r;
+      geometry(q, theta2, r);
       if (theta2 <= r2w && dir.dot(q.dir) > 0.0f && std::abs(r) <= band)
         o_max = std::max(o_max, static_cast<float>(model_.beamFloat(r, theta2).o));
     });

@@ -37,7 +37,8 @@ class BeamIndex {
   BeamIndex(const std::vector<PointXYZI>& points, double bin, Binning binning = Binning::kFast);
 
   /// Calls f(const Beam&) for every beam whose bin could lie within `radius` rad of `dir`
-  /// (unit, sensor frame); f filters by the exact angle. radius <= bin. The bins are found with
+  /// (unit, sensor frame); f filters by the exact angle. Any radius (a wider one spans more
+  /// bins; the moving test's conflict check widens it with the pose error). The bins are found with
   /// fast::asin / fast::atan2 and widened by kAngleError, so they hold every beam within
   /// `radius`; beams come in bin order (a full azimuth row from bin 0).
   template <class F>
