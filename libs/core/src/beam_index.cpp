@@ -66,17 +66,14 @@ BeamIndex::BeamIndex(const std::vector<PointXYZI>& points, double bin, Binning b
         el_max = std::max(el_max, e);
       }
     n_el_ = static_cast<int>(std::floor((el_max - el_min_) / bin_)) + 1;
-    // A bin coordinate more than kBinTolerance from an edge floors as the exact one would;
-    // truncation is floor here, and a coordinate just below 0 has a negative fraction.
+    // A bin coordinate more than kBinTolerance from an edge floors as the exact one would.
     const double inv = 1.0 / bin_;
     for (std::size_t i = 0; i < n; ++i) {
       const double te = (double(el[i]) - el_min_) * inv, ta = (double(az[i]) + M_PI) * inv;
-      const int ie = static_cast<int>(te), ia = static_cast<int>(ta);
-      const double fe = te - ie, fa = ta - ia;
-      const int e = fe < kBinTolerance || fe > 1 - kBinTolerance ? el_bin(exact_el(i))
-                                                                 : std::min(ie, n_el_ - 1);
-      const int a = fa < kBinTolerance || fa > 1 - kBinTolerance ? azBin(exact_az(i))
-                                                                 : std::clamp(ia, 0, n_az_ - 1);
+      const int e = std::min(
+          fast::binOrExact(te, kBinTolerance, [&] { return el_bin(exact_el(i)); }), n_el_ - 1);
+      const int a = std::clamp(
+          fast::binOrExact(ta, kBinTolerance, [&] { return azBin(exact_az(i)); }), 0, n_az_ - 1);
       bin_of[i] = static_cast<uint32_t>(e * n_az_ + a);
     }
   }

@@ -205,10 +205,9 @@ void FreeSpaceMap::insertScan(const std::vector<PointXYZI>& points, const Eigen:
       // The azimuth bin from fast::atan2 (error below 3e-7 rad, 1e-4 of a bin), libm's where
       // that lies within 2e-3 of a bin edge: the same bins (issue #16).
       const double ta = (double(fast::atan2(p.y, p.x)) + M_PI) * inv_spacing;
-      auto bin = static_cast<int64_t>(ta);
-      if (ta - double(bin) < 2e-3 || ta - double(bin) > 1 - 2e-3)
-        bin = static_cast<int64_t>(std::floor((std::atan2(ps.y(), ps.x()) + M_PI) * inv_spacing));
-      const auto ubin = static_cast<uint64_t>(bin);
+      const auto ubin = static_cast<uint64_t>(fast::binOrExact(ta, 2e-3, [&] {
+        return static_cast<int64_t>(std::floor((std::atan2(ps.y(), ps.x()) + M_PI) * inv_spacing));
+      }));
       level = ubin == 0 ? kLevels : std::min(kLevels, __builtin_ctzll(ubin));
     }
     const double t0 = level_start[level];

@@ -92,11 +92,10 @@ std::optional<double> estimateGroundHeight(const std::vector<PointXYZI>& points)
     // Issue #16: the sector from fast::atan2, libm's where that lies within kEdge of a sector's
     // edge (its error is below 3e-7 rad, 2e-6 of a sector): the same sectors, bit for bit.
     constexpr float kPerRad = float(kSectors / (2 * M_PI)), kEdge = 1e-4f;
-    const float t = (fast::atan2(q.y, q.x) + float(M_PI)) * kPerRad;
-    int s = static_cast<int>(t);
-    if (t - float(s) < kEdge || t - float(s) > 1 - kEdge)
-      s = static_cast<int>((std::atan2(q.y, q.x) + float(M_PI)) * kPerRad);
-    s = std::min(kSectors - 1, s);
+    const int s = std::min(
+        kSectors - 1, fast::binOrExact((fast::atan2(q.y, q.x) + float(M_PI)) * kPerRad, kEdge, [&] {
+          return static_cast<int>((std::atan2(q.y, q.x) + float(M_PI)) * kPerRad);
+        }));
     auto& l = low[static_cast<std::size_t>(std::max(0, s))];
     if (q.z >= l[2]) continue;
     l[2] = q.z;

@@ -98,16 +98,16 @@ ds::Mass MovingTest::scanMassAt(const Eigen::Vector3d& pl, double d, const Windo
     s.beams->forEachRunNear(
         dir, radius, [&](const BeamIndex::Beam* q, const BeamIndex::Beam* last) {
           while (q < last) {
-            const int m = static_cast<int>(std::min<std::ptrdiff_t>(last - q, kRun));
-            detail::filterBeams(q->dir.data(), m, dir.x(), dir.y(), dir.z(), df, r2max, r_far,
+            const int run = static_cast<int>(std::min<std::ptrdiff_t>(last - q, kRun));
+            detail::filterBeams(q->dir.data(), run, dir.x(), dir.y(), dir.z(), df, r2max, r_far,
                                 r_run, t2_run, keep_run);
-            for (int k = 0; k < m; ++k) {
+            for (int k = 0; k < run; ++k) {
               r_b[n] = r_run[k];
               t2_b[n] = t2_run[k];
               n += keep_run[k];
               if (n == kBatch) flush();
             }
-            q += m;
+            q += run;
           }
         });
   } else {

@@ -87,11 +87,10 @@ std::optional<AngularResolution> measureResolution(const std::vector<PointXYZI>&
       continue;
     const float el_fast = fast::atan2(p.z, std::sqrt(static_cast<float>(rh2))) * kDeg;
     const double t = (double(el_fast) + 90) / kBin;
-    int b = static_cast<int>(std::floor(t));
-    if (t - b < kEdge || t - b > 1 - kEdge) {
+    int b = fast::binOrExact(t, kEdge, [&] {
       const double el = std::atan2(double(p.z), std::hypot(double(p.x), double(p.y))) * 180 / M_PI;
-      b = static_cast<int>(std::floor((el + 90) / kBin));
-    }
+      return static_cast<int>(std::floor((el + 90) / kBin));
+    });
     b = std::clamp(b, 0, kBins - 1);
     ++count[static_cast<std::size_t>(b)];
     sum[static_cast<std::size_t>(b)] += el_fast;

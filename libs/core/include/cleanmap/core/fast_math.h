@@ -92,4 +92,16 @@ inline float atan2(float y, float x) {
   return y < 0.0f ? -r : r;
 }
 
+/// The bin of a coordinate t >= 0 (in bins) computed from these approximations: its integer part,
+/// or exact() (the libm computation of the same bin) where t lies within `tol` of a bin edge, where
+/// the approximation's error could put it on the other side. A t just below 0 has a negative
+/// fraction, so exact() too. `tol` must exceed the error in bin units.
+template <class T, class Exact>
+inline auto binOrExact(T t, T tol, Exact&& exact) -> decltype(exact()) {
+  using Bin = decltype(exact());
+  const Bin b = static_cast<Bin>(t);
+  const T f = t - static_cast<T>(b);
+  return f < tol || f > 1 - tol ? exact() : b;
+}
+
 }  // namespace cleanmap::fast
