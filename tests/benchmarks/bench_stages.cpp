@@ -2,11 +2,13 @@
 // Issue #16: one benchmark per laser stage on fixed inputs, one thread: 21 scans of
 // kitti_highway with their given poses (--data DIR, default ../shared/data), or 21 scans of the
 // default simulated street where that set is absent. Scan 10 is the scan being decided, the
-// others its window. `BM_MovingTest/0` is the fast beam maths, `/1` the libm reference path
-// (BeamMath): their ratio is the vectorised masses' gain.
+// others its window; every 6th point of scan 10 above the road is tested, in the pipeline's order
+// (MovingTest::testOrder; CLEANMAP_BENCH_SCAN_ORDER=1: the scan's). `BM_MovingTest/0` is the fast
+// beam maths, `/1` the libm reference path (BeamMath): their ratio is the vectorised masses' gain.
 // usage: cleanmap-bench-stages [--data DIR] [google-benchmark flags]
 #include <benchmark/benchmark.h>
 
+#include <cstdlib>
 #include <filesystem>
 #include <iostream>
 #include <string>
@@ -59,12 +61,18 @@ const Inputs& inputs() {
     for (std::size_t i = 0; i < r.scans.size(); ++i)
       if (i != r.center) r.window.push_back({&r.beams[i], r.scans[i].pose.inverse()});
     const auto& c = r.scans[r.center];
+    std::vector<Eigen::Vector3f> tested;  // sensor frame
     for (std::size_t j = 0; j < c.points.size(); ++j) {
       const auto& p = c.points[j];
       const bool above = p.z > -1.4f && std::abs(p.x) <= 50 && std::abs(p.y) <= 50;
       r.member.push_back(above);
-      if (above && j % 6 == 0) r.tested.push_back(c.pose * p.xyz().cast<double>());
+      if (above && j % 6 == 0) tested.push_back(p.xyz());
     }
+    // In the order the pipeline tests them (std::getenv("CLEANMAP_BENCH_SCAN_ORDER"): the scan's).
+    std::vector<uint32_t> order(tested.size());
+    for (uint32_t i = 0; i < order.size(); ++i) order[i] = i;
+    if (!std::getenv("CLEANMAP_BENCH_SCAN_ORDER")) order = MovingTest(ds).testOrder(tested);
+    for (const uint32_t i : order) r.tested.push_back(c.pose * tested[i].cast<double>());
     std::cerr << "stages: " << r.name << ", " << r.scans.size() << " scans, "
               << r.scans[r.center].points.size() << " points in scan " << r.center << ", "
               << r.tested.size() << " tested\n";

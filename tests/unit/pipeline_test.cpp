@@ -2,10 +2,10 @@
 // The streaming pipeline on synthetic scenes with known truth, and its degenerate inputs.
 #include <gtest/gtest.h>
 
-#include <random>
-
+#include <algorithm>
 #include <cmath>
 #include <limits>
+#include <random>
 
 #include "cleanmap/core/duplicate_filter.h"
 #include "cleanmap/core/error.h"
@@ -422,6 +422,40 @@ TEST(MovingTest, EarlyDecisionEqualsTheFullWindow) {
   }
   EXPECT_GT(moving, n / 50);  // both outcomes occur, so the comparison means something
   EXPECT_GT(fixed, n / 2);
+}
+
+TEST(MovingTest, TestOrderIsAPermutationByAzimuthColumnThenElevation) {
+  // Issue #16: the pipeline tests points in this order (cache reuse); it must visit every point
+  // once, and in columns of azimuth two index bins wide, each bottom to top.
+  const MovingTest t(DsParams{});
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> u(-40.0f, 40.0f);
+  std::vector<Eigen::Vector3f> pts;
+  for (int i = 0; i < 2000; ++i) pts.emplace_back(u(rng), u(rng), 0.1f * u(rng));
+  pts.emplace_back(0.0f, 0.0f, 0.0f);   // at the sensor
+  pts.emplace_back(-5.0f, 0.0f, 1.0f);  // on the seam at +-pi
+  const std::vector<uint32_t> order = t.testOrder(pts);
+  ASSERT_EQ(order.size(), pts.size());
+  std::vector<uint32_t> sorted = order;
+  std::sort(sorted.begin(), sorted.end());
+  for (uint32_t i = 0; i < sorted.size(); ++i) ASSERT_EQ(sorted[i], i);
+  const double col = 2.0 * t.searchRadius();
+  auto column = [&](uint32_t i) {  // libm's angle: a column edge may differ by a rounding
+    return (std::atan2(double(pts[i].y()), double(pts[i].x())) + M_PI) / col;
+  };
+  std::size_t runs = 1;
+  for (std::size_t k = 1; k < order.size(); ++k) {
+    const double a = column(order[k - 1]), b = column(order[k]);
+    ASSERT_LE(std::floor(a), std::floor(b) + (std::abs(b - std::round(b)) < 1e-4 ? 1 : 0));
+    if (std::floor(a) == std::floor(b) && std::abs(b - std::round(b)) > 1e-4 &&
+        std::abs(a - std::round(a)) > 1e-4) {
+      const auto el = [&](uint32_t i) { return pts[i].z() / std::max(pts[i].norm(), 1e-30f); };
+      EXPECT_LE(el(order[k - 1]), el(order[k]));
+    } else {
+      ++runs;
+    }
+  }
+  EXPECT_LT(runs, pts.size() / 3);  // columns hold several points each
 }
 
 TEST(OctreeSampling, DenseLeavesTestASixthDeterministically) {

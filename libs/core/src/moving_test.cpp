@@ -5,8 +5,10 @@
 #include <array>
 #include <cmath>
 #include <optional>
+#include <tuple>
 
 #include "cleanmap/core/beam_filter.h"
+#include "cleanmap/core/fast_math.h"
 
 namespace cleanmap {
 
@@ -22,6 +24,30 @@ MovingTest::MovingTest(const DsParams& p, BeamMath math)
   };
   for (int j = 0; j < kWeightCells; ++j) w_bound_[j] = std::max(weight(j), weight(j + 1));
   w_bound_[kWeightCells] = weight(kWeightCells);
+}
+
+std::vector<uint32_t> MovingTest::testOrder(const std::vector<Eigen::Vector3f>& points) const {
+  // The test is bound by loading the window's beams: the octree gives the points ring by ring,
+  // so each point's bins were last loaded a ring earlier, long evicted (doc/BENCHMARK.md).
+  struct Key {
+    int32_t column;
+    float sin_el;
+    uint32_t i;
+  };
+  std::vector<Key> keys(points.size());
+  const double inv_col = 1.0 / (2.0 * radius_);
+  for (uint32_t i = 0; i < points.size(); ++i) {
+    const Eigen::Vector3f& q = points[i];
+    const float r = q.norm();
+    const double az = fast::atan2(q.y(), q.x()) + M_PI;
+    keys[i] = {static_cast<int32_t>(std::floor(az * inv_col)), r > 0 ? q.z() / r : 0.0f, i};
+  }
+  std::sort(keys.begin(), keys.end(), [](const Key& a, const Key& b) {
+    return std::tie(a.column, a.sin_el, a.i) < std::tie(b.column, b.sin_el, b.i);
+  });
+  std::vector<uint32_t> order(points.size());
+  for (std::size_t k = 0; k < keys.size(); ++k) order[k] = keys[k].i;
+  return order;
 }
 
 ds::Mass MovingTest::scanMass(const Eigen::Vector3d& p_world, const WindowScan& s, double* range_p,

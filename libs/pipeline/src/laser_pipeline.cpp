@@ -49,6 +49,7 @@ struct LaserPipeline::Work {
     cand_world.clear();
     leaves.clear();
     tested.clear();
+    tested_sensor.clear();
     moving_tested.clear();
     moving.clear();
     relabelled.clear();
@@ -57,11 +58,12 @@ struct LaserPipeline::Work {
   std::vector<uint8_t> duplicate;      // DESIGN §2.3
   std::vector<uint32_t> cand;          // candidates that are not duplicates: what is tested
   std::vector<Eigen::Vector3d> cand_world;
-  std::vector<Leaf> leaves;            // DESIGN §2c, over `cand`
-  std::vector<uint32_t> tested;        // indices into `cand`
-  std::vector<uint8_t> moving_tested;  // per `cand` entry, the test's answer where tested
-  std::vector<uint8_t> moving;         // per scan point, the final decision
-  std::vector<uint8_t> relabelled;     // per scan point: moving, relabelled static by the camera
+  std::vector<Leaf> leaves;                    // DESIGN §2c, over `cand`
+  std::vector<uint32_t> tested;                // indices into `cand`
+  std::vector<Eigen::Vector3f> tested_sensor;  // the tested points in the sensor frame
+  std::vector<uint8_t> moving_tested;          // per `cand` entry, the test's answer where tested
+  std::vector<uint8_t> moving;                 // per scan point, the final decision
+  std::vector<uint8_t> relabelled;  // per scan point: moving, relabelled static by the camera
 };
 
 LaserPipeline::LaserPipeline(const PipelineParams& params, Sink sink)
@@ -406,9 +408,13 @@ void LaserPipeline::sampleLeaves(Prepared& s, Work& w) const {
 void LaserPipeline::classify(const std::vector<WindowScan>& window, Prepared& s, Work& w) const {
   const auto t0 = Clock::now();
   w.moving_tested.assign(w.cand.size(), 0);
+  // Issue #16: tested column by column, so consecutive tests share the window's beams in cache.
+  w.tested_sensor.clear();
+  for (const uint32_t c : w.tested) w.tested_sensor.push_back(s.scan.points[w.cand[c]].xyz());
+  const std::vector<uint32_t> order = test_.testOrder(w.tested_sensor);
   std::vector<MovingTestStats> acc(static_cast<std::size_t>(std::max(p_.threads, 1)));
-  parallelFor(w.tested.size(), p_.threads, [&](std::size_t t, int worker) {
-    const uint32_t c = w.tested[t];
+  parallelFor(order.size(), p_.threads, [&](std::size_t t, int worker) {
+    const uint32_t c = w.tested[order[t]];
     w.moving_tested[c] =
         test_.isMoving(w.cand_world[c], window, &acc[static_cast<std::size_t>(worker)]);
   });

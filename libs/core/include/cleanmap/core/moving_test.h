@@ -52,6 +52,11 @@ class MovingTest {
   bool isMoving(const Eigen::Vector3d& p_world, const std::vector<WindowScan>& window,
                 MovingTestStats* stats) const;
   double searchRadius() const { return radius_; }
+  /// The order in which to test points, given in the sensor frame of their scan (issue #16): in
+  /// columns of azimuth two beam-index bins wide, bottom to top in each (ties by index), so that
+  /// consecutive tests look up the same few bins of every window scan while they are in cache.
+  /// A permutation of [0, points.size()); each point's answer does not depend on it.
+  std::vector<uint32_t> testOrder(const std::vector<Eigen::Vector3f>& points) const;
 
  private:
   // The window's combined mass in `acc`; with stop_early, the decision once it cannot change
