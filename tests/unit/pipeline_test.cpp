@@ -245,7 +245,9 @@ TEST(Pipeline, DegenerateInputs) {
     pl.finish();
     for (const auto& r : out) {
       EXPECT_EQ(r.stats.moving, 0u);
-      EXPECT_EQ(r.stats.no_evidence, r.stats.tested);
+      // Every point the test ran on had no evidence (a leaf's settled rest was not tested).
+      EXPECT_EQ(r.stats.no_evidence, r.stats.tested - r.stats.settled_skips);
+      EXPECT_GT(r.stats.no_evidence, r.stats.tested / 2);
     }
   }
 }
@@ -456,6 +458,41 @@ TEST(MovingTest, TestOrderIsAPermutationByAzimuthColumnThenElevation) {
     }
   }
   EXPECT_LT(runs, pts.size() / 3);  // columns hold several points each
+}
+
+TEST(OctreeSampling, DecideLeafStopsOnceSettledAndDecidesAsAllTested) {
+  // Issue #16: every outcome pattern of leaves of 1-12 tested points. The decision must be the
+  // majority over all of them, no point may be tested after the majority is settled, and
+  // unanimous leaves of n points need about half of them.
+  for (std::size_t n = 1; n <= 12; ++n) {
+    Leaf leaf;
+    for (uint32_t i = 0; i < n; ++i) leaf.tested.push_back(100 + i);
+    for (uint32_t bits = 0; bits < (1u << n); ++bits) {
+      const auto moving = [&](uint32_t c) { return ((bits >> (c - 100)) & 1u) != 0; };
+      std::size_t all = 0;
+      for (uint32_t c : leaf.tested) all += moving(c);
+      std::size_t calls = 0, seen = 0, seen_moving = 0;
+      const bool d = decideLeaf(
+          leaf,
+          [&](uint32_t c) {
+            EXPECT_EQ(c, leaf.tested[seen]);  // in order, each once
+            EXPECT_TRUE(2 * seen_moving < n && 2 * (seen_moving + n - seen) >= n)
+                << "tested after the majority was settled";
+            ++seen;
+            seen_moving += moving(c);
+            return moving(c);
+          },
+          &calls);
+      ASSERT_EQ(d, leafIsMoving(all, n)) << n << " " << bits;
+      ASSERT_EQ(calls, seen);
+      if (all == 0) {
+        EXPECT_EQ(calls, n / 2 + 1);
+      } else if (all == n) {
+        EXPECT_EQ(calls, (n + 1) / 2);
+      }
+    }
+  }
+  EXPECT_FALSE(decideLeaf(Leaf{{7}, {}}, [](uint32_t) { return true; }));  // nothing tested
 }
 
 TEST(OctreeSampling, DenseLeavesTestASixthDeterministically) {

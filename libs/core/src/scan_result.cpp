@@ -34,6 +34,7 @@ ScanStats& ScanStats::operator+=(const ScanStats& o) {
   scans_visited += o.scans_visited;
   beams += o.beams;
   early_decisions += o.early_decisions;
+  settled_skips += o.settled_skips;
   conflicting_scans += o.conflicting_scans;
   objects_moving += o.objects_moving;
   consensus_points += o.consensus_points;

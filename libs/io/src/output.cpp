@@ -365,6 +365,7 @@ void OutputWriter::finish(double wall_s, const FreeSpaceMap* free_space) {
                  {"test_scans_visited", total.scans_visited},
                  {"test_beams_evaluated", total.beams},
                  {"test_early_decisions", total.early_decisions},
+                 {"test_skipped_settled_leaves", total.settled_skips},
                  {"static_map_points", compact_->count()},
                  {"static_map_full_points", full_->count()},
                  {"dynamic_points", moving_->count()},

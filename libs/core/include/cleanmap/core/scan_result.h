@@ -32,6 +32,9 @@ struct ScanStats {
   /// The moving-point test's work (issue #16): (tested point, window scan) pairs looked up, beams
   /// evaluated in their cones, points decided before their last window scan.
   std::size_t scans_visited = 0, beams = 0, early_decisions = 0;
+  /// Sampled points left untested because their leaf's majority was already settled (DESIGN
+  /// §2c; `tested` counts them too).
+  std::size_t settled_skips = 0;
   std::size_t conflicting_scans = 0;  ///< empty scan votes made unknown (doc/SCAN_CONFLICT.md)
   std::size_t objects_moving = 0, consensus_points = 0, consensus_removed = 0;  ///< doc/OBJECTS.md
   std::size_t objects_persisted = 0;  ///< of objects_moving, kept moving by the hysteresis
