@@ -19,6 +19,7 @@
 #include "cleanmap/io/files.h"
 #include "cleanmap/io/kitti.h"
 #include "cleanmap/io/output.h"
+#include "cleanmap/io/prefetch.h"
 #include "cleanmap/maps/ground_model_map.h"
 #include "cleanmap/maps/map_config.h"
 #include "cleanmap/maps/moving_objects_map.h"
@@ -244,6 +245,9 @@ int main(int argc, char** argv) {
       moving->setCamera(src->camera());
     }
     moving->setSaveOverlays(overlays);
+    // The next frame is read and decoded while the pipeline decides this one (issue #16); the
+    // KITTI reader's labels are still read here (its const loadLabels is safe beside that).
+    src = std::make_unique<cleanmap::io::PrefetchSource>(std::move(src));
 
     if (const auto n = src->sizeHint(); n && first >= static_cast<long>(*n))
       throw cleanmap::Error(input, "--first " + std::to_string(first) +
