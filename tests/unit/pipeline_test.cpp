@@ -153,6 +153,41 @@ TEST(Pipeline, ReproducibleWhateverTheThreadCount) {
   for (std::size_t k = 0; k < ra.size(); ++k) EXPECT_EQ(ra[k].labels, rb[k].labels);
 }
 
+TEST(Pipeline, FreeSpaceIsTheSameWhateverTheThreadCount) {
+  // With two threads the insertions are queued to a thread of their own (issue #16); the map
+  // must hold the same evidence as with one, where each scan is inserted in turn.
+  PipelineParams a = testParams(), b = testParams();
+  a.threads = 1;
+  b.threads = 2;
+  ASSERT_TRUE(a.map.clean);
+  LaserPipeline pa(a, [](ScanResult&&) {}), pb(b, [](ScanResult&&) {});
+  std::vector<Eigen::Vector3f> probes;
+  for (std::size_t i = 0; i < 14; ++i) {
+    Frame f = castScene(i, double(i), 10.0 + 1.5 * double(i), nullptr);
+    for (std::size_t j = 0; j < f.scan.points.size(); j += 97)
+      probes.push_back((f.scan.pose * f.scan.points[j].xyz().cast<double>()).cast<float>());
+    pa.push(Frame(f));
+    pb.push(std::move(f));
+  }
+  pa.finish();
+  pb.finish();
+  ASSERT_NE(pa.freeSpace(), nullptr);
+  ASSERT_NE(pb.freeSpace(), nullptr);
+  EXPECT_EQ(pa.freeSpace()->voxelsMarked(), pb.freeSpace()->voxelsMarked());
+  std::size_t seen_empty = 0;
+  for (const auto& q : probes) {
+    const FreeEvidence ea = pa.freeSpace()->evidence(q), eb = pb.freeSpace()->evidence(q);
+    ASSERT_EQ(ea.count, eb.count);
+    ASSERT_EQ(ea.hits, eb.hits);
+    ASSERT_EQ(ea.first, eb.first);
+    ASSERT_EQ(ea.last, eb.last);
+    ASSERT_EQ(ea.last_hit, eb.last_hit);
+    ASSERT_EQ(ea.emptied_between, eb.emptied_between);
+    seen_empty += ea.count > 0;
+  }
+  EXPECT_GT(seen_empty, probes.size() / 100);  // the box's old places were seen empty
+}
+
 TEST(Pipeline, StreamsWithDelayKAndBoundedWindow) {
   PipelineParams p = testParams();
   std::vector<std::size_t> decided_after_push;

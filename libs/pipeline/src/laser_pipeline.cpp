@@ -3,9 +3,13 @@
 
 #include <algorithm>
 #include <cmath>
+#include <condition_variable>
+#include <deque>
 #include <exception>
 #include <limits>
+#include <mutex>
 #include <random>
+#include <thread>
 
 #include "cleanmap/core/beam_index.h"
 #include "cleanmap/core/cell_key.h"
@@ -76,9 +80,103 @@ LaserPipeline::LaserPipeline(const PipelineParams& params, Sink sink)
   if (p_.map.clean) free_ = std::make_unique<FreeSpaceMap>(p_.map);
 }
 
+// DESIGN §2e: the free-space insertions of the decided scans, one at a time in scan order, on a
+// thread of their own. A job reads its scan in the pipeline's buffer, which keeps the scan until
+// its job is done (waitThrough).
+struct LaserPipeline::FreeQueue {
+  static constexpr long kNone = std::numeric_limits<long>::min();
+  struct Job {
+    const Prepared* scan = nullptr;
+    long index = 0;
+    std::vector<uint8_t> mask;  // its returns that are not inflated (moving, ground)
+  };
+  explicit FreeQueue(FreeSpaceMap& m) : map(m) {}
+  ~FreeQueue() { stop(); }
+  void push(Job&& j) {
+    {
+      std::lock_guard<std::mutex> lock(mu);
+      if (!worker.joinable()) worker = std::thread([this] { run(); });
+      jobs.push_back(std::move(j));
+    }
+    cv.notify_all();
+  }
+  // Waits until no job of a scan up to `index` is queued or running.
+  void waitThrough(long index) {
+    std::unique_lock<std::mutex> lock(mu);
+    cv.wait(lock, [&] {
+      return (jobs.empty() || jobs.front().index > index) && (busy == kNone || busy > index);
+    });
+  }
+  // The time of the insertions finished since the last call; rethrows an insertion's error.
+  double take() {
+    std::lock_guard<std::mutex> lock(mu);
+    if (error) {
+      auto e = error;
+      error = nullptr;
+      std::rethrow_exception(e);
+    }
+    const double t = ms;
+    ms = 0;
+    return t;
+  }
+  // Drops the queued jobs and waits for the running one.
+  void stop() {
+    {
+      std::lock_guard<std::mutex> lock(mu);
+      closing = true;
+      jobs.clear();
+    }
+    cv.notify_all();
+    if (worker.joinable()) worker.join();
+  }
+  void run() {
+    for (;;) {
+      Job j;
+      {
+        std::unique_lock<std::mutex> lock(mu);
+        cv.wait(lock, [&] { return closing || !jobs.empty(); });
+        if (jobs.empty()) return;
+        j = std::move(jobs.front());
+        jobs.pop_front();
+        busy = j.index;
+      }
+      double t_ms = 0;
+      std::exception_ptr e;
+      try {
+        const auto t = Clock::now();
+        map.insertScan(j.scan->scan.points, j.scan->scan.pose, static_cast<int64_t>(j.index),
+                       &j.mask);
+        t_ms = msSince(t);
+      } catch (...) {
+        e = std::current_exception();
+      }
+      {
+        std::lock_guard<std::mutex> lock(mu);
+        busy = kNone;
+        ms += t_ms;
+        if (e && !error) {
+          error = e;
+          jobs.clear();  // the map is no longer the sequence's: nothing more goes in
+        }
+      }
+      cv.notify_all();
+    }
+  }
+
+  FreeSpaceMap& map;
+  std::mutex mu;
+  std::condition_variable cv;
+  std::deque<Job> jobs;
+  long busy = kNone;  // the scan being inserted
+  bool closing = false;
+  double ms = 0;
+  std::exception_ptr error;
+  std::thread worker;
+};
+
 LaserPipeline::~LaserPipeline() {
-  if (free_job_.joinable()) free_job_.join();
-}
+  free_queue_.reset();
+}  // before the scans its jobs read
 
 std::unique_ptr<LaserPipeline> LaserPipeline::clone(Sink sink) const {
   auto c = std::make_unique<LaserPipeline>(p_, std::move(sink));
@@ -263,41 +361,30 @@ void LaserPipeline::push(Frame&& frame) {
 
 // DESIGN §2e: every beam of a decided scan adds to the sequence's free space, the voxels near its
 // static returns protected (hit_inflate). Nothing else reads or writes that map until the run's
-// end, so with two threads or more the insertion runs beside the next scan's work (the map is the
-// same: one insertion at a time, in scan order). Its time is reported with the next decided scan
-// (`free_space` is then not in `total`); with one thread it runs here and is.
+// end, so with two threads or more the insertions are queued to a thread of their own and run
+// beside the pipeline's work (the map is the same: one insertion at a time, in scan order). Their
+// time is reported with the scan decided when they have finished (`free_space` is then not in
+// `total`); with one thread the insertion runs here and is.
 double LaserPipeline::insertFreeSpace(const Prepared& s, const Work& w) {
   const long index = static_cast<long>(s.index);
   if (!free_ || index < map_first_ || index > map_last_) return 0.0;  // §2f: another chunk's
-  joinFreeSpace();
-  const double previous_ms = free_ms_;  // read before the next job may write it
-  free_mask_.resize(s.scan.size());
-  for (std::size_t i = 0; i < free_mask_.size(); ++i) free_mask_[i] = w.moving[i] || s.ground[i];
-  auto job = [this, &s] {
-    try {
-      const auto t = Clock::now();
-      free_->insertScan(s.scan.points, s.scan.pose, static_cast<int64_t>(s.index), &free_mask_);
-      free_ms_ = msSince(t);
-    } catch (...) {
-      free_error_ = std::current_exception();
-    }
-  };
+  std::vector<uint8_t> mask(s.scan.size());
+  for (std::size_t i = 0; i < mask.size(); ++i) mask[i] = w.moving[i] || s.ground[i];
   if (p_.threads > 1) {
-    free_job_ = std::thread(job);  // `s` stays in the window for K more decisions
-    return previous_ms;
+    if (!free_queue_) free_queue_ = std::make_unique<FreeQueue>(*free_);
+    const double finished_ms = free_queue_->take();   // rethrows an earlier insertion's error
+    free_queue_->push({&s, index, std::move(mask)});  // `s` stays buffered until it is done
+    return finished_ms;
   }
-  job();
-  joinFreeSpace();  // rethrows its error
-  return free_ms_;
+  const auto t = Clock::now();
+  free_->insertScan(s.scan.points, s.scan.pose, static_cast<int64_t>(s.index), &mask);
+  return msSince(t);
 }
 
 void LaserPipeline::joinFreeSpace() const {
-  if (free_job_.joinable()) free_job_.join();
-  if (free_error_) {
-    auto e = free_error_;
-    free_error_ = nullptr;
-    std::rethrow_exception(e);
-  }
+  if (!free_queue_) return;
+  free_queue_->waitThrough(std::numeric_limits<long>::max());
+  free_queue_->take();  // rethrows its error
 }
 
 void LaserPipeline::finish() {
@@ -315,6 +402,7 @@ void LaserPipeline::decideReady(std::size_t future) {
     decide(next_);
     ++next_;
     while (next_ > K) {
+      if (free_queue_) free_queue_->waitThrough(static_cast<long>(buf_.front()->index));
       buf_.pop_front();
       --next_;
     }

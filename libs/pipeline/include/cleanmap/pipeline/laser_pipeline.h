@@ -7,7 +7,6 @@
 #include <limits>
 #include <memory>
 #include <optional>
-#include <thread>
 #include <vector>
 
 #include "cleanmap/core/cell_map.h"
@@ -44,7 +43,7 @@ class LaserPipeline {
   std::unique_ptr<LaserPipeline> clone(Sink sink) const;
   const PipelineParams& params() const { return p_; }
   /// DESIGN §2e: the free space every scan decided so far has seen (null with static_map.clean
-  /// off). Waits for the last decided scan's insertion, which runs beside the next scan's work.
+  /// off). Waits for the decided scans' insertions, which run beside the pipeline's work.
   const FreeSpaceMap* freeSpace() const {
     joinFreeSpace();
     return free_.get();
@@ -104,15 +103,14 @@ class LaserPipeline {
   CellMap<uint8_t> prev_moving_cells_;  // last decided scan's moving cells, dilated
   std::unique_ptr<Work> work_;
   std::unique_ptr<FreeSpaceMap> free_;  // DESIGN §2e, whole sequence
-  // A decided scan's free-space insertion runs on its own thread beside the next scan's work.
-  double insertFreeSpace(const Prepared& s, const Work& w);  // ms of the insertion reported now
-  void joinFreeSpace() const;                                // waits for it; rethrows its error
-  mutable std::thread free_job_;
-  mutable std::exception_ptr free_error_;
-  mutable double free_ms_ = 0;          // the last insertion's time
-  std::vector<uint8_t> free_mask_;      // its returns that are not inflated (moving, ground)
-  PoseSource source_;                   // resolved on the first scan
-  std::unique_ptr<reg::Odometry> odo_;  // with gicp / refine
+  // The decided scans' free-space insertions run in scan order on one thread of their own,
+  // beside the pipeline's work (with threads > 1).
+  struct FreeQueue;
+  double insertFreeSpace(const Prepared& s, const Work& w);  // ms of insertions reported now
+  void joinFreeSpace() const;  // waits for every queued insertion; rethrows an error
+  std::unique_ptr<FreeQueue> free_queue_;
+  PoseSource source_;                               // resolved on the first scan
+  std::unique_ptr<reg::Odometry> odo_;              // with gicp / refine
   std::optional<Eigen::Isometry3d> prev_odometry_;  // the last scan's input odometry ...
   Eigen::Isometry3d prev_pose_ = Eigen::Isometry3d::Identity();  // ... and its estimated pose
 };
