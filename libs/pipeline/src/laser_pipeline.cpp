@@ -175,8 +175,8 @@ struct LaserPipeline::FreeQueue {
 };
 
 LaserPipeline::~LaserPipeline() {
-  free_queue_.reset();
-}  // before the scans its jobs read
+  free_queue_.reset();  // its thread stops before the scans its jobs read are destroyed
+}
 
 std::unique_ptr<LaserPipeline> LaserPipeline::clone(Sink sink) const {
   auto c = std::make_unique<LaserPipeline>(p_, std::move(sink));
@@ -485,7 +485,9 @@ void LaserPipeline::sampleLeaves(Prepared& s, Work& w) const {
   const auto t0 = Clock::now();
   std::mt19937_64 rng(p_.seed * 0x9E3779B97F4A7C15ull + static_cast<uint64_t>(s.index));
   w.leaves = planLeaves(w.cand_world, p_.octree, rng);
-  for (const auto& leaf : w.leaves) s.stats.tested += leaf.tested.size();
+  std::size_t tested = 0;
+  for (const auto& leaf : w.leaves) tested += leaf.tested.size();
+  s.stats.tested = tested;
   s.stats.ms.octree = msSince(t0);
 }
 
