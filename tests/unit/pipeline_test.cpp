@@ -177,12 +177,7 @@ TEST(Pipeline, FreeSpaceIsTheSameWhateverTheThreadCount) {
   std::size_t seen_empty = 0;
   for (const auto& q : probes) {
     const FreeEvidence ea = pa.freeSpace()->evidence(q), eb = pb.freeSpace()->evidence(q);
-    ASSERT_EQ(ea.count, eb.count);
-    ASSERT_EQ(ea.hits, eb.hits);
-    ASSERT_EQ(ea.first, eb.first);
-    ASSERT_EQ(ea.last, eb.last);
-    ASSERT_EQ(ea.last_hit, eb.last_hit);
-    ASSERT_EQ(ea.emptied_between, eb.emptied_between);
+    ASSERT_TRUE(ea == eb) << q.transpose() << ": " << ea.count << " / " << eb.count;
     seen_empty += ea.count > 0;
   }
   EXPECT_GT(seen_empty, probes.size() / 100);  // the box's old places were seen empty

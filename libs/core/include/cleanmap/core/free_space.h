@@ -31,6 +31,11 @@ struct FreeEvidence {
   bool emptied_between = false;
 };
 
+inline bool operator==(const FreeEvidence& a, const FreeEvidence& b) {
+  return a.count == b.count && a.hits == b.hits && a.first == b.first && a.last == b.last &&
+         a.last_hit == b.last_hit && a.emptied_between == b.emptied_between;
+}
+
 /// Is a map point (non-ground) of scan `scan` removed, given its voxel's evidence?
 bool removedByPolicy(const FreeEvidence& e, int64_t scan, const MapParams& p);
 
