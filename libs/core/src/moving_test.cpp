@@ -194,6 +194,7 @@ std::optional<bool> MovingTest::combineWindow(const Eigen::Vector3d& p_world,
                                               const std::vector<WindowScan>& window,
                                               MovingTestStats* stats, bool stop_early,
                                               ds::Mass& acc) const {
+  if (stats) ++stats->points;
   constexpr double kSafety = 1e-6;  // far above the rounding of the sums
   struct Visit {
     Eigen::Vector3d pl;  // P in the scan's sensor frame

@@ -28,6 +28,7 @@ struct alignas(64) MovingTestStats {
   std::size_t scans_visited = 0;      ///< (point, window scan) pairs looked up
   std::size_t beams = 0;              ///< beams inside the cone, each a beam mass (Eq. 2-5)
   std::size_t early = 0;              ///< points decided before the last window scan
+  std::size_t points = 0;             ///< points tested (isMoving / windowMass calls)
 };
 
 /// How the beam masses are computed: kFast (the default) evaluates a batch of beams on vector

@@ -27,14 +27,13 @@ inline bool leafIsMoving(std::size_t tested_moving, std::size_t tested) {
 
 /// leafIsMoving over the leaf's tested points, calling `is_moving(c)` for them in order only
 /// until the majority is settled (half of them moving, or more than half not): the others
-/// cannot change the decision (issue #16). `calls` (optional) gets how many were tested.
+/// cannot change the decision (issue #16).
 template <class IsMoving>
-bool decideLeaf(const Leaf& leaf, IsMoving&& is_moving, std::size_t* calls = nullptr) {
+bool decideLeaf(const Leaf& leaf, IsMoving&& is_moving) {
   const std::size_t n = leaf.tested.size();
   std::size_t k = 0, moving = 0;
   for (; k < n && 2 * moving < n && 2 * (moving + n - k) >= n; ++k)
     moving += is_moving(leaf.tested[k]) ? 1 : 0;
-  if (calls) *calls = k;
   return leafIsMoving(moving, n);  // settled: the same as with every point tested
 }
 

@@ -31,7 +31,6 @@ class PrefetchSource : public FrameSource {
   std::optional<Frame> next() override;
   std::optional<std::size_t> sizeHint() const override { return size_; }
   std::optional<PinholeCamera> camera() const override { return camera_; }
-  const FrameSource& inner() const { return *inner_; }
 
  private:
   struct Item {
