@@ -28,10 +28,15 @@ inline std::string errorLine(const std::exception& e) {
 /// blocks to the kernel (mmap above 128 KiB, heap trimming), so the next scan page-faults them
 /// back, zeroed: 10 ms a scan on the beam index alone in a VM (doc/BENCHMARK.md, Clean map).
 /// The apps keep freed memory for reuse instead; peak RSS is unchanged within a few MiB.
+/// The heap also grows in 64 MiB steps, not by what a call needs plus 128 KiB: a transparent huge
+/// page (useHugePages) backs only a 2 MiB span that lies whole inside the heap, so small steps
+/// left most of it to 4 KiB faults (58,000 on kitti_highway; 9,600 in large steps, whole process
+/// 0.84x the wall, peak RSS +25 MiB: doc/BENCHMARK.md, sixteenth session).
 inline void keepFreedMemory() {
 #if defined(__GLIBC__)
   mallopt(M_MMAP_THRESHOLD, 32 << 20);  // glibc's largest
   mallopt(M_TRIM_THRESHOLD, 256 << 20);
+  mallopt(M_TOP_PAD, 64 << 20);
 #endif
 }
 
