@@ -174,3 +174,88 @@ TEST(ImageValidation, AnImageOfTheWrongSizeIsAClearError) {
       [&] { vision::makeCameraView(render({}, 0), points({}, 0), at(0), cam, 0, "img.png", 4); },
       "img.png", "calibration");
 }
+
+// The object vote (DESIGN §3), over every outcome pattern of objects of 1-10 cells: it decides
+// as the majority over every compared cell would, never decides a cell after the outcome is
+// settled, and compares at most max_cells cells, spread over the object.
+namespace {
+
+vision::Decision cellDecision(int kind) {  // 0 unseen, 1 similar, 2 changed
+  vision::Decision d;
+  d.seen = kind != 0;
+  d.views = kind != 0 ? 3 : 0;
+  d.confirmed = kind == 2;
+  d.relabel_static = kind == 1;
+  d.decisive = kind == 2   ? vision::Verdict::kDifferentColour
+               : kind == 1 ? vision::Verdict::kSimilarColour
+                           : vision::Verdict::kUnseen;
+  return d;
+}
+
+}  // namespace
+
+TEST(ImageValidation, TheObjectVoteDecidesAsTheWholeMajorityAndStopsOnceSettled) {
+  for (const double f : {0.0, 0.5}) {
+    for (int n = 1; n <= 10; ++n) {
+      int patterns = 1;
+      for (int i = 0; i < n; ++i) patterns *= 3;
+      for (int code = 0; code < patterns; ++code) {
+        std::vector<int> kind(static_cast<std::size_t>(n));
+        for (int i = 0, c = code; i < n; ++i, c /= 3) kind[std::size_t(i)] = c % 3;
+        int changed = 0, similar = 0;
+        for (int k : kind) changed += k == 2, similar += k == 1;
+        std::vector<std::size_t> asked;
+        const auto v = vision::voteObject(std::size_t(n), f, 100, [&](std::size_t i) {
+          asked.push_back(i);
+          return cellDecision(kind[i]);
+        });
+        const auto want = changed > 0 && changed > f * (changed + similar)
+                              ? vision::ObjectVote::Outcome::kMoving
+                          : changed + similar > 0 ? vision::ObjectVote::Outcome::kStatic
+                                                  : vision::ObjectVote::Outcome::kUnseen;
+        if (v.outcome != want) {
+          ADD_FAILURE() << "f " << f << ", " << n << " cells, pattern " << code;
+          return;
+        }
+        // In order, and no cell after the outcome was settled: the cells not asked could not
+        // have changed it, and without the last one asked it was still open.
+        for (std::size_t j = 0; j < asked.size(); ++j) ASSERT_EQ(asked[j], j);
+        EXPECT_EQ(v.compared, asked.size());
+        if (asked.size() < std::size_t(n)) {
+          int c = 0, s = 0;
+          for (std::size_t j = 0; j < asked.size(); ++j) c += kind[j] == 2, s += kind[j] == 1;
+          const int left = n - int(asked.size());
+          const bool settled_moving = c > f * (c + s + left);
+          const bool settled_static = c + left <= f * (c + s + left);
+          ASSERT_TRUE(settled_moving || settled_static) << "stopped early, pattern " << code;
+        }
+      }
+    }
+  }
+  // f = 0: the first changed cell settles it (the rule of one).
+  const auto v =
+      vision::voteObject(5, 0.0, 100, [&](std::size_t i) { return cellDecision(i == 0 ? 1 : 2); });
+  EXPECT_EQ(v.outcome, vision::ObjectVote::Outcome::kMoving);
+  EXPECT_EQ(v.compared, 2u);
+}
+
+TEST(ImageValidation, TheObjectVoteComparesAtMostMaxCellsSpreadOverTheObject) {
+  // A 100-cell object whose first 20 cells (its extremes) look changed and the rest similar:
+  // 15 cells spread over it (every sixth or seventh) see mostly similar cells, so it is static.
+  std::vector<std::size_t> asked;
+  auto v = vision::voteObject(100, 0.5, 15, [&](std::size_t i) {
+    asked.push_back(i);
+    return cellDecision(i < 20 ? 2 : 1);
+  });
+  EXPECT_EQ(v.outcome, vision::ObjectVote::Outcome::kStatic);
+  ASSERT_LE(asked.size(), 15u);
+  EXPECT_EQ(asked.front(), 0u);
+  for (std::size_t j = 1; j < asked.size(); ++j) EXPECT_GE(asked[j] - asked[j - 1], 6u);
+  v = vision::voteObject(100, 0.5, 15, [](std::size_t) { return cellDecision(2); });
+  EXPECT_EQ(v.outcome, vision::ObjectVote::Outcome::kMoving);
+  EXPECT_EQ(v.compared, 8u);  // 8 of 15 changed: a majority whatever the other 7 say
+  EXPECT_EQ(v.changed_by, vision::Verdict::kDifferentColour);
+  v = vision::voteObject(100, 0.5, 15, [](std::size_t) { return cellDecision(0); });
+  EXPECT_EQ(v.outcome, vision::ObjectVote::Outcome::kUnseen);
+  EXPECT_EQ(v.compared, 15u);
+}

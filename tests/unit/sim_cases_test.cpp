@@ -271,11 +271,15 @@ TEST(SimCases, CameraCheckKeepsMoversAndRelabelsOnlyStaticPoints) {
   EXPECT_EQ(off.image_units, 0u);
   EXPECT_GT(on.image_units, 20u);  // the camera did look at the moving objects
   EXPECT_GE(on.all.recall(), off.all.recall() - 0.03);
-  EXPECT_GE(on.all.precision(), off.all.precision() - 0.002);
   EXPECT_GE(on.per_mover.at("overtaking_car").recall(),
             off.per_mover.at("overtaking_car").recall() - 0.03);
+  // The drift makes the laser flag parts of walls and parked cars; those in the camera's view
+  // look the same in most cells, so the object vote relabels them (measured: +0.0165, 700 truly
+  // static points, none moving; with "one changed cell keeps it moving": nothing relabelled).
+  EXPECT_GE(on.all.precision(), off.all.precision() + 0.008);
+  EXPECT_GT(on.relabelled_static, 100u);
   const std::size_t relabelled = on.relabelled_static + on.relabelled_moving;
-  if (relabelled > 0) EXPECT_GT(double(on.relabelled_static) / double(relabelled), 0.6);
+  EXPECT_GT(double(on.relabelled_static) / double(std::max<std::size_t>(relabelled, 1)), 0.6);
 }
 
 // Issue #15: any lidar, any mount, default parameters (sensor.height = auto). The default street

@@ -81,6 +81,9 @@ void validate(const PipelineParams& p, const std::string& name) {
   require(im.occlusion > 0, "image.occlusion must be > 0");
   require(im.cell > 0, "image.cell must be > 0");
   require(im.min_views >= 1, "image.min_views must be >= 1");
+  require(im.changed_fraction >= 0 && im.changed_fraction < 1,
+          "image.changed_fraction must be in [0, 1)");
+  require(im.max_cells >= 1 && im.max_cells <= 1000000, "image.max_cells must be in [1, 1e6]");
 }
 
 }  // namespace cleanmap

@@ -150,6 +150,8 @@ std::map<std::string, Key> table(PipelineParams& p) {
       {"image.occlusion", d(p.image.occlusion)},
       {"image.cell", d(p.image.cell)},
       {"image.min_views", i(p.image.min_views)},
+      {"image.changed_fraction", d(p.image.changed_fraction)},
+      {"image.max_cells", i(p.image.max_cells)},
       {"run.seed", Key{[&p](double v) { p.seed = static_cast<uint64_t>(v); },
                        [&p] { return double(p.seed); },
                        true,

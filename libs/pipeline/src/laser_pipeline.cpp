@@ -569,10 +569,11 @@ void LaserPipeline::objectConsensus(Prepared& s, Work& w) const {
 }
 
 // DESIGN §3: the moving points in cells of image.cell, the cells in objects (26-connected).
-// An object stays moving if any of its cells looks different in some window camera (the
-// farthest in time first); otherwise its cells that the cameras saw, all similar, are relabelled
-// static. Deciding per object keeps a mover whose flat side slides along itself (same look, same
-// depth) moving by its ends and textured parts; cells no camera sees keep the laser label.
+// A cell looks changed if it looks different in some window camera (the farthest in time first).
+// An object stays moving if more than image.changed_fraction of its compared cells look changed
+// (the vote below); otherwise its cells in view are relabelled static. Deciding per object keeps
+// a mover whose flat side slides along itself (same look, same depth) moving by its ends and
+// textured parts; cells no camera sees keep the laser label.
 void LaserPipeline::validateImages(std::size_t pos, Prepared& s, Work& w) const {
   if (!s.view) return;
   const auto t0 = Clock::now();
@@ -644,23 +645,20 @@ void LaserPipeline::validateImages(std::size_t pos, Prepared& s, Work& w) const 
     std::stable_sort(members.begin(), members.end(), [&](std::size_t a, std::size_t b) {
       return (rep[a] - centre).squaredNorm() > (rep[b] - centre).squaredNorm();
     });
-    bool similar = false, depth = false;
-    for (std::size_t c : members) {
-      const vision::Decision d = vision::decide(*s.view, window, rep[c], ip);
-      if (!d.seen) continue;
-      if (d.confirmed) {
-        outcome[o] =
-            d.decisive == vision::Verdict::kDifferentColour ? kConfirmedColour : kConfirmedDepth;
-        for (std::size_t m : members) relabel_cell[m] = 0;
-        return;
-      }
-      if (d.relabel_static) {
-        relabel_cell[c] = 1;
-        similar = true;
-        depth = depth || d.used_depth;
-      }
+    // The vote (vision::voteObject); a static object's cells in its own camera's view are
+    // relabelled static, the few that looked changed included (parallax at an edge, a pose error
+    // beyond the search margin); cells out of view keep the laser label.
+    const auto v = vision::voteObject(
+        members.size(), ip.changed_fraction, ip.max_cells,
+        [&](std::size_t i) { return vision::decide(*s.view, window, rep[members[i]], ip); });
+    if (v.outcome == vision::ObjectVote::Outcome::kUnseen) return;
+    if (v.outcome == vision::ObjectVote::Outcome::kMoving) {
+      outcome[o] =
+          v.changed_by == vision::Verdict::kDifferentColour ? kConfirmedColour : kConfirmedDepth;
+      return;
     }
-    if (similar) outcome[o] = depth ? kRejectedDepth : kRejectedColour;
+    for (std::size_t c : members) relabel_cell[c] = vision::visibleIn(*s.view, rep[c], ip);
+    outcome[o] = v.used_depth ? kRejectedDepth : kRejectedColour;
   });
   w.relabelled.assign(s.scan.size(), 0);
   auto& st = s.stats;

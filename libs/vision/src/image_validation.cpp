@@ -222,6 +222,40 @@ Verdict compareViews(const CameraView& ref, const CameraView& other, const Eigen
   return rp ? compareWith(ref, *rp, other, world, p) : Verdict::kUnseen;
 }
 
+ObjectVote voteObject(std::size_t cells, double changed_fraction, int max_cells,
+                      const std::function<Decision(std::size_t)>& decide_cell) {
+  ObjectVote v;
+  const double f = changed_fraction;
+  const std::size_t k = std::min<std::size_t>(cells, static_cast<std::size_t>(max_cells));
+  std::size_t left = k;
+  for (std::size_t j = 0; j < k; ++j) {
+    --left;
+    const Decision d = decide_cell(j * cells / k);
+    ++v.compared;
+    if (d.confirmed) {
+      if (v.changed++ == 0) v.changed_by = d.decisive;
+    } else if (d.relabel_static) {
+      ++v.similar;
+      v.used_depth = v.used_depth || d.used_depth;
+    } else {
+      continue;  // unseen, or seen by too few cameras: no vote
+    }
+    const double voters = double(v.similar + v.changed + left);
+    if (double(v.changed) > f * voters) break;  // moving, whatever the rest say
+    // (changed + x) / (voters + x) grows with x: not even all the rest changed would do.
+    if (double(v.changed + left) <= f * voters) break;
+  }
+  if (v.changed > 0 && double(v.changed) > f * double(v.similar + v.changed))
+    v.outcome = ObjectVote::Outcome::kMoving;
+  else if (v.similar > 0)
+    v.outcome = ObjectVote::Outcome::kStatic;
+  return v;
+}
+
+bool visibleIn(const CameraView& ref, const Eigen::Vector3d& world, const ImageParams& p) {
+  return refPatch(ref, world, p).has_value();
+}
+
 Decision decide(const CameraView& ref, const std::vector<const CameraView*>& window,
                 const Eigen::Vector3d& world, const ImageParams& p) {
   Decision d;

@@ -170,6 +170,12 @@ struct ImageParams {
   double occlusion = 0.5;   ///< m; a lidar return this much nearer at the pixel hides the point
   double cell = 0.3;        ///< m; cells of moving points: one tested point each
   int min_views = 1;        ///< window cameras that must see the point to relabel it
+  /// An object stays moving iff more than this fraction of its seen cells look different in some
+  /// window camera (DESIGN §3); 0: any one cell keeps it moving.
+  double changed_fraction = 0.5;
+  /// Cells of an object compared at most (spread from its extremes to its centre); the vote
+  /// stops earlier once the cells left cannot change it.
+  int max_cells = 15;
 };
 
 /// Where scan poses come from (DESIGN §2.1): `kAuto` is `kGiven` when the first scan has a pose

@@ -3,6 +3,7 @@
 // window is a false positive. OpenCV and Eigen only, beside the laser stages; no MRPT.
 #pragma once
 #include <cstdint>
+#include <functional>
 #include <optional>
 #include <vector>
 
@@ -91,6 +92,26 @@ struct Decision {
 /// so a real one is usually confirmed by the first camera).
 Decision decide(const CameraView& ref, const std::vector<const CameraView*>& window,
                 const Eigen::Vector3d& world, const ImageParams& p);
+
+/// The object vote (DESIGN §3): an object of `cells` cells, in the order to compare them
+/// (extremes first), stays moving iff more than `changed_fraction` of its compared cells look
+/// changed (Decision::confirmed); a cell neither changed nor similar (unseen, too few views) does
+/// not vote. At most `max_cells` cells are compared, cell j * cells / k for j < k; the vote stops
+/// once the cells left cannot change it. `decide_cell(i)` decides cell i.
+struct ObjectVote {
+  enum class Outcome : uint8_t { kUnseen, kMoving, kStatic };
+  Outcome outcome = Outcome::kUnseen;  ///< kUnseen: no cell voted, the laser label stands
+  std::size_t compared = 0;            ///< cells decided
+  std::size_t changed = 0, similar = 0;
+  Verdict changed_by = Verdict::kUnseen;  ///< the first changed cell's verdict
+  bool used_depth = false;                ///< some similar cell needed the depth test
+};
+ObjectVote voteObject(std::size_t cells, double changed_fraction, int max_cells,
+                      const std::function<Decision(std::size_t)>& decide_cell);
+
+/// Whether the point is in its own scan's view `ref`: in the image with its whole patch, not
+/// occluded by a nearer return (the first condition of `seen`).
+bool visibleIn(const CameraView& ref, const Eigen::Vector3d& world, const ImageParams& p);
 
 /// The overlay of `--save-overlays`: the scan's points over its image, static green, moving red,
 /// relabelled static by the camera yellow. `kind` per point: 0 skip, 1 static, 2 moving,
