@@ -17,7 +17,7 @@ namespace {
 
 constexpr const char* kUsage = R"(usage:
   cleanmap-eval GT_DIR RESULT [--first N --last M] [--labels DIR] [--report DIR] [--json]
-                [--radius R] [--map-range M] [--crop TAU|run]
+                [--radius R] [--map-range M] [--crop TAU|run] [--camera-fov]
   cleanmap-eval roc GT_DIR -o DIR [--sigma-r LIST] [--sigma-theta LIST] [-c INI] [--threads N]
                 [--first N --last M]
   cleanmap-eval summary REPORT.json...
@@ -39,6 +39,9 @@ RESULT         a cleanmap output folder (labels/, static_map_full.ply, report.js
                crop: a map that covers less scores less; 0 = all)
 --crop TAU|run also keep only |x|,|y|,|z| <= TAU in the sensor frame; `run`: the run's own crop
                (filter.crop_tau of its params.ini)
+--camera-fov   per-point and object measures over the points in the camera's view only (in
+               front of it, inside image_2; calib.txt P2 and Tr), as the paper's Table I scores
+               its image masks; the map scores stay whole
 Measures: per point precision / recall / IoU of the moving class (paper Table I); per object
 Detected (f >= 0.9) / Partially detected (0.1 <= f < 0.9) (Table II, needs objects.json);
 DynamicMap SA, DA, AA = sqrt(SA DA), HA = 2 SA DA / (SA + DA); runtime from report.json.
@@ -132,6 +135,8 @@ int runEval(int argc, char** argv) {
       if (opt.radius <= 0) args.fail("--radius must be > 0");
     } else if (a == "--map-range") {
       opt.map_range = args.number(a);
+    } else if (a == "--camera-fov") {
+      opt.camera_fov = true;
     } else if (a == "--crop") {
       const std::string v = args.value(a);
       if (v == "run")
@@ -157,9 +162,10 @@ int runEval(int argc, char** argv) {
   }
   std::printf("%s: %zu scans\n", rep.sequence.c_str(), rep.scans);
   if (rep.mos)
-    std::printf("  moving class: precision %.3f, recall %.3f, IoU %.3f (%llu points scored)\n",
+    std::printf("  moving class: precision %.3f, recall %.3f, IoU %.3f (%llu points scored%s)\n",
                 rep.mos->precision(), rep.mos->recall(), rep.mos->iou(),
-                (unsigned long long)rep.mos->evaluated());
+                (unsigned long long)rep.mos->evaluated(),
+                rep.camera_fov ? ", in the camera's view" : "");
   if (rep.objects) {
     const auto g = rep.gradeCounts();
     std::printf("  objects: %d detected, %d partially detected, %d missed\n", g.detected, g.partial,

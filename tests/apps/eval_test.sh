@@ -34,6 +34,7 @@ expect_error 1 "no such result" "$bin/cleanmap-eval" "$city" "$scratch/missing"
 expect_error 1 "directory does not exist" "$bin/cleanmap-eval" "$scratch/nogt" "$scratch/run"
 printf 'garbage' >"$scratch/map.pcd"
 expect_error 1 "map.pcd" "$bin/cleanmap-eval" "$city" "$scratch/map.pcd"
+expect_error 1 "needs the sequence's camera" "$bin/cleanmap-eval" "$city" "$scratch/run" --camera-fov
 expect_error 2 "unknown option" "$bin/cleanmap-eval" "$city" "$scratch/run" --bogus
 expect_error 2 "--radius" "$bin/cleanmap-eval" "$city" "$scratch/run" --radius x
 expect_error 2 "--sigma-r" "$bin/cleanmap-eval" roc "$city" -o "$scratch/r2" --sigma-r 0.1,abc

@@ -152,6 +152,43 @@ TEST(EvalPoints, EmptyMovingClassGivesZerosNotNaN) {
   EXPECT_EQ(ign.ignored, 4u);
 }
 
+// --camera-fov: a 100 x 100 px camera looking along the lidar's x axis (f 100 px, centre 50):
+// u = 50 - 10 y for the wall at x = 10, so its points with y > -5 are in view (99 of 100); the car
+// (x 4-4.8, y 3) projects left of the image. Five wall points labelled moving per scan: the one
+// at y = -5 is out of view, so 4 false positives per scan are scored, and no moving point.
+TEST(EvalPoints, CameraFovScoresOnlyThePointsInTheImage) {
+  const auto t = makeTiny("fov");
+  test::writeText(t.dir / "calib.txt",
+                  "P2: 100 0 50 0 0 100 50 0 0 0 1 0\nTr: 0 -1 0 0 0 0 -1 0 1 0 0 0\n");
+  for (const char* stem : {"000000", "000001"})
+    eval::writePng((t.dir / "image_2" / (std::string(stem) + ".png")).string(),
+                   cv::Mat(100, 100, CV_8UC3, cv::Scalar(90, 90, 90)));
+  const auto result = predict(t, "fov", 0, 5);
+  eval::EvalOptions opt;
+  opt.camera_fov = true;
+  const auto r =
+      eval::evaluate(t.dir.string(), eval::ResultInput::fromPath(result.string(), {}), opt);
+  ASSERT_TRUE(r.mos);
+  EXPECT_EQ(r.mos->fp, 8u);
+  EXPECT_EQ(r.mos->tn, 2u * 95u);
+  EXPECT_EQ(r.mos->tp + r.mos->fn, 0u);
+  EXPECT_EQ(r.mos->ignored, 2u * (1u + 50u + 10u));
+  EXPECT_TRUE(r.camera_fov);
+  EXPECT_NE(eval::toJson(r).find("\"scored_points\": \"camera_fov\""), std::string::npos);
+  // The whole scan without it: 10 false positives, the car's 100 moving points.
+  const auto all = run(t, result);
+  EXPECT_EQ(all.mos->fp, 10u);
+  EXPECT_EQ(all.mos->tp, 100u);
+  // A sequence without a camera: one clear error naming it.
+  const auto no_cam = makeTiny("fov_no_camera");
+  test::expectError(
+      [&] {
+        eval::evaluate(no_cam.dir.string(),
+                       eval::ResultInput::fromPath(predict(no_cam, "p", 0, 0).string(), {}), opt);
+      },
+      no_cam.dir.string(), "--camera-fov needs the sequence's camera");
+}
+
 TEST(EvalObjects, GradesByFractionOfMovingPoints) {
   const auto t = makeTiny("objects");
   auto grade = [&](int wrong) {

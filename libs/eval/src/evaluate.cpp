@@ -127,9 +127,14 @@ bool inMapGroundTruth(const Eigen::Vector3f& p, double map_range, double crop_ta
 EvalReport evaluate(const std::string& gt_dir, const ResultInput& result, const EvalOptions& opt) {
   io::KittiReadOptions ro;
   ro.scan.allow_empty = true;
-  ro.load_images = false;
+  ro.load_images = opt.camera_fov;  // the camera (calibration, image size); no image is decoded
   const auto seq = io::KittiSequence::open(gt_dir, ro);
   if (!seq.hasLabels()) throw Error(gt_dir, "no labels/ folder: not a labelled sequence");
+  const auto camera = seq.camera();
+  if (opt.camera_fov && !camera)
+    throw Error(gt_dir,
+                "--camera-fov needs the sequence's camera (image_2/ and calib.txt with P2 "
+                "and Tr, or KITTI raw's calibration)");
   if (seq.size() == 0) throw Error(gt_dir, "no scans");
   const std::size_t first = static_cast<std::size_t>(std::max(0L, opt.first));
   const std::size_t last =
@@ -153,6 +158,7 @@ EvalReport evaluate(const std::string& gt_dir, const ResultInput& result, const 
     rep.crop_tau = *result.crop_tau;
   }
   rep.radius = opt.radius;
+  rep.camera_fov = opt.camera_fov;
   if (result.run_report) rep.runtime = readRunReport(*result.run_report);
 
   std::vector<io::GtObject> objects;
@@ -186,7 +192,16 @@ EvalReport evaluate(const std::string& gt_dir, const ResultInput& result, const 
 
   for (std::size_t i = first; i <= last; ++i) {
     const Scan scan = seq.loadScan(i);
-    const Labels truth = seq.loadLabels(i, scan.original_size);
+    const Labels all_truth = seq.loadLabels(i, scan.original_size);
+    // The per-point and object measures' truth: outside the camera's view, ignored.
+    Labels fov_truth;
+    if (opt.camera_fov) {
+      fov_truth.assign(all_truth.size(), 0);
+      for (std::size_t j = 0; j < scan.size(); ++j)
+        if (camera->project(scan.points[j].xyz().cast<double>()))
+          fov_truth[scan.originalIndex(j)] = all_truth[scan.originalIndex(j)];
+    }
+    const Labels& truth = opt.camera_fov ? fov_truth : all_truth;
     Labels pred;
     if (result.labels_dir) {
       const std::string path = *result.labels_dir + "/" + seq.stems()[i] + ".label";
@@ -224,7 +239,7 @@ EvalReport evaluate(const std::string& gt_dir, const ResultInput& result, const 
     if (scorer) {
       const Eigen::Isometry3f pose = seq.poses()[i].cast<float>();
       for (std::size_t j = 0; j < scan.size(); ++j) {
-        const GtClass t = gtClass(truth[scan.originalIndex(j)]);
+        const GtClass t = gtClass(all_truth[scan.originalIndex(j)]);
         if (t == GtClass::kIgnore) continue;
         const Eigen::Vector3f p = scan.points[j].xyz();
         if (!inMapGroundTruth(p, rep.map_range, rep.crop_tau)) continue;
@@ -278,6 +293,7 @@ std::string toJson(const EvalReport& r) {
   j["result"] = r.result;
   j["scans"] = r.scans;
   if (r.mos) {
+    j["scored_points"] = r.camera_fov ? "camera_fov" : "all";
     j["precision"] = r.mos->precision();
     j["recall"] = r.mos->recall();
     j["iou"] = r.mos->iou();
@@ -345,17 +361,19 @@ void writeReport(const std::string& dir, const EvalReport& r) {
     if (r.mos) {
       const auto& c = *r.mos;
       std::snprintf(b, sizeof b,
-                    "\n## Per-point moving-object segmentation (paper Table I)\n"
+                    "\n## Per-point moving-object segmentation (paper Table I%s)\n"
                     "| precision | recall | IoU | TP | FP | FN | TN | flagged "
                     "|\n|---|---|---|---|---|---|---|---|\n"
                     "| %.3f | %.3f | %.3f | %llu | %llu | %llu | %llu | %.2f %% |\n",
-                    c.precision(), c.recall(), c.iou(), (unsigned long long)c.tp,
-                    (unsigned long long)c.fp, (unsigned long long)c.fn, (unsigned long long)c.tn,
-                    100.0 * c.flaggedRate());
+                    r.camera_fov ? "; points in the camera's view only" : "", c.precision(),
+                    c.recall(), c.iou(), (unsigned long long)c.tp, (unsigned long long)c.fp,
+                    (unsigned long long)c.fn, (unsigned long long)c.tn, 100.0 * c.flaggedRate());
       os << b;
     }
     if (r.objects) {
-      os << "\n## Objects (paper Table II: detected f >= 0.9, partially 0.1 <= f < 0.9)\n"
+      os << "\n## Objects (paper Table II: detected f >= 0.9, partially 0.1 <= f < 0.9"
+         << (r.camera_fov ? "; points in the camera's view only" : "")
+         << ")\n"
             "| id | class | moving points | labelled moving | f | grade "
             "|\n|---|---|---|---|---|---|\n";
       for (const auto& o : *r.objects) {

@@ -38,6 +38,11 @@ struct EvalOptions {
   bool run_crop = false;
   double radius = 0.05;      ///< m; DynamicMap "kept" distance
   std::string pictures_dir;  ///< when set: one bird's-eye PNG per scan + map overview
+  /// Score the per-point and object measures only over the points that project into the
+  /// sequence's camera image (in front of it, inside the image: KITTI image_2 with calib.txt P2
+  /// and Tr), as the paper's Table I does with its image masks (DESIGN §5). The map scores are
+  /// not restricted.
+  bool camera_fov = false;
 };
 
 struct ObjectResult {
@@ -77,6 +82,7 @@ struct EvalReport {
   double map_range = 0;  ///< m; 0 = no limit
   double crop_tau = 0;   ///< m; 0 = no per-axis crop
   double radius = 0;
+  bool camera_fov = false;  ///< per-point and object measures inside the camera's view only
   std::optional<MosCounts> mos;
   std::vector<std::pair<std::string, MosCounts>> per_scan;
   std::optional<std::vector<ObjectResult>> objects;  ///< when objects.json and labels exist
