@@ -259,3 +259,56 @@ TEST(ImageValidation, TheObjectVoteComparesAtMostMaxCellsSpreadOverTheObject) {
   EXPECT_EQ(v.outcome, vision::ObjectVote::Outcome::kUnseen);
   EXPECT_EQ(v.compared, 15u);
 }
+
+// The depth test's error against the formula written out (SPEC §3, DESIGN §3): random depth
+// patches with gaps, the smallest error over the shifts exactly; with stop_below, the same verdict.
+TEST(ImageValidation, DepthErrorIsTheSmallestShiftErrorAndStopsBelowAThreshold) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> depth(9.f, 11.f), u(0.f, 1.f);
+  const float inf = std::numeric_limits<float>::infinity();
+  int below = 0, above = 0, none = 0;
+  for (int trial = 0; trial < 200; ++trial) {
+    const int side = 3 + trial % 6, margin = trial % 4;
+    const float gaps = 0.6f * u(rng);
+    cv::Mat t(side, side, CV_32F), r(side + 2 * margin, side + 2 * margin, CV_32F);
+    const bool flat = trial % 3 == 0;  // a plane: some shift is well below the threshold
+    for (int y = 0; y < t.rows; ++y)
+      for (int x = 0; x < t.cols; ++x)
+        t.at<float>(y, x) = u(rng) < gaps ? inf : flat ? 10.f : depth(rng);
+    for (int y = 0; y < r.rows; ++y)
+      for (int x = 0; x < r.cols; ++x)
+        r.at<float>(y, x) = u(rng) < gaps ? inf : flat ? 10.2f : depth(rng);
+    const double d_t = 10.0, d_r = 10.1;
+    std::optional<double> want;
+    for (int sy = 0; sy + side <= r.rows; ++sy)
+      for (int sx = 0; sx + side <= r.cols; ++sx) {
+        double sum = 0;
+        int used = 0;
+        for (int y = 0; y < side; ++y)
+          for (int x = 0; x < side; ++x) {
+            const float a = t.at<float>(y, x), b = r.at<float>(sy + y, sx + x);
+            if (!std::isfinite(a) || !std::isfinite(b)) continue;
+            const double ea = std::clamp((a - d_t) / d_t, -1.0, 1.0);
+            const double eb = std::clamp((b - d_r) / d_t, -1.0, 1.0);
+            sum += (ea - eb) * (ea - eb);
+            ++used;
+          }
+        if (2 * used >= side * side && (!want || sum / used < *want)) want = sum / used;
+      }
+    const auto got = vision::depthError(t, d_t, r, d_r);
+    ASSERT_EQ(got.has_value(), want.has_value()) << "trial " << trial;
+    if (!want) {
+      ++none;
+      continue;
+    }
+    EXPECT_NEAR(*got, *want, 1e-12 * std::max(1.0, *want)) << "trial " << trial;
+    const double thr = 1e-4;
+    const auto fast = vision::depthError(t, d_t, r, d_r, thr);
+    ASSERT_TRUE(fast);
+    EXPECT_EQ(*fast < thr, *want < thr) << "trial " << trial;
+    ++(*want < thr ? below : above);
+  }
+  EXPECT_GT(below, 20);  // the trials cover both verdicts and the no-overlap case
+  EXPECT_GT(above, 20);
+  EXPECT_GT(none, 0);
+}

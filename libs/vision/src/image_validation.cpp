@@ -116,29 +116,49 @@ double colourError(const cv::Mat& tmpl, const cv::Mat& region, const cv::Mat& ma
   return worst;
 }
 
-std::optional<double> depthError(const cv::Mat& tmpl, double d_t, const cv::Mat& region,
-                                 double d_r) {
+std::optional<double> depthError(const cv::Mat& tmpl, double d_t, const cv::Mat& region, double d_r,
+                                 double stop_below) {
   const int n = tmpl.rows * tmpl.cols;
   const double inv = 1.0 / d_t;
+  // Each pixel's relative depth once, not once per shift (issue #16; the same values, summed in
+  // the same order): the template's pixels with a return, the region's (NaN: none).
+  struct Px {
+    int offset;  // y * region.cols + x
+    double e;
+  };
+  std::vector<Px> t;
+  t.reserve(static_cast<std::size_t>(n));
+  for (int y = 0; y < tmpl.rows; ++y) {
+    const float* a = tmpl.ptr<float>(y);
+    for (int x = 0; x < tmpl.cols; ++x)
+      if (std::isfinite(a[x]))
+        t.push_back({y * region.cols + x, std::clamp((a[x] - d_t) * inv, -1.0, 1.0)});
+  }
+  std::vector<double> r(static_cast<std::size_t>(region.rows) * region.cols);
+  for (int y = 0; y < region.rows; ++y) {
+    const float* b = region.ptr<float>(y);
+    for (int x = 0; x < region.cols; ++x)
+      r[std::size_t(y) * region.cols + x] = std::isfinite(b[x])
+                                                ? std::clamp((b[x] - d_r) * inv, -1.0, 1.0)
+                                                : std::numeric_limits<double>::quiet_NaN();
+  }
   std::optional<double> best;
+  if (2 * t.size() < std::size_t(n)) return best;  // too few at every shift
   for (int sy = 0; sy + tmpl.rows <= region.rows; ++sy)
     for (int sx = 0; sx + tmpl.cols <= region.cols; ++sx) {
+      const double* base = r.data() + std::size_t(sy) * region.cols + sx;
       double sum = 0;
       int used = 0;
-      for (int y = 0; y < tmpl.rows; ++y) {
-        const float* a = tmpl.ptr<float>(y);
-        const float* b = region.ptr<float>(sy + y) + sx;
-        for (int x = 0; x < tmpl.cols; ++x) {
-          if (!std::isfinite(a[x]) || !std::isfinite(b[x])) continue;
-          const double ea = std::clamp((a[x] - d_t) * inv, -1.0, 1.0);
-          const double eb = std::clamp((b[x] - d_r) * inv, -1.0, 1.0);
-          sum += (ea - eb) * (ea - eb);
-          ++used;
-        }
+      for (const Px& p : t) {
+        const double eb = base[p.offset];
+        if (std::isnan(eb)) continue;
+        sum += (p.e - eb) * (p.e - eb);
+        ++used;
       }
       if (2 * used < n) continue;
       const double mse = sum / used;
       if (!best || mse < *best) best = mse;
+      if (mse < stop_below) return best;
     }
   return best;
 }
@@ -209,7 +229,7 @@ Verdict compareWith(const CameraView& ref, const RefPatch& rp, const CameraView&
   cv::Mat dt, dr;
   cv::resize(ref.depth(tk), dt, cv::Size(side, side), 0, 0, cv::INTER_NEAREST);
   cv::resize(other.depth(region), dr, region_size, 0, 0, cv::INTER_NEAREST);
-  const auto e = depthError(dt, pk->distance, dr, pl->distance);
+  const auto e = depthError(dt, pk->distance, dr, pl->distance, p.depth_threshold);
   if (!e) return Verdict::kUnseen;
   return *e < p.depth_threshold ? Verdict::kSimilarDepth : Verdict::kDifferentDepth;
 }

@@ -4,6 +4,7 @@
 #pragma once
 #include <cstdint>
 #include <functional>
+#include <limits>
 #include <optional>
 #include <vector>
 
@@ -61,9 +62,11 @@ double colourError(const cv::Mat& tmpl, const cv::Mat& region, const cv::Mat& ma
 /// Depth test: the smallest over shifts of the mean squared difference between the template's
 /// depths and the region's, each relative to its own expected depth of the point (`d_t`, `d_r`)
 /// and divided by `d_t`. Pixels without a return in either are left out; nullopt when fewer than
-/// half of the template's pixels can be compared at every shift.
-std::optional<double> depthError(const cv::Mat& tmpl, double d_t, const cv::Mat& region,
-                                 double d_r);
+/// half of the template's pixels can be compared at every shift. With `stop_below`, the first
+/// shift whose error is below it ends the search (the verdict of a threshold of that value is the
+/// same, the error returned is then not the smallest).
+std::optional<double> depthError(const cv::Mat& tmpl, double d_t, const cv::Mat& region, double d_r,
+                                 double stop_below = -std::numeric_limits<double>::infinity());
 
 /// What one camera of the window says about a point.
 enum class Verdict : uint8_t {
