@@ -7,6 +7,9 @@
 #include <cmath>
 #include <random>
 
+#include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
+
 #include "cleanmap/core/error.h"
 #include "cleanmap/vision/image_validation.h"
 #include "test_data.h"
@@ -311,4 +314,53 @@ TEST(ImageValidation, DepthErrorIsTheSmallestShiftErrorAndStopsBelowAThreshold) 
   EXPECT_GT(below, 20);  // the trials cover both verdicts and the no-overlap case
   EXPECT_GT(above, 20);
   EXPECT_GT(none, 0);
+}
+
+// The colour test's NCC written out for small patches agrees with OpenCV's masked matchTemplate
+// (TM_CCOEFF_NORMED, flat windows -1) on random textures, with and without a mask, at every
+// size the pipeline uses; with stop_at, the same verdict.
+TEST(ImageValidation, ColourErrorAgreesWithOpenCvsMatchTemplate) {
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> u(0.f, 1.f);
+  int similar = 0, different = 0;
+  for (int trial = 0; trial < 120; ++trial) {
+    const int side = 5 + trial % 20, region = 3 * side;
+    cv::Mat img(region, region, CV_32FC3);
+    for (int y = 0; y < region; ++y)
+      for (int x = 0; x < region; ++x) {
+        // Blocky texture; some trials with a flat band (flat windows).
+        const bool flat = trial % 5 == 0 && y < region / 3;
+        const float v = flat ? 0.5f : float(((x / 3) * 7 + (y / 3) * 13 + trial) % 11) / 11.f;
+        img.at<cv::Vec3f>(y, x) = {v, 0.5f * v + 0.3f * u(rng), 1.f - v};
+      }
+    // The template: the region's centre (similar) or noise (different), sometimes masked.
+    cv::Mat tmpl =
+        trial % 2 ? img(cv::Rect(side, side, side, side)).clone() : cv::Mat(side, side, CV_32FC3);
+    if (!(trial % 2)) cv::randu(tmpl, 0.f, 1.f);
+    cv::Mat mask;
+    if (trial % 3 == 0) {
+      mask = cv::Mat(side, side, CV_8U, cv::Scalar(255));
+      mask(cv::Rect(0, 0, side / 2, side / 2)).setTo(0);
+    }
+    cv::Mat t[3], r[3], res;
+    cv::split(tmpl, t);
+    cv::split(img, r);
+    double want = 0;
+    for (int c = 0; c < 3; ++c) {
+      cv::matchTemplate(r[c], t[c], res, cv::TM_CCOEFF_NORMED, mask);
+      cv::patchNaNs(res, -1.0);
+      double lo = 0, hi = 0;
+      cv::minMaxLoc(res, &lo, &hi);
+      want = std::max(want, 1.0 - std::min(hi, 1.0));
+    }
+    const double got = vision::colourError(tmpl, img, mask);
+    if (want < 1.0) {
+      EXPECT_NEAR(got, want, 2e-4) << "trial " << trial << ", side " << side;
+    }
+    const double thr = 0.1;
+    EXPECT_EQ(vision::colourError(tmpl, img, mask, thr) < thr, want < thr) << "trial " << trial;
+    ++(want < thr ? similar : different);
+  }
+  EXPECT_GT(similar, 30);
+  EXPECT_GT(different, 30);
 }

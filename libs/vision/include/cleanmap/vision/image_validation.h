@@ -57,8 +57,10 @@ float nearestReturn(const CameraView& v, const Eigen::Vector2d& px);
 bool isTextured(const cv::Mat& patch, double min_std, const cv::Mat& mask = cv::Mat());
 /// Colour test: the largest over channels of E_c = 1 - max over shifts of the NCC of `tmpl`
 /// (CV_32FC3) slid over `region` (CV_32FC3, at least as large), over the template pixels of
-/// `mask` (CV_8U, the template's size; empty = all).
-double colourError(const cv::Mat& tmpl, const cv::Mat& region, const cv::Mat& mask = cv::Mat());
+/// `mask` (CV_8U, the template's size; empty = all). With `stop_at`, the channels stop once one
+/// reaches it (the verdict of a threshold of that value is the same).
+double colourError(const cv::Mat& tmpl, const cv::Mat& region, const cv::Mat& mask = cv::Mat(),
+                   double stop_at = std::numeric_limits<double>::infinity());
 /// Depth test: the smallest over shifts of the mean squared difference between the template's
 /// depths and the region's, each relative to its own expected depth of the point (`d_t`, `d_r`)
 /// and divided by `d_t`. Pixels without a return in either are left out; nullopt when fewer than
