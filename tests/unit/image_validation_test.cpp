@@ -130,6 +130,55 @@ TEST(ImageValidation, AStaticTexturedWallIsSimilarFromAnotherViewpoint) {
   EXPECT_EQ(vision::compareViews(a, b_shifted, p, ImageParams{}), vision::Verdict::kSimilarColour);
 }
 
+TEST(ImageValidation, SurfaceNormalOfAPlaneButNotOfALineOrAFewPoints) {
+  // A tilted plane (normal along (0, -sin 30, cos 30)), 3 cm grid over 0.6 m.
+  const Eigen::Vector3d n(0, -std::sin(M_PI / 6), std::cos(M_PI / 6));
+  const Eigen::Vector3d u(1, 0, 0), v = n.cross(u);
+  std::vector<Eigen::Vector3d> plane, line;
+  for (double a = -0.3; a <= 0.3; a += 0.03)
+    for (double b = -0.3; b <= 0.3; b += 0.03)
+      plane.push_back(Eigen::Vector3d(2, 1, 10) + a * u + b * v);
+  for (double a = -0.3; a <= 0.3; a += 0.03) line.push_back(Eigen::Vector3d(2, 1, 10) + a * u);
+  const auto got = vision::surfaceNormal(plane);
+  ASSERT_TRUE(got.has_value());
+  EXPECT_NEAR(std::abs(got->dot(n)), 1.0, 1e-9);
+  EXPECT_FALSE(vision::surfaceNormal(line).has_value());  // a lidar ring on its own: no plane
+  EXPECT_FALSE(vision::surfaceNormal({plane.begin(), plane.begin() + 5}).has_value());
+}
+
+TEST(ImageValidation, ACameraThatSeesTheSurfaceGrazingDoesNotCompare) {
+  // The incidence is the angle between the ray and the normal, whichever side the normal faces.
+  const Eigen::Vector3d o = Eigen::Vector3d::Zero(), x(0, 0, 10);
+  const auto tilted = [](double deg) {
+    return Eigen::Vector3d(std::sin(deg * M_PI / 180), 0, -std::cos(deg * M_PI / 180));
+  };
+  EXPECT_FALSE(vision::grazing(o, x, tilted(55), 60));
+  EXPECT_FALSE(vision::grazing(o, x, -tilted(55), 60));
+  EXPECT_TRUE(vision::grazing(o, x, tilted(65), 60));
+  EXPECT_FALSE(vision::grazing(o, x, tilted(89), 90));               // 90: every camera compares
+  EXPECT_FALSE(vision::grazing(o, x, Eigen::Vector3d::Zero(), 60));  // no surface known
+  // The textured wall from two viewpoints: compared (and similar) with its own normal or none;
+  // not compared if its surface were seen edge-on, or in one camera only beyond the limit.
+  const auto a = view({}, 0, 0), b = view({}, 0.5, 1);
+  const Eigen::Vector3d p(0.3, 0.2, kWall);
+  const ImageParams ip;
+  EXPECT_EQ(vision::compareViews(a, b, p, ip, Eigen::Vector3d(0, 0, -1)),
+            vision::Verdict::kSimilarColour);
+  EXPECT_EQ(vision::compareViews(a, b, p, ip), vision::Verdict::kSimilarColour);
+  EXPECT_EQ(vision::compareViews(a, b, p, ip, Eigen::Vector3d(1, 0, 0)), vision::Verdict::kUnseen);
+  // Turned toward camera a (at x 0) so that it sees the wall at 57.4 deg, camera b (x 0.5) at
+  // 60.3 deg.
+  const double off_b = std::atan2(0.5 - 0.3, kWall) * 180 / M_PI;  // b's ray, off the z axis
+  const Eigen::Vector3d n = tilted(-(60.0 - off_b + 0.3));
+  EXPECT_FALSE(vision::grazing(a.centre, p, n, 60));
+  EXPECT_TRUE(vision::grazing(b.centre, p, n, 60));
+  EXPECT_EQ(vision::compareViews(a, b, p, ip, n), vision::Verdict::kUnseen);
+  ImageParams all = ip;
+  all.max_incidence_deg = 90;
+  EXPECT_EQ(vision::compareViews(a, b, p, all, Eigen::Vector3d(1, 0, 0)),
+            vision::Verdict::kSimilarColour);
+}
+
 TEST(ImageValidation, AMoverThatLeftLooksDifferent) {
   const auto a = view({true, false}, 0, 0), b = view({}, 0.5, 1);
   const Eigen::Vector3d p(0.1, 0.0, 8.0);  // on the box, there in view a only

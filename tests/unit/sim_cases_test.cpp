@@ -282,6 +282,29 @@ TEST(SimCases, CameraCheckKeepsMoversAndRelabelsOnlyStaticPoints) {
   EXPECT_GT(double(on.relabelled_static) / double(std::max<std::size_t>(relabelled, 1)), 0.6);
 }
 
+// DESIGN §3: a surface seen grazing is not compared. With drifting poses the laser flags street
+// walls, most of them seen at a grazing angle; there the colour test called most static cells
+// different, and the object vote kept the wall moving. Not compared there, more of them are
+// relabelled, and no mover.
+TEST(SimCases, WallsSeenGrazingAreNotComparedSoMoreDriftingWallsAreRelabelled) {
+  auto sc = sim::defaultScenario();
+  sc.frames = 30;
+  sc.ego_pose_drift = 0.10;
+  PipelineParams all;
+  all.image.max_incidence_deg = 90;
+  const auto every = runCase(sc, all, nullptr, nullptr, false, true);
+  const auto def = runCase(sc, PipelineParams{}, nullptr, nullptr, false, true);
+  std::printf(
+      "  every camera compares: P %.4f R %.4f, relabelled %zu static %zu moving; "
+      "default: P %.4f R %.4f, relabelled %zu static %zu moving\n",
+      every.all.precision(), every.all.recall(), every.relabelled_static, every.relabelled_moving,
+      def.all.precision(), def.all.recall(), def.relabelled_static, def.relabelled_moving);
+  // Measured (cleanmap on the same street, 30 frames): 3451 -> 4065 static points, no mover.
+  EXPECT_GT(double(def.relabelled_static), 1.1 * double(every.relabelled_static));
+  EXPECT_EQ(def.relabelled_moving, 0u);
+  EXPECT_GE(def.all.recall(), every.all.recall() - 0.005);
+}
+
 // Issue #15: any lidar, any mount, default parameters (sensor.height = auto). The default street
 // seen by each preset at 0.8, 1.73 and 2.5 m above the road (40 frames, no camera); the bar: IoU
 // within 0.08 of the HDL-64E at 1.73 m (KITTI's mounting) on the same street.

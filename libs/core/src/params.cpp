@@ -84,6 +84,8 @@ void validate(const PipelineParams& p, const std::string& name) {
   require(im.changed_fraction >= 0 && im.changed_fraction < 1,
           "image.changed_fraction must be in [0, 1)");
   require(im.max_cells >= 1 && im.max_cells <= 1000000, "image.max_cells must be in [1, 1e6]");
+  require(im.max_incidence_deg > 0 && im.max_incidence_deg <= 90,
+          "image.max_incidence_deg must be in (0, 90]");
 }
 
 }  // namespace cleanmap

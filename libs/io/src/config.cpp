@@ -152,6 +152,7 @@ std::map<std::string, Key> table(PipelineParams& p) {
       {"image.min_views", i(p.image.min_views)},
       {"image.changed_fraction", d(p.image.changed_fraction)},
       {"image.max_cells", i(p.image.max_cells)},
+      {"image.max_incidence_deg", d(p.image.max_incidence_deg)},
       {"run.seed", Key{[&p](double v) { p.seed = static_cast<uint64_t>(v); },
                        [&p] { return double(p.seed); },
                        true,

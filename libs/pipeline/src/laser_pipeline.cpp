@@ -636,6 +636,20 @@ void LaserPipeline::validateImages(std::size_t pos, Prepared& s, Work& w) const 
     kRejectedColour,
     kRejectedDepth
   };
+  // A cell's surface (DESIGN §3): the plane of the moving points within 1.5 cells of its
+  // representative, for the cameras that see it grazing; zero where they do not form one.
+  const double reach2 = std::pow(1.5 * ip.cell, 2);
+  const auto surfaceAround = [&](std::size_t c) -> Eigen::Vector3d {
+    if (ip.max_incidence_deg >= 90) return Eigen::Vector3d::Zero();
+    std::vector<Eigen::Vector3d> near;
+    forEachNeighbour27([&](int dx, int dy, int dz) {
+      const std::size_t* at = cell_at.find(cellKeyShift(keys[c], dx, dy, dz));
+      if (!at) return;
+      for (uint32_t i : cells[*at])
+        if ((w.world[i] - rep[c]).squaredNorm() <= reach2) near.push_back(w.world[i]);
+    });
+    return vision::surfaceNormal(near).value_or(Eigen::Vector3d::Zero());
+  };
   std::vector<Outcome> outcome(objects.size(), kUnseen);
   std::vector<uint8_t> relabel_cell(cells.size(), 0);
   parallelFor(objects.size(), p_.threads, [&](std::size_t o) {
@@ -650,9 +664,11 @@ void LaserPipeline::validateImages(std::size_t pos, Prepared& s, Work& w) const 
     // The vote (vision::voteObject); a static object's cells in its own camera's view are
     // relabelled static, the few that looked changed included (parallax at an edge, a pose error
     // beyond the search margin); cells out of view keep the laser label.
-    const auto v = vision::voteObject(
-        members.size(), ip.changed_fraction, ip.max_cells,
-        [&](std::size_t i) { return vision::decide(*s.view, window, rep[members[i]], ip); });
+    const auto v =
+        vision::voteObject(members.size(), ip.changed_fraction, ip.max_cells, [&](std::size_t i) {
+          const std::size_t c = members[i];
+          return vision::decide(*s.view, window, rep[c], ip, surfaceAround(c));
+        });
     if (v.outcome == vision::ObjectVote::Outcome::kUnseen) return;
     if (v.outcome == vision::ObjectVote::Outcome::kMoving) {
       outcome[o] =

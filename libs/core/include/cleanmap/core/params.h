@@ -176,6 +176,11 @@ struct ImageParams {
   /// Cells of an object compared at most (spread from its extremes to its centre); the vote
   /// stops earlier once the cells left cannot change it.
   int max_cells = 15;
+  /// Degrees; a cell whose surface (the plane of the moving points around it) is seen farther
+  /// than this from its normal in either camera is not compared there: foreshortened beyond
+  /// 1 / cos (2:1 at 60) and its texture below the pixel, its look changes with the viewpoint
+  /// (DESIGN §3). 90: every camera compares.
+  double max_incidence_deg = 60.0;
 };
 
 /// Where scan poses come from (DESIGN §2.1): `kAuto` is `kGiven` when the first scan has a pose

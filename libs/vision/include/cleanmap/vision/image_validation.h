@@ -70,17 +70,29 @@ double colourError(const cv::Mat& tmpl, const cv::Mat& region, const cv::Mat& ma
 std::optional<double> depthError(const cv::Mat& tmpl, double d_t, const cv::Mat& region, double d_r,
                                  double stop_below = -std::numeric_limits<double>::infinity());
 
+/// The unit normal (world frame, either sign) of the surface through `points` (world frame):
+/// the axis of least spread, where they spread over a plane (at least 6 points, second spread
+/// above (5 cm)^2, least spread below a tenth of it); nullopt otherwise (a line, a blob).
+std::optional<Eigen::Vector3d> surfaceNormal(const std::vector<Eigen::Vector3d>& points);
+
+/// True iff the surface of normal `normal` (world frame; zero: unknown, never) at `world` is
+/// seen farther than max_incidence_deg from its normal by the camera at `centre`.
+bool grazing(const Eigen::Vector3d& centre, const Eigen::Vector3d& world,
+             const Eigen::Vector3d& normal, double max_incidence_deg);
+
 /// What one camera of the window says about a point.
 enum class Verdict : uint8_t {
-  kUnseen,         ///< behind, outside the image, occluded, or no depth to compare
+  kUnseen,         ///< behind, outside the image, occluded, seen grazing, or no depth to compare
   kSimilarColour,  ///< the colour test matched: same appearance
   kSimilarDepth,   ///< uniform patch, the depth test matched
   kDifferentColour,
   kDifferentDepth,
 };
-/// Compares the point's patch in its own scan's view `ref` with its patch in `other`.
+/// Compares the point's patch in its own scan's view `ref` with its patch in `other`; `normal`
+/// (world frame, zero: unknown) is its surface's: a camera that sees it grazing (either camera,
+/// beyond p.max_incidence_deg) does not compare.
 Verdict compareViews(const CameraView& ref, const CameraView& other, const Eigen::Vector3d& world,
-                     const ImageParams& p);
+                     const ImageParams& p, const Eigen::Vector3d& normal = Eigen::Vector3d::Zero());
 
 /// The decision for one point (DESIGN §3): moving stays moving unless every window camera that
 /// sees it finds it similar (and at least `min_views` do).
@@ -96,7 +108,8 @@ struct Decision {
 /// `window` in the order to try (the farthest in time first: a mover has left its place there,
 /// so a real one is usually confirmed by the first camera).
 Decision decide(const CameraView& ref, const std::vector<const CameraView*>& window,
-                const Eigen::Vector3d& world, const ImageParams& p);
+                const Eigen::Vector3d& world, const ImageParams& p,
+                const Eigen::Vector3d& normal = Eigen::Vector3d::Zero());
 
 /// The object vote (DESIGN §3): an object of `cells` cells, in the order to compare them
 /// (extremes first), stays moving iff more than `changed_fraction` of its compared cells look
