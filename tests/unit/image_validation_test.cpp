@@ -165,14 +165,19 @@ TEST(ImageValidation, ACameraThatSeesTheSurfaceGrazingDoesNotCompare) {
   EXPECT_EQ(vision::compareViews(a, b, p, ip, Eigen::Vector3d(0, 0, -1)),
             vision::Verdict::kSimilarColour);
   EXPECT_EQ(vision::compareViews(a, b, p, ip), vision::Verdict::kSimilarColour);
-  EXPECT_EQ(vision::compareViews(a, b, p, ip, Eigen::Vector3d(1, 0, 0)), vision::Verdict::kUnseen);
+  EXPECT_EQ(vision::compareViews(a, b, p, ip, Eigen::Vector3d(1, 0, 0)), vision::Verdict::kGrazing);
   // Turned toward camera a (at x 0) so that it sees the wall at 57.4 deg, camera b (x 0.5) at
   // 60.3 deg.
   const double off_b = std::atan2(0.5 - 0.3, kWall) * 180 / M_PI;  // b's ray, off the z axis
   const Eigen::Vector3d n = tilted(-(60.0 - off_b + 0.3));
   EXPECT_FALSE(vision::grazing(a.centre, p, n, 60));
   EXPECT_TRUE(vision::grazing(b.centre, p, n, 60));
-  EXPECT_EQ(vision::compareViews(a, b, p, ip, n), vision::Verdict::kUnseen);
+  EXPECT_EQ(vision::compareViews(a, b, p, ip, n), vision::Verdict::kGrazing);
+  // decide() counts it and does not let it vote: seen by no camera that compares.
+  const auto d = vision::decide(a, {&b}, p, ip, n);
+  EXPECT_EQ(d.grazing, 1);
+  EXPECT_EQ(d.views, 0);
+  EXPECT_FALSE(d.relabel_static || d.confirmed);
   ImageParams all = ip;
   all.max_incidence_deg = 90;
   EXPECT_EQ(vision::compareViews(a, b, p, all, Eigen::Vector3d(1, 0, 0)),

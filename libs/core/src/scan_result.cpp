@@ -48,6 +48,7 @@ ScanStats& ScanStats::operator+=(const ScanStats& o) {
   image_rejected_colour += o.image_rejected_colour;
   image_rejected_depth += o.image_rejected_depth;
   image_unseen += o.image_unseen;
+  image_grazing += o.image_grazing;
   image_relabelled += o.image_relabelled;
   ms += o.ms;
   return *this;

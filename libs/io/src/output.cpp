@@ -392,6 +392,7 @@ void OutputWriter::finish(double wall_s, const FreeSpaceMap* free_space) {
                    {"rejected_by_colour", total.image_rejected_colour},
                    {"rejected_with_depth", total.image_rejected_depth},
                    {"unseen", total.image_unseen},
+                   {"comparisons_skipped_grazing", total.image_grazing},
                    {"points_relabelled_static", total.image_relabelled}};
     if (has_relabel_truth_) {
       j["images"]["relabelled_truly_static"] = relabelled_static_;

@@ -651,6 +651,7 @@ void LaserPipeline::validateImages(std::size_t pos, Prepared& s, Work& w) const 
     return vision::surfaceNormal(near).value_or(Eigen::Vector3d::Zero());
   };
   std::vector<Outcome> outcome(objects.size(), kUnseen);
+  std::vector<std::size_t> grazing(objects.size(), 0);
   std::vector<uint8_t> relabel_cell(cells.size(), 0);
   parallelFor(objects.size(), p_.threads, [&](std::size_t o) {
     auto& members = objects[o];
@@ -669,6 +670,7 @@ void LaserPipeline::validateImages(std::size_t pos, Prepared& s, Work& w) const 
           const std::size_t c = members[i];
           return vision::decide(*s.view, window, rep[c], ip, surfaceAround(c));
         });
+    grazing[o] = v.grazing;
     if (v.outcome == vision::ObjectVote::Outcome::kUnseen) return;
     if (v.outcome == vision::ObjectVote::Outcome::kMoving) {
       outcome[o] =
@@ -688,6 +690,7 @@ void LaserPipeline::validateImages(std::size_t pos, Prepared& s, Work& w) const 
     st.image_rejected_colour += oc == kRejectedColour;
     st.image_rejected_depth += oc == kRejectedDepth;
   }
+  for (const std::size_t g : grazing) st.image_grazing += g;
   for (std::size_t c = 0; c < cells.size(); ++c)
     if (relabel_cell[c])
       for (uint32_t i : cells[c]) {

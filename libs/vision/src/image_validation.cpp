@@ -267,7 +267,7 @@ Verdict compareWith(const CameraView& ref, const RefPatch& rp, const CameraView&
   // cells seen grazing differed, 27 % of the others; DESIGN §3). Not compared.
   if (grazing(ref.centre, world, rp.normal, p.max_incidence_deg) ||
       grazing(other.centre, world, rp.normal, p.max_incidence_deg))
-    return Verdict::kUnseen;
+    return Verdict::kGrazing;
   const Projection* pk = &rp.pk;
   const int bk = rp.bk;
   const cv::Rect& tk = rp.tk;
@@ -335,6 +335,7 @@ ObjectVote voteObject(std::size_t cells, double changed_fraction, int max_cells,
     --left;
     const Decision d = decide_cell(j * cells / k);
     ++v.compared;
+    v.grazing += static_cast<std::size_t>(d.grazing);
     if (d.confirmed) {
       if (v.changed++ == 0) v.changed_by = d.decisive;
     } else if (d.relabel_static) {
@@ -366,7 +367,8 @@ Decision decide(const CameraView& ref, const std::vector<const CameraView*>& win
   if (!rp) return d;
   for (const CameraView* v : window) {
     const Verdict vd = compareWith(ref, *rp, *v, world, p);
-    if (vd == Verdict::kUnseen) continue;
+    d.grazing += vd == Verdict::kGrazing;
+    if (vd == Verdict::kUnseen || vd == Verdict::kGrazing) continue;
     ++d.views;
     d.decisive = vd;
     d.used_depth = d.used_depth || vd == Verdict::kSimilarDepth || vd == Verdict::kDifferentDepth;

@@ -42,10 +42,11 @@ struct ScanStats {
   /// DESIGN §3, the camera check: scans that had an image; decision units (cells of moving
   /// points) tested, of which confirmed moving by the colour / depth test, relabelled static
   /// when every camera found them similar (by colour only / with the depth test), and unseen
-  /// (no camera to compare with: the laser label stays); points relabelled static.
+  /// (no camera to compare with: the laser label stays); points relabelled static; (cell,
+  /// camera) pairs not compared because the cell's surface was seen grazing.
   std::size_t image_scans = 0, image_units = 0, image_confirmed_colour = 0,
               image_confirmed_depth = 0, image_rejected_colour = 0, image_rejected_depth = 0,
-              image_unseen = 0, image_relabelled = 0;
+              image_unseen = 0, image_relabelled = 0, image_grazing = 0;
   StageTimes ms;
   /// Sums every count and time (window: sum too; divide by scans for a mean).
   ScanStats& operator+=(const ScanStats& o);

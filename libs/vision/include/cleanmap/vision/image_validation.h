@@ -82,11 +82,12 @@ bool grazing(const Eigen::Vector3d& centre, const Eigen::Vector3d& world,
 
 /// What one camera of the window says about a point.
 enum class Verdict : uint8_t {
-  kUnseen,         ///< behind, outside the image, occluded, seen grazing, or no depth to compare
+  kUnseen,         ///< behind, outside the image, occluded, or no depth to compare
   kSimilarColour,  ///< the colour test matched: same appearance
   kSimilarDepth,   ///< uniform patch, the depth test matched
   kDifferentColour,
   kDifferentDepth,
+  kGrazing,  ///< seen beyond image.max_incidence_deg from its surface's normal: not compared
 };
 /// Compares the point's patch in its own scan's view `ref` with its patch in `other`; `normal`
 /// (world frame, zero: unknown) is its surface's: a camera that sees it grazing (either camera,
@@ -104,6 +105,7 @@ struct Decision {
                                         ///< similar)
   bool used_depth = false;              ///< some window camera needed the depth test
   int views = 0;                        ///< window cameras compared
+  int grazing = 0;                      ///< window cameras not compared: seen grazing
 };
 /// `window` in the order to try (the farthest in time first: a mover has left its place there,
 /// so a real one is usually confirmed by the first camera).
@@ -123,6 +125,7 @@ struct ObjectVote {
   std::size_t changed = 0, similar = 0;
   Verdict changed_by = Verdict::kUnseen;  ///< the first changed cell's verdict
   bool used_depth = false;                ///< some similar cell needed the depth test
+  std::size_t grazing = 0;                ///< (cell, camera) pairs not compared: seen grazing
 };
 ObjectVote voteObject(std::size_t cells, double changed_fraction, int max_cells,
                       const std::function<Decision(std::size_t)>& decide_cell);
