@@ -161,7 +161,8 @@ TEST(ImageValidation, ACameraThatSeesTheSurfaceGrazingDoesNotCompare) {
   // not compared if its surface were seen edge-on, or in one camera only beyond the limit.
   const auto a = view({}, 0, 0), b = view({}, 0.5, 1);
   const Eigen::Vector3d p(0.3, 0.2, kWall);
-  const ImageParams ip;
+  ImageParams ip;
+  ip.max_incidence_deg = 60;  // the rule on (off by default, DESIGN §3)
   EXPECT_EQ(vision::compareViews(a, b, p, ip, Eigen::Vector3d(0, 0, -1)),
             vision::Verdict::kSimilarColour);
   EXPECT_EQ(vision::compareViews(a, b, p, ip), vision::Verdict::kSimilarColour);
@@ -266,7 +267,7 @@ TEST(ImageValidation, TheObjectVoteDecidesAsTheWholeMajorityAndStopsOnceSettled)
           asked.push_back(i);
           return cellDecision(kind[i]);
         });
-        const auto want = changed > 0 && changed > f * (changed + similar)
+        const auto want = changed > 0 && changed >= f * (changed + similar)
                               ? vision::ObjectVote::Outcome::kMoving
                           : changed + similar > 0 ? vision::ObjectVote::Outcome::kStatic
                                                   : vision::ObjectVote::Outcome::kUnseen;
@@ -282,8 +283,8 @@ TEST(ImageValidation, TheObjectVoteDecidesAsTheWholeMajorityAndStopsOnceSettled)
           int c = 0, s = 0;
           for (std::size_t j = 0; j < asked.size(); ++j) c += kind[j] == 2, s += kind[j] == 1;
           const int left = n - int(asked.size());
-          const bool settled_moving = c > f * (c + s + left);
-          const bool settled_static = c + left <= f * (c + s + left);
+          const bool settled_moving = c > 0 && c >= f * (c + s + left);
+          const bool settled_static = c + left < f * (c + s + left);
           ASSERT_TRUE(settled_moving || settled_static) << "stopped early, pattern " << code;
         }
       }

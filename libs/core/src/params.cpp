@@ -86,6 +86,8 @@ void validate(const PipelineParams& p, const std::string& name) {
   require(im.max_cells >= 1 && im.max_cells <= 1000000, "image.max_cells must be in [1, 1e6]");
   require(im.max_incidence_deg > 0 && im.max_incidence_deg <= 90,
           "image.max_incidence_deg must be in (0, 90]");
+  require(im.align_max_shift > 0 && im.align_max_shift <= 5,
+          "image.align_max_shift must be in (0, 5] m");
 }
 
 }  // namespace cleanmap

@@ -49,6 +49,9 @@ ScanStats& ScanStats::operator+=(const ScanStats& o) {
   image_rejected_depth += o.image_rejected_depth;
   image_unseen += o.image_unseen;
   image_grazing += o.image_grazing;
+  image_links += o.image_links;
+  image_links_aligned += o.image_links_aligned;
+  image_link_shift += o.image_link_shift;
   image_relabelled += o.image_relabelled;
   ms += o.ms;
   return *this;

@@ -383,17 +383,23 @@ void OutputWriter::finish(double wall_s, const FreeSpaceMap* free_space) {
   }
   {  // DESIGN §3: the camera check
     const auto& im = params_.image;
-    j["images"] = {{"enabled", im.enabled && total.image_scans > 0},
-                   {"scans_with_image", total.image_scans},
-                   {"units_tested", total.image_units},
-                   {"unit", "object (cells of " + shortestDouble(im.cell) + " m)"},
-                   {"confirmed_by_colour", total.image_confirmed_colour},
-                   {"confirmed_by_depth", total.image_confirmed_depth},
-                   {"rejected_by_colour", total.image_rejected_colour},
-                   {"rejected_with_depth", total.image_rejected_depth},
-                   {"unseen", total.image_unseen},
-                   {"comparisons_skipped_grazing", total.image_grazing},
-                   {"points_relabelled_static", total.image_relabelled}};
+    j["images"] = {
+        {"enabled", im.enabled && total.image_scans > 0},
+        {"scans_with_image", total.image_scans},
+        {"units_tested", total.image_units},
+        {"unit", "object (cells of " + shortestDouble(im.cell) + " m)"},
+        {"confirmed_by_colour", total.image_confirmed_colour},
+        {"confirmed_by_depth", total.image_confirmed_depth},
+        {"rejected_by_colour", total.image_rejected_colour},
+        {"rejected_with_depth", total.image_rejected_depth},
+        {"unseen", total.image_unseen},
+        {"comparisons_skipped_grazing", total.image_grazing},
+        {"pose_links", total.image_links},
+        {"pose_links_aligned", total.image_links_aligned},
+        {"pose_link_mean_shift_m", total.image_links_aligned > 0
+                                       ? total.image_link_shift / double(total.image_links_aligned)
+                                       : 0.0},
+        {"points_relabelled_static", total.image_relabelled}};
     if (has_relabel_truth_) {
       j["images"]["relabelled_truly_static"] = relabelled_static_;
       j["images"]["relabelled_truly_moving"] = relabelled_moving_;

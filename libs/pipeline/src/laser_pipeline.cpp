@@ -21,6 +21,7 @@
 #include "cleanmap/core/parallel.h"
 #include "cleanmap/core/stopwatch.h"
 #include "cleanmap/registration/odometry.h"
+#include "cleanmap/vision/alignment.h"
 #include "cleanmap/vision/image_validation.h"
 
 namespace cleanmap {
@@ -41,6 +42,9 @@ struct LaserPipeline::Prepared {
   PoseInfo pose_info;
   ScanStats stats;
   std::optional<vision::CameraView> view;  // DESIGN §3, when the frame has an image
+  // DESIGN §3 "Camera poses": D, the correction of the motion from the scan buffered before this
+  // one (its relative pose is T_prev^-1 T D), where the images aligned.
+  std::optional<Eigen::Isometry3d> link;
 };
 
 /// The scan being decided, computed once and passed down the stages. One instance lives as long
@@ -325,11 +329,57 @@ std::unique_ptr<LaserPipeline::Prepared> LaserPipeline::prepare(Frame&& f) {
     s->view = vision::makeCameraView(f.image->bgr, pts, s->scan.pose, *camera_, s->index,
                                      s->source.empty() ? "scan " + s->stem : s->source,
                                      p_.image.dilation_radius);
-    st.ms.images = msSince(t0);
     st.image_scans = 1;
+    if (p_.image.align && !buf_.empty() && buf_.back()->view) linkToPrevious(*buf_.back(), *s);
+    st.ms.images = msSince(t0);
   }
 
   return s;
+}
+
+// DESIGN §3 "Camera poses": this scan's camera aligned on the previous scan's ground returns
+// (world frame, at the previous scan's pose: the road is there in every scan and never moves)
+// and image. The optical-frame correction C (corrected
+// optical_from_world = C optical_from_world) is the lidar pose T' = T L^-1 C^-1 L (L: optical
+// from lidar), so the corrected motion from the previous scan is T_prev^-1 T D, D = L^-1 C^-1 L.
+void LaserPipeline::linkToPrevious(const Prepared& prev, Prepared& s) const {
+  auto& st = s.stats;
+  st.image_links = 1;
+  std::vector<Eigen::Vector3d> ref;
+  ref.reserve(prev.scan.size());
+  for (uint32_t i = 0; i < prev.scan.size(); ++i)
+    if (prev.in_crop[i] && prev.ground[i])
+      ref.push_back(prev.scan.pose * prev.scan.points[i].xyz().cast<double>());
+  vision::AlignParams ap;
+  ap.occlusion = p_.image.occlusion;
+  ap.max_translation = p_.image.align_max_shift;
+  const auto a = vision::alignView(*prev.view, *s.view, ref, ap);
+  if (!a) return;
+  const Eigen::Isometry3d L = camera_->opticalFromLidar();
+  s.link = L.inverse() * a->correction.inverse() * L;
+  st.image_links_aligned = 1;
+  st.image_link_shift = a->correction.translation().norm();
+}
+
+std::vector<std::optional<Eigen::Isometry3d>> LaserPipeline::posesAround(std::size_t pos) const {
+  std::vector<std::optional<Eigen::Isometry3d>> out(buf_.size());
+  Eigen::Isometry3d t = buf_[pos]->scan.pose;
+  bool any = false;
+  for (std::size_t j = pos + 1; j < buf_.size(); ++j) {  // later scans: motion from j - 1 to j
+    const Eigen::Isometry3d rel = buf_[j - 1]->scan.pose.inverse() * buf_[j]->scan.pose;
+    t = t * (buf_[j]->link ? rel * *buf_[j]->link : rel);
+    any = any || buf_[j]->link.has_value();
+    if (any) out[j] = t;
+  }
+  t = buf_[pos]->scan.pose;
+  any = false;
+  for (std::size_t j = pos; j-- > 0;) {  // earlier scans: the motion from j to j + 1, undone
+    const Eigen::Isometry3d rel = buf_[j]->scan.pose.inverse() * buf_[j + 1]->scan.pose;
+    t = t * (buf_[j + 1]->link ? rel * *buf_[j + 1]->link : rel).inverse();
+    any = any || buf_[j + 1]->link.has_value();
+    if (any) out[j] = t;
+  }
+  return out;
 }
 
 // DESIGN §2a / issue #15: h_G under the sensor. A configured sensor.height is the user's word;
@@ -445,13 +495,17 @@ std::vector<WindowScan> LaserPipeline::windowAround(std::size_t pos) const {
   // drifts 0.2-1.2 % on the labelled sets, doc/BENCHMARK.md). Given poses are exact.
   const bool estimated = source_ == PoseSource::kGicp || source_ == PoseSource::kRefine;
   const double e = p_.registration.relative_error;
+  const auto corrected = posesAround(pos);  // DESIGN §3 "Camera poses"
   for (std::size_t j = 0; j < buf_.size(); ++j)
     if (j != pos && !buf_[j]->beams.empty()) {
       double path = 0;  // summed between the two scans, so a chunk gets the same bits
       if (estimated && e > 0)
         for (std::size_t a = std::min(j, pos); a < std::max(j, pos); ++a)
           path += (buf_[a + 1]->scan.pose.translation() - buf_[a]->scan.pose.translation()).norm();
-      window.push_back({&buf_[j]->beams, buf_[j]->world_to_sensor, (e * path) * (e * path)});
+      window.push_back(
+          {&buf_[j]->beams,
+           corrected[j] ? Eigen::Isometry3d(corrected[j]->inverse()) : buf_[j]->world_to_sensor,
+           (e * path) * (e * path)});
     }
   return window;
 }
@@ -580,9 +634,21 @@ void LaserPipeline::validateImages(std::size_t pos, Prepared& s, Work& w) const 
   if (!s.view) return;
   const auto t0 = Clock::now();
   const ImageParams& ip = p_.image;
+  // The window's cameras at the poses the laser test used (DESIGN §3 "Camera poses").
+  const auto poses = posesAround(pos);
+  const Eigen::Isometry3d L = camera_->opticalFromLidar();
+  std::deque<vision::CameraView> moved;  // corrected copies (the images are shared)
   std::vector<std::pair<std::size_t, const vision::CameraView*>> order;
-  for (std::size_t j = 0; j < buf_.size(); ++j)
-    if (j != pos && buf_[j]->view) order.emplace_back(j > pos ? j - pos : pos - j, &*buf_[j]->view);
+  for (std::size_t j = 0; j < buf_.size(); ++j) {
+    if (j == pos || !buf_[j]->view) continue;
+    const vision::CameraView* v = &*buf_[j]->view;
+    if (poses[j]) {  // optical_from_world L T'^-1 = (L T'^-1 T L^-1) L T^-1
+      moved.push_back(
+          vision::corrected(*v, L * poses[j]->inverse() * buf_[j]->scan.pose * L.inverse()));
+      v = &moved.back();
+    }
+    order.emplace_back(j > pos ? j - pos : pos - j, v);
+  }
   std::stable_sort(order.begin(), order.end(),
                    [](const auto& a, const auto& b) { return a.first > b.first; });
   std::vector<const vision::CameraView*> window;

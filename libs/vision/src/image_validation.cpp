@@ -48,6 +48,15 @@ CameraView makeCameraView(const cv::Mat& bgr, const std::vector<PointXYZI>& poin
   v.fy = K(1, 1);
   v.cx = K(0, 2);
   v.cy = K(1, 2);
+  {  // The grey pyramid for the photometric alignment (alignment.h).
+    cv::Mat g, g32;
+    cv::cvtColor(bgr, g, cv::COLOR_BGR2GRAY);
+    g.convertTo(g32, CV_32F, 1.0 / 255);
+    v.grey.resize(4);
+    cv::pyrDown(g32, v.grey[1]);
+    cv::pyrDown(v.grey[1], v.grey[2]);
+    cv::pyrDown(v.grey[2], v.grey[3]);
+  }
   // The sparse depth map: the nearest return per pixel (SPEC §3, depth test).
   v.depth = cv::Mat(bgr.rows, bgr.cols, CV_32F, cv::Scalar(kInf));
   const Eigen::Matrix3f R = opt_lidar.linear().cast<float>();
@@ -345,11 +354,11 @@ ObjectVote voteObject(std::size_t cells, double changed_fraction, int max_cells,
       continue;  // unseen, or seen by too few cameras: no vote
     }
     const double voters = double(v.similar + v.changed + left);
-    if (double(v.changed) > f * voters) break;  // moving, whatever the rest say
+    if (v.changed > 0 && double(v.changed) >= f * voters) break;  // moving, whatever the rest say
     // (changed + x) / (voters + x) grows with x: not even all the rest changed would do.
-    if (double(v.changed + left) <= f * voters) break;
+    if (double(v.changed + left) < f * voters) break;
   }
-  if (v.changed > 0 && double(v.changed) > f * double(v.similar + v.changed))
+  if (v.changed > 0 && double(v.changed) >= f * double(v.similar + v.changed))
     v.outcome = ObjectVote::Outcome::kMoving;
   else if (v.similar > 0)
     v.outcome = ObjectVote::Outcome::kStatic;

@@ -47,6 +47,10 @@ struct ScanStats {
   std::size_t image_scans = 0, image_units = 0, image_confirmed_colour = 0,
               image_confirmed_depth = 0, image_rejected_colour = 0, image_rejected_depth = 0,
               image_unseen = 0, image_relabelled = 0, image_grazing = 0;
+  /// DESIGN §3 "Camera poses": 1 when this scan and the one before it both had an image (a link
+  /// to align), 1 when that alignment corrected the relative pose; the correction's length (m).
+  std::size_t image_links = 0, image_links_aligned = 0;
+  double image_link_shift = 0;
   StageTimes ms;
   /// Sums every count and time (window: sum too; divide by scans for a mean).
   ScanStats& operator+=(const ScanStats& o);

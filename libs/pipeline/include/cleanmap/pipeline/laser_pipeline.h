@@ -77,12 +77,16 @@ class LaserPipeline {
 
   // The stages of decide(), in order.
   std::vector<WindowScan> windowAround(std::size_t pos) const;
+  // DESIGN §3 "Camera poses": each buffered scan's pose as the scan at `pos` sees it, through the
+  // corrected relative poses between neighbours; nullopt where no correction lies between them.
+  std::vector<std::optional<Eigen::Isometry3d>> posesAround(std::size_t pos) const;
   void findDuplicates(Prepared& s, Work& w) const;
   void sampleLeaves(Prepared& s, Work& w) const;
   void classify(const std::vector<WindowScan>& window, Prepared& s, Work& w) const;
   void decideLeaves(const Prepared& s, Work& w) const;
   void objectConsensus(Prepared& s, Work& w) const;
   void validateImages(std::size_t pos, Prepared& s, Work& w) const;
+  void linkToPrevious(const Prepared& prev, Prepared& s) const;
   ScanResult collect(Prepared& s, const Work& w) const;
   void remember(const ScanResult& r, long index);
   void startEpoch(long index);

@@ -23,6 +23,9 @@ struct CameraView {
   /// disk dilation (the nearest return within the disk); +inf where none is near.
   cv::Mat depth;
   cv::Mat sparse;  ///< CV_32F, the same before the dilation: what the occlusion test reads
+  /// CV_32F grey levels in [0, 1] of the image pyramid (cv::pyrDown), levels 1-3 at [1..3] ([0]
+  /// empty): what the photometric alignment reads (alignment.h).
+  std::vector<cv::Mat> grey;
   Eigen::Isometry3d optical_from_world = Eigen::Isometry3d::Identity();
   Eigen::Vector3d centre = Eigen::Vector3d::Zero();  ///< camera centre, world frame
   double fx = 0, fy = 0, cx = 0, cy = 0;
@@ -114,10 +117,10 @@ Decision decide(const CameraView& ref, const std::vector<const CameraView*>& win
                 const Eigen::Vector3d& normal = Eigen::Vector3d::Zero());
 
 /// The object vote (DESIGN §3): an object of `cells` cells, in the order to compare them
-/// (extremes first), stays moving iff more than `changed_fraction` of its compared cells look
-/// changed (Decision::confirmed); a cell neither changed nor similar (unseen, too few views) does
-/// not vote. At most `max_cells` cells are compared, cell j * cells / k for j < k; the vote stops
-/// once the cells left cannot change it. `decide_cell(i)` decides cell i.
+/// (extremes first), stays moving iff at least `changed_fraction` of its compared cells look
+/// changed (Decision::confirmed; at least one); a cell neither changed nor similar (unseen, too few
+/// views) does not vote. At most `max_cells` cells are compared, cell j * cells / k for j < k; the
+/// vote stops once the cells left cannot change it. `decide_cell(i)` decides cell i.
 struct ObjectVote {
   enum class Outcome : uint8_t { kUnseen, kMoving, kStatic };
   Outcome outcome = Outcome::kUnseen;  ///< kUnseen: no cell voted, the laser label stands
