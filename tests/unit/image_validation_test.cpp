@@ -185,6 +185,54 @@ TEST(ImageValidation, ACameraThatSeesTheSurfaceGrazingDoesNotCompare) {
             vision::Verdict::kSimilarColour);
 }
 
+// Issue #16: the view keeps its returns row by row and dilates the depth map patch by patch; both
+// must give exactly what the full-image maps gave (random returns, several on one pixel, patches
+// on the image's borders).
+TEST(ImageValidation, TheDepthMapsPatchByPatchEqualTheWholeImageMaps) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> pu(-20, kW + 20), pv(-20, kH + 20), pd(2, 40);
+  std::vector<PointXYZI> pts;
+  for (int i = 0; i < 3000; ++i) {
+    const double u = pu(rng), v = pv(rng), z = pd(rng);
+    const int copies = i % 10 == 0 ? 3 : 1;  // the nearest of a pixel's returns counts
+    for (int c = 0; c < copies; ++c) {
+      const double zc = z + c;
+      pts.push_back(
+          {float((u - kW / 2.0) / kF * zc), float((v - kH / 2.0) / kF * zc), float(zc), 0.f});
+    }
+  }
+  const cv::Mat black(kH, kW, CV_8UC3, cv::Scalar::all(0));
+  auto v = vision::makeCameraView(black, pts, at(0), camera(), 0, "test", 4);
+  ASSERT_FALSE(v.sparse.empty());
+  const cv::Mat full = v.returns->dense(cv::Rect(0, 0, kW, kH));
+  EXPECT_EQ(cv::countNonZero(full != v.sparse), 0);
+  EXPECT_GT(cv::countNonZero(full < std::numeric_limits<float>::infinity()), 1500);
+  cv::Mat dilated;
+  cv::erode(full, dilated, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(9, 9)),
+            cv::Point(-1, -1), 1, cv::BORDER_CONSTANT,
+            cv::Scalar(std::numeric_limits<float>::infinity()));
+  std::uniform_int_distribution<int> side(1, 60);
+  for (int i = 0; i < 300; ++i) {
+    const int w = side(rng), h = side(rng);
+    const int x = std::uniform_int_distribution<int>(0, kW - w)(rng);
+    const int y = std::uniform_int_distribution<int>(0, kH - h)(rng);
+    const cv::Rect r = i % 4 == 0   ? cv::Rect(0, y, w, h)
+                       : i % 4 == 1 ? cv::Rect(kW - w, kH - h, w, h)
+                                    : cv::Rect(x, y, w, h);
+    const cv::Mat patch = vision::depthPatch(v, r);
+    ASSERT_EQ(patch.size(), r.size());
+    ASSERT_EQ(cv::countNonZero(patch != dilated(r)), 0) << "patch " << r;
+  }
+  std::vector<Eigen::Vector2d> px;
+  std::uniform_real_distribution<double> qu(-3, kW + 3), qv(-3, kH + 3);
+  for (int i = 0; i < 2000; ++i) px.emplace_back(qu(rng), qv(rng));
+  std::vector<float> with_image;
+  for (const auto& q : px) with_image.push_back(vision::nearestReturn(v, q));
+  v.sparse.release();  // what the pipeline does once the scan is aligned
+  for (std::size_t i = 0; i < px.size(); ++i)
+    ASSERT_EQ(vision::nearestReturn(v, px[i]), with_image[i]) << px[i].transpose();
+}
+
 TEST(ImageValidation, AMoverThatLeftLooksDifferent) {
   const auto a = view({true, false}, 0, 0), b = view({}, 0.5, 1);
   const Eigen::Vector3d p(0.1, 0.0, 8.0);  // on the box, there in view a only

@@ -330,7 +330,14 @@ std::unique_ptr<LaserPipeline::Prepared> LaserPipeline::prepare(Frame&& f) {
                                      s->source.empty() ? "scan " + s->stem : s->source,
                                      p_.image.dilation_radius);
     st.image_scans = 1;
-    if (p_.image.align && !buf_.empty() && buf_.back()->view) linkToPrevious(*buf_.back(), *s);
+    auto* prev = buf_.empty() || !buf_.back()->view ? nullptr : &*buf_.back()->view;
+    if (p_.image.align && prev) linkToPrevious(*buf_.back(), *s);
+    // What only the alignment reads (issue #16): this scan's full-image depth map (read as the
+    // aligned view), the previous scan's pyramid (read as the reference), and this scan's own
+    // pyramid when nothing will be aligned on it.
+    s->view->sparse.release();
+    if (prev) prev->grey.clear();
+    if (!p_.image.align) s->view->grey.clear();
     st.ms.images = msSince(t0);
   }
 

@@ -57,35 +57,88 @@ CameraView makeCameraView(const cv::Mat& bgr, const std::vector<PointXYZI>& poin
     cv::pyrDown(v.grey[1], v.grey[2]);
     cv::pyrDown(v.grey[2], v.grey[3]);
   }
-  // The sparse depth map: the nearest return per pixel (SPEC §3, depth test).
-  v.depth = cv::Mat(bgr.rows, bgr.cols, CV_32F, cv::Scalar(kInf));
+  // The sparse depth map: the nearest return per pixel (SPEC §3, depth test), as a full image
+  // for the alignment (released after it) and row by row for the window.
+  v.sparse = cv::Mat(bgr.rows, bgr.cols, CV_32F, cv::Scalar(kInf));
   const Eigen::Matrix3f R = opt_lidar.linear().cast<float>();
   const Eigen::Vector3f t = opt_lidar.translation().cast<float>();
+  std::size_t hits = 0;
   for (const auto& p : points) {
     const Eigen::Vector3f q = R * p.xyz() + t;
     if (q.z() < 0.3f) continue;
     const int u = static_cast<int>(std::floor(v.fx * q.x() / q.z() + v.cx));
     const int w = static_cast<int>(std::floor(v.fy * q.y() / q.z() + v.cy));
     if (u < 0 || w < 0 || u >= bgr.cols || w >= bgr.rows) continue;
-    float& d = v.depth.at<float>(w, u);
+    float& d = v.sparse.at<float>(w, u);
     d = std::min(d, q.norm());
+    ++hits;
   }
-  // Gaps closed by a disk dilation of the nearness (a min filter of the distance), SPEC §3.
-  v.sparse = v.depth.clone();
-  if (radius > 0)
-    cv::erode(
-        v.sparse, v.depth,
-        cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * radius + 1, 2 * radius + 1)),
-        cv::Point(-1, -1), 1, cv::BORDER_CONSTANT, cv::Scalar(kInf));
+  auto sd = std::make_shared<SparseDepth>();
+  sd->rows = bgr.rows;
+  sd->cols = bgr.cols;
+  sd->start.reserve(std::size_t(bgr.rows) + 1);
+  sd->col.reserve(hits);
+  sd->dist.reserve(hits);
+  for (int y = 0; y < bgr.rows; ++y) {
+    sd->start.push_back(static_cast<int32_t>(sd->col.size()));
+    const float* row = v.sparse.ptr<float>(y);
+    for (int x = 0; x < bgr.cols; ++x)
+      if (row[x] != kInf) {
+        sd->col.push_back(static_cast<uint16_t>(x));
+        sd->dist.push_back(row[x]);
+      }
+  }
+  sd->start.push_back(static_cast<int32_t>(sd->col.size()));
+  v.returns = std::move(sd);
+  v.radius = radius;
   return v;
+}
+
+cv::Mat SparseDepth::dense(const cv::Rect& r) const {
+  cv::Mat m(r.height, r.width, CV_32F, cv::Scalar(kInf));
+  const int x0 = std::max(r.x, 0), x1 = std::min(r.x + r.width, cols);
+  for (int y = std::max(r.y, 0); y < std::min(r.y + r.height, rows); ++y) {
+    const auto b = col.begin() + start[std::size_t(y)], e = col.begin() + start[std::size_t(y) + 1];
+    float* out = m.ptr<float>(y - r.y);
+    for (auto it = std::lower_bound(b, e, x0); it != e && *it < x1; ++it)
+      out[*it - r.x] = dist[std::size_t(it - col.begin())];
+  }
+  return m;
+}
+
+float SparseDepth::minIn(int y0, int y1, int x0, int x1) const {
+  float best = kInf;
+  for (int y = y0; y <= y1; ++y) {
+    const auto b = col.begin() + start[std::size_t(y)], e = col.begin() + start[std::size_t(y) + 1];
+    for (auto it = std::lower_bound(b, e, x0); it != e && *it <= x1; ++it)
+      best = std::min(best, dist[std::size_t(it - col.begin())]);
+  }
+  return best;
+}
+
+cv::Mat depthPatch(const CameraView& v, const cv::Rect& r) {
+  const int k = v.radius;
+  if (k <= 0) return v.returns->dense(r);
+  // The rectangle grown by the disk: every pixel the disk of a pixel of r reaches, +inf outside
+  // the image (the whole map's border), so the erosion inside r is the whole map's.
+  const cv::Mat grown =
+      v.returns->dense(cv::Rect(r.x - k, r.y - k, r.width + 2 * k, r.height + 2 * k));
+  cv::Mat out;
+  cv::erode(grown, out,
+            cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * k + 1, 2 * k + 1)),
+            cv::Point(-1, -1), 1, cv::BORDER_CONSTANT, cv::Scalar(kInf));
+  return out(cv::Rect(k, k, r.width, r.height));
 }
 
 float nearestReturn(const CameraView& v, const Eigen::Vector2d& px) {
   const int u = static_cast<int>(px.x()), w = static_cast<int>(px.y());
+  const int rows = v.image.rows, cols = v.image.cols;
+  const int y0 = std::max(0, w - 1), y1 = std::min(rows - 1, w + 1);
+  const int x0 = std::max(0, u - 1), x1 = std::min(cols - 1, u + 1);
+  if (v.sparse.empty()) return v.returns->minIn(y0, y1, x0, x1);
   float best = kInf;
-  for (int y = std::max(0, w - 1); y <= std::min(v.sparse.rows - 1, w + 1); ++y)
-    for (int x = std::max(0, u - 1); x <= std::min(v.sparse.cols - 1, u + 1); ++x)
-      best = std::min(best, v.sparse.at<float>(y, x));
+  for (int y = y0; y <= y1; ++y)
+    for (int x = x0; x <= x1; ++x) best = std::min(best, v.sparse.at<float>(y, x));
   return best;
 }
 
@@ -256,14 +309,18 @@ struct RefPatch {
   int bk = 0;
   cv::Rect tk;
   Eigen::Vector3d normal = Eigen::Vector3d::Zero();  // the surface's, world frame (zero: unknown)
+  cv::Mat depth;                                     // the depth test's map over tk
 };
 std::optional<RefPatch> refPatch(const CameraView& ref, const Eigen::Vector3d& world,
-                                 const ImageParams& p, const Eigen::Vector3d& normal) {
+                                 const ImageParams& p, const Eigen::Vector3d& normal,
+                                 bool with_depth = true) {
   const auto pk = project(ref, world);
   if (!pk || nearestReturn(ref, pk->px) < pk->distance - p.occlusion) return std::nullopt;
-  RefPatch r{*pk, clampInt(p.patch_height * ref.fx / pk->distance, p.min_patch, 512), {}, normal};
+  RefPatch r{
+      *pk, clampInt(p.patch_height * ref.fx / pk->distance, p.min_patch, 512), {}, normal, {}};
   r.tk = squareAt(pk->px, r.bk);
   if ((r.tk & cv::Rect(0, 0, ref.image.cols, ref.image.rows)) != r.tk) return std::nullopt;
+  if (with_depth) r.depth = depthPatch(ref, r.tk);
   return r;
 }
 
@@ -300,7 +357,7 @@ Verdict compareWith(const CameraView& ref, const RefPatch& rp, const CameraView&
   // and would make a static edge look changed. Too few such pixels: the whole patch (paper).
   {
     cv::Mat d;
-    cv::resize(ref.depth(tk), d, cv::Size(side, side), 0, 0, cv::INTER_NEAREST);
+    cv::resize(rp.depth, d, cv::Size(side, side), 0, 0, cv::INTER_NEAREST);
     const float lo = float(pk->distance - p.occlusion), hi = float(pk->distance + p.occlusion);
     mask = (d >= lo) & (d <= hi);
     if (4 * cv::countNonZero(mask) < side * side) mask = cv::Mat();
@@ -319,8 +376,8 @@ Verdict compareWith(const CameraView& ref, const RefPatch& rp, const CameraView&
   // Depth test where a patch is uniform: the depth maps, gaps closed, each patch relative to the
   // point's own expected depth in its camera (the motion correction, DESIGN §3).
   cv::Mat dt, dr;
-  cv::resize(ref.depth(tk), dt, cv::Size(side, side), 0, 0, cv::INTER_NEAREST);
-  cv::resize(other.depth(region), dr, region_size, 0, 0, cv::INTER_NEAREST);
+  cv::resize(rp.depth, dt, cv::Size(side, side), 0, 0, cv::INTER_NEAREST);
+  cv::resize(depthPatch(other, region), dr, region_size, 0, 0, cv::INTER_NEAREST);
   const auto e = depthError(dt, pk->distance, dr, pl->distance, p.depth_threshold);
   if (!e) return Verdict::kUnseen;
   return *e < p.depth_threshold ? Verdict::kSimilarDepth : Verdict::kDifferentDepth;
@@ -366,7 +423,7 @@ ObjectVote voteObject(std::size_t cells, double changed_fraction, int max_cells,
 }
 
 bool visibleIn(const CameraView& ref, const Eigen::Vector3d& world, const ImageParams& p) {
-  return refPatch(ref, world, p, Eigen::Vector3d::Zero()).has_value();
+  return refPatch(ref, world, p, Eigen::Vector3d::Zero(), false).has_value();
 }
 
 Decision decide(const CameraView& ref, const std::vector<const CameraView*>& window,

@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <functional>
 #include <limits>
+#include <memory>
 #include <optional>
 #include <vector>
 
@@ -15,16 +16,36 @@
 
 namespace cleanmap::vision {
 
+/// The nearest lidar return per pixel of one camera, row by row: the returns cover a few
+/// per cent of the pixels, so a window's views hold 0.2 MB each instead of a full float image
+/// (issue #16, doc/BENCHMARK.md, nineteenth session).
+struct SparseDepth {
+  int rows = 0, cols = 0;
+  std::vector<int32_t> start;  ///< rows + 1: row y's returns are [start[y], start[y + 1])
+  std::vector<uint16_t> col;   ///< increasing within a row
+  std::vector<float> dist;     ///< camera-to-point distance (m)
+
+  /// The pixels of `r` (which may reach outside the image) as CV_32F, +inf where no return.
+  cv::Mat dense(const cv::Rect& r) const;
+  /// The smallest distance in rows [y0, y1] and columns [x0, x1] (inclusive; +inf if none).
+  float minIn(int y0, int y1, int x0, int x1) const;
+};
+
 /// One scan's camera, prepared once when the scan arrives and reused by every scan whose window
 /// holds it: the image, the sparse lidar depth map and where the camera was.
 struct CameraView {
   cv::Mat image;  ///< CV_8UC3, BGR
-  /// CV_32F, camera-to-point distance (m) of the nearest lidar return per pixel, gaps closed by a
-  /// disk dilation (the nearest return within the disk); +inf where none is near.
-  cv::Mat depth;
-  cv::Mat sparse;  ///< CV_32F, the same before the dilation: what the occlusion test reads
+  /// The nearest lidar return per pixel (shared by corrected copies). The depth test's map,
+  /// gaps closed by a disk dilation of `radius` px, is made from it patch by patch (depthPatch).
+  std::shared_ptr<const SparseDepth> returns;
+  int radius = 0;
+  /// CV_32F, the same as a full image (+inf where no return): read by the photometric alignment,
+  /// which looks up every sampled point at every iteration; released once the scan is aligned
+  /// (release). Empty: `returns` is read, with the same values.
+  cv::Mat sparse;
   /// CV_32F grey levels in [0, 1] of the image pyramid (cv::pyrDown), levels 1-3 at [1..3] ([0]
-  /// empty): what the photometric alignment reads (alignment.h).
+  /// empty): what the photometric alignment reads (alignment.h); released once the next scan is
+  /// aligned on it.
   std::vector<cv::Mat> grey;
   Eigen::Isometry3d optical_from_world = Eigen::Isometry3d::Identity();
   Eigen::Vector3d centre = Eigen::Vector3d::Zero();  ///< camera centre, world frame
@@ -48,6 +69,10 @@ struct Projection {
 };
 /// Nullopt when the point is behind the camera or outside the image.
 std::optional<Projection> project(const CameraView& v, const Eigen::Vector3d& world);
+
+/// The depth test's map over `r` (inside the image): the nearest return within the view's
+/// dilation disk of each pixel, +inf where none (SPEC §3; the same as dilating the whole map).
+cv::Mat depthPatch(const CameraView& v, const cv::Rect& r);
 
 /// The nearest lidar return at the pixel or its 8 neighbours (+inf if none): a point farther than
 /// it by image.occlusion is hidden from the camera. The undilated map, so a foreground edge does
