@@ -43,23 +43,50 @@ inline void keepFreedMemory() {
 /// Issue #16: a run's memory grows by page faults of 4 KiB, each costly in a VM: 78,000 faults on
 /// kitti_highway, 15 % of the process' CPU (doc/BENCHMARK.md, Speed). glibc (2.35 and later)
 /// backs its heap with transparent huge pages under the tunable glibc.malloc.hugetlb=1, which it
-/// reads only at start-up, so the app re-executes itself once with it set, where the kernel
-/// offers huge pages. CLEANMAP_HUGEPAGES=0 turns this off; under valgrind it is skipped.
-inline void useHugePages(char** argv) {
+/// reads only at start-up. Sets it in the environment for a process about to be executed, where
+/// the kernel offers huge pages; false if it is not wanted or already set. CLEANMAP_HUGEPAGES=0
+/// turns this off; under valgrind it is skipped.
+inline bool setHugePageTunable() {
 #if defined(__GLIBC__) && defined(__linux__)
   const auto env = [](const char* name) {
     const char* v = std::getenv(name);
     return std::string(v ? v : "");
   };
   if (env("CLEANMAP_HUGEPAGES") == "0" || env("LD_PRELOAD").find("vgpreload") != std::string::npos)
-    return;
+    return false;
   const std::string tunables = env("GLIBC_TUNABLES");
-  if (tunables.find("glibc.malloc.hugetlb") != std::string::npos) return;  // set (by us: done)
+  if (tunables.find("glibc.malloc.hugetlb") != std::string::npos) return false;  // set: done
   std::string thp;
   std::getline(std::ifstream("/sys/kernel/mm/transparent_hugepage/enabled"), thp);
-  if (thp.empty() || thp.find("[never]") != std::string::npos) return;
+  if (thp.empty() || thp.find("[never]") != std::string::npos) return false;
   const std::string v = (tunables.empty() ? "" : tunables + ":") + "glibc.malloc.hugetlb=1";
-  if (setenv("GLIBC_TUNABLES", v.c_str(), 1) != 0) return;
+  return setenv("GLIBC_TUNABLES", v.c_str(), 1) == 0;
+#else
+  return false;
+#endif
+}
+
+/// The directory of the running executable, with its trailing '/' ("" if unknown).
+inline std::string executableDir() {
+#if defined(__linux__)
+  char self[4096];
+  const ssize_t n = readlink("/proc/self/exe", self, sizeof self - 1);
+  if (n > 0) {
+    const std::string s(self, static_cast<std::size_t>(n));
+    return s.substr(0, s.rfind('/') + 1);
+  }
+#endif
+  return "";
+}
+
+/// The app re-executes itself once with the tunable set (setHugePageTunable). The `cleanmap`
+/// command sets it in its launcher (apps/cleanmap/launcher.cpp), which loads no library: this
+/// app then runs once, and MRPT's libraries are loaded once (0.1 s a run).
+inline void useHugePages(char** argv) {
+#if defined(__GLIBC__) && defined(__linux__)
+  const char* old = std::getenv("GLIBC_TUNABLES");
+  const std::string tunables = old ? old : "";
+  if (!setHugePageTunable()) return;
   // The binary's own path, so the process keeps its name (ps, top) rather than "exe".
   char self[4096];
   const ssize_t n = readlink("/proc/self/exe", self, sizeof self - 1);

@@ -182,5 +182,23 @@ echo "cleanmap_test: map DA $da0 -> $da1, SA $sa0 -> $sa1 with the free-space cl
 awk -v a="$da0" -v b="$da1" 'BEGIN { exit !(b >= a) }' || fail "cleaning lowered DA ($da0 -> $da1)"
 awk -v a="$sa0" -v b="$sa1" 'BEGIN { exit !(b >= a - 0.03) }' || fail "cleaning cost more than 0.03 SA ($sa0 -> $sa1)"
 
+# The `cleanmap` launcher (issue #16): it hands the run to cleanmap-run with glibc's huge-page
+# tunable set (unless CLEANMAP_HUGEPAGES=0), and names the app it cannot find in one line.
+if [[ -e /sys/kernel/mm/transparent_hugepage/enabled ]] &&
+  ! grep -q '\[never\]' /sys/kernel/mm/transparent_hugepage/enabled; then
+  "$bin/cleanmap" "$seq" -o "$scratch/tun" --quiet --threads 1 >/dev/null 2>&1 &
+  pid=$!
+  for _ in $(seq 200); do
+    env_=$(tr '\0' '\n' <"/proc/$pid/environ" 2>/dev/null) && [[ $env_ == *GLIBC_TUNABLES* ]] && break
+    sleep 0.02
+  done
+  grep -q 'glibc.malloc.hugetlb=1' <<<"$env_" || fail "the launcher did not set the huge-page tunable"
+  wait "$pid" || fail "the run through the launcher failed"
+fi
+mkdir -p "$scratch/alone" && cp "$bin/cleanmap" "$scratch/alone/"
+"$scratch/alone/cleanmap" --help >/dev/null 2>"$scratch/err"; rc=$?
+[[ $rc -eq 127 && $(wc -l <"$scratch/err") -eq 1 ]] && grep -q "cannot run $scratch/alone/cleanmap-run" "$scratch/err" ||
+  fail "launcher without its app: exit $rc, message '$(cat "$scratch/err")'"
+
 [[ $fails -eq 0 ]] && echo "cleanmap_test: all checks passed"
 exit $((fails > 0))
