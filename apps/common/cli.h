@@ -2,8 +2,10 @@
 // Command-line walking shared by the apps: one usage error format ("prog: what (see --help)",
 // exit 2) and checked number parsing.
 #pragma once
+#include <algorithm>
 #include <cstdlib>
 #include <exception>
+#include <thread>
 #if defined(__GLIBC__)
 #include <malloc.h>
 #include <unistd.h>
@@ -32,11 +34,15 @@ inline std::string errorLine(const std::exception& e) {
 /// page (useHugePages) backs only a 2 MiB span that lies whole inside the heap, so small steps
 /// left most of it to 4 KiB faults (58,000 on kitti_highway; 9,600 in large steps, whole process
 /// 0.84x the wall, peak RSS +25 MiB: doc/BENCHMARK.md, sixteenth session).
+/// One malloc arena per core, not glibc's eight per core: memory freed by one thread is reused by
+/// the others instead of each arena growing to its own peak (peak RSS -45 to -57 MiB on the
+/// labelled sets, wall A/B 0.97-0.99: doc/BENCHMARK.md, nineteenth session).
 inline void keepFreedMemory() {
 #if defined(__GLIBC__)
   mallopt(M_MMAP_THRESHOLD, 32 << 20);  // glibc's largest
   mallopt(M_TRIM_THRESHOLD, 256 << 20);
   mallopt(M_TOP_PAD, 64 << 20);
+  mallopt(M_ARENA_MAX, static_cast<int>(std::max(2u, std::thread::hardware_concurrency())));
 #endif
 }
 
