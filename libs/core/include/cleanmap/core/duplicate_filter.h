@@ -31,6 +31,20 @@ class DuplicateFilter {
   using Key = uint64_t;
   void prune(long oldest);
 
+  // One bit per hashed cell key, set where a cell holds entries (issue #16): a query's empty
+  // neighbour cells, most of those of a point that is not a duplicate, are rejected by a bit in
+  // 128 KiB (cache resident) instead of a probe of the grid's table. A set bit may be another
+  // cell's (hash collision): the grid then answers; a clear bit is always right.
+  static constexpr std::size_t kOccupancyBits = std::size_t(1) << 20;
+  static std::size_t occupancyBit(uint64_t key) {
+    return static_cast<std::size_t>((key * 0xD6E8FEB86659FD93ull) >> 44);
+  }
+  bool mayHold(uint64_t key) const {
+    const std::size_t b = occupancyBit(key);
+    return (occupied_[b >> 6] >> (b & 63)) & 1u;
+  }
+  std::vector<uint64_t> occupied_ = std::vector<uint64_t>(kOccupancyBits / 64, 0);
+
   FilterParams p_;
   float inv_;  // cells of side 2 d_dup: a query ball touches at most 2 x 2 x 2 of them
   // Entries of a cell are in insertion (= scan) order, so expiry trims a prefix.
