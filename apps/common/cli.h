@@ -72,17 +72,21 @@ inline bool setHugePageTunable() {
 #endif
 }
 
-/// The directory of the running executable, with its trailing '/' ("" if unknown).
-inline std::string executableDir() {
+/// The running executable's path ("" if unknown): an app re-executing itself keeps its name (ps,
+/// top) rather than "exe"; the launcher finds the app beside it.
+inline std::string executablePath() {
 #if defined(__linux__)
   char self[4096];
   const ssize_t n = readlink("/proc/self/exe", self, sizeof self - 1);
-  if (n > 0) {
-    const std::string s(self, static_cast<std::size_t>(n));
-    return s.substr(0, s.rfind('/') + 1);
-  }
+  if (n > 0) return std::string(self, static_cast<std::size_t>(n));
 #endif
   return "";
+}
+
+/// The directory of the running executable, with its trailing '/' ("" if unknown).
+inline std::string executableDir() {
+  const std::string s = executablePath();
+  return s.substr(0, s.rfind('/') + 1);
 }
 
 /// The app re-executes itself once with the tunable set (setHugePageTunable). The `cleanmap`
@@ -93,13 +97,8 @@ inline void useHugePages(char** argv) {
   const char* old = std::getenv("GLIBC_TUNABLES");
   const std::string tunables = old ? old : "";
   if (!setHugePageTunable()) return;
-  // The binary's own path, so the process keeps its name (ps, top) rather than "exe".
-  char self[4096];
-  const ssize_t n = readlink("/proc/self/exe", self, sizeof self - 1);
-  if (n > 0) {
-    self[n] = '\0';
-    execv(self, argv);  // returns only if it failed: go on as we are
-  }
+  if (const std::string self = executablePath(); !self.empty())
+    execv(self.c_str(), argv);  // returns only if it failed: go on as we are
   if (tunables.empty())
     unsetenv("GLIBC_TUNABLES");
   else
