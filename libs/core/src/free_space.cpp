@@ -16,6 +16,8 @@ namespace {
 constexpr int kBits = 3;  // blocks of 8 x 8 x 8 voxels
 constexpr int kSide = 1 << kBits;
 constexpr int kVoxels = kSide * kSide * kSide;
+static_assert(kBits == 3,
+              "Block::subOf / innerOf split 8 x 8 x 8 blocks into 4 x 4 x 4 sub-blocks");
 
 inline int localIndex(int64_t x, int64_t y, int64_t z) {
   return static_cast<int>(((x & (kSide - 1)) << (2 * kBits)) | ((y & (kSide - 1)) << kBits) |
@@ -27,23 +29,32 @@ inline uint64_t blockKey(int64_t x, int64_t y, int64_t z) {
 }
 }  // namespace
 
+// A block's masks are whole; its voxels' counters come in sub-blocks of 4 x 4 x 4, allocated
+// on the first write: about a third of a block's voxels are ever marked, in clumps along the
+// surfaces and beams, so most sub-blocks are never needed (issue #16: memory is time here,
+// doc/BENCHMARK.md).
+struct FreeSpaceMap::Voxel {
+  int32_t first = -1, last = -1;  // the first and last scan that saw it empty
+  int32_t last_hit = -1;          // the last scan that returned from it
+  uint16_t count = 0;             // scans that saw it empty (saturating)
+  uint16_t hits = 0;              // scans that returned from it (saturating)
+  // Runs of empty scans (saturating at 255; scans come in order within an accumulator): those
+  // before the first return, those since the last, and whether a run of at least vacated_scans
+  // lay between two returns.
+  uint8_t lead = 0, trail = 0;
+  uint8_t emptied_between = 0;
+};
+
+struct FreeSpaceMap::SubBlock {
+  Voxel v[kSubVoxels];
+};
+
 struct FreeSpaceMap::Block {
   int64_t stamp = std::numeric_limits<int64_t>::min();  // the scan the masks below are about
   uint64_t hit[kVoxels / 64] = {};   // voxels holding a return of that scan (not marked by it)
   uint64_t seen[kVoxels / 64] = {};  // voxels that scan has already counted
   uint64_t near[kVoxels / 64] = {};  // voxels within hit_inflate of a return of that scan
-  struct Voxel {
-    int32_t first = -1, last = -1;  // the first and last scan that saw it empty
-    int32_t last_hit = -1;          // the last scan that returned from it
-    uint16_t count = 0;             // scans that saw it empty (saturating)
-    uint16_t hits = 0;              // scans that returned from it (saturating)
-    // Runs of empty scans (saturating at 255; scans come in order within an accumulator): those
-    // before the first return, those since the last, and whether a run of at least
-    // vacated_scans lay between two returns.
-    uint8_t lead = 0, trail = 0;
-    uint8_t emptied_between = 0;
-  };
-  Voxel v[kVoxels];  // one cache line per visit
+  SubBlock* sub[kSubBlocks] = {};    // null: none of its voxels written yet (all default)
   void restamp(int64_t scan) {
     if (stamp == scan) return;
     stamp = scan;
@@ -53,7 +64,29 @@ struct FreeSpaceMap::Block {
   }
   static bool bit(const uint64_t* m, int i) { return (m[i >> 6] >> (i & 63)) & 1u; }
   static void set(uint64_t* m, int i) { m[i >> 6] |= uint64_t(1) << (i & 63); }
+  // A voxel's local index (x << 6 | y << 3 | z) split into its sub-block and its place there.
+  static int subOf(int li) { return ((li >> 8) << 2) | (((li >> 5) & 1) << 1) | ((li >> 2) & 1); }
+  static int innerOf(int li) { return ((li >> 6 & 3) << 4) | ((li >> 3 & 3) << 2) | (li & 3); }
+  const Voxel* find(int li) const {
+    const SubBlock* sb = sub[subOf(li)];
+    return sb ? &sb->v[innerOf(li)] : nullptr;
+  }
 };
+
+FreeSpaceMap::SubBlock* FreeSpaceMap::newSub() {
+  if (pool_.empty() || pool_used_ == kPoolChunk) {
+    pool_.push_back(std::make_unique<SubBlock[]>(kPoolChunk));
+    pool_used_ = 0;
+  }
+  ++subs_;
+  return &pool_.back()[pool_used_++];
+}
+
+FreeSpaceMap::Voxel& FreeSpaceMap::voxel(Block& b, int li) {
+  SubBlock*& sb = b.sub[Block::subOf(li)];
+  if (!sb) sb = newSub();
+  return sb->v[Block::innerOf(li)];
+}
 
 bool removedByPolicy(const FreeEvidence& e, int64_t scan, const MapParams& p) {
   if (!p.clean || e.count < p.min_free_scans) return false;
@@ -75,7 +108,10 @@ FreeSpaceMap::~FreeSpaceMap() = default;
 FreeSpaceMap::FreeSpaceMap(const FreeSpaceMap& o) : p_(o.p_), inv_(o.inv_), marked_(o.marked_) {
   blocks_.reserve(o.blocks_.size());
   o.blocks_.forEach([&](uint64_t k, const std::unique_ptr<Block>& b) {
-    blocks_[k] = std::make_unique<Block>(*b);
+    auto& mine = blocks_[k];
+    mine = std::make_unique<Block>(*b);
+    for (auto& sb : mine->sub)
+      if (sb) sb = &(*newSub() = *sb);
   });
 }
 
@@ -101,7 +137,7 @@ const FreeSpaceMap::Block* FreeSpaceMap::findBlock(uint64_t key) const {
 }
 
 std::size_t FreeSpaceMap::bytes() const {
-  return blocks_.size() * sizeof(Block) +
+  return blocks_.size() * sizeof(Block) + pool_.size() * kPoolChunk * sizeof(SubBlock) +
          blocks_.capacity() * (sizeof(uint64_t) + sizeof(std::unique_ptr<Block>));
 }
 
@@ -152,7 +188,7 @@ void FreeSpaceMap::insertScan(const std::vector<PointXYZI>& points, const Eigen:
       Block::set(b->near, li);
       if (!Block::bit(b->hit, li)) {
         Block::set(b->hit, li);
-        auto& v = b->v[li];
+        auto& v = voxel(*b, li);
         if (v.hits > 0 && p_.vacated_scans > 0 && v.trail >= p_.vacated_scans)
           v.emptied_between = 1;  // something stood here, left, and something came again
         v.trail = 0;
@@ -268,7 +304,7 @@ void FreeSpaceMap::insertScan(const std::vector<PointXYZI>& points, const Eigen:
   for (Block* tb : touched_) {
     for (int w = 0; w < kVoxels / 64; ++w)
       for (uint64_t m = tb->seen[w]; m; m &= m - 1) {
-        auto& x = tb->v[w * 64 + __builtin_ctzll(m)];
+        auto& x = voxel(*tb, w * 64 + __builtin_ctzll(m));
         if (x.count < 0xFFFF) ++x.count;
         if (x.trail < 0xFF) ++x.trail;
         if (x.hits == 0 && x.lead < 0xFF) ++x.lead;
@@ -286,13 +322,14 @@ FreeEvidence FreeSpaceMap::evidence(const Eigen::Vector3f& p) const {
   const Block* b = findBlock(blockKey(x, y, z));
   FreeEvidence e;
   if (!b) return e;
-  const int li = localIndex(x, y, z);
-  e.count = static_cast<int>(b->v[li].count);
-  e.hits = static_cast<int>(b->v[li].hits);
-  e.emptied_between = b->v[li].emptied_between != 0;
-  e.first = b->v[li].first;
-  e.last = b->v[li].last;
-  e.last_hit = b->v[li].last_hit;
+  const Voxel* v = b->find(localIndex(x, y, z));
+  if (!v) return e;
+  e.count = static_cast<int>(v->count);
+  e.hits = static_cast<int>(v->hits);
+  e.emptied_between = v->emptied_between != 0;
+  e.first = v->first;
+  e.last = v->last;
+  e.last_hit = v->last_hit;
   return e;
 }
 
@@ -301,9 +338,10 @@ void FreeSpaceMap::merge(const FreeSpaceMap& o) {
     auto& mine = blocks_[k];
     if (!mine) mine = std::make_unique<Block>();
     for (int i = 0; i < kVoxels; ++i) {
-      const auto& theirs = ob->v[i];
-      auto& m = mine->v[i];
-      if (theirs.count == 0 && theirs.hits == 0) continue;
+      const Voxel* tv = ob->find(i);
+      if (!tv || (tv->count == 0 && tv->hits == 0)) continue;
+      const Voxel& theirs = *tv;
+      Voxel& m = voxel(*mine, i);
       if (m.count == 0 && m.hits == 0) {
         m = theirs;
         continue;
@@ -311,8 +349,8 @@ void FreeSpaceMap::merge(const FreeSpaceMap& o) {
       // The runs join in scan order: the chunks own disjoint ranges of scans, so the one whose
       // last activity is earlier holds only earlier scans.
       const bool mine_first = std::max(m.last, m.last_hit) < std::max(theirs.last, theirs.last_hit);
-      const Block::Voxel& a = mine_first ? m : theirs;
-      const Block::Voxel& b = mine_first ? theirs : m;
+      const Voxel& a = mine_first ? m : theirs;
+      const Voxel& b = mine_first ? theirs : m;
       const auto sat = [](int v) { return static_cast<uint8_t>(std::min(v, 0xFF)); };
       const uint8_t lead = a.hits ? a.lead : sat(a.lead + b.lead);
       const uint8_t trail = b.hits ? b.trail : sat(a.trail + b.trail);

@@ -61,11 +61,18 @@ class FreeSpaceMap {
 
   std::size_t blocks() const { return blocks_.size(); }
   std::size_t bytes() const;                            ///< memory held by the voxels
+  std::size_t subBlocks() const { return subs_; }       ///< 4 x 4 x 4 voxel groups written
   std::size_t voxelsMarked() const { return marked_; }  ///< voxel visits that counted, so far
   const MapParams& params() const { return p_; }
 
  private:
+  struct Voxel;
+  struct SubBlock;
   struct Block;
+  static constexpr int kSubVoxels = 64, kSubBlocks = 8;  // 4 x 4 x 4 voxels, 8 per block
+  static constexpr std::size_t kPoolChunk = 256;         // sub-blocks allocated at a time
+  SubBlock* newSub();                                    // a default one, from the pool
+  Voxel& voxel(Block& b, int li);                        // allocates its sub-block if needed
   Block& block(uint64_t key, int64_t scan);
   const Block* findBlock(uint64_t key) const;
   void markNear(const std::array<int64_t, 6>& box, int64_t scan);
@@ -82,6 +89,9 @@ class FreeSpaceMap {
   std::array<Recent, 1024> recent_{};
   Block& recentBlock(uint64_t key, int64_t scan);
   std::size_t marked_ = 0;
+  // The sub-blocks, in chunks that never move (blocks point into them); freed with the map.
+  std::vector<std::unique_ptr<SubBlock[]>> pool_;
+  std::size_t pool_used_ = 0, subs_ = 0;
 };
 
 }  // namespace cleanmap
