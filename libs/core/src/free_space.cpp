@@ -31,8 +31,8 @@ inline uint64_t blockKey(int64_t x, int64_t y, int64_t z) {
 
 // A block's masks are whole; its voxels' counters come in sub-blocks of 4 x 4 x 4, allocated
 // on the first write: about a third of a block's voxels are ever marked, in clumps along the
-// surfaces and beams, so most sub-blocks are never needed (issue #16: memory is time here,
-// doc/BENCHMARK.md).
+// surfaces and beams, so many sub-blocks are never needed (issue #16: the map holds 43 % less;
+// it is what grows with the area mapped, doc/BENCHMARK.md).
 struct FreeSpaceMap::Voxel {
   int32_t first = -1, last = -1;  // the first and last scan that saw it empty
   int32_t last_hit = -1;          // the last scan that returned from it
