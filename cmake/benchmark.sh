@@ -10,6 +10,9 @@ build=$1 data=$2 out=$3 roc=${4:-1}
 threads=${THREADS:-2}
 mkdir -p "$out"
 echo "== machine: $(nproc) cores, $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs)"
+# The instruction set of the build (CLEANMAP_ARCH, README): timings of different builds differ.
+march=$(grep -o -m1 -- '-march=[^ "]*' "$build/compile_commands.json" 2>/dev/null || true)
+echo "== build: ${march:-portable x86-64}"
 "$build/tests/benchmarks/cleanmap-bench-io" --data "$data"
 "$build/tests/benchmarks/cleanmap-bench-sim"
 "$build/tests/benchmarks/cleanmap-bench-stages" --data "$data" | tee "$out/stages.txt"
