@@ -1,10 +1,13 @@
 // SPDX-License-Identifier: BSD-3-Clause
 #include <gtest/gtest.h>
 
+#include <cstring>
 #include <fstream>
+#include <iterator>
 #include <limits>
 
 #include "cleanmap/core/error.h"
+#include "cleanmap/io/direct_file.h"
 #include "cleanmap/io/files.h"
 #include "test_data.h"
 
@@ -100,4 +103,66 @@ TEST(AtomicWrite, InterruptedWriteLeavesNothing) {
 TEST(Directories, MissingDirectoryIsAnError) {
   test::expectError([] { io::requireDirectory("/nonexistent/seq"); }, "/nonexistent/seq",
                     "directory does not exist");
+}
+
+// Issue #16: outputs and spools past the page cache. Whatever the chunking, the buffer size and
+// whether the file system takes O_DIRECT, the file holds exactly the bytes written, a patched
+// header included, and reads back the same.
+TEST(DirectFile, WritesExactlyTheBytesAndReadsThemBack) {
+  const auto dir = test::scratchDir("direct_file");
+  std::vector<unsigned char> bytes(3 * 8192 + 1234);
+  uint32_t x = 12345;
+  for (auto& b : bytes) b = static_cast<unsigned char>((x = x * 1664525u + 1013904223u) >> 24);
+  for (const bool direct : {true, false})
+    for (const std::size_t buffer : {std::size_t(4096), std::size_t(8192), std::size_t(1) << 20}) {
+      const std::string path =
+          (dir / ("f" + std::to_string(buffer) + (direct ? "d" : "p"))).string();
+      io::DirectFile f(path, buffer, direct);
+      std::size_t at = 0, step = 1;
+      while (at < bytes.size()) {  // chunks of 1, 2, 3, ... bytes: every alignment
+        const std::size_t n = std::min(step++ * 97, bytes.size() - at);
+        f.write(bytes.data() + at, n);
+        at += n;
+      }
+      EXPECT_EQ(f.size(), bytes.size());
+      const uint32_t count = 0xdeadbeef;  // a header's count, set at the end
+      f.patchHead(100, &count, 4);
+      test::expectError([&] { f.patchHead(4094, &count, 4); }, path, "outside the written header");
+      f.close();
+      std::vector<unsigned char> expected = bytes;
+      std::memcpy(expected.data() + 100, &count, 4);
+      std::ifstream in(path, std::ios::binary);
+      const std::vector<unsigned char> disk((std::istreambuf_iterator<char>(in)), {});
+      EXPECT_EQ(disk, expected) << path;
+      io::DirectReader r(path, buffer, direct);
+      std::vector<unsigned char> back(expected.size());
+      r.read(back.data(), 5);
+      r.read(back.data() + 5, back.size() - 5);
+      EXPECT_EQ(back, expected) << path;
+      unsigned char more;
+      test::expectError([&] { r.read(&more, 1); }, path, "truncated");
+    }
+  // A header patched while still in the buffer, and a file shorter than one block.
+  io::DirectFile small((dir / "small").string());
+  small.write("ply\ncount 0\n", 12);
+  small.patchHead(10, "7", 1);
+  small.close();
+  std::ifstream in(dir / "small", std::ios::binary);
+  EXPECT_EQ(std::string((std::istreambuf_iterator<char>(in)), {}), "ply\ncount 7\n");
+}
+
+TEST(DirectFile, ErrorsNameTheFile) {
+  const auto dir = test::scratchDir("direct_file_errors");
+  const std::string missing = (dir / "no" / "such" / "dir" / "f").string();
+  test::expectError([&] { io::DirectFile f(missing); }, missing, "cannot open for writing");
+  test::expectError([&] { io::DirectReader r(missing); }, missing, "cannot open for reading");
+  // The per-scan label files: written whole, the temporary gone, an error names the real file.
+  const Labels labels{9, 251, 40, 0, 9};
+  io::writeLabels((dir / "a.label").string(), labels);
+  EXPECT_EQ(io::readLabels((dir / "a.label").string()), labels);
+  std::size_t files = 0;
+  for (const auto& e : fs::directory_iterator(dir)) files += e.is_regular_file();
+  EXPECT_EQ(files, 1u);
+  const std::string under_file = (dir / "a.label" / "x.label").string();  // a file as a folder
+  test::expectError([&] { io::writeLabels(under_file, labels); }, "a.label", "cannot");
 }

@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "cleanmap/core/error.h"
+#include "cleanmap/io/direct_file.h"
 
 namespace fs = std::filesystem;
 
@@ -72,10 +73,7 @@ Labels readLabels(const std::string& path, std::optional<std::size_t> expected_c
 }
 
 void writeLabels(const std::string& path, const Labels& labels) {
-  writeFileAtomic(path, [&](std::ostream& os) {
-    os.write(reinterpret_cast<const char*>(labels.data()),
-             static_cast<std::streamsize>(labels.size() * sizeof(uint32_t)));
-  });
+  writeBytesAtomic(path, labels.data(), labels.size() * sizeof(uint32_t));  // past the page cache
 }
 
 void writeFileAtomic(const std::string& path, const std::function<void(std::ostream&)>& writer) {

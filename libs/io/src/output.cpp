@@ -21,6 +21,7 @@
 #include "cleanmap/core/error.h"
 #include "cleanmap/core/median.h"
 #include "cleanmap/io/config.h"
+#include "cleanmap/io/direct_file.h"
 #include "cleanmap/io/files.h"
 #include "cleanmap/io/kitti.h"
 #include "cleanmap/io/ply.h"
@@ -127,10 +128,9 @@ OutputWriter::OutputWriter(const std::string& outdir, const std::string& input,
   removed_ = std::make_unique<PlyStreamWriter>(staging_ + "/map_removed.ply",
                                                CloudStreamOptions{CloudColour::kRed, {}});
   fs::create_directories(fs::path(staging_) / "map_labels", ec);
+  if (ec) throw Error(staging_, "cannot create map_labels/: " + ec.message());
   spool_path_ = staging_ + "/.map_spool";
-  spool_ = std::fopen(spool_path_.c_str(), "w+b");
-  if (!spool_ || ec)
-    throw Error(staging_, "cannot create the map spool: " + std::string(std::strerror(errno)));
+  spool_ = std::make_unique<DirectFile>(spool_path_);
   moving_ = std::make_unique<PlyStreamWriter>(
       staging_ + "/dynamic.ply", CloudStreamOptions{CloudColour::kRed, staging_ + "/dynamic.pcd"});
 }
@@ -140,7 +140,7 @@ OutputWriter::~OutputWriter() {
   full_.reset();
   moving_.reset();
   removed_.reset();
-  if (spool_) std::fclose(spool_);
+  spool_.reset();
   if (!published_ && !staging_.empty()) {
     std::error_code ec;
     fs::remove_all(staging_, ec);
@@ -199,14 +199,6 @@ struct SpoolPoint {
   uint32_t kind;  // MapKind
 };
 
-void spoolWrite(std::FILE* f, const void* data, std::size_t bytes, const std::string& path) {
-  if (bytes && std::fwrite(data, 1, bytes, f) != bytes)
-    throw Error(path, "cannot write the map spool: " + std::string(std::strerror(errno)));
-}
-void spoolRead(std::FILE* f, void* data, std::size_t bytes, const std::string& path) {
-  if (bytes && std::fread(data, 1, bytes, f) != bytes)
-    throw Error(path, "the map spool is truncated");
-}
 }  // namespace
 
 void OutputWriter::spoolScan(const ScanResult& r) {
@@ -221,13 +213,13 @@ void OutputWriter::spoolScan(const ScanResult& r) {
   moving_index.resize(r.moving.size(), ~uint32_t(0));
   const SpoolHeader h{static_cast<int64_t>(r.index), r.pose.translation().z(), r.labels.size(),
                       r.static_full.size(), r.moving.size()};
-  spoolWrite(spool_, &h, sizeof h, spool_path_);
+  spool_->write(&h, sizeof h);
   std::vector<SpoolPoint> pts(r.static_full.size());
   for (std::size_t i = 0; i < pts.size(); ++i)
     pts[i] = {r.static_full[i], indexed ? r.static_full_index[i] : ~uint32_t(0),
               indexed ? uint32_t{r.static_full_kind[i]} : uint32_t{kMapDuplicate}};
-  spoolWrite(spool_, pts.data(), pts.size() * sizeof(SpoolPoint), spool_path_);
-  spoolWrite(spool_, moving_index.data(), moving_index.size() * sizeof(uint32_t), spool_path_);
+  spool_->write(pts.data(), pts.size() * sizeof(SpoolPoint));
+  spool_->write(moving_index.data(), moving_index.size() * sizeof(uint32_t));
 }
 
 // DESIGN §2e: every spooled point is decided with the whole sequence's free space: the ground
@@ -237,18 +229,18 @@ void OutputWriter::writeMaps(const FreeSpaceMap* free_space, const MapScanSink& 
   if (maps_written_) throw Error(staging_, "the maps were already written (writeMaps twice)");
   maps_written_ = true;
   const auto t0 = std::chrono::steady_clock::now();
-  if (std::fflush(spool_) != 0 || std::fseek(spool_, 0, SEEK_SET) != 0)
-    throw Error(spool_path_, "cannot read the map spool back");
+  spool_->close();
+  DirectReader spool(spool_path_);
   std::vector<SpoolPoint> pts;
   std::vector<uint32_t> moving;
   std::vector<PointXYZI> full, compact, removed;
   for (std::size_t s = 0; s < stems_.size(); ++s) {
     SpoolHeader h;
-    spoolRead(spool_, &h, sizeof h, spool_path_);
+    spool.read(&h, sizeof h);
     pts.resize(h.full);
     moving.resize(h.moving);
-    spoolRead(spool_, pts.data(), pts.size() * sizeof(SpoolPoint), spool_path_);
-    spoolRead(spool_, moving.data(), moving.size() * sizeof(uint32_t), spool_path_);
+    spool.read(pts.data(), pts.size() * sizeof(SpoolPoint));
+    spool.read(moving.data(), moving.size() * sizeof(uint32_t));
     Labels map_labels(h.points, kUnclassified);
     full.clear();
     compact.clear();
@@ -276,8 +268,7 @@ void OutputWriter::writeMaps(const FreeSpaceMap* free_space, const MapScanSink& 
     writeLabels(staging_ + "/map_labels/" + stems_[s] + ".label", map_labels);
     if (sink) sink(MapScan{h.index, stems_[s], map_labels, full, removed});
   }
-  std::fclose(spool_);
-  spool_ = nullptr;
+  spool_.reset();
   std::error_code ec;
   fs::remove(spool_path_, ec);
   map_ms_ =

@@ -12,6 +12,7 @@
 
 #include "cleanmap/core/error.h"
 #include "cleanmap/io/binary_field.h"
+#include "cleanmap/io/direct_file.h"
 #include "cleanmap/io/files.h"
 
 namespace cleanmap::io {
@@ -40,28 +41,77 @@ std::array<uint8_t, 3> heightColour(double dz) {
   return c;
 }
 
+namespace {
+// The headers are written first with room for any count and rewritten by close() at the same
+// length: a comment line takes up the difference, so no reader sees padding in a value.
+constexpr std::size_t kCountRoom = 20;  // digits of the largest uint64
+
+std::string plyHeader(CloudColour colour, std::size_t count, std::size_t length) {
+  std::string tail = "\nelement vertex " + std::to_string(count) +
+                     "\nproperty float x\nproperty float y\nproperty float z\nproperty float "
+                     "intensity\n";
+  if (colour != CloudColour::kNone)
+    tail += "property uchar red\nproperty uchar green\nproperty uchar blue\n";
+  tail += "end_header\n";
+  std::string head = "ply\nformat binary_little_endian 1.0\ncomment cleanmap";
+  if (length > head.size() + tail.size()) head.append(length - head.size() - tail.size(), ' ');
+  return head + tail;
+}
+
+std::string pcdHeader(bool rgb, std::size_t count, std::size_t length) {
+  const std::string n = std::to_string(count);
+  std::string head = "# .PCD v0.7 - written by cleanmap";
+  const std::string tail = "\nVERSION 0.7\nFIELDS x y z intensity" +
+                           std::string(rgb ? " rgb\nSIZE 4 4 4 4 4\nTYPE F F F F F\nCOUNT 1 1 1 1 1"
+                                           : "\nSIZE 4 4 4 4\nTYPE F F F F\nCOUNT 1 1 1 1") +
+                           "\nWIDTH " + n + "\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS " + n +
+                           "\nDATA binary\n";
+  if (length > head.size() + tail.size()) head.append(length - head.size() - tail.size(), ' ');
+  return head + tail;
+}
+
+std::string temporaryOf(const std::string& path) {
+  return path + ".tmp." + std::to_string(::getpid());
+}
+}  // namespace
+
+// Both files are written where they end up (under a temporary name), the points once: no body
+// written, read back and copied (issue #16).
 PlyStreamWriter::PlyStreamWriter(const std::string& path, const CloudStreamOptions& opts)
-    : path_(path), body_(path + ".body.tmp." + std::to_string(::getpid())), opts_(opts) {
+    : path_(path), opts_(opts) {
   const auto parent = std::filesystem::path(path).parent_path();
   std::error_code ec;
   if (!parent.empty()) std::filesystem::create_directories(parent, ec);
-  f_ = std::fopen(body_.c_str(), "w+b");
-  if (!f_) throw Error(path, "cannot open a temporary file for writing");
+  const bool rgb = opts_.colour != CloudColour::kNone;
+  ply_head_ = plyHeader(opts_.colour, 0, 0).size() + kCountRoom;
+  ply_ = std::make_unique<DirectFile>(temporaryOf(path_));
+  const std::string h = plyHeader(opts_.colour, 0, ply_head_);
+  ply_->write(h.data(), h.size());
+  if (!opts_.pcd_path.empty()) {
+    pcd_head_ = pcdHeader(rgb, 0, 0).size() + 2 * kCountRoom;
+    pcd_ = std::make_unique<DirectFile>(temporaryOf(opts_.pcd_path));
+    const std::string p = pcdHeader(rgb, 0, pcd_head_);
+    pcd_->write(p.data(), p.size());
+  }
 }
 
 PlyStreamWriter::~PlyStreamWriter() {
-  if (f_) {
-    std::fclose(f_);
-    std::remove(body_.c_str());
-  }
+  for (auto* f : {&ply_, &pcd_})
+    if (*f) {
+      const std::string tmp = (*f)->path();
+      f->reset();
+      std::remove(tmp.c_str());
+    }
 }
 
 void PlyStreamWriter::append(const std::vector<PointXYZI>& points, double sensor_z) {
   if (points.empty()) return;
+  if (!ply_) throw Error(path_, "append after close");
   const std::size_t rs = recordSize(opts_.colour);
   const char* data = reinterpret_cast<const char*>(points.data());
   if (opts_.colour != CloudColour::kNone) {
     rec_.resize(points.size() * rs);
+    if (pcd_) pcd_rec_.resize(points.size() * (kXyzi + 4));
     for (std::size_t i = 0; i < points.size(); ++i) {
       char* r = rec_.data() + i * rs;
       std::memcpy(r, &points[i], kXyzi);
@@ -69,64 +119,42 @@ void PlyStreamWriter::append(const std::vector<PointXYZI>& points, double sensor
                          ? std::array<uint8_t, 3>{255, 0, 0}
                          : heightColour(static_cast<double>(points[i].z) - sensor_z);
       std::memcpy(r + kXyzi, c.data(), 3);
+      if (pcd_) {  // PCL's packed rgb: 0x00RRGGBB in the bytes of a float
+        const uint32_t packed = (uint32_t(c[0]) << 16) | (uint32_t(c[1]) << 8) | uint32_t(c[2]);
+        char* q = pcd_rec_.data() + i * (kXyzi + 4);
+        std::memcpy(q, &points[i], kXyzi);
+        std::memcpy(q + kXyzi, &packed, 4);
+      }
     }
     data = rec_.data();
   }
-  if (std::fwrite(data, rs, points.size(), f_) != points.size())
-    throw Error(path_, "write failed (disk full?)");
+  ply_->write(data, points.size() * rs);
+  if (pcd_) {
+    if (opts_.colour != CloudColour::kNone)
+      pcd_->write(pcd_rec_.data(), pcd_rec_.size());
+    else
+      pcd_->write(points.data(), points.size() * kXyzi);
+  }
   count_ += points.size();
 }
 
 void PlyStreamWriter::close() {
-  if (!f_) return;
-  std::fflush(f_);
-  std::rewind(f_);
-  writeFileAtomic(path_, [&](std::ostream& os) {
-    os << "ply\nformat binary_little_endian 1.0\ncomment cleanmap\nelement vertex " << count_
-       << "\nproperty float x\nproperty float y\nproperty float z\nproperty float intensity\n";
-    if (opts_.colour != CloudColour::kNone)
-      os << "property uchar red\nproperty uchar green\nproperty uchar blue\n";
-    os << "end_header\n";
-    std::vector<char> buf(1 << 20);
-    std::size_t n;
-    while ((n = std::fread(buf.data(), 1, buf.size(), f_)) > 0)
-      os.write(buf.data(), static_cast<std::streamsize>(n));
-  });
-  if (!opts_.pcd_path.empty()) writePcd();
-  std::fclose(f_);
-  f_ = nullptr;
-  std::remove(body_.c_str());
-}
-
-// The PCD twin, from the same body: rgb packed into a float as PCL does (0x00RRGGBB).
-void PlyStreamWriter::writePcd() {
-  const bool rgb = opts_.colour != CloudColour::kNone;
-  const std::size_t rs = recordSize(opts_.colour);
-  std::rewind(f_);
-  writeFileAtomic(opts_.pcd_path, [&](std::ostream& os) {
-    os << "# .PCD v0.7 - written by cleanmap\nVERSION 0.7\nFIELDS x y z intensity"
-       << (rgb ? " rgb\nSIZE 4 4 4 4 4\nTYPE F F F F F\nCOUNT 1 1 1 1 1"
-               : "\nSIZE 4 4 4 4\nTYPE F F F F\nCOUNT 1 1 1 1")
-       << "\nWIDTH " << count_ << "\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS " << count_
-       << "\nDATA binary\n";
-    constexpr std::size_t kBatch = 1 << 16;
-    std::vector<char> in(kBatch * rs), out(kBatch * (kXyzi + 4));
-    std::size_t n;
-    while ((n = std::fread(in.data(), rs, kBatch, f_)) > 0) {
-      if (!rgb) {
-        os.write(in.data(), static_cast<std::streamsize>(n * rs));
-        continue;
-      }
-      for (std::size_t i = 0; i < n; ++i) {
-        const auto* r = reinterpret_cast<const unsigned char*>(in.data() + i * rs);
-        const uint32_t packed =
-            (uint32_t(r[kXyzi]) << 16) | (uint32_t(r[kXyzi + 1]) << 8) | uint32_t(r[kXyzi + 2]);
-        std::memcpy(out.data() + i * (kXyzi + 4), r, kXyzi);
-        std::memcpy(out.data() + i * (kXyzi + 4) + kXyzi, &packed, 4);
-      }
-      os.write(out.data(), static_cast<std::streamsize>(n * (kXyzi + 4)));
-    }
-  });
+  if (!ply_) return;
+  const std::string h = plyHeader(opts_.colour, count_, ply_head_);
+  ply_->patchHead(0, h.data(), h.size());
+  ply_->close();
+  if (pcd_) {
+    const std::string p = pcdHeader(opts_.colour != CloudColour::kNone, count_, pcd_head_);
+    pcd_->patchHead(0, p.data(), p.size());
+    pcd_->close();
+  }
+  for (auto [f, path] : {std::pair{&ply_, path_}, std::pair{&pcd_, opts_.pcd_path}}) {
+    if (!*f) continue;
+    std::error_code ec;
+    std::filesystem::rename((*f)->path(), path, ec);
+    if (ec) throw Error(path, "cannot move the finished file into place: " + ec.message());
+    f->reset();
+  }
 }
 
 void writePly(const std::string& path, const std::vector<PointXYZI>& points) {

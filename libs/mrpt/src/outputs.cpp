@@ -34,6 +34,7 @@
 #include "cleanmap/core/cell_map.h"
 #include "cleanmap/core/error.h"
 #include "cleanmap/core/stopwatch.h"
+#include "cleanmap/io/direct_file.h"
 #include "cleanmap/io/ply.h"
 #include "cleanmap/mrpt/convert.h"
 #include "cleanmap/mrpt/rawlog.h"
@@ -68,41 +69,43 @@ uint32_t labelFromColour(float r, float g, float b) {
 namespace {
 
 // A file written under a temporary name, renamed into place by close(): gzip at `level` >= 1,
-// plain at 0 (MRPT's gzip reader reads plain files too, and zlib's CRC is not free).
+// plain at 0 (MRPT's gzip reader reads plain files too, and zlib's CRC is not free). Plain files
+// go past the page cache (io::DirectFile, issue #16).
 struct OutFile {
   std::string path, tmp;
-  std::FILE* plain = nullptr;
+  std::unique_ptr<io::DirectFile> plain;
   ::mrpt::io::CFileGZOutputStream gz;
   bool open = false;
 
   OutFile(std::string p, int level, const char* suffix = ".tmp.") : path(std::move(p)) {
     tmp = path + suffix + std::to_string(::getpid());
     if (level <= 0)
-      plain = std::fopen(tmp.c_str(), "wb");
+      plain = std::make_unique<io::DirectFile>(tmp);
     else if (!gz.open(tmp, level))
       throw Error(path, "cannot open for writing");
-    if (level <= 0 && !plain) throw Error(path, "cannot open for writing");
     open = true;
   }
   ~OutFile() {
     if (open) {
-      finishWriting();
+      if (plain)
+        plain.reset();
+      else
+        gz.close();
       std::remove(tmp.c_str());
     }
   }
   void write(const void* data, std::size_t n) {
-    if (plain ? std::fwrite(data, 1, n, plain) != n : gz.Write(data, n) != n)
+    if (plain)
+      plain->write(data, n);
+    else if (gz.Write(data, n) != n)
       throw Error(path, "write failed (disk full?)");
   }
   void finishWriting() {
     open = false;
-    if (plain) {
-      const bool ok = std::fclose(plain) == 0;
-      plain = nullptr;
-      if (!ok) throw Error(path, "write failed (disk full?)");
-    } else {
+    if (plain)
+      plain->close();
+    else
       gz.close();
-    }
   }
   void close() {
     if (!open) return;
@@ -173,7 +176,7 @@ struct MrptOutputWriter::Impl {
   ::mrpt::maps::CColouredPointsMap::Ptr labelled_map = ::mrpt::maps::CColouredPointsMap::Create();
   ::mrpt::maps::CPointsMapXYZI::Ptr moving_map = ::mrpt::maps::CPointsMapXYZI::Create();
   std::size_t simplemap_count = 0;
-  long simplemap_count_offset = 0;
+  std::size_t simplemap_count_offset = 0;
   // The worker thread and its queue (MrptOutputOptions::background).
   std::thread worker;
   std::mutex mu;
@@ -181,7 +184,8 @@ struct MrptOutputWriter::Impl {
   std::deque<Job> queue;
   bool closing = false;
   // map_decisions: the scans wait in a spool until the map decides them (writeMapScan).
-  std::FILE* spool = nullptr;
+  std::unique_ptr<io::DirectFile> spool;
+  std::unique_ptr<io::DirectReader> spool_in;  // from the map's first decision on
   std::string spool_path;
   std::size_t spooled = 0, decided = 0;
   std::exception_ptr error;
@@ -258,19 +262,13 @@ struct MrptOutputWriter::Impl {
   }
 
   void closeSpool() {
-    if (!spool) return;
-    std::fclose(spool);
-    spool = nullptr;
+    if (!spool && !spool_in) return;
+    spool.reset();
+    spool_in.reset();
     std::remove(spool_path.c_str());
   }
-  void spoolWrite(const void* data, std::size_t bytes) {
-    if (bytes && std::fwrite(data, 1, bytes, spool) != bytes)
-      throw Error(spool_path, "cannot write the spool (disk full?)");
-  }
-  void spoolRead(void* data, std::size_t bytes) {
-    if (bytes && std::fread(data, 1, bytes, spool) != bytes)
-      throw Error(spool_path, "the spool is truncated");
-  }
+  void spoolWrite(const void* data, std::size_t bytes) { spool->write(data, bytes); }
+  void spoolRead(void* data, std::size_t bytes) { spool_in->read(data, bytes); }
 
   void writeScene(const std::string& path) const {
     using namespace ::mrpt::opengl;
@@ -360,7 +358,7 @@ struct MrptOutputWriter::Impl {
       const uint32_t zero = 0;
       simplemap_body->write(head.data(), head.size());
       simplemap_body->write(&zero, 4);
-      simplemap_count_offset = static_cast<long>(head.size());
+      simplemap_count_offset = head.size();
     }
   }
 
@@ -369,9 +367,7 @@ struct MrptOutputWriter::Impl {
     simplemap_body->write(&end, 1);
     const uint32_t count = static_cast<uint32_t>(simplemap_count);  // little endian, as MRPT
     if (level <= 0) {
-      std::FILE* f = simplemap_body->plain;
-      if (std::fseek(f, simplemap_count_offset, SEEK_SET) != 0 || std::fwrite(&count, 4, 1, f) != 1)
-        throw Error(path, "write failed (disk full?)");
+      simplemap_body->plain->patchHead(simplemap_count_offset, &count, 4);
       simplemap_body->close();
       return;
     }
@@ -409,9 +405,7 @@ MrptOutputWriter::MrptOutputWriter(const std::string& folder, const MrptOutputOp
     impl_->startSimplemap(folder + "/static_map.simplemap", opts_.gzip_level);
     if (opts_.map_decisions) {
       impl_->spool_path = folder + "/.mrpt_spool." + std::to_string(::getpid());
-      impl_->spool = std::fopen(impl_->spool_path.c_str(), "w+b");
-      if (!impl_->spool)
-        throw Error(impl_->spool_path, "cannot create: " + std::string(std::strerror(errno)));
+      impl_->spool = std::make_unique<io::DirectFile>(impl_->spool_path);
     }
   }
   if (opts_.background) impl_->worker = std::thread([this] { work(); });
@@ -567,8 +561,10 @@ void MrptOutputWriter::writeMapNow(const Job& j) {
     I.addMoving(j.removed, inv_voxel);
   }
   if (opts_.rawlogs) {
-    if (I.decided == 1 && (std::fflush(I.spool) != 0 || std::fseek(I.spool, 0, SEEK_SET) != 0))
-      throw Error(I.spool_path, "cannot read the spool back");
+    if (!I.spool_in) {  // every scan is spooled before the map decides the first
+      I.spool->close();
+      I.spool_in = std::make_unique<io::DirectReader>(I.spool_path);
+    }
     SpoolHeader h;
     I.spoolRead(&h, sizeof h);
     if (h.index != j.index)

@@ -18,6 +18,7 @@
 namespace cleanmap::io {
 
 class PlyStreamWriter;
+class DirectFile;
 
 struct OutputOptions {
   /// Replace OUTDIR even if it is a non-empty folder that holds no cleanmap run.
@@ -96,7 +97,7 @@ class OutputWriter {
   void spoolScan(const ScanResult& r);
   bool maps_written_ = false;
   std::unique_ptr<PlyStreamWriter> compact_, full_, moving_, removed_;
-  std::FILE* spool_ = nullptr;  // the map points of every scan until finish() decides them
+  std::unique_ptr<DirectFile> spool_;  // the map points of every scan until writeMaps()
   std::string spool_path_;
   std::size_t map_removed_ = 0, map_far_kept_ = 0;
   double map_ms_ = 0;

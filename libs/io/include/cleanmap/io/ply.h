@@ -6,10 +6,12 @@
 #include <array>
 #include <cstdint>
 #include <cstdio>
+#include <memory>
 #include <string>
 #include <vector>
 
 #include "cleanmap/core/types.h"
+#include "cleanmap/io/direct_file.h"
 
 namespace cleanmap::io {
 
@@ -28,23 +30,22 @@ struct CloudStreamOptions {
 class PlyStreamWriter {
  public:
   explicit PlyStreamWriter(const std::string& path, const CloudStreamOptions& opts = {});
-  ~PlyStreamWriter();  ///< without close(): removes the temporary data, leaves no file
+  ~PlyStreamWriter();  ///< without close(): removes the temporaries, leaves no file
   PlyStreamWriter(const PlyStreamWriter&) = delete;
   PlyStreamWriter& operator=(const PlyStreamWriter&) = delete;
 
   /// `sensor_z`: world height of the sensor that saw the points (reference of kHeight colours).
   void append(const std::vector<PointXYZI>& points, double sensor_z = 0);
-  /// Writes header + points to the final path through a temporary and a rename.
+  /// Sets the headers' counts and moves the files (written under temporary names) into place.
   void close();
   std::size_t count() const { return count_; }
 
  private:
-  void writePcd();
-
-  std::string path_, body_;
+  std::string path_;
   CloudStreamOptions opts_;
-  std::vector<char> rec_;  // append()'s record buffer
-  std::FILE* f_ = nullptr;
+  std::vector<char> rec_, pcd_rec_;  // append()'s record buffers
+  std::unique_ptr<DirectFile> ply_, pcd_;
+  std::size_t ply_head_ = 0, pcd_head_ = 0;  // header lengths, fixed at the start
   std::size_t count_ = 0;
 };
 
