@@ -171,6 +171,37 @@ TEST(CellMap, HoldsWhatStdUnorderedMapHolds) {
   EXPECT_EQ(none.find(cellKey(0, 0, 0)), nullptr);
 }
 
+TEST(CellSet, AnswersAsASetOfCellKeys) {
+  // The scene's blocked voxel filter against a CellMap of cellKey: walks (consecutive cells
+  // near each other, as points of a scan) and random jumps, negative coordinates, block edges,
+  // and coordinates 2^21 apart, which cellKey wraps to the same cell.
+  std::mt19937 rng(18);
+  std::uniform_int_distribution<int> jump(-200000, 200000), step(-2, 2), pick(0, 99);
+  CellSet blocked;
+  CellMap<uint8_t> keys;
+  int64_t x = 0, y = -8, z = 7;
+  std::size_t fresh = 0;
+  for (int i = 0; i < 200000; ++i) {
+    if (pick(rng) == 0) {
+      x = jump(rng), y = jump(rng), z = jump(rng) / 1000;
+    } else {
+      x += step(rng), y += step(rng), z += step(rng);
+    }
+    const int64_t wrap = pick(rng) < 5 ? (int64_t(1) << 21) : 0;
+    const bool a = blocked.insert(x + wrap, y, z - wrap);
+    ASSERT_EQ(a, keys.insert(cellKey(x, y, z))) << x << " " << y << " " << z;
+    fresh += a;
+  }
+  EXPECT_EQ(blocked.size(), keys.size());
+  EXPECT_EQ(blocked.size(), fresh);
+  EXPECT_LT(blocked.blocks(), keys.size() / 4);  // walks fill blocks: fewer blocks than cells
+  // Points: the cell of floor(v / side), as cellKeyOf.
+  CellSet pts;
+  EXPECT_TRUE(pts.insertPoint(-0.01, 0.0, 0.19, 1.0 / 0.2));
+  EXPECT_FALSE(pts.insertPoint(-0.19, 0.01, 0.01, 1.0 / 0.2));
+  EXPECT_TRUE(pts.insertPoint(0.01, 0.0, 0.19, 1.0 / 0.2));
+}
+
 TEST(CellMap, EraseKeepsEveryOtherKeyFindable) {
   // Keys come and go as in the duplicate filter's window, in a small key space (long probe runs
   // that wrap around the array): after each erase every remaining key is found with its value.

@@ -190,32 +190,23 @@ struct MrptOutputWriter::Impl {
   std::size_t spooled = 0, decided = 0;
   std::exception_ptr error;
   // Scene: voxel-decimated points and the trajectory.
-  CellMap<uint8_t> static_cells, moving_cells;  // the scene's voxel filter
+  CellSet static_cells, moving_cells;  // the scene's voxel filter
   std::vector<PointXYZI> scene_static, scene_moving;
   std::vector<std::array<uint8_t, 3>> scene_static_rgb;
   std::vector<Eigen::Vector3d> trajectory;
 
-  // Consecutive points of a scan (neighbours on a ring) mostly share a voxel: the last key is
-  // checked first, which spares most lookups in the large set.
+  // A point joins the scene if its voxel has none yet (CellSet: consecutive points of a scan
+  // mostly share a block of voxels, so the test stays in cache).
   void addStatic(const std::vector<PointXYZI>& pts, double z0, double inv_voxel) {
-    uint64_t last = ~uint64_t(0);
-    for (const auto& p : pts) {  // the ground too: it gives the scene its shape
-      const uint64_t key = cellKeyOf<double>(p.x, p.y, p.z, inv_voxel);
-      if (key == last) continue;
-      last = key;
-      if (static_cells.insert(key)) {
+    for (const auto& p : pts)  // the ground too: it gives the scene its shape
+      if (static_cells.insertPoint<double>(p.x, p.y, p.z, inv_voxel)) {
         scene_static.push_back(p);
         scene_static_rgb.push_back(io::heightColour(double(p.z) - z0));
       }
-    }
   }
   void addMoving(const std::vector<PointXYZI>& pts, double inv_voxel) {
-    uint64_t last = ~uint64_t(0);
-    for (const auto& p : pts) {
-      const uint64_t key = cellKeyOf<double>(p.x, p.y, p.z, inv_voxel);
-      if (key != last && moving_cells.insert(key)) scene_moving.push_back(p);
-      last = key;
-    }
+    for (const auto& p : pts)
+      if (moving_cells.insertPoint<double>(p.x, p.y, p.z, inv_voxel)) scene_moving.push_back(p);
   }
 
   // The cleaned cloud of a scan (every point `keep` says) into cleaned.rawlog and the simplemap.

@@ -7,10 +7,13 @@
 // not depend on it). CellMap<uint8_t> serves as a set (insert, contains).
 #pragma once
 #include <algorithm>
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <utility>
 #include <vector>
+
+#include "cleanmap/core/cell_key.h"
 
 namespace cleanmap {
 
@@ -125,6 +128,43 @@ class CellMap {
   std::vector<V> values_;
   std::size_t size_ = 0, mask_ = 0;
   int shift_ = 64;
+};
+
+/// A set of cells (the cells of cellKey(x, y, z): coordinates wrapped to 21 bits, so the same
+/// cells, the same answers as a CellMap<uint8_t> of those keys) kept as 8 x 8 x 8 blocks of bits.
+/// Points met in scan order mostly fall in the block of the point before, so an insert is a bit
+/// test in a cache line already loaded instead of a probe into a table as large as the map
+/// (issue #16: the scene's voxel filter, one probe per map point).
+class CellSet {
+ public:
+  /// Adds cell (x, y, z); true if it was not there.
+  bool insert(int64_t x, int64_t y, int64_t z) {
+    const auto u = [](int64_t v) { return static_cast<uint64_t>(v) & 0x1FFFFFu; };
+    const uint64_t ux = u(x), uy = u(y), uz = u(z);
+    const uint64_t block = ((ux >> 3) << 42) | ((uy >> 3) << 21) | (uz >> 3);  // never ~0
+    if (block != last_key_) {
+      last_ = &blocks_[block];  // valid until the next block is added (a rehash moves them)
+      last_key_ = block;
+    }
+    uint64_t& word = (*last_)[ux & 7];
+    const uint64_t bit = uint64_t(1) << (((uy & 7) << 3) | (uz & 7));
+    if (word & bit) return false;
+    word |= bit;
+    ++size_;
+    return true;
+  }
+  template <class T>
+  bool insertPoint(T x, T y, T z, T inv_side) {
+    return insert(floorToCell(x, inv_side), floorToCell(y, inv_side), floorToCell(z, inv_side));
+  }
+  std::size_t size() const { return size_; }
+  std::size_t blocks() const { return blocks_.size(); }
+
+ private:
+  CellMap<std::array<uint64_t, 8>> blocks_;  // per block, one 64-bit word per x plane
+  std::array<uint64_t, 8>* last_ = nullptr;
+  uint64_t last_key_ = ~uint64_t(0);
+  std::size_t size_ = 0;
 };
 
 }  // namespace cleanmap
