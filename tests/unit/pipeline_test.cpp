@@ -424,6 +424,46 @@ TEST(MovingTest, PoseNoiseWidensTheConflictCheckNearTheSensor) {
   EXPECT_TRUE(MovingTest(paper).isMoving(near_pole, {noisy}, nullptr));
 }
 
+TEST(MovingTest, SparseRingsWidenTheConflictCheckInElevation) {
+  // Issue #15: a box 8 m ahead, its top 0.16 m below the sensor, scanned by rings 2 degrees
+  // apart. The ring at -1 degree passes 2 cm over the top edge and hits a wall 20 m away; the
+  // ring at -3 degrees hits the box's face. A point on the top edge (seen there by another scan)
+  // is 0.18 degrees from the passing ring: an empty vote. The ring below is 1.8 degrees away,
+  // outside the beam cone (0.6 degrees), so without the scan's ring step the scan-conflict check
+  // never sees the box; with it (WindowScan::ring_gap) it does: no empty vote. A point far above
+  // the box keeps its vote, and the masses are the same either way.
+  std::vector<PointXYZI> scan;
+  constexpr double kDeg = M_PI / 180.0;
+  for (int ring = -5; ring <= 3; ++ring)
+    for (int a = -50; a <= 50; ++a) {
+      const double el = (-1.0 + 2.0 * ring) * kDeg, az = 0.2 * a * kDeg;
+      const Eigen::Vector3d u(std::cos(el) * std::cos(az), std::cos(el) * std::sin(az),
+                              std::sin(el));
+      const Eigen::Vector3d box = u * (8.0 / u.x());  // the box's face at x = 8 m
+      const bool on_box = std::abs(box.y()) <= 2.0 && box.z() >= -1.7 && box.z() <= -0.16;
+      const Eigen::Vector3d hit = on_box ? box : Eigen::Vector3d(u * (20.0 / u.x()));
+      scan.push_back({float(hit.x()), float(hit.y()), float(hit.z()), 0.5f});
+    }
+  const DsParams p;
+  const BeamIndex idx(scan, p.search_lambdas * p.lambda_theta);
+  const MovingTest t(p);
+  const WindowScan dense{&idx, Eigen::Isometry3d::Identity()},
+      sparse{&idx, Eigen::Isometry3d::Identity(), 0.0, 2.0 * kDeg};
+  const Eigen::Vector3d edge(8.0, 0.0, -0.165), above(8.0, 0.0, 0.40);
+  EXPECT_TRUE(t.isMoving(edge, {dense}, nullptr));
+  EXPECT_FALSE(t.isMoving(edge, {sparse}, nullptr));
+  EXPECT_TRUE(t.isMoving(above, {sparse}, nullptr));
+  double d = 0;
+  const ds::Mass a = t.scanMass(above, dense, &d, nullptr),
+                 b = t.scanMass(above, sparse, &d, nullptr);
+  EXPECT_GT(a.e, 0.5);
+  EXPECT_EQ(a.e, b.e);
+  EXPECT_EQ(a.o, b.o);
+  // A ring step within the cone (a dense lidar) changes nothing.
+  const WindowScan fine{&idx, Eigen::Isometry3d::Identity(), 0.0, 0.4 * kDeg};
+  EXPECT_TRUE(t.isMoving(edge, {fine}, nullptr));
+}
+
 TEST(MovingTest, EarlyDecisionEqualsTheFullWindow) {
   // isMoving stops visiting scans once the rest cannot change the outcome; it must agree with
   // Dempster's rule over the whole window (windowMass) on every point, moving or not.

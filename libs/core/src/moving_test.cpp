@@ -169,6 +169,32 @@ ds::Mass MovingTest::scanMassAt(const Eigen::Vector3d& pl, double d, const Windo
         o_max = std::max(o_max, static_cast<float>(model_.beamFloat(r, theta2).o));
     });
   }
+  // Issue #15: a sparse lidar's rings lie further apart than the cone, so a beam that passes just
+  // over an object's top edge (or under a bumper) has no neighbour in the cone that returns from
+  // the object, and its scan would vote empty at every static edge point. The check also looks
+  // at the rings just above and below: returns at P's range within the cone in azimuth and
+  // within one ring step in elevation. Dense lidars (rings closer than the cone: the HDL-64E,
+  // KITTI) are unchanged.
+  if (p_.scan_conflict < 1.0 && s.ring_gap > radius_ && m.e > m.o && m.e > m.u &&
+      static_cast<double>(e_max) * o_max < p_.scan_conflict) {
+    const Eigen::Vector3f east_raw(-dir.y(), dir.x(), 0.0f);  // horizontal, across P's direction
+    const float east_norm = east_raw.norm();
+    if (east_norm > 1e-6f) {
+      const Eigen::Vector3f east = east_raw / east_norm;
+      const Eigen::Vector3f up = dir.cross(east);
+      const auto az_max = static_cast<float>(radius);
+      const auto el_max = static_cast<float>(s.ring_gap);
+      s.beams->forEachNear(dir, s.ring_gap, [&](const BeamIndex::Beam& q) {
+        if (!(dir.dot(q.dir) > 0.0f) || std::abs(q.dir.dot(east)) > az_max ||
+            std::abs(q.dir.dot(up)) > el_max)
+          return;
+        float theta2, r;
+        geometry(q, theta2, r);
+        if (std::abs(r) <= band)
+          o_max = std::max(o_max, static_cast<float>(model_.beamFloat(r, theta2).o));
+      });
+    }
+  }
   if (p_.scan_conflict < 1.0 && m.e > m.o && m.e > m.u &&
       static_cast<double>(e_max) * o_max >= p_.scan_conflict) {
     m = ds::Mass{};

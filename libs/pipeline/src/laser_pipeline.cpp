@@ -38,6 +38,7 @@ struct LaserPipeline::Prepared {
   double ground_measured = std::numeric_limits<double>::quiet_NaN();  // estimateGroundHeight
   double ground_z = 0;  // h_G below the sensor used for this scan (DESIGN §2a)
   double density = 1;   // returns per solid angle relative to the HDL-64E (DESIGN §2d)
+  double ring_gap = 0;  // rad between rings, where sparse (measured or preset; 0: dense, §2b)
   Eigen::Isometry3d world_to_sensor;
   PoseInfo pose_info;
   ScanStats stats;
@@ -301,10 +302,15 @@ std::unique_ptr<LaserPipeline::Prepared> LaserPipeline::prepare(Frame&& f) {
   }
   const auto& gpts = levelled.empty() ? pts : levelled;
   s->ground_z = groundBelowSensor(*s, gpts);
+  std::optional<AngularResolution> res;
   if (p_.sensor.model != SensorModel::kAuto)
-    s->density = densityScale(presetResolution(p_.sensor.model));
-  else if (const auto r = measureResolution(pts))
-    s->density = densityScale(*r);
+    res = presetResolution(p_.sensor.model);
+  else
+    res = measureResolution(pts);
+  if (res) {
+    s->density = densityScale(*res);
+    s->ring_gap = res->vertical_deg * M_PI / 180.0;
+  }
   s->ground = segmentGround(gpts, p_.ground, std::max(p_.filter.crop_tau, r_map), s->ground_z);
   s->in_crop.resize(pts.size());
   s->candidate.resize(pts.size());
@@ -512,7 +518,7 @@ std::vector<WindowScan> LaserPipeline::windowAround(std::size_t pos) const {
       window.push_back(
           {&buf_[j]->beams,
            corrected[j] ? Eigen::Isometry3d(corrected[j]->inverse()) : buf_[j]->world_to_sensor,
-           (e * path) * (e * path)});
+           (e * path) * (e * path), buf_[j]->ring_gap});
     }
   return window;
 }

@@ -18,6 +18,10 @@ struct WindowScan {
   /// m^2; pose error of this scan relative to the scan being decided (0: given poses). A return
   /// at P's range within it keeps the scan from voting empty (MovingTest::scanMass).
   double pose_noise2 = 0.0;
+  /// rad; the elevation step between this scan's rings where it exceeds the beam cone (a sparse
+  /// lidar: 16 or 32 rings), 0 otherwise. A return at P's range on the rings just above or below
+  /// P's direction keeps the scan from voting empty (MovingTest::scanMass, DESIGN §2b).
+  double ring_gap = 0.0;
 };
 
 // One per worker thread: aligned to a cache line so workers never share one (issue #16).
