@@ -184,15 +184,18 @@ ds::Mass MovingTest::scanMassAt(const Eigen::Vector3d& pl, double d, const Windo
       const Eigen::Vector3f up = dir.cross(east);
       const auto az_max = static_cast<float>(radius);
       const auto el_max = static_cast<float>(s.ring_gap);
-      s.beams->forEachNear(dir, s.ring_gap, [&](const BeamIndex::Beam& q) {
-        if (!(dir.dot(q.dir) > 0.0f) || std::abs(q.dir.dot(east)) > az_max ||
-            std::abs(q.dir.dot(up)) > el_max)
-          return;
-        float theta2, r;
-        geometry(q, theta2, r);
-        if (std::abs(r) <= band)
-          o_max = std::max(o_max, static_cast<float>(model_.beamFloat(r, theta2).o));
-      });
+      // The box holds every beam of the band: |q . up| <= gap means an elevation offset below
+      // asin(gap) plus a term of the azimuth offset squared (< 1e-4 rad here).
+      s.beams->forEachNearBox(
+          dir, 1.01 * radius, 1.01 * s.ring_gap + 2e-4, [&](const BeamIndex::Beam& q) {
+            if (!(dir.dot(q.dir) > 0.0f) || std::abs(q.dir.dot(east)) > az_max ||
+                std::abs(q.dir.dot(up)) > el_max)
+              return;
+            float theta2, r;
+            geometry(q, theta2, r);
+            if (std::abs(r) <= band)
+              o_max = std::max(o_max, static_cast<float>(model_.beamFloat(r, theta2).o));
+          });
     }
   }
   if (p_.scan_conflict < 1.0 && m.e > m.o && m.e > m.u &&

@@ -47,6 +47,11 @@ class BeamIndex {
   /// non-empty run of consecutive beams, in the same order.
   template <class F>
   void forEachRunNear(const Eigen::Vector3f& dir, double radius, F&& f) const;
+  /// forEachNear over a box instead of a disc: the beams whose bin could lie within `az_radius`
+  /// of `dir` across (an angle on the sphere, as `radius`) and `el_radius` in elevation
+  /// (the scan-conflict check's band of rings, MovingTest::scanMass).
+  template <class F>
+  void forEachNearBox(const Eigen::Vector3f& dir, double az_radius, double el_radius, F&& f) const;
 
   float farthest() const { return farthest_; }  ///< |OB|
   std::size_t size() const { return beams_.size(); }
@@ -57,6 +62,8 @@ class BeamIndex {
 
  private:
   int azBin(double az) const;
+  template <class F>
+  void forEachRunInBox(const Eigen::Vector3f& dir, double az_radius, double el_radius, F&& f) const;
   double bin_ = 0.01;
   int n_az_ = 0, n_el_ = 0;
   double el_min_ = 0;
@@ -73,13 +80,27 @@ void BeamIndex::forEachNear(const Eigen::Vector3f& dir, double radius, F&& f) co
 }
 
 template <class F>
+void BeamIndex::forEachNearBox(const Eigen::Vector3f& dir, double az_radius, double el_radius,
+                               F&& f) const {
+  forEachRunInBox(dir, az_radius, el_radius, [&](const Beam* first, const Beam* last) {
+    for (const Beam* q = first; q != last; ++q) f(*q);
+  });
+}
+
+template <class F>
 void BeamIndex::forEachRunNear(const Eigen::Vector3f& dir, double radius, F&& f) const {
+  forEachRunInBox(dir, radius, radius, std::forward<F>(f));
+}
+
+template <class F>
+void BeamIndex::forEachRunInBox(const Eigen::Vector3f& dir, double az_radius, double el_radius,
+                                F&& f) const {
   if (beams_.empty()) return;
   // Approximate angles, every bound widened by their error: the bins hold all that libm's
   // angles would give (the exact filter is f's).
   const float z = std::clamp(dir.z(), -1.0f, 1.0f);
   const double el = fast::asin(z), az = fast::atan2(dir.y(), dir.x());
-  const double r = radius + kAngleError;
+  const double r = el_radius + kAngleError, ra = az_radius + kAngleError;
   const int e0 = static_cast<int>(std::floor((el - r - el_min_) / bin_));
   const int e1 = static_cast<int>(std::floor((el + r - el_min_) / bin_));
   if (e1 < 0 || e0 >= n_el_) return;
@@ -88,7 +109,7 @@ void BeamIndex::forEachRunNear(const Eigen::Vector3f& dir, double radius, F&& f)
   // sin r <= r, cos|el| = sqrt(1 - z^2).
   const double zd = z, cos_el = std::sqrt(std::max(0.0, 1.0 - zd * zd));
   const double c = std::max(cos_el * (1.0 - 0.5 * r * r) - std::abs(zd) * r - 1e-9, 1e-3);
-  const double daz = std::min(r / c, M_PI);
+  const double daz = std::min(ra / c, M_PI);
   const int a_lo = static_cast<int>(std::floor((az - daz + M_PI) / bin_));
   const int a_hi = static_cast<int>(std::floor((az + daz + M_PI) / bin_));
   const int span = std::min(a_hi - a_lo, n_az_ - 1);
