@@ -77,6 +77,41 @@ TEST(BeamIndex, FindsEveryBeamInTheConeAtAnyElevation) {
   }
 }
 
+TEST(BeamIndex, BoxQueryFindsEveryBeamOfTheBand) {
+  // forEachNearBox with the margins MovingTest::scanMass gives it finds every beam of the
+  // scan-conflict check's band: within the cone across P's direction and one ring step (here
+  // 2 degrees) in elevation, the offsets measured as that check does (projections on the local
+  // east and up), at elevations from the horizon to near the poles.
+  std::mt19937 rng(9);
+  std::uniform_real_distribution<float> u(-1, 1), r(1, 60);
+  std::vector<PointXYZI> pts;
+  for (int i = 0; i < 40000; ++i) {
+    Eigen::Vector3f d(u(rng), u(rng), 0.6f * u(rng));
+    d = d.normalized() * r(rng);
+    pts.push_back({d.x(), d.y(), d.z(), 0});
+  }
+  const double cone = 0.0105, gap = 2.0 * M_PI / 180.0;
+  const BeamIndex idx(pts, cone);
+  std::size_t in_band = 0;
+  for (int q = 0; q < 400; ++q) {
+    Eigen::Vector3f dir(u(rng), u(rng), 0.6f * u(rng));
+    if (q == 0) dir = Eigen::Vector3f(-1, -0.0005f, 0);  // the azimuth seam
+    dir.normalize();
+    const Eigen::Vector3f east = Eigen::Vector3f(-dir.y(), dir.x(), 0.0f).normalized();
+    const Eigen::Vector3f up = dir.cross(east);
+    auto band = [&](const Eigen::Vector3f& v) {
+      return v.dot(dir) > 0 && std::abs(v.dot(east)) <= cone && std::abs(v.dot(up)) <= gap;
+    };
+    std::size_t brute = 0, found = 0;
+    for (const auto& p : pts) brute += band(p.xyz().normalized());
+    idx.forEachNearBox(dir, 1.01 * cone, 1.01 * gap + 2e-4,
+                       [&](const BeamIndex::Beam& b) { found += band(b.dir); });
+    ASSERT_EQ(found, brute) << "query " << q << ": " << dir.transpose();
+    in_band += brute;
+  }
+  EXPECT_GT(in_band, 1000u);  // the bands were not empty
+}
+
 TEST(BeamIndex, FastBinningEqualsTheLibmBinningOnBinEdges) {
   // Directions placed on the bins' edges (as nearly as floats allow), the azimuth seam with both
   // signs of zero, the poles, and random ones: kFast must give kExact's index bit for bit.
