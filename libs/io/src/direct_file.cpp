@@ -15,6 +15,7 @@
 #include <thread>
 
 #include "cleanmap/core/error.h"
+#include "cleanmap/io/files.h"
 
 namespace cleanmap::io {
 
@@ -307,12 +308,7 @@ void DirectReader::read(void* data, std::size_t n) {
 void writeBytesAtomic(const std::string& path, const void* data, std::size_t n) {
   namespace fs = std::filesystem;
   const fs::path target(path);
-  if (target.has_parent_path()) {
-    std::error_code ec;
-    fs::create_directories(target.parent_path(), ec);
-    if (ec) throw Error(target.parent_path().string(), "cannot create directory: " + ec.message());
-  }
-  const std::string tmp = path + ".tmp." + std::to_string(::getpid());
+  const std::string tmp = atomicTemporaryFor(path);
   try {
     DirectFile f(tmp, n + 1);  // one buffer holds it all: a single write at close()
     f.write(data, n);

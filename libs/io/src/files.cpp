@@ -76,14 +76,19 @@ void writeLabels(const std::string& path, const Labels& labels) {
   writeBytesAtomic(path, labels.data(), labels.size() * sizeof(uint32_t));  // past the page cache
 }
 
-void writeFileAtomic(const std::string& path, const std::function<void(std::ostream&)>& writer) {
+std::string atomicTemporaryFor(const std::string& path) {
   const fs::path target(path);
   if (target.has_parent_path()) {
     std::error_code ec;
     fs::create_directories(target.parent_path(), ec);
     if (ec) throw Error(target.parent_path().string(), "cannot create directory: " + ec.message());
   }
-  const std::string tmp = path + ".tmp." + std::to_string(::getpid());
+  return path + ".tmp." + std::to_string(::getpid());
+}
+
+void writeFileAtomic(const std::string& path, const std::function<void(std::ostream&)>& writer) {
+  const fs::path target(path);
+  const std::string tmp = atomicTemporaryFor(path);
   try {
     {
       std::ofstream os(tmp, std::ios::binary | std::ios::trunc);

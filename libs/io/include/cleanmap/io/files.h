@@ -32,6 +32,9 @@ void writeLabels(const std::string& path, const Labels& labels);
 /// Writes `path` through a temporary sibling and a rename, so an interrupted run never leaves a
 /// half-written file. The writer gets a binary stream; any exception removes the temporary.
 void writeFileAtomic(const std::string& path, const std::function<void(std::ostream&)>& writer);
+/// For a file written atomically: creates `path`'s folder if needed and returns the temporary
+/// sibling to write before renaming it to `path` (writeFileAtomic, io::writeBytesAtomic).
+std::string atomicTemporaryFor(const std::string& path);
 
 /// Whole file as text; throws cleanmap::Error naming the file if it cannot be read.
 std::string readTextFile(const std::string& path);
