@@ -8,7 +8,9 @@ full turn starting at the scan's first azimuth th0, turning towards increasing a
 point's ring is the number of whole turns between th0 and its unwrapped azimuth (the azimuth
 jumps by -2 pi once per turn). Checked on the three labelled sets: 64 rings in every scan.
 
-usage: decimate_kitti_rings.py SRC DST [K]   (poses, calib, times, objects.json are copied)
+usage: decimate_kitti_rings.py SRC DST [K [OFFSET]]   (poses, calib, times, objects.json are
+copied; rings OFFSET, OFFSET + K, ... are kept, OFFSET 0 by default: another OFFSET gives another
+sparse lidar of the same scene)
 Standard library only; about a minute per 30 scans.
 """
 import math
@@ -19,10 +21,13 @@ import sys
 
 
 def main():
-    if len(sys.argv) not in (3, 4):
+    if len(sys.argv) not in (3, 4, 5):
         sys.exit(__doc__)
     src, dst = sys.argv[1], sys.argv[2]
-    keep = int(sys.argv[3]) if len(sys.argv) == 4 else 4
+    keep = int(sys.argv[3]) if len(sys.argv) >= 4 else 4
+    offset = int(sys.argv[4]) if len(sys.argv) == 5 else 0
+    if keep < 1 or not 0 <= offset < keep:
+        sys.exit(f"K must be >= 1 and 0 <= OFFSET < K (got K {keep}, OFFSET {offset})")
     velo = os.path.join(src, "velodyne")
     if not os.path.isdir(velo):
         sys.exit(f"{src}: not a KITTI odometry folder (no velodyne/)")
@@ -56,7 +61,7 @@ def main():
             prev = a
             ring = int(math.floor((a + 2 * math.pi * turns - th0) / (2 * math.pi) + 1e-9))
             top = max(top, ring)
-            if ring % keep == 0:
+            if ring % keep == offset:
                 out += data[16 * i:16 * i + 16]
                 if has_labels:
                     out_labels += labels[4 * i:4 * i + 4]
@@ -66,7 +71,8 @@ def main():
         if has_labels:
             with open(os.path.join(dst, "labels", name[:-4] + ".label"), "wb") as o:
                 o.write(out_labels)
-    print(f"{src}: {len(rings)} scans, rings per scan {min(rings)}-{max(rings)}, kept every {keep}")
+    print(f"{src}: {len(rings)} scans, rings per scan {min(rings)}-{max(rings)}, kept every {keep}"
+          f" from ring {offset}")
 
 
 if __name__ == "__main__":

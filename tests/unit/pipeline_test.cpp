@@ -464,6 +464,92 @@ TEST(MovingTest, SparseRingsWidenTheConflictCheckInElevation) {
   EXPECT_TRUE(t.isMoving(edge, {fine}, nullptr));
 }
 
+namespace {
+
+// A sparse lidar at the origin: rings at elevations el0 + k * step degrees (k = -4..4), columns
+// every 0.2 degrees within +-10 degrees; each ray hits the first of: a box [x0, x1] x [-2, 2] x
+// [bottom, top] (front face, then top face), the road z = -1.73, a wall at x = 20 m.
+std::vector<PointXYZI> sparseScan(double el0, double step, double x0, double x1, double top,
+                                  bool with_box = true, double bottom = -1.7) {
+  constexpr double kDeg = M_PI / 180.0;
+  std::vector<PointXYZI> scan;
+  for (int ring = -4; ring <= 4; ++ring)
+    for (int a = -50; a <= 50; ++a) {
+      const double el = (el0 + step * ring) * kDeg, az = 0.2 * a * kDeg;
+      const Eigen::Vector3d u(std::cos(el) * std::cos(az), std::cos(el) * std::sin(az),
+                              std::sin(el));
+      double t = 20.0 / u.x();  // the wall
+      auto hits = [&](double tt, bool ok) {
+        if (ok && tt > 0 && tt < t) t = tt;
+      };
+      if (with_box) {
+        const Eigen::Vector3d f = u * (x0 / u.x());
+        hits(x0 / u.x(), std::abs(f.y()) <= 2.0 && f.z() >= bottom && f.z() <= top);
+        if (u.z() < 0) {
+          const Eigen::Vector3d q = u * (top / u.z());
+          hits(top / u.z(), q.x() >= x0 && q.x() <= x1 && std::abs(q.y()) <= 2.0);
+        }
+      }
+      if (u.z() < 0) hits(-1.73 / u.z(), true);
+      const Eigen::Vector3d h = u * t;
+      scan.push_back({float(h.x()), float(h.y()), float(h.z()), 0.5f});
+    }
+  return scan;
+}
+
+}  // namespace
+
+TEST(MovingTest, ASparseScanFindsTheEdgesOfItsSurfaces) {
+  // Issue #15, MovingTest::edgesOf: rings 2 degrees apart, a trailer's side 8 m ahead (z from
+  // -1.0 to -0.1). A point on its top ring has the ring above passing over it to the wall (top
+  // edge); one on its bottom ring has the ring below passing under it to the road 13.7 m away
+  // (bottom edge); one in between has the side on both (no edge). A dense lidar (ring step
+  // within the beam cone) has no edges.
+  constexpr double kDeg = M_PI / 180.0;
+  const DsParams p;
+  const MovingTest t(p);
+  const auto scan = sparseScan(-1.2, 2.0, 8.0, 8.0, -0.1, true, -1.0);
+  const BeamIndex idx(scan, t.searchRadius());
+  const WindowScan own{&idx, Eigen::Isometry3d::Identity(), 0.0, 2.0 * kDeg};
+  auto on_ring = [&](double el_deg) {
+    const double el = el_deg * kDeg;
+    return Eigen::Vector3f(8.0f, 0.0f, float(8.0 * std::tan(el)));
+  };
+  EXPECT_EQ(t.edgesOf(on_ring(-1.2), own), kTopEdge);     // z = -0.17
+  EXPECT_EQ(t.edgesOf(on_ring(-3.2), own), 0);            // z = -0.45
+  EXPECT_EQ(t.edgesOf(on_ring(-5.2), own), kBottomEdge);  // z = -0.73; -7.2 degrees: -1.01
+  const WindowScan dense{&idx, Eigen::Isometry3d::Identity(), 0.0, 0.4 * kDeg};
+  EXPECT_EQ(t.edgesOf(on_ring(-1.2), dense), 0);
+}
+
+TEST(MovingTest, BeamsPassingOverAnEdgeDoNotVote) {
+  // Issue #15: the false alarm the ring-band check misses. P lies on the far edge of a box's
+  // top (x 8 .. 8.5 m, top 0.165 m below the sensor), as a roof or a hedge top. Another scan's
+  // ring at -1 degree passes 1.7 cm over P to the wall 20 m away: an empty vote. Its ring below
+  // (-3 degrees) meets the box's front face 0.5 m in front of P, beyond the conflict check's
+  // reach (2 sigma = 0.32 m at P's range). P's own scan saw the surface end above P (kTopEdge):
+  // the passing ring is left out and the scan does not vote. Where the box has gone, a ring
+  // passing just *below* P still votes empty: a mover's top edge stays moving.
+  constexpr double kDeg = M_PI / 180.0;
+  const DsParams p;
+  const MovingTest t(p);
+  const Eigen::Vector3d P(8.5, 0.0, -0.165);
+  const auto parked = sparseScan(-1.0, 2.0, 8.0, 8.5, -0.165);
+  const BeamIndex idx(parked, t.searchRadius());
+  const WindowScan w{&idx, Eigen::Isometry3d::Identity(), 0.0, 2.0 * kDeg};
+  EXPECT_TRUE(t.isMoving(P, {w}, nullptr));
+  EXPECT_FALSE(t.isMoving(P, {w}, nullptr, kTopEdge));
+  EXPECT_TRUE(t.isMoving(P, {w}, nullptr, kBottomEdge));  // the open side is what counts
+  // The box gone: rings at -1.0 and -1.2 degrees pass 1.7 cm over and 1.3 cm under P.
+  auto gone = sparseScan(-1.0, 2.0, 8.0, 8.5, -0.165, false);
+  const auto under = sparseScan(-1.2, 2.0, 8.0, 8.5, -0.165, false);
+  gone.insert(gone.end(), under.begin(), under.end());
+  const BeamIndex idx_gone(gone, t.searchRadius());
+  const WindowScan vacated{&idx_gone, Eigen::Isometry3d::Identity(), 0.0, 2.0 * kDeg};
+  EXPECT_TRUE(t.isMoving(P, {vacated}, nullptr, kTopEdge));
+  EXPECT_FALSE(t.isMoving(P, {vacated}, nullptr, kTopEdge | kBottomEdge));  // no beam left
+}
+
 TEST(MovingTest, EarlyDecisionEqualsTheFullWindow) {
   // isMoving stops visiting scans once the rest cannot change the outcome; it must agree with
   // Dempster's rule over the whole window (windowMass) on every point, moving or not.

@@ -141,21 +141,10 @@ TEST(SimLidar, ResolutionOfSparseLidarsIsMeasuredInTheScan) {
   EXPECT_FALSE(measureResolution({}));
 }
 
-// Every k-th laser of a KITTI HDL-64E scan (stored laser after laser, each a full turn from the
-// first azimuth: datasets/decimate_kitti_rings.py).
+// Every k-th laser of a KITTI HDL-64E scan.
 std::vector<PointXYZI> keepEveryKthRing(const std::vector<PointXYZI>& pts, int k) {
   std::vector<PointXYZI> out;
-  if (pts.empty()) return out;
-  const double th0 = std::atan2(pts[0].y, pts[0].x);
-  double prev = th0;
-  int turns = 0;
-  for (const auto& p : pts) {
-    const double a = std::atan2(p.y, p.x);
-    if (a - prev < -M_PI) ++turns;
-    prev = a;
-    if (static_cast<int>(std::floor((a + 2 * M_PI * turns - th0) / (2 * M_PI) + 1e-9)) % k == 0)
-      out.push_back(p);
-  }
+  for (const std::size_t i : test::kittiRingsKept(pts, k)) out.push_back(pts[i]);
   return out;
 }
 

@@ -3,12 +3,15 @@
 #pragma once
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <vector>
 
 #include "cleanmap/core/error.h"
+#include "cleanmap/core/types.h"
 
 namespace cleanmap::test {
 
@@ -35,6 +38,27 @@ inline std::filesystem::path scratchDir(const std::string& name) {
 inline void writeText(const std::filesystem::path& p, const std::string& text) {
   std::filesystem::create_directories(p.parent_path());
   std::ofstream(p) << text;
+}
+
+/// The indices of the points of lasers offset, offset + k, ... of a KITTI HDL-64E scan, stored
+/// laser after laser, each a full turn from the first azimuth: a sparser lidar of the same scene
+/// (datasets/decimate_kitti_rings.py does the same to a folder).
+inline std::vector<std::size_t> kittiRingsKept(const std::vector<PointXYZI>& pts, int k,
+                                               int offset = 0) {
+  std::vector<std::size_t> out;
+  if (pts.empty()) return out;
+  const double th0 = std::atan2(pts[0].y, pts[0].x);
+  double prev = th0;
+  int turns = 0;
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    const double a = std::atan2(pts[i].y, pts[i].x);
+    if (a - prev < -M_PI) ++turns;
+    prev = a;
+    if (static_cast<int>(std::floor((a + 2 * M_PI * turns - th0) / (2 * M_PI) + 1e-9)) % k ==
+        offset)
+      out.push_back(i);
+  }
+  return out;
 }
 
 /// Runs f and expects a cleanmap::Error whose one-line message names `file` and holds `what`.

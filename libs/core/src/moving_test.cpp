@@ -59,10 +59,55 @@ ds::Mass MovingTest::scanMass(const Eigen::Vector3d& p_world, const WindowScan& 
   return scanMassAt(pl, d, s, stats);
 }
 
+namespace {
+
+// P's direction's horizontal normal (east) and vertical one (up), both unit and across `dir`;
+// false where P lies straight above or below the sensor.
+bool acrossAxes(const Eigen::Vector3f& dir, Eigen::Vector3f& east, Eigen::Vector3f& up) {
+  const Eigen::Vector3f east_raw(-dir.y(), dir.x(), 0.0f);
+  const float norm = east_raw.norm();
+  if (!(norm > 1e-6f)) return false;
+  east = east_raw / norm;
+  up = dir.cross(east);
+  return true;
+}
+
+}  // namespace
+
+uint8_t MovingTest::edgesOf(const Eigen::Vector3f& p, const WindowScan& own) const {
+  if (!own.beams || !(own.ring_gap > radius_)) return 0;
+  const float d = p.norm();
+  Eigen::Vector3f east, up;
+  if (!(d > 1e-3f)) return 0;
+  const Eigen::Vector3f dir = p / d;
+  if (!acrossAxes(dir, east, up)) return 0;
+  const auto gap = static_cast<float>(own.ring_gap), az_max = static_cast<float>(radius_);
+  const float tol = std::max(static_cast<float>(2.0 * model_.sigma), d * gap);
+  bool above = false, below = false;
+  own.beams->forEachNearBox(
+      dir, 1.01 * radius_, 1.51 * own.ring_gap + 2e-4, [&](const BeamIndex::Beam& q) {
+        const float el = q.dir.dot(up);
+        if (!(dir.dot(q.dir) > 0.0f) || std::abs(q.dir.dot(east)) > az_max ||
+            std::abs(el) < 0.5f * gap || std::abs(el) > 1.5f * gap || std::abs(q.range - d) > tol)
+          return;
+        (el > 0.0f ? above : below) = true;
+      });
+  return static_cast<uint8_t>((above ? 0 : kTopEdge) | (below ? 0 : kBottomEdge));
+}
+
 ds::Mass MovingTest::scanMassAt(const Eigen::Vector3d& pl, double d, const WindowScan& s,
-                                MovingTestStats* stats) const {
+                                MovingTestStats* stats, uint8_t edges) const {
   ds::Mass m;
   const Eigen::Vector3f dir = (pl / d).cast<float>();
+  // Issue #15: on an edge's open side (edgesOf) a beam passing P may pass over the edge; such
+  // beams are left out.
+  Eigen::Vector3f east_e, up_e;
+  if (edges && !acrossAxes(dir, east_e, up_e)) edges = 0;
+  const bool drop_above = (edges & kTopEdge) != 0, drop_below = (edges & kBottomEdge) != 0;
+  auto open_side = [&](const Eigen::Vector3f& q_dir) {
+    const float el = q_dir.dot(up_e);
+    return (drop_above && el > 0.0f) || (drop_below && el < 0.0f);
+  };
   const double radius = radius_;  // the cone: search_lambdas * lambda_theta
   const float r2max = static_cast<float>(radius * radius);
   const float df = static_cast<float>(d), r_far = static_cast<float>(r_far_);
@@ -108,7 +153,8 @@ ds::Mass MovingTest::scanMassAt(const Eigen::Vector3d& pl, double d, const Windo
     // In the cone, in front of the sensor, and not far behind the hit (there a beam is unknown,
     // the identity of Dempster's rule). About half the beams of the bins pass, unpredictably:
     // each is written and kept by a count, not a branch.
-    const bool keep = (theta2 <= r2max) & (dir.dot(q.dir) > 0.0f) & (r <= r_far);
+    const bool keep =
+        (theta2 <= r2max) & (dir.dot(q.dir) > 0.0f) & (r <= r_far) & !(edges && open_side(q.dir));
     r_b[n] = r;
     t2_b[n] = theta2;
     n += keep;
@@ -127,6 +173,8 @@ ds::Mass MovingTest::scanMassAt(const Eigen::Vector3d& pl, double d, const Windo
             const int run = static_cast<int>(std::min<std::ptrdiff_t>(last - q, kRun));
             detail::filterBeams(q->dir.data(), run, dir.x(), dir.y(), dir.z(), df, r2max, r_far,
                                 r_run, t2_run, keep_run);
+            if (edges)
+              for (int k = 0; k < run; ++k) keep_run[k] &= open_side(q[k].dir) ? 0 : 1;
             for (int k = 0; k < run; ++k) {
               r_b[n] = r_run[k];
               t2_b[n] = t2_run[k];
@@ -177,11 +225,8 @@ ds::Mass MovingTest::scanMassAt(const Eigen::Vector3d& pl, double d, const Windo
   // KITTI) are unchanged.
   if (p_.scan_conflict < 1.0 && s.ring_gap > radius_ && m.e > m.o && m.e > m.u &&
       static_cast<double>(e_max) * o_max < p_.scan_conflict) {
-    const Eigen::Vector3f east_raw(-dir.y(), dir.x(), 0.0f);  // horizontal, across P's direction
-    const float east_norm = east_raw.norm();
-    if (east_norm > 1e-6f) {
-      const Eigen::Vector3f east = east_raw / east_norm;
-      const Eigen::Vector3f up = dir.cross(east);
+    Eigen::Vector3f east, up;
+    if (acrossAxes(dir, east, up)) {
       const auto az_max = static_cast<float>(radius);
       const auto el_max = static_cast<float>(s.ring_gap);
       // The box holds every beam of the band: |q . up| <= gap means an elevation offset below
@@ -222,7 +267,7 @@ ds::Mass MovingTest::scanMassAt(const Eigen::Vector3d& pl, double d, const Windo
 std::optional<bool> MovingTest::combineWindow(const Eigen::Vector3d& p_world,
                                               const std::vector<WindowScan>& window,
                                               MovingTestStats* stats, bool stop_early,
-                                              ds::Mass& acc) const {
+                                              ds::Mass& acc, uint8_t edges) const {
   if (stats) ++stats->points;
   constexpr double kSafety = 1e-6;  // far above the rounding of the sums
   struct Visit {
@@ -268,7 +313,7 @@ std::optional<bool> MovingTest::combineWindow(const Eigen::Vector3d& p_world,
     rest -= v.w;
     if (v.w == 0.0) continue;  // no beams, or P at the sensor: unknown
     if (stats) ++stats->scans_visited;
-    const ds::Mass m = scanMassAt(v.pl, v.d, window[v.i], stats);
+    const ds::Mass m = scanMassAt(v.pl, v.d, window[v.i], stats, edges);
     const ds::Mass dm = ds::discretise(m, ds::beliefAtRatio(v.ratio, p_));
     if (dm.e > 0) lead -= std::log1p(-dm.e);
     if (dm.o > 0) lead += std::log1p(-dm.o);
@@ -291,9 +336,9 @@ ds::Mass MovingTest::windowMass(const Eigen::Vector3d& p_world,
 }
 
 bool MovingTest::isMoving(const Eigen::Vector3d& p_world, const std::vector<WindowScan>& window,
-                          MovingTestStats* stats) const {
+                          MovingTestStats* stats, uint8_t edges) const {
   ds::Mass acc;
-  if (const auto early = combineWindow(p_world, window, stats, true, acc)) return *early;
+  if (const auto early = combineWindow(p_world, window, stats, true, acc, edges)) return *early;
   return ds::isMoving(acc);
 }
 

@@ -577,6 +577,10 @@ void LaserPipeline::classify(const std::vector<WindowScan>& window, Prepared& s,
       w.tested_sensor.push_back(s.scan.points[w.cand[w.leaves[l].tested.front()]].xyz());
     }
   const std::vector<uint32_t> order = test_.testOrder(w.tested_sensor);
+  // P's own scan, for the edges of a sparse lidar's surfaces (MovingTest::edgesOf, issue #15).
+  WindowScan own;
+  own.beams = s.beams.empty() ? nullptr : &s.beams;
+  own.ring_gap = s.ring_gap;
   const auto workers = static_cast<std::size_t>(std::max(p_.threads, 1));
   std::vector<MovingTestStats> acc(workers);
   parallelFor(
@@ -585,7 +589,8 @@ void LaserPipeline::classify(const std::vector<WindowScan>& window, Prepared& s,
         const uint32_t l = w.tested_leaf[order[t]];
         auto& stats = acc[static_cast<std::size_t>(worker)];
         w.leaf_moving[l] = decideLeaf(w.leaves[l], [&](uint32_t c) {
-          return test_.isMoving(w.cand_world[c], window, &stats);
+          const uint8_t edges = test_.edgesOf(s.scan.points[w.cand[c]].xyz(), own);
+          return test_.isMoving(w.cand_world[c], window, &stats, edges);
         });
       },
       128);  // leaves differ in work: smaller chunks balance the threads

@@ -3,6 +3,7 @@
 #pragma once
 #include <Eigen/Geometry>
 #include <array>
+#include <cstdint>
 #include <optional>
 #include <vector>
 
@@ -41,6 +42,11 @@ struct alignas(64) MovingTestStats {
 /// decisions that may differ (MovingTest.FastBeamMathDecidesAsLibmOnRealScans).
 enum class BeamMath { kFast, kReference };
 
+/// Where P's own scan shows the surface ending at P (issue #15, sparse lidars): the ring just
+/// above P's direction returns nowhere near P's range (kTopEdge), or the ring just below does
+/// (kBottomEdge). MovingTest::edgesOf.
+enum EdgeBits : uint8_t { kTopEdge = 1, kBottomEdge = 2 };
+
 class MovingTest {
  public:
   explicit MovingTest(const DsParams& p, BeamMath math = BeamMath::kFast);
@@ -54,8 +60,18 @@ class MovingTest {
                       MovingTestStats* stats) const;
   /// ds::isMoving(windowMass(...)), but stops visiting scans once the rest of the window cannot
   /// change the decision (see the .cpp); the statistics then cover the scans visited.
+  /// `edges` (edgesOf of P in its own scan): beams that pass P on an edge's open side are left
+  /// out, so they vote neither way.
   bool isMoving(const Eigen::Vector3d& p_world, const std::vector<WindowScan>& window,
-                MovingTestStats* stats) const;
+                MovingTestStats* stats, uint8_t edges = 0) const;
+  /// EdgeBits of P (`p`, in the sensor frame of its own scan `own`) where that scan's rings lie
+  /// further apart than the beam cone (own.ring_gap); 0 for dense lidars. A ring continues P's
+  /// surface if it returns within the cone in azimuth, one ring step (0.5-1.5 gaps) away in
+  /// elevation, and within max(2 sigma, d * gap) of P's range d (a surface at most 45 degrees
+  /// from facing the ray). Where it does not, the surface ends between the two rings, at a
+  /// height this scan cannot tell: a beam of another scan passing P on that side may pass
+  /// over the edge of a static object (DESIGN §2b).
+  uint8_t edgesOf(const Eigen::Vector3f& p, const WindowScan& own) const;
   double searchRadius() const { return radius_; }
   /// The order in which to test points, given in the sensor frame of their scan (issue #16): in
   /// columns of azimuth two beam-index bins wide, bottom to top in each (ties by index), so that
@@ -68,11 +84,11 @@ class MovingTest {
   // (acc is then partial).
   std::optional<bool> combineWindow(const Eigen::Vector3d& p_world,
                                     const std::vector<WindowScan>& window, MovingTestStats* stats,
-                                    bool stop_early, ds::Mass& acc) const;
+                                    bool stop_early, ds::Mass& acc, uint8_t edges = 0) const;
   // scanMass with P already in the scan's sensor frame (pl, |pl| = d > 0): combineWindow has
   // both from its visit order.
   ds::Mass scanMassAt(const Eigen::Vector3d& pl, double d, const WindowScan& s,
-                      MovingTestStats* stats) const;
+                      MovingTestStats* stats, uint8_t edges = 0) const;
   DsParams p_;
   BeamMath math_;
   ds::BeamModel model_;
