@@ -3,15 +3,16 @@
 // of the scalar expressions), -fno-trapping-math and -fno-math-errno (the square root and the
 // comparisons vectorise), as beam_angles.cpp.
 #include "cleanmap/core/beam_filter.h"
+#include "per_isa.h"
 
 #include <cmath>
 
 namespace cleanmap::detail {
 
-// One clone per instruction set, chosen when the library loads.
-__attribute__((target_clones("avx512f", "avx2", "default"))) void filterBeams(
-    const float* __restrict beams, int m, float dx, float dy, float dz, float df, float r2max,
-    float r_far, float* __restrict r, float* __restrict theta2, int32_t* __restrict keep) {
+// One clone per instruction set (per_isa.h).
+CLEANMAP_PER_ISA void filterBeams(const float* __restrict beams, int m, float dx, float dy,
+                                  float dz, float df, float r2max, float r_far, float* __restrict r,
+                                  float* __restrict theta2, int32_t* __restrict keep) {
   for (int k = 0; k < m; ++k) {
     const float* q = beams + 4 * k;
     const float cx = dy * q[2] - dz * q[1], cy = dz * q[0] - dx * q[2], cz = dx * q[1] - dy * q[0];

@@ -4,6 +4,7 @@
 // into vector blends, and -ffp-contract=off, so that every instruction set gives the same bits.
 #include "cleanmap/core/dempster_shafer.h"
 #include "cleanmap/core/fast_math.h"
+#include "per_isa.h"
 
 namespace cleanmap::ds {
 
@@ -27,10 +28,10 @@ inline void masses(const BeamModel& m, const float* __restrict r, const float* _
 
 }  // namespace
 
-// One clone per instruction set, chosen when the library loads.
-__attribute__((target_clones("avx512f", "avx2", "default"))) void BeamModel::massesFast(
-    const float* __restrict r, const float* __restrict theta2, int n, float* __restrict e,
-    float* __restrict o) const {
+// One clone per instruction set (per_isa.h).
+CLEANMAP_PER_ISA void BeamModel::massesFast(const float* __restrict r,
+                                            const float* __restrict theta2, int n,
+                                            float* __restrict e, float* __restrict o) const {
   if (n <= 4)
     masses<4>(*this, r, theta2, e, o);
   else if (n <= 8)
