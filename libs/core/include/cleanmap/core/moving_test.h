@@ -43,8 +43,8 @@ struct alignas(64) MovingTestStats {
 enum class BeamMath { kFast, kReference };
 
 /// Where P's own scan shows the surface ending at P (issue #15, sparse lidars): the ring just
-/// above P's direction returns nowhere near P's range (kTopEdge), or the ring just below does
-/// (kBottomEdge). MovingTest::edgesOf.
+/// above P's direction returns nowhere near P's range (kTopEdge), or the ring just below returns
+/// nowhere near it (kBottomEdge). MovingTest::edgesOf.
 enum EdgeBits : uint8_t { kTopEdge = 1, kBottomEdge = 2 };
 
 class MovingTest {
