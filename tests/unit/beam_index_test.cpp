@@ -10,15 +10,26 @@
 
 using namespace cleanmap;
 
-TEST(BeamIndex, FindsExactlyTheBeamsABruteForceFinds) {
-  std::mt19937 rng(1);
+namespace {
+
+// n returns in random directions (elevation squeezed by z_scale) at 1-60 m, drawn from rng.
+std::vector<PointXYZI> randomCloud(std::mt19937& rng, int n, float z_scale) {
   std::uniform_real_distribution<float> u(-1, 1), r(1, 60);
   std::vector<PointXYZI> pts;
-  for (int i = 0; i < 20000; ++i) {
-    Eigen::Vector3f d(u(rng), u(rng), 0.4f * u(rng));
+  for (int i = 0; i < n; ++i) {
+    Eigen::Vector3f d(u(rng), u(rng), z_scale * u(rng));
     d = d.normalized() * r(rng);
     pts.push_back({d.x(), d.y(), d.z(), 0});
   }
+  return pts;
+}
+
+}  // namespace
+
+TEST(BeamIndex, FindsExactlyTheBeamsABruteForceFinds) {
+  std::mt19937 rng(1);
+  std::uniform_real_distribution<float> u(-1, 1);
+  auto pts = randomCloud(rng, 20000, 0.4f);
   pts.push_back({-10, 0.001f, 0, 0});  // on the azimuth seam (+-pi)
   const double radius = 0.03;
   const BeamIndex idx(pts, radius);
@@ -52,13 +63,8 @@ TEST(BeamIndex, FindsEveryBeamInTheConeAtAnyElevation) {
   // Directions over the whole sphere, queries up to the poles: the fast bounds (fast::asin,
   // fast::atan2, a lower bound of the cosine) still cover the cone.
   std::mt19937 rng(7);
-  std::uniform_real_distribution<float> u(-1, 1), r(1, 60);
-  std::vector<PointXYZI> pts;
-  for (int i = 0; i < 30000; ++i) {
-    Eigen::Vector3f d(u(rng), u(rng), u(rng));
-    d = d.normalized() * r(rng);
-    pts.push_back({d.x(), d.y(), d.z(), 0});
-  }
+  std::uniform_real_distribution<float> u(-1, 1);
+  auto pts = randomCloud(rng, 30000, 1.0f);
   for (float z : {-1.0f, 1.0f}) pts.push_back({0.0f, 0.0f, 20 * z, 0});  // the poles
   const double radius = 0.0105;
   const BeamIndex idx(pts, radius);
@@ -83,13 +89,8 @@ TEST(BeamIndex, BoxQueryFindsEveryBeamOfTheBand) {
   // 2 degrees) in elevation, the offsets measured as that check does (projections on the local
   // east and up), at elevations from the horizon to near the poles.
   std::mt19937 rng(9);
-  std::uniform_real_distribution<float> u(-1, 1), r(1, 60);
-  std::vector<PointXYZI> pts;
-  for (int i = 0; i < 40000; ++i) {
-    Eigen::Vector3f d(u(rng), u(rng), 0.6f * u(rng));
-    d = d.normalized() * r(rng);
-    pts.push_back({d.x(), d.y(), d.z(), 0});
-  }
+  std::uniform_real_distribution<float> u(-1, 1);
+  auto pts = randomCloud(rng, 40000, 0.6f);
   const double cone = 0.0105, gap = 2.0 * M_PI / 180.0;
   const BeamIndex idx(pts, cone);
   std::size_t in_band = 0;

@@ -72,6 +72,22 @@ bool acrossAxes(const Eigen::Vector3f& dir, Eigen::Vector3f& east, Eigen::Vector
   return true;
 }
 
+// The beams of `beams` within az_max of P's direction across it (the projection on east) whose
+// elevation offset el (the projection on up) has lo <= |el| <= hi: f(beam, el). The box query
+// holds them all: |el| <= hi means an elevation below asin(hi) plus a term of the azimuth offset
+// squared (< 1e-4 rad here).
+template <class F>
+void forEachInBand(const BeamIndex& beams, const Eigen::Vector3f& dir, const Eigen::Vector3f& east,
+                   const Eigen::Vector3f& up, float az_max, float lo, float hi, F&& f) {
+  beams.forEachNearBox(dir, 1.01 * az_max, 1.01 * hi + 2e-4, [&](const BeamIndex::Beam& q) {
+    const float el = q.dir.dot(up);
+    if (!(dir.dot(q.dir) > 0.0f) || std::abs(q.dir.dot(east)) > az_max || std::abs(el) < lo ||
+        std::abs(el) > hi)
+      return;
+    f(q, el);
+  });
+}
+
 }  // namespace
 
 uint8_t MovingTest::edgesOf(const Eigen::Vector3f& p, const WindowScan& own) const {
@@ -81,17 +97,13 @@ uint8_t MovingTest::edgesOf(const Eigen::Vector3f& p, const WindowScan& own) con
   if (!(d > 1e-3f)) return 0;
   const Eigen::Vector3f dir = p / d;
   if (!acrossAxes(dir, east, up)) return 0;
-  const auto gap = static_cast<float>(own.ring_gap), az_max = static_cast<float>(radius_);
+  const auto gap = static_cast<float>(own.ring_gap);
   const float tol = std::max(static_cast<float>(2.0 * model_.sigma), d * gap);
   bool above = false, below = false;
-  own.beams->forEachNearBox(
-      dir, 1.01 * radius_, 1.51 * own.ring_gap + 2e-4, [&](const BeamIndex::Beam& q) {
-        const float el = q.dir.dot(up);
-        if (!(dir.dot(q.dir) > 0.0f) || std::abs(q.dir.dot(east)) > az_max ||
-            std::abs(el) < 0.5f * gap || std::abs(el) > 1.5f * gap || std::abs(q.range - d) > tol)
-          return;
-        (el > 0.0f ? above : below) = true;
-      });
+  forEachInBand(*own.beams, dir, east, up, static_cast<float>(radius_), 0.5f * gap, 1.5f * gap,
+                [&](const BeamIndex::Beam& q, float el) {
+                  if (std::abs(q.range - d) <= tol) (el > 0.0f ? above : below) = true;
+                });
   return static_cast<uint8_t>((above ? 0 : kTopEdge) | (below ? 0 : kBottomEdge));
 }
 
@@ -226,22 +238,14 @@ ds::Mass MovingTest::scanMassAt(const Eigen::Vector3d& pl, double d, const Windo
   if (p_.scan_conflict < 1.0 && s.ring_gap > radius_ && m.e > m.o && m.e > m.u &&
       static_cast<double>(e_max) * o_max < p_.scan_conflict) {
     Eigen::Vector3f east, up;
-    if (acrossAxes(dir, east, up)) {
-      const auto az_max = static_cast<float>(radius);
-      const auto el_max = static_cast<float>(s.ring_gap);
-      // The box holds every beam of the band: |q . up| <= gap means an elevation offset below
-      // asin(gap) plus a term of the azimuth offset squared (< 1e-4 rad here).
-      s.beams->forEachNearBox(
-          dir, 1.01 * radius, 1.01 * s.ring_gap + 2e-4, [&](const BeamIndex::Beam& q) {
-            if (!(dir.dot(q.dir) > 0.0f) || std::abs(q.dir.dot(east)) > az_max ||
-                std::abs(q.dir.dot(up)) > el_max)
-              return;
-            float theta2, r;
-            geometry(q, theta2, r);
-            if (std::abs(r) <= band)
-              o_max = std::max(o_max, static_cast<float>(model_.beamFloat(r, theta2).o));
-          });
-    }
+    if (acrossAxes(dir, east, up))
+      forEachInBand(*s.beams, dir, east, up, static_cast<float>(radius), 0.0f,
+                    static_cast<float>(s.ring_gap), [&](const BeamIndex::Beam& q, float) {
+                      float theta2, r;
+                      geometry(q, theta2, r);
+                      if (std::abs(r) <= band)
+                        o_max = std::max(o_max, static_cast<float>(model_.beamFloat(r, theta2).o));
+                    });
   }
   if (p_.scan_conflict < 1.0 && m.e > m.o && m.e > m.u &&
       static_cast<double>(e_max) * o_max >= p_.scan_conflict) {
