@@ -46,6 +46,7 @@ struct LaserPipeline::Prepared {
   // DESIGN §3 "Camera poses": D, the correction of the motion from the scan buffered before this
   // one (its relative pose is T_prev^-1 T D), where the images aligned.
   std::optional<Eigen::Isometry3d> link;
+  bool points_released = false;  // decided, and its points freed (releasePoints)
 };
 
 /// The scan being decided, computed once and passed down the stages. One instance lives as long
@@ -104,6 +105,11 @@ struct LaserPipeline::FreeQueue {
       jobs.push_back(std::move(j));
     }
     cv.notify_all();
+  }
+  // True when no job of a scan up to `index` is queued or running (does not wait).
+  bool doneThrough(long index) {
+    std::lock_guard<std::mutex> lock(mu);
+    return (jobs.empty() || jobs.front().index > index) && (busy == kNone || busy > index);
   }
   // Waits until no job of a scan up to `index` is queued or running.
   void waitThrough(long index) {
@@ -464,11 +470,28 @@ void LaserPipeline::decideReady(std::size_t future) {
   while (next_ < buf_.size() && buf_.size() - 1 - next_ >= future) {
     decide(next_);
     ++next_;
+    releasePoints();
     while (next_ > K) {
       if (free_queue_) free_queue_->waitThrough(static_cast<long>(buf_.front()->index));
       buf_.pop_front();
       --next_;
     }
+  }
+}
+
+// Issue #16: a decided scan stays buffered as a window scan of the next K, which read only its
+// beams and pose; its points and per-point masks go once its free-space insertion is done (a
+// 30-scan run holds nearly every scan at once: 20-25 MiB less at the peak). The newest scan keeps
+// its points: the next scan's camera link reads them (linkToPrevious).
+void LaserPipeline::releasePoints() {
+  for (std::size_t j = 0; j + 1 < buf_.size() && j < next_; ++j) {
+    Prepared& s = *buf_[j];
+    if (s.points_released) continue;
+    if (free_queue_ && !free_queue_->doneThrough(static_cast<long>(s.index))) break;
+    s.points_released = true;
+    for (auto* v : {&s.in_crop, &s.ground, &s.far, &s.candidate}) std::vector<uint8_t>().swap(*v);
+    std::vector<PointXYZI>().swap(s.scan.points);
+    std::vector<uint32_t>().swap(s.scan.original_index);
   }
 }
 

@@ -73,6 +73,7 @@ class LaserPipeline {
   double groundBelowSensor(Prepared& s, const std::vector<PointXYZI>& levelled) const;
   PoseInfo registerScan(Frame& f);
   void decideReady(std::size_t future);
+  void releasePoints();
   void decide(std::size_t pos);
 
   // The stages of decide(), in order.
