@@ -481,8 +481,8 @@ void LaserPipeline::decideReady(std::size_t future) {
 
 // Issue #16: a decided scan stays buffered as a window scan of the next K, which read only its
 // beams and pose; its points and per-point masks go once its free-space insertion is done (a
-// 30-scan run holds nearly every scan at once: 20-25 MiB less at the peak). The newest scan keeps
-// its points: the next scan's camera link reads them (linkToPrevious).
+// 30-scan run holds nearly every scan at once: peak RSS 13-18 MiB less, doc/BENCHMARK.md). The
+// newest scan keeps its points: the next scan's camera link reads them (linkToPrevious).
 void LaserPipeline::releasePoints() {
   for (std::size_t j = 0; j + 1 < buf_.size() && j < next_; ++j) {
     Prepared& s = *buf_[j];
