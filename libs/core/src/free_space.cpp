@@ -186,15 +186,7 @@ void FreeSpaceMap::insertScan(const std::vector<PointXYZI>& points, const Eigen:
       }
       const int li = localIndex(x, y, z);
       Block::set(b->near, li);
-      if (!Block::bit(b->hit, li)) {
-        Block::set(b->hit, li);
-        auto& v = voxel(*b, li);
-        if (v.hits > 0 && p_.vacated_scans > 0 && v.trail >= p_.vacated_scans)
-          v.emptied_between = 1;  // something stood here, left, and something came again
-        v.trail = 0;
-        if (v.hits < 0xFFFF) ++v.hits;
-        v.last_hit = std::max(v.last_hit, static_cast<int32_t>(scan));
-      }
+      Block::set(b->hit, li);  // its counters are updated with the walk's, below
       if (p_.hit_inflate <= 0 || (moving && (*moving)[n])) continue;
       // The voxels within hit_inflate of the return (per axis) are not seen empty by this scan
       // either: a beam passing a surface's edge crosses the edge's voxel beside the return.
@@ -269,42 +261,95 @@ void FreeSpaceMap::insertScan(const std::vector<PointXYZI>& points, const Eigen:
       }
     }
     // The same walk with the axes unrolled into scalars (an indexed tmax[i] spills to memory);
-    // ties go to the lower axis.
-    int64_t vx = v[0], vy = v[1], vz = v[2];
-    double tx = tmax[0], ty = tmax[1], tz = tmax[2];
-    for (double t = 0; t <= len;) {
-      const uint64_t k = blockKey(vx, vy, vz);
+    // ties go to the lower axis. The voxel is kept as its block and its place there: a block
+    // is looked up only when the walk leaves it (every 8 steps along an axis, at most), and a
+    // mask word of a block is one x plane, so the place gives the word and the bit directly.
+    int64_t bx = v[0] >> kBits, by = v[1] >> kBits, bz = v[2] >> kBits;
+    int lx = static_cast<int>(v[0] & (kSide - 1)), ly = static_cast<int>(v[1] & (kSide - 1)),
+        lz = static_cast<int>(v[2] & (kSide - 1));
+    const int sx = step[0], sy = step[1], sz = step[2];
+    auto enter = [&] {
+      const uint64_t k = cellKey(bx, by, bz);
       if (k != cached) {
         b = &recentBlock(k, scan);
         cached = k;
       }
-      const int li = localIndex(vx, vy, vz);
-      b->seen[li >> 6] |= ~b->near[li >> 6] & (uint64_t(1) << (li & 63));
+    };
+    enter();
+    double tx = tmax[0], ty = tmax[1], tz = tmax[2];
+    for (double t = 0; t <= len;) {
+      b->seen[lx] |= ~b->near[lx] & (uint64_t(1) << (ly << kBits | lz));
       if (tx < ty) {
         if (tx < tz) {
           t = tx;
           tx += tdelta[0];
-          vx += step[0];
+          lx += sx;
+          if (static_cast<unsigned>(lx) >= unsigned(kSide)) {
+            lx &= kSide - 1;
+            bx += sx;
+            if (t > len) break;  // the walk ends here: the next block is not entered
+            enter();
+          }
           continue;
         }
       } else if (ty < tz) {
         t = ty;
         ty += tdelta[1];
-        vy += step[1];
+        ly += sy;
+        if (static_cast<unsigned>(ly) >= unsigned(kSide)) {
+          ly &= kSide - 1;
+          by += sy;
+          if (t > len) break;  // the walk ends here: the next block is not entered
+          enter();
+        }
         continue;
       }
       t = tz;
       tz += tdelta[2];
-      vz += step[2];
+      lz += sz;
+      if (static_cast<unsigned>(lz) >= unsigned(kSide)) {
+        lz &= kSide - 1;
+        bz += sz;
+        if (t > len) break;  // the walk ends here: the next block is not entered
+        enter();
+      }
     }
   }
-  // The walk only set bits (two cache lines per block); the voxels it saw empty are counted here,
-  // block by block in memory order, instead of one cache miss per step.
+  // The loops above only set bits (a few cache lines per block); the voxels this scan returned
+  // from and those it saw empty (never the same: a return's voxel is near) are updated here,
+  // block by block in memory order, the next block's voxels fetched while this one's are
+  // written, instead of one cache miss per return and per step (issue #16).
   const auto s32 = static_cast<int32_t>(scan);
-  for (Block* tb : touched_) {
+  auto prefetch = [](const Block& tb) {
     for (int w = 0; w < kVoxels / 64; ++w)
+      for (uint64_t m = tb.hit[w] | tb.seen[w]; m; m &= m - 1) {
+        const int li = w * 64 + __builtin_ctzll(m);
+        if (const Voxel* x = tb.find(li)) __builtin_prefetch(x, 1);
+      }
+  };
+  const std::size_t nt = touched_.size();
+  if (nt > 0) prefetch(*touched_[0]);
+  for (std::size_t i = 0; i < nt; ++i) {
+    if (i + 2 < nt) __builtin_prefetch(touched_[i + 2]->sub, 0);
+    if (i + 1 < nt) prefetch(*touched_[i + 1]);
+    Block* tb = touched_[i];
+    // voxel() written out: it is exported, so a call would go through the PLT.
+    auto at = [&](int li) -> Voxel& {
+      SubBlock*& sb = tb->sub[Block::subOf(li)];
+      if (!sb) sb = newSub();
+      return sb->v[Block::innerOf(li)];
+    };
+    for (int w = 0; w < kVoxels / 64; ++w) {
+      for (uint64_t m = tb->hit[w]; m; m &= m - 1) {
+        auto& v = at(w * 64 + __builtin_ctzll(m));
+        if (v.hits > 0 && p_.vacated_scans > 0 && v.trail >= p_.vacated_scans)
+          v.emptied_between = 1;  // something stood here, left, and something came again
+        v.trail = 0;
+        if (v.hits < 0xFFFF) ++v.hits;
+        v.last_hit = std::max(v.last_hit, s32);
+      }
       for (uint64_t m = tb->seen[w]; m; m &= m - 1) {
-        auto& x = voxel(*tb, w * 64 + __builtin_ctzll(m));
+        auto& x = at(w * 64 + __builtin_ctzll(m));
         if (x.count < 0xFFFF) ++x.count;
         if (x.trail < 0xFF) ++x.trail;
         if (x.hits == 0 && x.lead < 0xFF) ++x.lead;
@@ -312,6 +357,7 @@ void FreeSpaceMap::insertScan(const std::vector<PointXYZI>& points, const Eigen:
         x.last = std::max(x.last, s32);
         ++marked_;
       }
+    }
   }
   touched_.clear();
 }
