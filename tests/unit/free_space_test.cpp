@@ -3,6 +3,8 @@
 // rule, the two policies, and merging chunks (sums, minima, maxima: any order, same result).
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include "cleanmap/core/free_space.h"
 
 using namespace cleanmap;
@@ -113,6 +115,30 @@ TEST(FreeSpace, ChunksMergeInAnyOrderToTheWholeRun) {
       checked += w.count > 0;
     }
   EXPECT_GT(checked, 1000);
+}
+
+TEST(FreeSpace, ALookupThatRemembersItsBlockAnswersAsEvidenceDoes) {
+  // Points in a row (the same block, then the next), jumps between blocks, and points where the
+  // map has no block at all, in both orders: the remembered block never answers for another.
+  FreeSpaceMap m(params());
+  for (int k = 0; k < 4; ++k) m.insertScan(ring(12.f + float(k)), at(0.5 * k), k);
+  std::vector<Eigen::Vector3f> qs;
+  for (float x = -30; x <= 30; x += 0.07f) qs.emplace_back(x, 0.3f, 0.05f);
+  for (int i = 0; i < 400; ++i)  // scattered, some far outside
+    qs.emplace_back(float((i * 37) % 120) - 60.f, float((i * 53) % 90) - 45.f, 0.05f);
+  for (int pass = 0; pass < 2; ++pass) {
+    FreeSpaceMap::Lookup look(m);
+    int seen = 0, none = 0;
+    for (const auto& q : qs) {
+      const FreeEvidence e = m.evidence(q);
+      ASSERT_EQ(look(q), e) << q.transpose();
+      seen += e.count > 0;
+      none += e.count == 0 && e.hits == 0;
+    }
+    EXPECT_GT(seen, 300);
+    EXPECT_GT(none, 100);
+    std::reverse(qs.begin(), qs.end());
+  }
 }
 
 TEST(FreeSpace, SpaceOnlyEmptyAfterItsLastReturnWasVacated) {

@@ -362,13 +362,10 @@ void FreeSpaceMap::insertScan(const std::vector<PointXYZI>& points, const Eigen:
   touched_.clear();
 }
 
-FreeEvidence FreeSpaceMap::evidence(const Eigen::Vector3f& p) const {
-  const int64_t x = floorToCell(double(p.x()), inv_), y = floorToCell(double(p.y()), inv_),
-                z = floorToCell(double(p.z()), inv_);
-  const Block* b = findBlock(blockKey(x, y, z));
+namespace {
+template <class Voxel>
+FreeEvidence evidenceOf(const Voxel* v) {
   FreeEvidence e;
-  if (!b) return e;
-  const Voxel* v = b->find(localIndex(x, y, z));
   if (!v) return e;
   e.count = static_cast<int>(v->count);
   e.hits = static_cast<int>(v->hits);
@@ -377,6 +374,26 @@ FreeEvidence FreeSpaceMap::evidence(const Eigen::Vector3f& p) const {
   e.last = v->last;
   e.last_hit = v->last_hit;
   return e;
+}
+}  // namespace
+
+FreeEvidence FreeSpaceMap::evidence(const Eigen::Vector3f& p) const {
+  const int64_t x = floorToCell(double(p.x()), inv_), y = floorToCell(double(p.y()), inv_),
+                z = floorToCell(double(p.z()), inv_);
+  const Block* b = findBlock(blockKey(x, y, z));
+  return evidenceOf(b ? b->find(localIndex(x, y, z)) : nullptr);
+}
+
+FreeEvidence FreeSpaceMap::Lookup::operator()(const Eigen::Vector3f& p) {
+  const double inv = m_.inv_;
+  const int64_t x = floorToCell(double(p.x()), inv), y = floorToCell(double(p.y()), inv),
+                z = floorToCell(double(p.z()), inv);
+  const uint64_t k = blockKey(x, y, z);
+  if (k != key_) {
+    key_ = k;
+    block_ = m_.findBlock(k);
+  }
+  return evidenceOf(block_ ? block_->find(localIndex(x, y, z)) : nullptr);
 }
 
 void FreeSpaceMap::merge(const FreeSpaceMap& o) {

@@ -17,6 +17,7 @@
 #include <map>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
+#include <optional>
 
 #include "cleanmap/core/error.h"
 #include "cleanmap/core/median.h"
@@ -234,6 +235,8 @@ void OutputWriter::writeMaps(const FreeSpaceMap* free_space, const MapScanSink& 
   std::vector<SpoolPoint> pts;
   std::vector<uint32_t> moving;
   std::vector<PointXYZI> full, compact, removed;
+  std::optional<FreeSpaceMap::Lookup> lookup;
+  if (free_space) lookup.emplace(*free_space);
   for (std::size_t s = 0; s < stems_.size(); ++s) {
     SpoolHeader h;
     spool.read(&h, sizeof h);
@@ -248,7 +251,7 @@ void OutputWriter::writeMaps(const FreeSpaceMap* free_space, const MapScanSink& 
     for (const auto& q : pts) {
       const auto kind = static_cast<uint8_t>(q.kind);
       const bool gone = free_space && !isGroundKind(kind) &&
-                        removedByPolicy(free_space->evidence(q.p.xyz()), h.index, params_.map);
+                        removedByPolicy((*lookup)(q.p.xyz()), h.index, params_.map);
       if (q.orig < map_labels.size())
         map_labels[q.orig] = gone ? kMoving : isGroundKind(kind) ? kGround : kStatic;
       if (gone) {

@@ -24,23 +24,6 @@ std::size_t recordSize(CloudColour c) {
 }
 }  // namespace
 
-std::array<uint8_t, 3> heightColour(double dz) {
-  // Samples of viridis at t = 0, 1/4, 1/2, 3/4, 1, linearly interpolated.
-  static constexpr double kRamp[5][3] = {
-      {68, 1, 84}, {59, 82, 139}, {33, 145, 140}, {94, 201, 98}, {253, 231, 37}};
-  const double t = std::clamp((dz + 2.0) / 5.0, 0.0, 1.0) * 4.0;
-  const int k = std::min(3, static_cast<int>(t));
-  const double f = t - k;
-  std::array<uint8_t, 3> c{};
-  for (int j = 0; j < 3; ++j) {
-    // lround of a value in [0, 255], without the libm call: half rounds up, as lround's.
-    const double v = kRamp[k][j] + f * (kRamp[k + 1][j] - kRamp[k][j]);
-    const int i = static_cast<int>(v);
-    c[j] = static_cast<uint8_t>(i + (v - i >= 0.5));
-  }
-  return c;
-}
-
 namespace {
 // The headers are written first with room for any count and rewritten by close() at the same
 // length: a comment line takes up the difference, so no reader sees padding in a value.

@@ -54,6 +54,8 @@ class FreeSpaceMap {
                   const std::vector<uint8_t>* moving = nullptr);
   /// The evidence of the voxel holding world point p.
   FreeEvidence evidence(const Eigen::Vector3f& p) const;
+  /// evidence() for many points in a row (below).
+  class Lookup;
   /// Adds another accumulator of the same parameters (another chunk of the sequence, whose scans
   /// all come before or all after this one's); the result does not depend on the order of
   /// merging.
@@ -69,6 +71,22 @@ class FreeSpaceMap {
   struct Voxel;
   struct SubBlock;
   struct Block;
+
+ public:
+  /// evidence() for many points in a row, remembering the last block: consecutive points of a
+  /// scan mostly share one, and its lookup is then skipped (the same answers).
+  class Lookup {
+   public:
+    explicit Lookup(const FreeSpaceMap& m) : m_(m) {}
+    FreeEvidence operator()(const Eigen::Vector3f& p);
+
+   private:
+    const FreeSpaceMap& m_;
+    uint64_t key_ = ~uint64_t(0);
+    const Block* block_ = nullptr;
+  };
+
+ private:
   static constexpr int kSubVoxels = 64, kSubBlocks = 8;  // 4 x 4 x 4 voxels, 8 per block
   static constexpr std::size_t kPoolChunk = 256;         // sub-blocks allocated at a time
   SubBlock* newSub();                                    // a default one, from the pool

@@ -3,6 +3,7 @@
 // blue as uint8), written in a stream so a map of any length needs no memory, and moved into place
 // atomically at the end; optionally the same cloud as a PCL `.pcd` (packed `rgb`).
 #pragma once
+#include <algorithm>
 #include <array>
 #include <cstdint>
 #include <cstdio>
@@ -20,7 +21,23 @@ namespace cleanmap::io {
 enum class CloudColour { kNone, kHeight, kRed };
 
 /// RGB of a point `dz` metres above the sensor, for CloudColour::kHeight (viridis-like ramp).
-std::array<uint8_t, 3> heightColour(double dz);
+/// Inline: it runs once per map point, and an exported function is called through the PLT.
+inline std::array<uint8_t, 3> heightColour(double dz) {
+  // Samples of viridis at t = 0, 1/4, 1/2, 3/4, 1, linearly interpolated.
+  static constexpr double kRamp[5][3] = {
+      {68, 1, 84}, {59, 82, 139}, {33, 145, 140}, {94, 201, 98}, {253, 231, 37}};
+  const double t = std::clamp((dz + 2.0) / 5.0, 0.0, 1.0) * 4.0;
+  const int k = std::min(3, static_cast<int>(t));
+  const double f = t - k;
+  std::array<uint8_t, 3> c{};
+  for (int j = 0; j < 3; ++j) {
+    // lround of a value in [0, 255], without the libm call: half rounds up, as lround's.
+    const double v = kRamp[k][j] + f * (kRamp[k + 1][j] - kRamp[k][j]);
+    const int i = static_cast<int>(v);
+    c[j] = static_cast<uint8_t>(i + (v - i >= 0.5));
+  }
+  return c;
+}
 
 struct CloudStreamOptions {
   CloudColour colour = CloudColour::kNone;
