@@ -277,42 +277,29 @@ void FreeSpaceMap::insertScan(const std::vector<PointXYZI>& points, const Eigen:
     };
     enter();
     double tx = tmax[0], ty = tmax[1], tz = tmax[2];
+    // One step along an axis: its next crossing, its place, and its block when it leaves one;
+    // false where the walk ends (the next block is then not entered).
+    auto step_axis = [&](double& tq, double dq, int& lq, int64_t& bq, int sq, double& t) {
+      t = tq;
+      tq += dq;
+      lq += sq;
+      if (static_cast<unsigned>(lq) < unsigned(kSide)) return true;
+      lq &= kSide - 1;
+      bq += sq;
+      if (t > len) return false;
+      enter();
+      return true;
+    };
     for (double t = 0; t <= len;) {
       b->seen[lx] |= ~b->near[lx] & (uint64_t(1) << (ly << kBits | lz));
-      if (tx < ty) {
-        if (tx < tz) {
-          t = tx;
-          tx += tdelta[0];
-          lx += sx;
-          if (static_cast<unsigned>(lx) >= unsigned(kSide)) {
-            lx &= kSide - 1;
-            bx += sx;
-            if (t > len) break;  // the walk ends here: the next block is not entered
-            enter();
-          }
-          continue;
-        }
-      } else if (ty < tz) {
-        t = ty;
-        ty += tdelta[1];
-        ly += sy;
-        if (static_cast<unsigned>(ly) >= unsigned(kSide)) {
-          ly &= kSide - 1;
-          by += sy;
-          if (t > len) break;  // the walk ends here: the next block is not entered
-          enter();
-        }
-        continue;
-      }
-      t = tz;
-      tz += tdelta[2];
-      lz += sz;
-      if (static_cast<unsigned>(lz) >= unsigned(kSide)) {
-        lz &= kSide - 1;
-        bz += sz;
-        if (t > len) break;  // the walk ends here: the next block is not entered
-        enter();
-      }
+      bool more;
+      if (tx < ty && tx < tz)
+        more = step_axis(tx, tdelta[0], lx, bx, sx, t);
+      else if (!(tx < ty) && ty < tz)
+        more = step_axis(ty, tdelta[1], ly, by, sy, t);
+      else
+        more = step_axis(tz, tdelta[2], lz, bz, sz, t);
+      if (!more) break;
     }
   }
   // The loops above only set bits (a few cache lines per block); the voxels this scan returned
