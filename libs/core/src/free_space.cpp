@@ -62,7 +62,6 @@ struct FreeSpaceMap::Block {
     std::memset(seen, 0, sizeof seen);
     std::memset(near, 0, sizeof near);
   }
-  static bool bit(const uint64_t* m, int i) { return (m[i >> 6] >> (i & 63)) & 1u; }
   static void set(uint64_t* m, int i) { m[i >> 6] |= uint64_t(1) << (i & 63); }
   // A voxel's local index (x << 6 | y << 3 | z) split into its sub-block and its place there.
   static int subOf(int li) { return ((li >> 8) << 2) | (((li >> 5) & 1) << 1) | ((li >> 2) & 1); }
@@ -82,7 +81,9 @@ FreeSpaceMap::SubBlock* FreeSpaceMap::newSub() {
   return &pool_.back()[pool_used_++];
 }
 
-FreeSpaceMap::Voxel& FreeSpaceMap::voxel(Block& b, int li) {
+// Inline (private, this file only): the counting pass calls it once per voxel, and an exported
+// function would be called through the PLT.
+inline FreeSpaceMap::Voxel& FreeSpaceMap::voxel(Block& b, int li) {
   SubBlock*& sb = b.sub[Block::subOf(li)];
   if (!sb) sb = newSub();
   return sb->v[Block::innerOf(li)];
@@ -320,15 +321,9 @@ void FreeSpaceMap::insertScan(const std::vector<PointXYZI>& points, const Eigen:
     if (i + 2 < nt) __builtin_prefetch(touched_[i + 2]->sub, 0);
     if (i + 1 < nt) prefetch(*touched_[i + 1]);
     Block* tb = touched_[i];
-    // voxel() written out: it is exported, so a call would go through the PLT.
-    auto at = [&](int li) -> Voxel& {
-      SubBlock*& sb = tb->sub[Block::subOf(li)];
-      if (!sb) sb = newSub();
-      return sb->v[Block::innerOf(li)];
-    };
     for (int w = 0; w < kVoxels / 64; ++w) {
       for (uint64_t m = tb->hit[w]; m; m &= m - 1) {
-        auto& v = at(w * 64 + __builtin_ctzll(m));
+        auto& v = voxel(*tb, w * 64 + __builtin_ctzll(m));
         if (v.hits > 0 && p_.vacated_scans > 0 && v.trail >= p_.vacated_scans)
           v.emptied_between = 1;  // something stood here, left, and something came again
         v.trail = 0;
@@ -336,7 +331,7 @@ void FreeSpaceMap::insertScan(const std::vector<PointXYZI>& points, const Eigen:
         v.last_hit = std::max(v.last_hit, s32);
       }
       for (uint64_t m = tb->seen[w]; m; m &= m - 1) {
-        auto& x = at(w * 64 + __builtin_ctzll(m));
+        auto& x = voxel(*tb, w * 64 + __builtin_ctzll(m));
         if (x.count < 0xFFFF) ++x.count;
         if (x.trail < 0xFF) ++x.trail;
         if (x.hits == 0 && x.lead < 0xFF) ++x.lead;
@@ -365,10 +360,7 @@ FreeEvidence evidenceOf(const Voxel* v) {
 }  // namespace
 
 FreeEvidence FreeSpaceMap::evidence(const Eigen::Vector3f& p) const {
-  const int64_t x = floorToCell(double(p.x()), inv_), y = floorToCell(double(p.y()), inv_),
-                z = floorToCell(double(p.z()), inv_);
-  const Block* b = findBlock(blockKey(x, y, z));
-  return evidenceOf(b ? b->find(localIndex(x, y, z)) : nullptr);
+  return Lookup(*this)(p);
 }
 
 FreeEvidence FreeSpaceMap::Lookup::operator()(const Eigen::Vector3f& p) {
