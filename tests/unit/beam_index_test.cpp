@@ -3,6 +3,7 @@
 
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <random>
 #include <set>
 
@@ -24,7 +25,58 @@ std::vector<PointXYZI> randomCloud(std::mt19937& rng, int n, float z_scale) {
   return pts;
 }
 
+// Every beam the index stores, decoded: the brute force's beams.
+std::vector<BeamIndex::Beam> storedBeams(const BeamIndex& idx) {
+  std::vector<BeamIndex::Beam> out;
+  for (const auto& q : idx.beams()) out.push_back(idx.decode(q));
+  return out;
+}
+
+float angle(const BeamIndex::Beam& b, const Eigen::Vector3f& dir) {
+  return std::acos(std::min(1.0f, b.dir.normalized().dot(dir)));
+}
+
 }  // namespace
+
+TEST(BeamIndex, StoresEachReturnToWithinItsSteps) {
+  // Issue #16: 8-byte beams. Each stored direction is the return's to within 5e-5 rad (steps of
+  // 2^-15 per component), each range its range to within half a step (2^-9 m; 2^-8 m once a
+  // return lies beyond 128 m), and the index keeps every return in order of its bin.
+  std::mt19937 rng(11);
+  for (float far : {60.0f, 200.0f}) {
+    auto pts = randomCloud(rng, 5000, 0.5f);
+    pts.push_back({far, 0, 0, 0});
+    const BeamIndex idx(pts, 0.0105);
+    const float step = far > 128 ? 1.0f / 256 : 1.0f / 512;
+    ASSERT_EQ(idx.rangeUnit(), step);
+    ASSERT_EQ(idx.size(), pts.size());
+    EXPECT_EQ(idx.farthest(), far);
+    std::multiset<float> ranges;
+    for (const auto& p : pts) ranges.insert(p.xyz().norm());
+    for (const auto& q : idx.beams()) {
+      const BeamIndex::Beam b = idx.decode(q);
+      EXPECT_NEAR(b.dir.norm(), 1.0f, 4e-5f);
+      // Some return's range lies within half a step (and float rounding) of it.
+      const float tol = 0.5f * step + 1e-6f * b.range;
+      auto it = ranges.lower_bound(b.range - tol);
+      ASSERT_TRUE(it != ranges.end() && *it <= b.range + tol) << b.range;
+    }
+    // Directions: one return near the +x axis, at a known place in its bin.
+    const BeamIndex one({{3.0f, 1.0f, -0.5f, 0}}, 0.01);
+    const Eigen::Vector3d truth = Eigen::Vector3d(3.0, 1.0, -0.5).normalized();
+    const BeamIndex::Beam b = one.decode(one.beams()[0]);
+    EXPECT_LT(std::asin(b.dir.cast<double>().normalized().cross(truth).norm()), 5e-5);
+    EXPECT_NEAR(b.range, std::sqrt(10.25f), 1.0f / 1024 + 1e-6f);
+  }
+}
+
+TEST(BeamIndex, DropsReturnsWithNoDirectionOrAnInfiniteRange) {
+  const float inf = std::numeric_limits<float>::infinity();
+  const BeamIndex idx({{0, 0, 0, 0}, {inf, 0, 0, 0}, {5, 0, 0, 0}}, 0.01);
+  ASSERT_EQ(idx.size(), 1u);
+  EXPECT_EQ(idx.farthest(), 5.0f);
+  EXPECT_EQ(idx.rangeUnit(), 1.0f / 512);
+}
 
 TEST(BeamIndex, FindsExactlyTheBeamsABruteForceFinds) {
   std::mt19937 rng(1);
@@ -34,17 +86,16 @@ TEST(BeamIndex, FindsExactlyTheBeamsABruteForceFinds) {
   const double radius = 0.03;
   const BeamIndex idx(pts, radius);
   EXPECT_EQ(idx.size(), pts.size());
+  const auto stored = storedBeams(idx);
   for (int q = 0; q < 300; ++q) {
     Eigen::Vector3f dir =
         q == 0 ? Eigen::Vector3f(-1, -0.0005f, 0) : Eigen::Vector3f(u(rng), u(rng), 0.4f * u(rng));
     dir.normalize();
     std::multiset<float> brute, found;
-    for (const auto& p : pts) {
-      const Eigen::Vector3f v = p.xyz().normalized();
-      if (std::acos(std::min(1.0f, v.dot(dir))) <= radius) brute.insert(p.xyz().norm());
-    }
+    for (const auto& b : stored)
+      if (angle(b, dir) <= radius) brute.insert(b.range);
     idx.forEachNear(dir, radius, [&](const BeamIndex::Beam& b) {
-      if (std::acos(std::min(1.0f, b.dir.dot(dir))) <= radius) found.insert(b.range);
+      if (angle(b, dir) <= radius) found.insert(b.range);
     });
     ASSERT_EQ(found, brute) << "query " << q;
   }
@@ -68,17 +119,16 @@ TEST(BeamIndex, FindsEveryBeamInTheConeAtAnyElevation) {
   for (float z : {-1.0f, 1.0f}) pts.push_back({0.0f, 0.0f, 20 * z, 0});  // the poles
   const double radius = 0.0105;
   const BeamIndex idx(pts, radius);
+  const auto stored = storedBeams(idx);
   for (int q = 0; q < 400; ++q) {
     Eigen::Vector3f dir(u(rng), u(rng), u(rng));
     if (q < 4) dir = Eigen::Vector3f(q == 2 ? 0.001f : 0.0f, q == 3 ? -0.0f : 0.0f, q % 2 ? 1 : -1);
     if (q == 4) dir = Eigen::Vector3f(-1, -0.0f, 0);
     dir.normalize();
     std::size_t brute = 0, found = 0;
-    for (const auto& p : pts)
-      brute += std::acos(std::min(1.0f, p.xyz().normalized().dot(dir))) <= radius;
-    idx.forEachNear(dir, radius, [&](const BeamIndex::Beam& b) {
-      found += std::acos(std::min(1.0f, b.dir.dot(dir))) <= radius;
-    });
+    for (const auto& b : stored) brute += angle(b, dir) <= radius;
+    idx.forEachNear(dir, radius,
+                    [&](const BeamIndex::Beam& b) { found += angle(b, dir) <= radius; });
     ASSERT_EQ(found, brute) << "query " << q << ": " << dir.transpose();
   }
 }
@@ -93,6 +143,7 @@ TEST(BeamIndex, BoxQueryFindsEveryBeamOfTheBand) {
   auto pts = randomCloud(rng, 40000, 0.6f);
   const double cone = 0.0105, gap = 2.0 * M_PI / 180.0;
   const BeamIndex idx(pts, cone);
+  const auto stored = storedBeams(idx);
   std::size_t in_band = 0;
   for (int q = 0; q < 400; ++q) {
     Eigen::Vector3f dir(u(rng), u(rng), 0.6f * u(rng));
@@ -104,9 +155,9 @@ TEST(BeamIndex, BoxQueryFindsEveryBeamOfTheBand) {
       return v.dot(dir) > 0 && std::abs(v.dot(east)) <= cone && std::abs(v.dot(up)) <= gap;
     };
     std::size_t brute = 0, found = 0;
-    for (const auto& p : pts) brute += band(p.xyz().normalized());
+    for (const auto& b : stored) brute += band(b.dir.normalized());
     idx.forEachNearBox(dir, 1.01 * cone, 1.01 * gap + 2e-4,
-                       [&](const BeamIndex::Beam& b) { found += band(b.dir); });
+                       [&](const BeamIndex::Beam& b) { found += band(b.dir.normalized()); });
     ASSERT_EQ(found, brute) << "query " << q << ": " << dir.transpose();
     in_band += brute;
   }
@@ -137,5 +188,5 @@ TEST(BeamIndex, FastBinningEqualsTheLibmBinningOnBinEdges) {
   ASSERT_EQ(fast.size(), exact.size());
   EXPECT_EQ(fast.offsets(), exact.offsets());
   ASSERT_EQ(0, std::memcmp(fast.beams().data(), exact.beams().data(),
-                           fast.size() * sizeof(BeamIndex::Beam)));
+                           fast.size() * sizeof(BeamIndex::PackedBeam)));
 }

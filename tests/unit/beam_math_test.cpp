@@ -85,7 +85,7 @@ TEST(BeamIndex, FastBinningEqualsTheLibmBinningOnRealScans) {
       ASSERT_GT(fast.size(), 50000u);
       EXPECT_EQ(fast.offsets(), exact.offsets()) << set << " scan " << i;
       ASSERT_EQ(0, std::memcmp(fast.beams().data(), exact.beams().data(),
-                               fast.size() * sizeof(BeamIndex::Beam)))
+                               fast.size() * sizeof(BeamIndex::PackedBeam)))
           << set << " scan " << i;
     }
   }
@@ -159,25 +159,32 @@ TEST(MovingTest, VectorisedBeamFilterGivesTheScalarBits) {
   std::mt19937 rng(5);
   std::uniform_real_distribution<float> u(-1, 1), range(0.5f, 80);
   constexpr int kMax = 40;
-  std::vector<BeamIndex::Beam> beams(kMax);
+  std::vector<BeamIndex::PackedBeam> beams(kMax);
+  // Two range steps: the default 2^-9 m and 2^-8 m, an index whose farthest return is 200 m.
+  const BeamIndex near_index({{10, 0, 0, 0}}, 0.01), far_index({{200, 0, 0, 0}}, 0.01);
+  ASSERT_EQ(near_index.rangeUnit(), 1.0f / 512);
+  ASSERT_EQ(far_index.rangeUnit(), 1.0f / 256);
+  auto quantise = [](float c) { return static_cast<int16_t>(std::lrint(c * 32767.0f)); };
   for (int trial = 0; trial < 3000; ++trial) {
+    const BeamIndex& index = trial % 2 ? far_index : near_index;
     Eigen::Vector3f dir(u(rng), u(rng), 0.3f * u(rng));
     dir.normalize();
     const float df = range(rng), r2max = 1e-4f, r_far = 3.0f;
     for (auto& b : beams) {  // around dir, some in the cone, some behind the sensor
-      b.dir =
+      const Eigen::Vector3f d =
           (trial % 5 == 0 ? Eigen::Vector3f(u(rng), u(rng), u(rng))
                           : Eigen::Vector3f(dir + 0.02f * Eigen::Vector3f(u(rng), u(rng), u(rng))))
               .normalized();
-      b.range = range(rng);
+      b = {quantise(d.x()), quantise(d.y()), quantise(d.z()),
+           static_cast<uint16_t>(range(rng) / index.rangeUnit())};
     }
     const int m = 1 + trial % kMax;
     float r[kMax], t2[kMax];
     int32_t keep[kMax];
-    detail::filterBeams(beams[0].dir.data(), m, dir.x(), dir.y(), dir.z(), df, r2max, r_far, r, t2,
-                        keep);
+    detail::filterBeams(beams.data(), m, index.rangeUnit(), dir.x(), dir.y(), dir.z(), df, r2max,
+                        r_far, r, t2, keep);
     for (int k = 0; k < m; ++k) {
-      const auto& q = beams[static_cast<std::size_t>(k)];
+      const BeamIndex::Beam q = index.decode(beams[static_cast<std::size_t>(k)]);
       const float theta2 = dir.cross(q.dir).squaredNorm();
       const float rr = df * std::sqrt(1.0f - theta2) - q.range;
       const int32_t kk = (theta2 <= r2max) & (dir.dot(q.dir) > 0.0f) & (rr <= r_far);

@@ -17,19 +17,34 @@ BeamIndex::BeamIndex(const std::vector<PointXYZI>& points, double bin, Binning b
     : bin_(bin) {
   n_az_ = std::max(1, static_cast<int>(std::ceil(2.0 * M_PI / bin_)));
   bin_ = 2.0 * M_PI / n_az_;  // an integral number of azimuth bins
-  std::vector<Beam> beams;
-  std::vector<float> dx, dy, dz;  // the directions again, one array per axis (vector loads)
-  beams.reserve(points.size());
-  for (auto* v : {&dx, &dy, &dz}) v->reserve(points.size());
+  // The returns' unit directions (the bins are theirs), then the beams packed (PackedBeam).
+  std::vector<float> dx, dy, dz, ranges;  // one array per axis (vector loads)
+  for (auto* v : {&dx, &dy, &dz, &ranges}) v->reserve(points.size());
   for (const auto& p : points) {
     const Eigen::Vector3f v(p.x, p.y, p.z);
     const float r = v.norm();
-    if (!(r > 1e-3f)) continue;  // no direction
-    beams.push_back({v / r, r});
-    dx.push_back(beams.back().dir.x());
-    dy.push_back(beams.back().dir.y());
-    dz.push_back(beams.back().dir.z());
+    if (!(r > 1e-3f) || !std::isfinite(r)) continue;  // no direction
+    const Eigen::Vector3f u = v / r;
+    dx.push_back(u.x());
+    dy.push_back(u.y());
+    dz.push_back(u.z());
+    ranges.push_back(r);
     farthest_ = std::max(farthest_, r);
+  }
+  while (farthest_ / range_unit_ > 65535.0f) range_unit_ *= 2.0f;
+  std::vector<PackedBeam> beams(ranges.size());
+  {
+    // Round to nearest (the magnitudes are below 2^16, where adding and subtracting 1.5 * 2^23
+    // rounds a float to an integer, ties to even), in vector lanes.
+    auto round = [](float x) { return (x + 12582912.0f) - 12582912.0f; };
+    const float inv_unit = 1.0f / range_unit_;
+    for (std::size_t i = 0; i < beams.size(); ++i) {
+      auto component = [&](float c) {
+        return static_cast<int16_t>(std::clamp(round(c * 32768.0f), -32767.0f, 32767.0f));
+      };
+      beams[i] = {component(dx[i]), component(dy[i]), component(dz[i]),
+                  static_cast<uint16_t>(std::min(round(ranges[i] * inv_unit), 65535.0f))};
+    }
   }
   if (beams.empty()) return;
   const std::size_t n = beams.size();
@@ -51,7 +66,7 @@ BeamIndex::BeamIndex(const std::vector<PointXYZI>& points, double bin, Binning b
     }
     n_el_ = static_cast<int>(std::floor((el_max - el_min_) / bin_)) + 1;
     for (std::size_t i = 0; i < n; ++i)
-      bin_of[i] = static_cast<uint32_t>(el_bin(el[i]) * n_az_ + azBin(exact_az(i)));
+      bin_of[i] = static_cast<uint32_t>(azBin(exact_az(i)) * n_el_ + el_bin(el[i]));
   } else {
     std::vector<float> el(n), az(n);
     detail::approxAngles(dx.data(), dy.data(), dz.data(), n, el.data(), az.data());
@@ -74,7 +89,7 @@ BeamIndex::BeamIndex(const std::vector<PointXYZI>& points, double bin, Binning b
           fast::binOrExact(te, kBinTolerance, [&] { return el_bin(exact_el(i)); }), n_el_ - 1);
       const int a = std::clamp(
           fast::binOrExact(ta, kBinTolerance, [&] { return azBin(exact_az(i)); }), 0, n_az_ - 1);
-      bin_of[i] = static_cast<uint32_t>(e * n_az_ + a);
+      bin_of[i] = static_cast<uint32_t>(a * n_el_ + e);
     }
   }
   const std::size_t nbins = static_cast<std::size_t>(n_el_) * static_cast<std::size_t>(n_az_);

@@ -175,18 +175,19 @@ ds::Mass MovingTest::scanMassAt(const Eigen::Vector3d& pl, double d, const Windo
   if (math_ == BeamMath::kFast) {
     // The same filter over each run of beams, kRun at a time, in vector lanes (beam_filter.cpp,
     // the same bits); the kept ones are then gathered in order by a count, as above.
-    static_assert(sizeof(BeamIndex::Beam) == 4 * sizeof(float));
     constexpr int kRun = 32;
     alignas(64) float r_run[kRun], t2_run[kRun];
     alignas(64) int32_t keep_run[kRun];
-    s.beams->forEachRunNear(
-        dir, radius, [&](const BeamIndex::Beam* q, const BeamIndex::Beam* last) {
+    const BeamIndex& index = *s.beams;
+    index.forEachRunNear(
+        dir, radius, [&](const BeamIndex::PackedBeam* q, const BeamIndex::PackedBeam* last) {
           while (q < last) {
             const int run = static_cast<int>(std::min<std::ptrdiff_t>(last - q, kRun));
-            detail::filterBeams(q->dir.data(), run, dir.x(), dir.y(), dir.z(), df, r2max, r_far,
-                                r_run, t2_run, keep_run);
+            detail::filterBeams(q, run, index.rangeUnit(), dir.x(), dir.y(), dir.z(), df, r2max,
+                                r_far, r_run, t2_run, keep_run);
             if (edges)
-              for (int k = 0; k < run; ++k) keep_run[k] &= open_side(q[k].dir) ? 0 : 1;
+              for (int k = 0; k < run; ++k)
+                keep_run[k] &= open_side(index.decode(q[k]).dir) ? 0 : 1;
             for (int k = 0; k < run; ++k) {
               r_b[n] = r_run[k];
               t2_b[n] = t2_run[k];

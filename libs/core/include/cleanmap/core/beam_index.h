@@ -15,10 +15,25 @@ namespace cleanmap {
 
 class BeamIndex {
  public:
+  /// A beam as the queries give it: its stored direction and range, decoded (PackedBeam).
   struct Beam {
-    Eigen::Vector3f dir;  ///< unit direction, sensor frame
+    Eigen::Vector3f dir;  ///< direction, sensor frame: unit to within 4e-5
     float range;          ///< |OQ|, m
   };
+  /// A beam as the index stores it (issue #16: 8 bytes instead of 16, half the index's memory and
+  /// the moving test's loads): the unit direction's components in steps of kDirUnit (2^-15, about
+  /// 3e-5 rad, against the cone's 1e-2) and the range in steps of rangeUnit() (2^-9 m, coarser
+  /// powers of two only for returns beyond 128 m). Both steps are powers of two, so decoding is
+  /// exact in float.
+  struct PackedBeam {
+    int16_t x, y, z;
+    uint16_t range;
+  };
+  static constexpr float kDirUnit = 1.0f / 32768.0f;
+  /// A stored direction lies within this angle of its return's (components rounded to
+  /// kDirUnit / 2, one clamped at 1 - kDirUnit: at most 3.1e-5 rad). A beam's bin is its return's;
+  /// the queries widen their bounds by this.
+  static constexpr double kDirError = 5e-5;  // rad
 
   /// How a beam's bin is found. Both give the same index, bit for bit: a beam's bins are those
   /// of libm's double asin / atan2 of its direction. kFast computes them with the vectorised
@@ -39,12 +54,13 @@ class BeamIndex {
   /// Calls f(const Beam&) for every beam whose bin could lie within `radius` rad of `dir`
   /// (unit, sensor frame); f filters by the exact angle. Any radius (a wider one spans more
   /// bins; the moving test's conflict check widens it with the pose error). The bins are found with
-  /// fast::asin / fast::atan2 and widened by kAngleError, so they hold every beam within
-  /// `radius`; beams come in bin order (a full azimuth row from bin 0).
+  /// fast::asin / fast::atan2 and widened by kAngleError and kDirError, so they hold every beam
+  /// whose stored direction lies within `radius`; beams come in bin order (azimuth-major; a full
+  /// circle from azimuth bin 0).
   template <class F>
   void forEachNear(const Eigen::Vector3f& dir, double radius, F&& f) const;
-  /// The same beams as forEachNear, as runs: f(const Beam* first, const Beam* last) for each
-  /// non-empty run of consecutive beams, in the same order.
+  /// The same beams as forEachNear, still packed, as runs: f(const PackedBeam* first, const
+  /// PackedBeam* last) for each non-empty run of consecutive beams, in the same order.
   template <class F>
   void forEachRunNear(const Eigen::Vector3f& dir, double radius, F&& f) const;
   /// forEachNear over a box instead of a disc: the beams whose bin could lie within `az_radius`
@@ -53,11 +69,17 @@ class BeamIndex {
   template <class F>
   void forEachNearBox(const Eigen::Vector3f& dir, double az_radius, double el_radius, F&& f) const;
 
-  float farthest() const { return farthest_; }  ///< |OB|
+  float farthest() const { return farthest_; }  ///< |OB| (the return's range, not rounded)
   std::size_t size() const { return beams_.size(); }
   bool empty() const { return beams_.empty(); }
-  const std::vector<Beam>& beams() const { return beams_; }  ///< sorted by bin
-  /// CSR over bins (elevation-major): the beams of bin b are [offsets()[b], offsets()[b + 1]).
+  const std::vector<PackedBeam>& beams() const { return beams_; }  ///< sorted by bin
+  float rangeUnit() const { return range_unit_; }                  ///< m per PackedBeam::range
+  Beam decode(const PackedBeam& q) const {
+    return {Eigen::Vector3f(q.x * kDirUnit, q.y * kDirUnit, q.z * kDirUnit),
+            static_cast<float>(q.range) * range_unit_};
+  }
+  /// CSR over bins (azimuth-major, bin a * elevation bins + e): the beams of bin b are
+  /// [offsets()[b], offsets()[b + 1]).
   const std::vector<uint32_t>& offsets() const { return offsets_; }
 
  private:
@@ -68,22 +90,24 @@ class BeamIndex {
   int n_az_ = 0, n_el_ = 0;
   double el_min_ = 0;
   float farthest_ = 0;
-  std::vector<Beam> beams_;        // sorted by bin
-  std::vector<uint32_t> offsets_;  // CSR: beams of bin b are [offsets_[b], offsets_[b+1])
+  float range_unit_ = 1.0f / 512.0f;
+  std::vector<PackedBeam> beams_;  // sorted by bin
+  std::vector<uint32_t>
+      offsets_;  // CSR, azimuth-major: beams of bin b are [offsets_[b], offsets_[b+1])
 };
 
 template <class F>
 void BeamIndex::forEachNear(const Eigen::Vector3f& dir, double radius, F&& f) const {
-  forEachRunNear(dir, radius, [&](const Beam* first, const Beam* last) {
-    for (const Beam* q = first; q != last; ++q) f(*q);
+  forEachRunNear(dir, radius, [&](const PackedBeam* first, const PackedBeam* last) {
+    for (const PackedBeam* q = first; q != last; ++q) f(decode(*q));
   });
 }
 
 template <class F>
 void BeamIndex::forEachNearBox(const Eigen::Vector3f& dir, double az_radius, double el_radius,
                                F&& f) const {
-  forEachRunInBox(dir, az_radius, el_radius, [&](const Beam* first, const Beam* last) {
-    for (const Beam* q = first; q != last; ++q) f(*q);
+  forEachRunInBox(dir, az_radius, el_radius, [&](const PackedBeam* first, const PackedBeam* last) {
+    for (const PackedBeam* q = first; q != last; ++q) f(decode(*q));
   });
 }
 
@@ -100,7 +124,7 @@ void BeamIndex::forEachRunInBox(const Eigen::Vector3f& dir, double az_radius, do
   // angles would give (the exact filter is f's).
   const float z = std::clamp(dir.z(), -1.0f, 1.0f);
   const double el = fast::asin(z), az = fast::atan2(dir.y(), dir.x());
-  const double r = el_radius + kAngleError, ra = az_radius + kAngleError;
+  const double r = el_radius + kAngleError + kDirError, ra = az_radius + kAngleError + kDirError;
   const int e0 = static_cast<int>(std::floor((el - r - el_min_) / bin_));
   const int e1 = static_cast<int>(std::floor((el + r - el_min_) / bin_));
   if (e1 < 0 || e0 >= n_el_) return;
@@ -113,16 +137,25 @@ void BeamIndex::forEachRunInBox(const Eigen::Vector3f& dir, double az_radius, do
   const int a_lo = static_cast<int>(std::floor((az - daz + M_PI) / bin_));
   const int a_hi = static_cast<int>(std::floor((az + daz + M_PI) / bin_));
   const int span = std::min(a_hi - a_lo, n_az_ - 1);
-  // A row's bins a_first .. a_first + span are one range of beams_ (two where they wrap at 2 pi).
   const int a_first = span == n_az_ - 1 ? 0 : (a_lo % n_az_ + n_az_) % n_az_;
-  const int a_end = a_first + span + 1;
-  for (int e = std::max(e0, 0); e <= std::min(e1, n_el_ - 1); ++e) {
-    const uint32_t* row = offsets_.data() + static_cast<std::size_t>(e) * n_az_;
-    const Beam* b = beams_.data();
-    if (row[a_first] < row[std::min(a_end, n_az_)])
-      f(b + row[a_first], b + row[std::min(a_end, n_az_)]);
-    if (a_end > n_az_ && row[0] < row[a_end - n_az_]) f(b + row[0], b + row[a_end - n_az_]);
+  const int lo = std::max(e0, 0), hi = std::min(e1, n_el_ - 1);
+  // Azimuth-major: an azimuth bin's elevations lo .. hi are one range of beams_, and the ranges
+  // of neighbouring bins join where they span every elevation.
+  const PackedBeam* b = beams_.data();
+  uint32_t first = 0, last = 0;
+  for (int k = 0; k <= span; ++k) {
+    const int a = a_first + k < n_az_ ? a_first + k : a_first + k - n_az_;
+    const uint32_t* col = offsets_.data() + static_cast<std::size_t>(a) * n_el_;
+    const uint32_t from = col[lo], to = col[hi + 1];
+    if (from == last) {  // the next bin of offsets_: the range goes on
+      last = to;
+      continue;
+    }
+    if (first < last) f(b + first, b + last);
+    first = from;
+    last = to;
   }
+  if (first < last) f(b + first, b + last);
 }
 
 }  // namespace cleanmap
