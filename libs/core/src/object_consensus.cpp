@@ -53,13 +53,14 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
     }
     point_voxel[i] = v;
   }
-  // 26-connected components of the voxels.
+  // 26-connected components of the voxels: each pair of neighbours met once (a component's root
+  // is its smallest voxel whatever the order of the unions).
   UnionFind uf(voxels.size());
   for (uint32_t v = 0; v < voxels.size(); ++v) {
     const Eigen::Vector3i& c = voxels[v];
-    forEachNeighbour27([&](int dx, int dy, int dz) {  // the centre finds v itself: not < v
+    forEachNeighbour13([&](int dx, int dy, int dz) {
       const uint32_t* n = voxel_of.find(cellKey(c.x() + dx, c.y() + dy, c.z() + dz));
-      if (n && *n < v) uf.unite(v, *n);
+      if (n) uf.unite(v, *n);
     });
   }
   // Per component: point counts and extent.
@@ -122,9 +123,9 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
   for (uint32_t v = 0; v < voxels.size(); ++v) {
     if (!moving_in[v]) continue;
     const Eigen::Vector3i& c = voxels[v];
-    forEachNeighbour27([&](int dx, int dy, int dz) {
+    forEachNeighbour13([&](int dx, int dy, int dz) {
       const uint32_t* n = voxel_of.find(cellKey(c.x() + dx, c.y() + dy, c.z() + dz));
-      if (n && *n < v && moving_in[*n]) muf.unite(v, *n);
+      if (n && moving_in[*n]) muf.unite(v, *n);
     });
   }
   std::vector<uint32_t> group(voxels.size(), 0);

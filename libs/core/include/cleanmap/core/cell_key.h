@@ -43,4 +43,14 @@ inline void forEachNeighbour27(F&& f) {
       for (int dz = -1; dz <= 1; ++dz) f(dx, dy, dz);
 }
 
+/// Calls f(dx, dy, dz) for the 13 offsets of the neighbourhood that come after (0, 0, 0) in
+/// forEachNeighbour27's order: visiting them from every cell meets each pair of neighbouring
+/// cells once (a symmetric relation, such as connectivity, needs no more).
+template <class F>
+inline void forEachNeighbour13(F&& f) {
+  forEachNeighbour27([&](int dx, int dy, int dz) {
+    if (dx > 0 || (dx == 0 && (dy > 0 || (dy == 0 && dz > 0)))) f(dx, dy, dz);
+  });
+}
+
 }  // namespace cleanmap
