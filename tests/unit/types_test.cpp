@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: BSD-3-Clause
 #include <gtest/gtest.h>
 
+#include <array>
 #include <atomic>
 #include <numeric>
 #include <random>
@@ -131,6 +132,20 @@ TEST(CellKey, FloorNeighboursAndShift) {
   // Negative and positive cells never collide within +-2^20.
   EXPECT_NE(cellKey(-1, 0, 0), cellKey(1, 0, 0));
   EXPECT_NE(cellKey(0, -(1 << 20), 0), cellKey(0, (1 << 20) - 1, 0));
+}
+
+TEST(CellKey, HalfNeighbourhoodMeetsEachPairOnce) {
+  // forEachNeighbour13 (the object consensus's unions): 13 offsets, none the cell itself, and of
+  // each offset and its opposite exactly one, so visiting them from every cell meets each pair
+  // of neighbouring cells once.
+  std::set<std::array<int, 3>> half;
+  forEachNeighbour13([&](int dx, int dy, int dz) { half.insert({dx, dy, dz}); });
+  EXPECT_EQ(half.size(), 13u);
+  EXPECT_FALSE(half.count({0, 0, 0}));
+  forEachNeighbour27([&](int dx, int dy, int dz) {
+    if (dx == 0 && dy == 0 && dz == 0) return;
+    EXPECT_NE(half.count({dx, dy, dz}), half.count({-dx, -dy, -dz})) << dx << dy << dz;
+  });
 }
 
 TEST(CellMap, HoldsWhatStdUnorderedMapHolds) {
