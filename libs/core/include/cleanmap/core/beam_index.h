@@ -92,8 +92,7 @@ class BeamIndex {
   float farthest_ = 0;
   float range_unit_ = 1.0f / 512.0f;
   std::vector<PackedBeam> beams_;  // sorted by bin
-  std::vector<uint32_t>
-      offsets_;  // CSR, azimuth-major: beams of bin b are [offsets_[b], offsets_[b+1])
+  std::vector<uint32_t> offsets_;  // CSR over the bins, azimuth-major (offsets())
 };
 
 template <class F>
