@@ -36,9 +36,9 @@ void VoxelMap::remove(int64_t scan, const std::vector<uint8_t>& drop) {
   for (const auto& [s, keys] : touched_) {
     if (s != scan) continue;
     for (const uint64_t k : keys) {
-      const auto it = grid_.find(k);
-      if (it == grid_.end()) continue;
-      Voxel& v = it->second;
+      Voxel* found = grid_.find(k);
+      if (!found) continue;
+      Voxel& v = *found;
       std::size_t kept = 0;
       for (std::size_t e = 0; e < v.p.size(); ++e) {
         const auto [s2, point] = v.origin[e];
@@ -52,20 +52,20 @@ void VoxelMap::remove(int64_t scan, const std::vector<uint8_t>& drop) {
       v.p.resize(kept);
       v.cov.resize(kept);
       v.origin.resize(kept);
-      if (kept == 0) grid_.erase(it);
+      if (kept == 0) grid_.erase(k);
     }
   }
 }
 
 void VoxelMap::prune(const Eigen::Vector3d& centre, double radius) {
   const double r2 = radius * radius;
-  for (auto it = grid_.begin(); it != grid_.end();) {
-    if (!it->second.p.empty() && (it->second.p.front() - centre).squaredNorm() > r2) {
-      count_ -= it->second.p.size();
-      it = grid_.erase(it);
-    } else {
-      ++it;
-    }
+  std::vector<uint64_t> far;  // erased after the walk: an erase shifts later slots back
+  grid_.forEach([&](uint64_t k, const Voxel& v) {
+    if (!v.p.empty() && (v.p.front() - centre).squaredNorm() > r2) far.push_back(k);
+  });
+  for (const uint64_t k : far) {
+    count_ -= grid_.find(k)->p.size();
+    grid_.erase(k);
   }
 }
 
@@ -78,9 +78,9 @@ VoxelMap::Match VoxelMap::nearest(const Eigen::Vector3d& p, double max_dist) con
   const uint64_t c = cellKey(static_cast<int64_t>(cell.x()), static_cast<int64_t>(cell.y()),
                              static_cast<int64_t>(cell.z()));
   auto scan = [&](uint64_t key) {
-    const auto it = grid_.find(key);
-    if (it == grid_.end()) return;
-    const Voxel& v = it->second;
+    const Voxel* found = grid_.find(key);
+    if (!found) return;
+    const Voxel& v = *found;
     for (std::size_t e = 0; e < v.p.size(); ++e) {
       const double d2 = (v.p[e] - p).squaredNorm();
       if (d2 < best2) best2 = d2, best = Match{&v.p[e], &v.cov[e]};
