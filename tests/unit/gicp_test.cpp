@@ -4,7 +4,9 @@
 #include <gtest/gtest.h>
 
 #include <random>
+#include <unordered_map>
 
+#include "cleanmap/core/cell_key.h"
 #include "cleanmap/registration/gicp.h"
 #include "cleanmap/registration/odometry.h"
 
@@ -174,4 +176,60 @@ TEST(Odometry, TracksAConstantMotionAndRefusesJumps) {
       odo.track(scanAt(pose(34, 0, 0, 0, 0, 0), 7), 0.6, 6, pose(34, 0, 0, 0, 0, 0));
   EXPECT_FALSE(j.accepted);
   EXPECT_NE(j.status.find("jump"), std::string::npos) << j.status;
+}
+
+// The local map against a brute-force search over the entries it should still hold, after a
+// scan's flagged points are taken out (Odometry::dropPoints) and far voxels are forgotten: the
+// nearest entry within max_dist, and the count.
+TEST(VoxelMap, NearestMatchesBruteForceAfterRemovalsAndPruning) {
+  constexpr double kVoxel = 1.0;
+  VoxelMap map(kVoxel, 1000);  // room for every point: the brute force needs no per-voxel cap
+  struct Entry {
+    Eigen::Vector3d p;
+    int64_t scan;
+    uint32_t point;
+  };
+  std::vector<Entry> all;
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<double> u(-20.0, 20.0);
+  for (int64_t scan = 0; scan < 4; ++scan) {
+    CovCloud c;
+    for (uint32_t i = 0; i < 3000; ++i) {
+      c.points.push_back({u(rng), u(rng), 0.1 * u(rng)});
+      c.covs.push_back(Eigen::Matrix3d::Identity());
+      all.push_back({c.points.back(), scan, i});
+    }
+    map.insert(c, scan);
+  }
+  ASSERT_EQ(map.size(), all.size());
+  std::vector<uint8_t> drop(3000, 0);
+  for (std::size_t i = 0; i < drop.size(); i += 3) drop[i] = 1;  // scan 2's moving points
+  map.remove(2, drop);
+  // Forget the voxels whose first entry lies beyond 15 m of (5, 0, 0), as VoxelMap::prune does.
+  const Eigen::Vector3d centre(5, 0, 0);
+  map.prune(centre, 15.0);
+  auto key = [](const Eigen::Vector3d& p) { return cellKeyOf(p.x(), p.y(), p.z(), 1.0 / kVoxel); };
+  std::vector<Entry> left;
+  for (const Entry& e : all)
+    if (!(e.scan == 2 && drop[e.point])) left.push_back(e);
+  std::unordered_map<uint64_t, Eigen::Vector3d> first;  // each voxel's first entry left
+  for (const Entry& e : left) first.emplace(key(e.p), e.p);
+  std::vector<Eigen::Vector3d> kept;
+  for (const Entry& e : left)
+    if ((first.at(key(e.p)) - centre).squaredNorm() <= 15.0 * 15.0) kept.push_back(e.p);
+  EXPECT_EQ(map.size(), kept.size());
+  ASSERT_GT(kept.size(), 1000u);
+  ASSERT_LT(kept.size(), left.size());
+  for (int q = 0; q < 2000; ++q) {
+    const Eigen::Vector3d p(u(rng), u(rng), 0.1 * u(rng));
+    double best = 0.8 * 0.8;  // max_dist 0.8 m
+    bool any = false;
+    for (const auto& k : kept)
+      if ((k - p).squaredNorm() < best) best = (k - p).squaredNorm(), any = true;
+    const VoxelMap::Match m = map.nearest(p, 0.8);
+    ASSERT_EQ(bool(m), any) << "query " << q;
+    if (any) {
+      EXPECT_EQ((*m.p - p).squaredNorm(), best) << "query " << q;
+    }
+  }
 }
