@@ -245,6 +245,7 @@ int main(int argc, char** argv) {
       moving->setCamera(src->camera());
     }
     moving->setSaveOverlays(overlays);
+    moving->setRegisterAhead(true);  // with GICP and threads > 1 (issue #16)
     // The next frame is read and decoded while the pipeline decides this one (issue #16); the
     // KITTI reader's labels are still read here (its const loadLabels is safe beside that).
     src = std::make_unique<cleanmap::io::PrefetchSource>(std::move(src));

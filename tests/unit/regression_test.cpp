@@ -235,6 +235,59 @@ TEST(Regression, CleanMapAboveDufomap) {
   }
 }
 
+// Issue #16: GICP registering each frame on a thread of its own while the frames before it are
+// decided (LaserPipeline::registerAhead, the app's way with threads > 1) gives every scan the same
+// pose and labels as registering it in push(), images included; a pipeline holds at most K + 1
+// undecided frames; a clone taken while a frame registers continues as its original does.
+TEST(Regression, RegisteringAheadChangesNothing) {
+  CLEANMAP_REQUIRE_DATASET("kitti_highway");
+  auto seq = io::KittiSequence::open(test::dataDir() + "/kitti_highway");
+  PipelineParams params;
+  params.poses = PoseSource::kGicp;
+  params.threads = 2;
+  const std::size_t n = std::min<std::size_t>(seq.size(), 20), cut = 12;
+  using Results = std::map<std::size_t, std::pair<Eigen::Matrix4d, uint64_t>>;
+  const auto into = [](Results& out) {
+    return [&out](ScanResult&& r) {
+      OutputDigest d;
+      d.add(r);
+      out[r.index] = {r.pose.matrix(), d.labels ^ d.full};
+    };
+  };
+  Results inline_reg, ahead, copy;
+  {
+    LaserPipeline pl(params, into(inline_reg));
+    pl.setCamera(seq.camera());
+    for (std::size_t i = 0; i < n; ++i) pl.push(seq.frame(i));
+    pl.finish();
+  }
+  {
+    LaserPipeline pl(params, into(ahead));
+    pl.setCamera(seq.camera());
+    pl.registerAhead(true);
+    std::unique_ptr<LaserPipeline> c;
+    for (std::size_t i = 0; i < n; ++i) {
+      pl.push(seq.frame(i));
+      EXPECT_EQ(pl.pending(), std::min<std::size_t>(i + 1, params.ds.window_k + 1)) << i;
+      if (i == cut) c = pl.clone(into(copy));
+    }
+    for (std::size_t i = cut + 1; i < n; ++i) c->push(seq.frame(i));
+    pl.finish();
+    c->finish();
+  }
+  ASSERT_EQ(inline_reg.size(), n);
+  ASSERT_EQ(ahead.size(), n);
+  for (const auto& [i, r] : inline_reg) {
+    EXPECT_TRUE(ahead[i].first == r.first) << "pose of scan " << i;
+    EXPECT_EQ(ahead[i].second, r.second) << "labels of scan " << i;
+  }
+  ASSERT_EQ(copy.size(), n - (cut - params.ds.window_k));  // the scans decided after the cut
+  for (const auto& [i, r] : copy) {
+    EXPECT_TRUE(ahead[i].first == r.first) << "clone: pose of scan " << i;
+    EXPECT_EQ(ahead[i].second, r.second) << "clone: labels of scan " << i;
+  }
+}
+
 // DESIGN §2f: a long drive cut into chunks for a cluster. With epochs of 10 scans and K = 5 (so
 // that the 30 scans hold two chunks), each chunk's owned scans get the whole run's labels byte
 // for byte however far before its first owned epoch the chunk starts (2K at least), and the

@@ -117,6 +117,7 @@ void CMovingObjectsMap::copyFrom(const CMovingObjectsMap& o) {
   store_points_ = o.store_points_;
   keep_scans_ = o.keep_scans_;
   overlays_ = o.overlays_;
+  register_ahead_ = o.register_ahead_;
   camera_ = o.camera_;
   next_index_ = o.next_index_;
   static_ = o.static_;
@@ -149,6 +150,11 @@ void CMovingObjectsMap::setSaveOverlays(bool on) {
   if (pipe_) pipe_->saveOverlays(on);
 }
 
+void CMovingObjectsMap::setRegisterAhead(bool on) {
+  register_ahead_ = on;
+  if (pipe_) pipe_->registerAhead(on);
+}
+
 std::size_t CMovingObjectsMap::pending() const {
   return pipe_ ? pipe_->pending() : 0;
 }
@@ -160,6 +166,7 @@ void CMovingObjectsMap::ensurePipeline() {
   pipe_->keepScans(keep_scans_);
   pipe_->setCamera(camera_);
   pipe_->saveOverlays(overlays_);
+  pipe_->registerAhead(register_ahead_);
 }
 
 void CMovingObjectsMap::insertFrame(cleanmap::Frame&& frame) {

@@ -28,6 +28,8 @@ namespace cleanmap {
 
 struct LaserPipeline::Prepared {
   std::size_t index;
+  long seq = 0;                    // its place in the pushed sequence
+  bool registered_beside = false;  // its registration ran on the RegQueue's thread
   std::string stem, source;
   Scan scan;
   BeamIndex beams;
@@ -185,12 +187,88 @@ struct LaserPipeline::FreeQueue {
   std::thread worker;
 };
 
+// Issue #16 (registerAhead): a pushed frame's registration on a thread of its own, one at a time,
+// while push() decides the scans before it. Only that thread touches the registration state
+// (odo_, prev_odometry_, prev_pose_) while a frame is in flight; the pipeline's thread reads it
+// again only after wait().
+struct LaserPipeline::RegQueue {
+  explicit RegQueue(LaserPipeline& p) : pipe(p) {}
+  ~RegQueue() {
+    {
+      std::lock_guard<std::mutex> lock(mu);
+      closing = true;
+    }
+    cv.notify_all();
+    if (worker.joinable()) worker.join();  // a registration in progress finishes first
+  }
+  void start(Registered&& r) {
+    {
+      std::lock_guard<std::mutex> lock(mu);
+      if (!worker.joinable()) worker = std::thread([this] { run(); });
+      slot = std::move(r);
+      done = false;
+    }
+    in_flight = true;
+    cv.notify_all();
+  }
+  // Waits for the frame started last; it stays in the slot.
+  const Registered& wait() {
+    std::unique_lock<std::mutex> lock(mu);
+    cv.wait(lock, [&] { return done; });
+    return *slot;
+  }
+  Registered take() {
+    wait();
+    in_flight = false;
+    Registered r = std::move(*slot);
+    slot.reset();
+    return r;
+  }
+  void run() {
+    for (;;) {
+      {
+        std::unique_lock<std::mutex> lock(mu);
+        cv.wait(lock, [&] { return closing || !done; });
+        if (closing) return;
+      }
+      pipe.registerScan(*slot);  // the pipeline's thread leaves the slot alone until done
+      {
+        std::lock_guard<std::mutex> lock(mu);
+        done = true;
+      }
+      cv.notify_all();
+    }
+  }
+
+  LaserPipeline& pipe;
+  std::mutex mu;
+  std::condition_variable cv;
+  std::optional<Registered> slot;
+  bool done = true, closing = false;
+  bool in_flight = false;  // the pipeline's thread's own flag: a frame started, not yet taken
+  std::thread worker;
+};
+
 LaserPipeline::~LaserPipeline() {
+  reg_queue_.reset();   // its thread stops before the registration state it uses goes
   free_queue_.reset();  // its thread stops before the scans its jobs read are destroyed
+}
+
+std::size_t LaserPipeline::pending() const {
+  return buf_.size() - next_ + (reg_queue_ && reg_queue_->in_flight ? 1 : 0) + (held_ ? 1 : 0);
 }
 
 std::unique_ptr<LaserPipeline> LaserPipeline::clone(Sink sink) const {
   auto c = std::make_unique<LaserPipeline>(p_, std::move(sink));
+  // A frame registering ahead: the copy takes it as registered (the odometry copied below is the
+  // one after its registration).
+  if (reg_queue_ && reg_queue_->in_flight)
+    c->held_ = reg_queue_->wait();
+  else
+    c->held_ = held_;
+  c->register_ahead_ = register_ahead_;
+  c->pushed_ = pushed_;
+  c->drops_ = drops_;
   c->test_ = test_;
   c->dup_ = dup_;
   for (const auto& s : buf_) c->buf_.push_back(std::make_unique<Prepared>(*s));
@@ -213,15 +291,41 @@ std::unique_ptr<LaserPipeline> LaserPipeline::clone(Sink sink) const {
   return c;
 }
 
-// DESIGN §2.1: the scan's pose, given or estimated by GICP odometry.
-PoseInfo LaserPipeline::registerScan(Frame& f) {
+// DESIGN §2.1: where the poses come from, resolved on the first frame (auto: given if it has one).
+PoseSource LaserPipeline::resolveSource(const Frame& f) {
   if (source_ == PoseSource::kAuto)
     source_ = f.scan.has_pose ? PoseSource::kGiven : PoseSource::kGicp;
-  PoseInfo info;
-  if (source_ == PoseSource::kGiven) return info;
   if (source_ == PoseSource::kRefine && !f.scan.has_pose)
     throw Error(f.source.empty() ? "scan " + f.stem : f.source,
                 "has no pose to refine (--poses refine)");
+  return source_;
+}
+
+// A decided scan's movers leave GICP's local map (Odometry::dropPoints) before the registration of
+// the scan K + 2 pushes after it: the scan K + 1 after it may be registering while it is decided
+// (registerAhead), and the same lag without it keeps the poses the same.
+void LaserPipeline::applyDrops(long seq) {
+  const long K = p_.ds.window_k;
+  while (!drops_.empty() && drops_.front().seq <= seq - K - 2) {
+    if (odo_) odo_->dropPoints(drops_.front().index, drops_.front().moving);
+    drops_.pop_front();
+  }
+}
+
+// DESIGN §2.1: the frame's pose estimated by GICP odometry (gicp / refine); an error is kept with
+// the frame, for prepare() to rethrow.
+void LaserPipeline::registerScan(Registered& r) {
+  const auto t_reg = Clock::now();
+  try {
+    r.pose_info = registerFrame(r.frame);
+  } catch (...) {
+    r.error = std::current_exception();
+  }
+  r.ms = msSince(t_reg);
+}
+
+PoseInfo LaserPipeline::registerFrame(Frame& f) {
+  PoseInfo info;
   if (!odo_) odo_ = std::make_unique<reg::Odometry>(p_.registration, p_.threads);
   // The initial guess: refine starts from every given pose; with gicp, a given first pose
   // anchors the trajectory (the maps then share the input's world frame and can be scored
@@ -255,10 +359,10 @@ PoseInfo LaserPipeline::registerScan(Frame& f) {
   return info;
 }
 
-std::unique_ptr<LaserPipeline::Prepared> LaserPipeline::prepare(Frame&& f) {
-  const auto t_reg = Clock::now();
-  PoseInfo pose_info = registerScan(f);
-  const double ms_registration = msSince(t_reg);
+std::unique_ptr<LaserPipeline::Prepared> LaserPipeline::prepare(Registered&& r,
+                                                                bool registered_beside) {
+  if (r.error) std::rethrow_exception(r.error);
+  Frame& f = r.frame;
   if (!f.scan.has_pose)
     throw Error(f.source.empty() ? "scan " + f.stem : f.source,
                 p_.poses == PoseSource::kGiven
@@ -267,8 +371,10 @@ std::unique_ptr<LaserPipeline::Prepared> LaserPipeline::prepare(Frame&& f) {
                     : "has no pose while the first scan had one: give every scan a pose, or "
                       "estimate them all with --poses gicp");
   auto s = std::make_unique<Prepared>();
-  s->pose_info = std::move(pose_info);
-  s->stats.ms.registration = ms_registration;
+  s->pose_info = std::move(r.pose_info);
+  s->stats.ms.registration = r.ms;
+  s->registered_beside = registered_beside;
+  s->seq = r.seq;
   s->index = f.index;
   s->stem = std::move(f.stem);
   s->source = std::move(f.source);
@@ -336,14 +442,14 @@ std::unique_ptr<LaserPipeline::Prepared> LaserPipeline::prepare(Frame&& f) {
 
   // DESIGN §3: the scan's camera view (image, sparse depth map, camera pose), built once and
   // used by every scan whose window holds this one.
-  if (camera_ && p_.image.enabled && f.image && !f.image->bgr.empty()) {
+  if (r.camera && p_.image.enabled && f.image && !f.image->bgr.empty()) {
     t0 = Clock::now();
-    s->view = vision::makeCameraView(f.image->bgr, pts, s->scan.pose, *camera_, s->index,
+    s->view = vision::makeCameraView(f.image->bgr, pts, s->scan.pose, *r.camera, s->index,
                                      s->source.empty() ? "scan " + s->stem : s->source,
                                      p_.image.dilation_radius);
     st.image_scans = 1;
     auto* prev = buf_.empty() || !buf_.back()->view ? nullptr : &*buf_.back()->view;
-    if (p_.image.align && prev) linkToPrevious(*buf_.back(), *s);
+    if (p_.image.align && prev) linkToPrevious(*buf_.back(), *s, *r.camera);
     // What only the alignment reads (issue #16): this scan's full-image depth map (read as the
     // aligned view), the previous scan's pyramid (read as the reference), and this scan's own
     // pyramid when nothing will be aligned on it.
@@ -361,7 +467,8 @@ std::unique_ptr<LaserPipeline::Prepared> LaserPipeline::prepare(Frame&& f) {
 // and image. The optical-frame correction C (corrected
 // optical_from_world = C optical_from_world) is the lidar pose T' = T L^-1 C^-1 L (L: optical
 // from lidar), so the corrected motion from the previous scan is T_prev^-1 T D, D = L^-1 C^-1 L.
-void LaserPipeline::linkToPrevious(const Prepared& prev, Prepared& s) const {
+void LaserPipeline::linkToPrevious(const Prepared& prev, Prepared& s,
+                                   const PinholeCamera& camera) const {
   auto& st = s.stats;
   st.image_links = 1;
   std::vector<Eigen::Vector3d> ref;
@@ -374,7 +481,7 @@ void LaserPipeline::linkToPrevious(const Prepared& prev, Prepared& s) const {
   ap.max_translation = p_.image.align_max_shift;
   const auto a = vision::alignView(*prev.view, *s.view, ref, ap);
   if (!a) return;
-  const Eigen::Isometry3d L = camera_->opticalFromLidar();
+  const Eigen::Isometry3d L = camera.opticalFromLidar();
   s.link = L.inverse() * a->correction.inverse() * L;
   st.image_links_aligned = 1;
   st.image_link_shift = a->correction.translation().norm();
@@ -424,8 +531,36 @@ void LaserPipeline::push(Frame&& frame) {
   if (static_cast<long>(frame.index) <= prev_index_)
     throw Error(frame.source.empty() ? "scan " + frame.stem : frame.source, "arrives out of order");
   prev_index_ = static_cast<long>(frame.index);
-  buf_.push_back(prepare(std::move(frame)));
-  decideReady(static_cast<std::size_t>(p_.ds.window_k));
+  const PoseSource source = resolveSource(frame);
+  Registered r;
+  r.frame = std::move(frame);
+  r.seq = pushed_++;
+  r.camera = camera_;
+  const auto K = static_cast<std::size_t>(p_.ds.window_k);
+  if (source == PoseSource::kGiven) {
+    buf_.push_back(prepare(std::move(r), false));
+    decideReady(K);
+    return;
+  }
+  if (!register_ahead_ || p_.threads <= 1) {
+    applyDrops(r.seq);
+    registerScan(r);
+    buf_.push_back(prepare(std::move(r), false));
+    decideReady(K);
+    return;
+  }
+  // Issue #16: this frame registers on its own thread while the one before it is prepared and
+  // the scans before that decided (the drops its registration needs are all applied already).
+  std::optional<Registered> prev = std::move(held_);
+  held_.reset();
+  if (!reg_queue_) reg_queue_ = std::make_unique<RegQueue>(*this);
+  if (reg_queue_->in_flight) prev = reg_queue_->take();
+  applyDrops(r.seq);
+  reg_queue_->start(std::move(r));
+  if (prev) {
+    buf_.push_back(prepare(std::move(*prev), true));
+    decideReady(K);
+  }
 }
 
 // DESIGN §2e: every beam of a decided scan adds to the sequence's free space, the voxels near its
@@ -457,6 +592,10 @@ void LaserPipeline::joinFreeSpace() const {
 }
 
 void LaserPipeline::finish() {
+  std::optional<Registered> last = std::move(held_);
+  held_.reset();
+  if (reg_queue_ && reg_queue_->in_flight) last = reg_queue_->take();
+  if (last) buf_.push_back(prepare(std::move(*last), true));
   decideReady(0);  // the windows shrink at the end
   joinFreeSpace();
   buf_.clear();
@@ -513,12 +652,13 @@ void LaserPipeline::decide(std::size_t pos) {
   validateImages(pos, s, w);               // §3
   ScanResult r = collect(s, w);            // §2.7: labels, static map, dynamic layer
   remember(r, static_cast<long>(s.index));
-  if (odo_)
-    odo_->dropPoints(static_cast<int64_t>(s.index), w.moving);  // movers leave the local map
+  if (source_ == PoseSource::kGicp || source_ == PoseSource::kRefine)  // movers leave GICP's map
+    drops_.push_back({s.seq, static_cast<int64_t>(s.index), w.moving});
   r.stats.ms.free_space = insertFreeSpace(s, w);  // DESIGN §2e, beside the next scan's work
   // The stages before this call, and this call's (the image validation included, once).
-  r.stats.ms.total =
-      msSince(t_start) + s.stats.ms.registration + s.stats.ms.index + s.stats.ms.ground + view_ms;
+  // A registration ahead ran beside the pipeline's work, as the free space does: not in `total`.
+  r.stats.ms.total = msSince(t_start) + (s.registered_beside ? 0.0 : s.stats.ms.registration) +
+                     s.stats.ms.index + s.stats.ms.ground + view_ms;
   ++decided_;
   sink_(std::move(r));
 }

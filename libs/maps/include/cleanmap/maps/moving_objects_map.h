@@ -88,6 +88,9 @@ class CMovingObjectsMap : public mrpt::maps::CMetricMap {
   /// (ScanResult::overlay).
   void setCamera(std::optional<cleanmap::PinholeCamera> camera);
   void setSaveOverlays(bool on);
+  /// Issue #16: GICP registers each inserted frame on a thread of its own while the frames before
+  /// it are decided (LaserPipeline::registerAhead; same results, one frame later).
+  void setRegisterAhead(bool on);
   const std::optional<cleanmap::PinholeCamera>& camera() const { return camera_; }
 
   /// One point per voxel: the static map (ground included) and the moving points, sorted by voxel.
@@ -136,7 +139,7 @@ class CMovingObjectsMap : public mrpt::maps::CMetricMap {
   double map_voxel_ = 0.1;
   std::unique_ptr<cleanmap::LaserPipeline> pipe_;
   std::function<void(cleanmap::ScanResult&&)> sink_;
-  bool store_points_ = true, keep_scans_ = false, overlays_ = false;
+  bool store_points_ = true, keep_scans_ = false, overlays_ = false, register_ahead_ = false;
   std::optional<cleanmap::PinholeCamera> camera_;
   std::optional<std::pair<double, mrpt::poses::CPose3D>> pose_obs_;  // use_pose_observations
   std::size_t next_index_ = 0;  // index given to the next observation inserted through MRPT

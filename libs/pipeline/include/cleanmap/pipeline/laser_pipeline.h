@@ -3,6 +3,7 @@
 // bounded by the window (2K + 1 scans), not by the sequence.
 #pragma once
 #include <deque>
+#include <exception>
 #include <functional>
 #include <limits>
 #include <memory>
@@ -36,8 +37,8 @@ class LaserPipeline {
   void finish();
 
   std::size_t decided() const { return decided_; }
-  /// Scans pushed but not yet decided (at most K until finish()).
-  std::size_t pending() const { return buf_.size() - next_; }
+  /// Scans pushed but not yet decided (at most K until finish(), K + 1 registering ahead).
+  std::size_t pending() const;
   /// A deep copy of the whole state (window, duplicate history, odometry map) handing its
   /// results to `sink`: fed the same scans, it decides them exactly as this pipeline would.
   std::unique_ptr<LaserPipeline> clone(Sink sink) const;
@@ -65,13 +66,30 @@ class LaserPipeline {
   const std::optional<PinholeCamera>& camera() const { return camera_; }
   /// Hand each scan's camera image with its points drawn over it to the sink (ScanResult::overlay).
   void saveOverlays(bool on) { overlays_ = on; }
+  /// Issue #16: with GICP poses and threads > 1, register each pushed scan on a thread of its own
+  /// while push() decides the scans before it (the results are the same; a scan is then decided
+  /// one push later, and a registration error surfaces at the next push() or finish()).
+  void registerAhead(bool on) { register_ahead_ = on; }
 
  private:
   struct Prepared;  // a buffered scan: beams, crop and ground masks
   struct Work;      // the scan being decided: world points, candidates, tests, moving mask
-  std::unique_ptr<Prepared> prepare(Frame&& f);
+  // A pushed frame, registered (or to be), with what push() saw with it.
+  struct Registered {
+    Frame frame;
+    long seq = 0;  // its place in the pushed sequence, from 0
+    std::optional<PinholeCamera> camera;
+    PoseInfo pose_info;
+    double ms = 0;  // registration wall time
+    std::exception_ptr error;
+  };
+  struct RegQueue;  // one registration at a time on a thread of its own (registerAhead)
+  std::unique_ptr<Prepared> prepare(Registered&& r, bool registered_beside);
   double groundBelowSensor(Prepared& s, const std::vector<PointXYZI>& levelled) const;
-  PoseInfo registerScan(Frame& f);
+  PoseSource resolveSource(const Frame& f);
+  void registerScan(Registered& r);
+  PoseInfo registerFrame(Frame& f);
+  void applyDrops(long seq);
   void decideReady(std::size_t future);
   void releasePoints();
   void decide(std::size_t pos);
@@ -87,7 +105,7 @@ class LaserPipeline {
   void decideLeaves(const Prepared& s, Work& w) const;
   void objectConsensus(Prepared& s, Work& w) const;
   void validateImages(std::size_t pos, Prepared& s, Work& w) const;
-  void linkToPrevious(const Prepared& prev, Prepared& s) const;
+  void linkToPrevious(const Prepared& prev, Prepared& s, const PinholeCamera& camera) const;
   ScanResult collect(Prepared& s, const Work& w) const;
   void remember(const ScanResult& r, long index);
   void startEpoch(long index);
@@ -101,8 +119,10 @@ class LaserPipeline {
   std::size_t decided_ = 0;
   bool keep_scans_ = false;
   bool overlays_ = false;
+  bool register_ahead_ = false;
   std::optional<PinholeCamera> camera_;  // DESIGN §3
   long prev_index_ = -1;
+  long pushed_ = 0;  // frames pushed
   long epoch_ = -1;  // DESIGN §2f: the epoch of the last decided scan
   long map_first_ = std::numeric_limits<long>::min(), map_last_ = std::numeric_limits<long>::max();
   CellMap<uint8_t> prev_moving_cells_;  // last decided scan's moving cells, dilated
@@ -118,6 +138,16 @@ class LaserPipeline {
   std::unique_ptr<reg::Odometry> odo_;              // with gicp / refine
   std::optional<Eigen::Isometry3d> prev_odometry_;  // the last scan's input odometry ...
   Eigen::Isometry3d prev_pose_ = Eigen::Isometry3d::Identity();  // ... and its estimated pose
+  // A decided scan's movers leave GICP's local map before the registration of the scan K + 2
+  // pushes after it (applyDrops): (seq, scan index, moving mask), in seq order.
+  struct Drop {
+    long seq;
+    int64_t index;
+    std::vector<uint8_t> moving;
+  };
+  std::deque<Drop> drops_;
+  std::unique_ptr<RegQueue> reg_queue_;  // registerAhead: the frame registering now
+  std::optional<Registered> held_;       // a clone's copy of its original's registered frame
 };
 
 }  // namespace cleanmap
