@@ -237,8 +237,9 @@ TEST(Regression, CleanMapAboveDufomap) {
 
 // Issue #16: GICP registering each frame on a thread of its own while the frames before it are
 // decided (LaserPipeline::registerAhead, the app's way with threads > 1) gives every scan the same
-// pose and labels as registering it in push(), images included; a pipeline holds at most K + 1
-// undecided frames; a clone taken while a frame registers continues as its original does.
+// pose and labels as registering it in push(), images included, also when it is turned off and on
+// again during the run; a pipeline holds at most K + 1 undecided frames; a clone taken while a
+// frame registers continues as its original does.
 TEST(Regression, RegisteringAheadChangesNothing) {
   CLEANMAP_REQUIRE_DATASET("kitti_highway");
   auto seq = io::KittiSequence::open(test::dataDir() + "/kitti_highway");
@@ -254,7 +255,7 @@ TEST(Regression, RegisteringAheadChangesNothing) {
       out[r.index] = {r.pose.matrix(), d.labels ^ d.full};
     };
   };
-  Results inline_reg, ahead, copy;
+  Results inline_reg, ahead, copy, toggled;
   {
     LaserPipeline pl(params, into(inline_reg));
     pl.setCamera(seq.camera());
@@ -275,11 +276,23 @@ TEST(Regression, RegisteringAheadChangesNothing) {
     pl.finish();
     c->finish();
   }
+  {
+    LaserPipeline pl(params, into(toggled));
+    pl.setCamera(seq.camera());
+    for (std::size_t i = 0; i < n; ++i) {
+      pl.registerAhead(i < 6 || i >= 9);  // off for three pushes, with a frame in flight
+      pl.push(seq.frame(i));
+    }
+    pl.finish();
+  }
   ASSERT_EQ(inline_reg.size(), n);
   ASSERT_EQ(ahead.size(), n);
+  ASSERT_EQ(toggled.size(), n);
   for (const auto& [i, r] : inline_reg) {
     EXPECT_TRUE(ahead[i].first == r.first) << "pose of scan " << i;
     EXPECT_EQ(ahead[i].second, r.second) << "labels of scan " << i;
+    EXPECT_TRUE(toggled[i].first == r.first) << "toggled: pose of scan " << i;
+    EXPECT_EQ(toggled[i].second, r.second) << "toggled: labels of scan " << i;
   }
   ASSERT_EQ(copy.size(), n - (cut - params.ds.window_k));  // the scans decided after the cut
   for (const auto& [i, r] : copy) {

@@ -542,7 +542,14 @@ void LaserPipeline::push(Frame&& frame) {
     decideReady(K);
     return;
   }
+  std::optional<Registered> prev = std::move(held_);  // a frame registered ahead, not prepared
+  held_.reset();
+  if (reg_queue_ && reg_queue_->in_flight) prev = reg_queue_->take();
   if (!register_ahead_ || p_.threads <= 1) {
+    if (prev) {  // registerAhead was turned off: that frame goes first
+      buf_.push_back(prepare(std::move(*prev), true));
+      decideReady(K);
+    }
     applyDrops(r.seq);
     registerScan(r);
     buf_.push_back(prepare(std::move(r), false));
@@ -551,10 +558,7 @@ void LaserPipeline::push(Frame&& frame) {
   }
   // Issue #16: this frame registers on its own thread while the one before it is prepared and
   // the scans before that decided (the drops its registration needs are all applied already).
-  std::optional<Registered> prev = std::move(held_);
-  held_.reset();
   if (!reg_queue_) reg_queue_ = std::make_unique<RegQueue>(*this);
-  if (reg_queue_->in_flight) prev = reg_queue_->take();
   applyDrops(r.seq);
   reg_queue_->start(std::move(r));
   if (prev) {

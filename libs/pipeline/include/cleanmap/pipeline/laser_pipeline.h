@@ -68,7 +68,8 @@ class LaserPipeline {
   void saveOverlays(bool on) { overlays_ = on; }
   /// Issue #16: with GICP poses and threads > 1, register each pushed scan on a thread of its own
   /// while push() decides the scans before it (the results are the same; a scan is then decided
-  /// one push later, and a registration error surfaces at the next push() or finish()).
+  /// one push later, and a registration error surfaces at the next push() or finish()). It may be
+  /// turned on or off between pushes.
   void registerAhead(bool on) { register_ahead_ = on; }
 
  private:
