@@ -6,6 +6,7 @@
 
 #include <cstring>
 #include <fstream>
+#include <random>
 #include <set>
 #include <tuple>
 
@@ -92,6 +93,35 @@ TEST(MrptOutputs, LabelColoursDecodeToTheirLabels) {
     EXPECT_EQ(cleanmap::mrpt::labelFromColour(c[0], c[1], c[2]), l);
   }
   EXPECT_EQ(cleanmap::mrpt::labelFromColour(0.3f, 0.3f, 0.3f), uint32_t(kOutlier));
+}
+
+// The scene's static cloud is filled in bulk (issue #16): the bytes push_back would give, every
+// colour value included; colours that do not match the points are an error.
+TEST(MrptOutputs, ColouredCloudInBulkIsTheOnePushBackMakes) {
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> u(-80.0f, 80.0f);
+  std::vector<PointXYZI> pts;
+  std::vector<std::array<uint8_t, 3>> rgb;
+  for (int i = 0; i < 3 * 256; ++i) {
+    pts.push_back({u(rng), u(rng), 0.1f * u(rng), 0.0f});
+    const auto v = static_cast<uint8_t>(i % 256);  // every value in each channel
+    rgb.push_back({v, static_cast<uint8_t>(255 - v), static_cast<uint8_t>(rng() % 256)});
+  }
+  auto bulk = ::mrpt::opengl::CPointCloudColoured::Create();
+  auto each = ::mrpt::opengl::CPointCloudColoured::Create();
+  cleanmap::mrpt::setColouredCloud(*bulk, pts, rgb);
+  for (std::size_t i = 0; i < pts.size(); ++i)
+    each->push_back(pts[i].x, pts[i].y, pts[i].z, rgb[i][0] / 255.0f, rgb[i][1] / 255.0f,
+                    rgb[i][2] / 255.0f);
+  std::vector<uint8_t> a, b;
+  auto ar_a = ::mrpt::serialization::archiveFrom(a);
+  auto ar_b = ::mrpt::serialization::archiveFrom(b);
+  ar_a << *bulk;
+  ar_b << *each;
+  ASSERT_EQ(bulk->size(), pts.size());
+  EXPECT_TRUE(a == b) << "the bulk cloud serializes differently from push_back's";
+  rgb.pop_back();
+  EXPECT_THROW(cleanmap::mrpt::setColouredCloud(*bulk, pts, rgb), std::invalid_argument);
 }
 
 TEST(MrptOutputs, ScanWithoutItsPointsIsAClearError) {

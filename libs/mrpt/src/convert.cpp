@@ -3,7 +3,11 @@
 
 #include <algorithm>
 #include <cmath>
+#include <mutex>
+#include <shared_mutex>
 #include <sstream>
+#include <stdexcept>
+#include <string>
 
 #include <mrpt/maps/CSimplePointsMap.h>
 #include <mrpt/math/CMatrixFixed.h>
@@ -11,6 +15,7 @@
 #include <mrpt/obs/CObservationPointCloud.h>
 #include <mrpt/obs/CObservationRotatingScan.h>
 #include <mrpt/obs/CObservationVelodyneScan.h>
+#include <mrpt/opengl/CPointCloudColoured.h>
 
 #include "cleanmap/core/error.h"
 
@@ -69,6 +74,28 @@ Eigen::Isometry3d toIsometry(const CPose3D& p) {
   }
   map->mark_as_modified();
   return map;
+}
+
+void setColouredCloud(::mrpt::opengl::CPointCloudColoured& cloud,
+                      const std::vector<PointXYZI>& points,
+                      const std::vector<std::array<uint8_t, 3>>& rgb) {
+  using ::mrpt::f2u8;
+  if (rgb.size() != points.size())
+    throw std::invalid_argument("setColouredCloud: " + std::to_string(rgb.size()) +
+                                " colours for " + std::to_string(points.size()) + " points");
+  cloud.resize(points.size());  // marks the octree outdated once
+  // MRPT's raw access to the cloud's buffers (its members are mutable; the cloud is not const).
+  auto& xyz =
+      const_cast<std::vector<::mrpt::math::TPoint3Df>&>(cloud.shaderPointsVertexPointBuffer());
+  auto& col = const_cast<std::vector<::mrpt::img::TColor>&>(cloud.shaderPointsVertexColorBuffer());
+  std::unique_lock<std::shared_mutex> lock(cloud.shaderPointsBuffersMutex().data);
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    const auto& p = points[i];
+    const auto& c = rgb[i];
+    xyz[i] = ::mrpt::math::TPoint3Df(p.x, p.y, p.z);
+    col[i] = ::mrpt::img::TColor(f2u8(c[0] / 255.0f), f2u8(c[1] / 255.0f), f2u8(c[2] / 255.0f),
+                                 f2u8(1.0f));
+  }
 }
 
 ::mrpt::img::TCamera toTCamera(const PinholeCamera& cam, CPose3D& cameraPoseOnRobot) {

@@ -267,18 +267,13 @@ struct MrptOutputWriter::Impl {
     auto stat = CPointCloudColoured::Create();
     stat->setName("static_map");
     stat->setPointSize(2.0f);
-    stat->reserve(scene_static.size());
-    for (std::size_t i = 0; i < scene_static.size(); ++i) {
-      const auto& p = scene_static[i];
-      const auto& c = scene_static_rgb[i];
-      stat->push_back(p.x, p.y, p.z, c[0] / 255.0f, c[1] / 255.0f, c[2] / 255.0f);
-    }
+    setColouredCloud(*stat, scene_static, scene_static_rgb);  // one lock, not one per point
     scene.insert(stat);
     auto mov = CPointCloud::Create();
     mov->setName("moving_points");
     mov->setPointSize(3.0f);
     mov->setColor(1.0, 0.0, 0.0);
-    for (const auto& p : scene_moving) mov->insertPoint(p.x, p.y, p.z);
+    for (const auto& p : scene_moving) mov->insertPoint(p.x, p.y, p.z);  // few: voxels of movers
     scene.insert(mov);
     // The trajectory as points every 0.25 m: MRPT 2.5.8's CSetOfLines misaligns its point base
     // class (UBSan reports every member call), so no lines.
@@ -316,18 +311,13 @@ struct MrptOutputWriter::Impl {
       scene.insert(cam);
     }
     scene.getViewport()->setCustomBackgroundColor({0.05f, 0.05f, 0.08f});
-    const std::string tmp = path + ".tmp." + std::to_string(::getpid());
-    try {  // plain, not gzip: SceneViewer3D reads both, and gzip costs seconds on a long drive
-      ::mrpt::io::CFileOutputStream f(tmp);
-      auto ar = ::mrpt::serialization::archiveFrom(f);
-      ar << scene;
-    } catch (const std::exception& e) {
-      std::remove(tmp.c_str());
-      throw Error(path, std::string("cannot write the scene: ") + e.what());
-    }
-    std::error_code ec;
-    fs::rename(tmp, path, ec);
-    if (ec) throw Error(path, "cannot move into place: " + ec.message());
+    // Plain, not gzip: SceneViewer3D reads both, and gzip costs seconds on a long drive. Encoded
+    // in memory, then written in one go (MRPT's file stream takes each float on its own).
+    Encoder scene_bytes;
+    const auto [bytes, n] = scene_bytes(scene);
+    OutFile f(path, 0);
+    f.write(bytes, n);
+    f.close();
   }
 
   // The header of a serialized CSimpleMap (up to its count), from MRPT's own serialization of an

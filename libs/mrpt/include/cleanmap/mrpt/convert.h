@@ -1,6 +1,11 @@
 // SPDX-License-Identifier: BSD-3-Clause
 // Conversions between cleanmap core types and MRPT types (the only place both meet).
 #pragma once
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
 #include <mrpt/core/Clock.h>
 #include <mrpt/img/TCamera.h>
 #include <mrpt/maps/CPointsMapXYZI.h>
@@ -8,6 +13,10 @@
 #include <mrpt/poses/CPose3D.h>
 
 #include "cleanmap/core/types.h"
+
+namespace mrpt::opengl {
+class CPointCloudColoured;
+}
 
 namespace cleanmap::mrpt {
 
@@ -26,6 +35,13 @@ Eigen::Isometry3d toIsometry(const ::mrpt::poses::CPose3D& p);
 
 /// Points (sensor frame) into an XYZI points map.
 ::mrpt::maps::CPointsMapXYZI::Ptr toPointsMap(const std::vector<PointXYZI>& points);
+
+/// Sets `cloud` to the points (their x, y, z) with colours rgb (0-255; as many as points): the
+/// cloud push_back(x, y, z, r / 255, g / 255, b / 255) would make, point by point, but under one
+/// lock (push_back takes the cloud's write lock and marks its octree outdated per point).
+void setColouredCloud(::mrpt::opengl::CPointCloudColoured& cloud,
+                      const std::vector<PointXYZI>& points,
+                      const std::vector<std::array<uint8_t, 3>>& rgb);
 
 /// TCamera (intrinsics K, no distortion) of a rectified camera; `cameraPoseOnRobot` receives the
 /// pose of the camera's optical frame relative to the lidar (robot frame = lidar frame).
