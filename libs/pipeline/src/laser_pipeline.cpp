@@ -537,34 +537,27 @@ void LaserPipeline::push(Frame&& frame) {
   r.seq = pushed_++;
   r.camera = camera_;
   const auto K = static_cast<std::size_t>(p_.ds.window_k);
-  if (source == PoseSource::kGiven) {
-    buf_.push_back(prepare(std::move(r), false));
+  // A registered frame joins the buffer, and the scans whose windows are then complete are decided.
+  auto take_in = [&](Registered&& x, bool registered_beside) {
+    buf_.push_back(prepare(std::move(x), registered_beside));
     decideReady(K);
-    return;
-  }
+  };
+  if (source == PoseSource::kGiven) return take_in(std::move(r), false);
   std::optional<Registered> prev = std::move(held_);  // a frame registered ahead, not prepared
   held_.reset();
   if (reg_queue_ && reg_queue_->in_flight) prev = reg_queue_->take();
   if (!register_ahead_ || p_.threads <= 1) {
-    if (prev) {  // registerAhead was turned off: that frame goes first
-      buf_.push_back(prepare(std::move(*prev), true));
-      decideReady(K);
-    }
+    if (prev) take_in(std::move(*prev), true);  // registerAhead was turned off: it goes first
     applyDrops(r.seq);
     registerScan(r);
-    buf_.push_back(prepare(std::move(r), false));
-    decideReady(K);
-    return;
+    return take_in(std::move(r), false);
   }
   // Issue #16: this frame registers on its own thread while the one before it is prepared and
   // the scans before that decided (the drops its registration needs are all applied already).
   if (!reg_queue_) reg_queue_ = std::make_unique<RegQueue>(*this);
   applyDrops(r.seq);
   reg_queue_->start(std::move(r));
-  if (prev) {
-    buf_.push_back(prepare(std::move(*prev), true));
-    decideReady(K);
-  }
+  if (prev) take_in(std::move(*prev), true);
 }
 
 // DESIGN §2e: every beam of a decided scan adds to the sequence's free space, the voxels near its
