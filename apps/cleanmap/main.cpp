@@ -323,6 +323,7 @@ int main(int argc, char** argv) {
         moving->setCamera(src->camera());  // a rawlog's, from its first image
       moving->insertFrame(std::move(*f));
     }
+    out.inputEnded();  // the last scans are decided without new ones coming in
     moving->flush();
     checkSignal();
     if (images == "on" && moving->totals().image_scans == 0)

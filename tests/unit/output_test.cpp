@@ -3,6 +3,10 @@
 // entirely, a failed run leaves OUTDIR as it was, a folder that is no cleanmap run is refused.
 #include <gtest/gtest.h>
 
+#include <chrono>
+#include <nlohmann/json.hpp>
+#include <thread>
+
 #include "cleanmap/io/files.h"
 #include "cleanmap/io/output.h"
 #include "test_data.h"
@@ -86,4 +90,26 @@ TEST(Output, StagingOfAKilledRunIsRemovedByTheNext) {
   fs::create_directories(dir / ".out.cleanmap-staging-4206649/labels");
   run(dir / "out", 1);
   EXPECT_EQ(entries(dir), 1u);
+}
+
+// report.json's `interval`: the wall time between two scans' results while the input still
+// flows. Three results 30 ms apart, then the input ends and four come at once (the pipeline's
+// last decisions): the steady rate is that of the first three (with the last four, the median
+// would be near 0).
+TEST(Output, TheSteadyIntervalLeavesOutTheScansDecidedAfterTheInput) {
+  const auto dir = test::scratchDir("output_interval");
+  {
+    io::OutputWriter w((dir / "out").string(), "input", PipelineParams{});
+    for (std::size_t i = 0; i < 3; ++i) {
+      if (i > 0) std::this_thread::sleep_for(std::chrono::milliseconds(30));
+      w.write(result(i, 5), std::nullopt);
+    }
+    w.inputEnded();
+    for (std::size_t i = 3; i < 7; ++i) w.write(result(i, 5), std::nullopt);
+    w.finish(0.1);
+  }
+  const auto j = nlohmann::json::parse(io::readTextFile((dir / "out/report.json").string()));
+  const auto& t = j.at("timing_per_scan").at("interval");
+  EXPECT_GE(t.at("median_ms").get<double>(), 30.0);
+  EXPECT_GE(t.at("mean_ms").get<double>(), 30.0);
 }

@@ -157,6 +157,7 @@ std::optional<double> OutputWriter::measuredSensorHeight() const {
 }
 
 void OutputWriter::write(const ScanResult& r, const std::optional<MosCounts>& eval) {
+  written_at_.push_back(std::chrono::steady_clock::now());
   writeLabels(staging_ + "/labels/" + r.stem + ".label", r.labels);
   if (!r.overlay.empty()) {  // --save-overlays (DESIGN §3)
     std::vector<uchar> png;
@@ -321,6 +322,10 @@ void OutputWriter::finish(double wall_s, const FreeSpaceMap* free_space) {
 
   ScanStats total;
   std::vector<double> t_total, t_reg, t_index, t_ground, t_dup, t_oct, t_cls, t_obj, t_free, t_img;
+  std::vector<double> t_interval;  // between two writes while the input flowed (inputEnded)
+  for (std::size_t i = 1; i < std::min(written_at_.size(), input_ended_at_); ++i)
+    t_interval.push_back(
+        std::chrono::duration<double, std::milli>(written_at_[i] - written_at_[i - 1]).count());
   for (const auto& s : stats_) {
     total += s;
     t_total.push_back(s.ms.total);
@@ -404,7 +409,7 @@ void OutputWriter::finish(double wall_s, const FreeSpaceMap* free_space) {
       {"total", &t_total},        {"registration", &t_reg}, {"beam_index", &t_index},
       {"crop_ground", &t_ground}, {"duplicates", &t_dup},   {"octree", &t_oct},
       {"classify", &t_cls},       {"objects", &t_obj},      {"free_space", &t_free},
-      {"images", &t_img}};
+      {"images", &t_img},         {"interval", &t_interval}};
   for (const auto& [name, v] : stages) {
     const Spread s = spread(*v);
     timing[name] = {{"median_ms", s.median}, {"p95_ms", s.p95}, {"mean_ms", s.mean}};

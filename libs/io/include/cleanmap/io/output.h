@@ -3,7 +3,9 @@
 // how it is published: everything is written into a staging folder beside OUTDIR and moved into
 // place only when the run is complete, so OUTDIR always holds one whole run (or nothing new).
 #pragma once
+#include <chrono>
 #include <functional>
+#include <limits>
 #include <map>
 #include <memory>
 #include <optional>
@@ -57,6 +59,10 @@ class OutputWriter {
 
   /// One decided scan, with its evaluation when ground truth exists.
   void write(const ScanResult& r, const std::optional<MosCounts>& eval);
+  /// The input has ended: the scans written from now on are the last ones the pipeline decides
+  /// without new scans coming in. report.json's `interval` (the run's steady rate: the wall time
+  /// between two scans' results, everything the process does per scan) leaves them out.
+  void inputEnded() { input_ended_at_ = written_at_.size(); }
   /// Wall time (ms, whole run) of another writer of the run (report.json `output_ms`).
   void addOutputTime(const std::string& name, double ms) { output_ms_[name] += ms; }
   /// Where ground truth exists: how many points the camera check relabelled static were truly
@@ -102,6 +108,8 @@ class OutputWriter {
   std::size_t map_removed_ = 0, map_far_kept_ = 0;
   double map_ms_ = 0;
   std::vector<Eigen::Isometry3d> poses_;
+  std::vector<std::chrono::steady_clock::time_point> written_at_;         // of each write()
+  std::size_t input_ended_at_ = std::numeric_limits<std::size_t>::max();  // writes before
   std::vector<ScanStats> stats_;
   std::vector<std::string> stems_;
   std::vector<double> times_;
