@@ -124,13 +124,21 @@ double CGroundModelMap::groundBelowSensor(const cleanmap::Scan& scan) {
 
 void CGroundModelMap::insertGround(const cleanmap::Scan& scan, const std::vector<uint8_t>& ground) {
   const double inv = 1.0 / cell_;
+  // Consecutive points of a ring mostly share a cell: the last one is kept (the map's nodes stay
+  // where they are), so most points skip the hash lookup (issue #16).
+  Cell* last = nullptr;
+  uint64_t last_key = 0;
   for (std::size_t i = 0; i < scan.points.size() && i < ground.size(); ++i) {
     if (!ground[i]) continue;
     const Eigen::Vector3d w = scan.pose * scan.points[i].xyz().cast<double>();
-    Cell& c = cells_[key2(static_cast<int64_t>(std::floor(w.x() * inv)),
-                          static_cast<int64_t>(std::floor(w.y() * inv)))];
-    c.sum_z += w.z();
-    ++c.count;
+    const uint64_t k = key2(static_cast<int64_t>(std::floor(w.x() * inv)),
+                            static_cast<int64_t>(std::floor(w.y() * inv)));
+    if (!last || k != last_key) {
+      last = &cells_[k];
+      last_key = k;
+    }
+    last->sum_z += w.z();
+    ++last->count;
   }
   ++scans_;
 }
