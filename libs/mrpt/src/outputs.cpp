@@ -13,6 +13,7 @@
 #include <filesystem>
 #include <fstream>
 #include <mutex>
+#include <stdexcept>
 #include <thread>
 
 #include <mrpt/io/CFileGZOutputStream.h>
@@ -117,6 +118,28 @@ struct OutFile {
       throw Error(path, "cannot move into place: " + ec.message());
     }
   }
+};
+
+// An MRPT stream into an OutFile, write-only: MRPT serializes a scene a float at a time, and
+// each goes into DirectFile's buffer (CFileOutputStream took each through std::ofstream).
+class OutFileStream : public ::mrpt::io::CStream {
+ public:
+  explicit OutFileStream(OutFile& f) : f_(f) {}
+  size_t Read(void*, size_t) override { throw std::logic_error("OutFileStream: write-only"); }
+  size_t Write(const void* data, size_t n) override {
+    f_.write(data, n);
+    pos_ += n;
+    return n;
+  }
+  uint64_t Seek(int64_t, TSeekOrigin) override {
+    throw std::logic_error("OutFileStream: cannot seek");
+  }
+  uint64_t getTotalBytesCount() const override { return pos_; }
+  uint64_t getPosition() const override { return pos_; }
+
+ private:
+  OutFile& f_;
+  uint64_t pos_ = 0;
 };
 
 // Serializes objects in MRPT's archive format into a reused buffer (its capacity stays).
@@ -311,12 +334,17 @@ struct MrptOutputWriter::Impl {
       scene.insert(cam);
     }
     scene.getViewport()->setCustomBackgroundColor({0.05f, 0.05f, 0.08f});
-    // Plain, not gzip: SceneViewer3D reads both, and gzip costs seconds on a long drive. Encoded
-    // in memory, then written in one go (MRPT's file stream takes each float on its own).
-    Encoder scene_bytes;
-    const auto [bytes, n] = scene_bytes(scene);
+    // Plain, not gzip: SceneViewer3D reads both, and gzip costs seconds on a long drive.
     OutFile f(path, 0);
-    f.write(bytes, n);
+    OutFileStream stream(f);
+    try {
+      auto ar = ::mrpt::serialization::archiveFrom(stream);
+      ar << scene;
+    } catch (const Error&) {
+      throw;
+    } catch (const std::exception& e) {
+      throw Error(path, std::string("cannot write the scene: ") + e.what());
+    }
     f.close();
   }
 
