@@ -17,7 +17,7 @@
 #include <thread>
 
 #include <mrpt/io/CFileGZOutputStream.h>
-#include <mrpt/io/CFileOutputStream.h>
+#include <mrpt/io/CStream.h>
 #include <mrpt/maps/CColouredPointsMap.h>
 #include <mrpt/maps/CSimpleMap.h>
 #include <mrpt/obs/CObservationPointCloud.h>
