@@ -227,6 +227,36 @@ TEST(MapScore, RadiusIndexMatchesBruteForce) {
   }
 }
 
+// Points on cell boundaries and at exactly the radius: map points on a lattice of spacing
+// radius (cells are 2 radius), queries moved off them by fractions of the radius along the axes
+// and diagonals, so every "which neighbour cell" decision is met at and beside its edge.
+TEST(MapScore, RadiusIndexMatchesBruteForceAtCellEdges) {
+  for (const double radius : {0.05, 0.1, 0.25}) {
+    const auto r = static_cast<float>(radius);
+    std::vector<Eigen::Vector3f> map;
+    for (int i = -6; i <= 6; i += 3)
+      for (int j = -6; j <= 6; j += 3)
+        for (int k = -4; k <= 4; k += 4) map.emplace_back(float(i) * r, float(j) * r, float(k) * r);
+    const RadiusIndex index(map, radius);
+    std::size_t found = 0, queries = 0;
+    for (const Eigen::Vector3f& m : map)
+      for (const float step : {0.0f, 0.5f, 0.9999f, 1.0f, 1.0001f, 1.5f, 2.0f})
+        for (const Eigen::Vector3f& dir :
+             {Eigen::Vector3f(1, 0, 0), Eigen::Vector3f(0, -1, 0), Eigen::Vector3f(0, 0, 1),
+              Eigen::Vector3f(-1, 1, 0).normalized(), Eigen::Vector3f(1, 1, 1).normalized()}) {
+          const Eigen::Vector3f q = m + step * r * dir;
+          bool brute = false;
+          for (const auto& p : map) brute |= (p - q).squaredNorm() <= float(radius * radius);
+          ASSERT_EQ(index.hasNeighbour(q), brute)
+              << "radius " << radius << ", query " << q.transpose();
+          found += brute;
+          ++queries;
+        }
+    EXPECT_GT(found, 0u);
+    EXPECT_LT(found, queries);
+  }
+}
+
 TEST(MapScore, ScoresAgainstBruteForceAndFormulas) {
   std::mt19937 rng(11);
   std::uniform_real_distribution<float> u(0.f, 4.f);

@@ -20,12 +20,11 @@ bool RadiusIndex::indexable(const Eigen::Vector3f& p) const {
   return p.allFinite() && (p.cast<double>().cwiseAbs() * inv_).maxCoeff() < kMaxCells;
 }
 
-uint64_t RadiusIndex::cellOf(const Eigen::Vector3f& p) const {
-  return cellKeyOf(double(p.x()), double(p.y()), double(p.z()), inv_);
-}
-
 RadiusIndex::RadiusIndex(std::vector<Eigen::Vector3f> points, double radius)
-    : radius_(radius), inv_(1.0 / radius), r2_(static_cast<float>(radius * radius)) {
+    : radius_(radius),
+      inv_(1.0 / radius),
+      inv_cell_(0.5 / radius),
+      r2_(static_cast<float>(radius * radius)) {
   if (!(radius > 0)) throw Error("RadiusIndex", "radius must be > 0");
   points.erase(std::remove_if(points.begin(), points.end(),
                               [](const Eigen::Vector3f& p) { return !p.allFinite(); }),
@@ -35,7 +34,9 @@ RadiusIndex::RadiusIndex(std::vector<Eigen::Vector3f> points, double radius)
       throw Error("RadiusIndex", "a map point lies " + std::to_string(p.norm() / 1000) +
                                      " km from the origin; the index cannot hold it");
   std::vector<uint64_t> keys(points.size());
-  for (std::size_t i = 0; i < points.size(); ++i) keys[i] = cellOf(points[i]);
+  for (std::size_t i = 0; i < points.size(); ++i)
+    keys[i] =
+        cellKeyOf(double(points[i].x()), double(points[i].y()), double(points[i].z()), inv_cell_);
   std::vector<uint32_t> order(points.size());
   std::iota(order.begin(), order.end(), 0u);
   std::sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) { return keys[a] < keys[b]; });
@@ -50,16 +51,34 @@ RadiusIndex::RadiusIndex(std::vector<Eigen::Vector3f> points, double radius)
 
 bool RadiusIndex::hasNeighbour(const Eigen::Vector3f& p) const {
   if (!indexable(p)) return false;
-  const uint64_t centre = cellOf(p);
-  bool found = false;
-  forEachNeighbour27([&](int dx, int dy, int dz) {
-    if (found) return;
-    const auto it = cells_.find(cellKeyShift(centre, dx, dy, dz));
-    if (it == cells_.end()) return;
-    for (uint32_t i = it->second.first; i < it->second.second && !found; ++i)
-      found = (pts_[i] - p).squaredNorm() <= r2_;
-  });
-  return found;
+  // A point within radius of p lies within half a cell of it along each axis: in p's cell or in
+  // the neighbour on the side of the middle p lies (both where p lies within 1e-3 of a cell of
+  // the middle, far more than the rounding of the coordinates and of the distance test; both
+  // beyond 1e9 cells from the origin, where the place in the cell is itself rounded).
+  constexpr double kHair = 1e-3, kFar = 1e9;
+  int64_t c[3];
+  int lo[3], hi[3];
+  for (int a = 0; a < 3; ++a) {
+    const double t = double(p[a]) * inv_cell_;
+    c[a] = floorToCell(double(p[a]), inv_cell_);
+    const double f = t - double(c[a]);
+    const bool far = std::abs(t) > kFar;
+    lo[a] = far || f < 0.5 + kHair ? -1 : 0;
+    hi[a] = far || f > 0.5 - kHair ? 1 : 0;
+  }
+  auto near_in = [&](int dx, int dy, int dz) {
+    const auto* cell = cells_.find(cellKey(c[0] + dx, c[1] + dy, c[2] + dz));
+    if (!cell) return false;
+    for (uint32_t i = cell->first; i < cell->second; ++i)
+      if ((pts_[i] - p).squaredNorm() <= r2_) return true;
+    return false;
+  };
+  if (near_in(0, 0, 0)) return true;  // a map point at p itself, the common case
+  for (int dx = lo[0]; dx <= hi[0]; ++dx)
+    for (int dy = lo[1]; dy <= hi[1]; ++dy)
+      for (int dz = lo[2]; dz <= hi[2]; ++dz)
+        if ((dx | dy | dz) != 0 && near_in(dx, dy, dz)) return true;
+  return false;
 }
 
 double MapScore::aa() const {

@@ -4,14 +4,16 @@
 #pragma once
 #include <Eigen/Core>
 #include <cstdint>
-#include <unordered_map>
 #include <vector>
+
+#include "cleanmap/core/cell_map.h"
 
 namespace cleanmap {
 
 /// Exact fixed-radius neighbour test over a static cloud: points sorted into cubic cells of side
-/// `radius`, so a query looks at the 27 cells around it. Memory: the points plus one entry per
-/// cell.
+/// 2 `radius`, so a query looks at its own cell and, per axis, the neighbour on the side of the
+/// cell it lies in (8 cells, its own first; both neighbours within a hair of the middle). Memory:
+/// the points plus one entry per cell.
 class RadiusIndex {
  public:
   RadiusIndex(std::vector<Eigen::Vector3f> points, double radius);
@@ -24,10 +26,9 @@ class RadiusIndex {
 
  private:
   bool indexable(const Eigen::Vector3f& p) const;
-  uint64_t cellOf(const Eigen::Vector3f& p) const;
-  std::vector<Eigen::Vector3f> pts_;                                   // sorted by cell
-  std::unordered_map<uint64_t, std::pair<uint32_t, uint32_t>> cells_;  // key -> [begin, end)
-  double radius_, inv_;
+  std::vector<Eigen::Vector3f> pts_;              // sorted by cell
+  CellMap<std::pair<uint32_t, uint32_t>> cells_;  // key -> [begin, end)
+  double radius_, inv_, inv_cell_;                // 1 / radius, 1 / (2 radius)
   float r2_;
 };
 
