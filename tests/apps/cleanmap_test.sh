@@ -15,6 +15,7 @@ seq=$scratch/seq
 # A full run, then a shorter one into the same folder: replaced as a whole, no stale labels.
 "$bin/cleanmap" "$seq" -o "$scratch/out" --quiet >/dev/null || fail "first run failed"
 [[ $(ls "$scratch/out/labels" | wc -l) -eq 24 ]] || fail "expected 24 label files"
+cp -r "$scratch/out" "$scratch/clean"  # a default run, scored against one without cleaning below
 "$bin/cleanmap" "$seq" -o "$scratch/out" --quiet --last 4 >/dev/null || fail "second run failed"
 [[ $(ls "$scratch/out/labels" | wc -l) -eq 5 ]] || fail "stale label files survived the shorter run"
 [[ $(ls -A "$scratch" | grep -c cleanmap-staging) -eq 0 ]] || fail "a staging folder was left"
@@ -175,9 +176,10 @@ expect_error 1 "'static_map.policy' needs one of moving, transient; got 'transia
 [[ $(ls "$scratch/ini/map_labels" | wc -l) -eq 13 && -s $scratch/ini/map_removed.ply ]] || fail "no map_labels/ or map_removed.ply"
 sed 's/^clean = 1/clean = 0/' "$scratch/ini/params.ini" >"$scratch/noclean.ini"
 "$bin/cleanmap" "$seq" -o "$scratch/noclean" --quiet -c "$scratch/noclean.ini" >/dev/null || fail "run without cleaning failed"
-"$bin/cleanmap" "$seq" -o "$scratch/clean" --quiet >/dev/null || fail "run with cleaning failed"
-score() { "$bin/cleanmap-eval" "$seq" "$1" --json | sed -n "s/^ *\"$2\": \([0-9.e-]*\),*$/\1/p"; }
-da0=$(score "$scratch/noclean" DA) da1=$(score "$scratch/clean" DA) sa0=$(score "$scratch/noclean" SA) sa1=$(score "$scratch/clean" SA)
+"$bin/cleanmap-eval" "$seq" "$scratch/noclean" --json >"$scratch/noclean.json" || fail "eval of the run without cleaning failed"
+"$bin/cleanmap-eval" "$seq" "$scratch/clean" --json >"$scratch/clean.json" || fail "eval of the run with cleaning failed"
+score() { sed -n "s/^ *\"$2\": \([0-9.e-]*\),*$/\1/p" "$scratch/$1.json"; }
+da0=$(score noclean DA) da1=$(score clean DA) sa0=$(score noclean SA) sa1=$(score clean SA)
 echo "cleanmap_test: map DA $da0 -> $da1, SA $sa0 -> $sa1 with the free-space cleaning"
 awk -v a="$da0" -v b="$da1" 'BEGIN { exit !(b >= a) }' || fail "cleaning lowered DA ($da0 -> $da1)"
 awk -v a="$sa0" -v b="$sa1" 'BEGIN { exit !(b >= a - 0.03) }' || fail "cleaning cost more than 0.03 SA ($sa0 -> $sa1)"
