@@ -188,7 +188,7 @@ awk -v a="$sa0" -v b="$sa1" 'BEGIN { exit !(b >= a - 0.03) }' || fail "cleaning 
 # tunable set (unless CLEANMAP_HUGEPAGES=0), and names the app it cannot find in one line.
 if [[ -e /sys/kernel/mm/transparent_hugepage/enabled ]] &&
   ! grep -q '\[never\]' /sys/kernel/mm/transparent_hugepage/enabled; then
-  "$bin/cleanmap" "$seq" -o "$scratch/tun" --quiet --threads 1 >/dev/null 2>&1 &
+  "$bin/cleanmap" "$seq" -o "$scratch/tun" --quiet --threads 1 --last 5 >/dev/null 2>&1 &
   pid=$!
   for _ in $(seq 200); do
     env_=$(tr '\0' '\n' <"/proc/$pid/environ" 2>/dev/null) && [[ $env_ == *GLIBC_TUNABLES* ]] && break
