@@ -21,10 +21,7 @@ bool RadiusIndex::indexable(const Eigen::Vector3f& p) const {
 }
 
 RadiusIndex::RadiusIndex(std::vector<Eigen::Vector3f> points, double radius)
-    : radius_(radius),
-      inv_(1.0 / radius),
-      inv_cell_(0.5 / radius),
-      r2_(static_cast<float>(radius * radius)) {
+    : inv_(1.0 / radius), inv_cell_(0.5 / radius), r2_(static_cast<float>(radius * radius)) {
   if (!(radius > 0)) throw Error("RadiusIndex", "radius must be > 0");
   points.erase(std::remove_if(points.begin(), points.end(),
                               [](const Eigen::Vector3f& p) { return !p.allFinite(); }),
@@ -60,7 +57,7 @@ bool RadiusIndex::hasNeighbour(const Eigen::Vector3f& p) const {
   int lo[3], hi[3];
   for (int a = 0; a < 3; ++a) {
     const double t = double(p[a]) * inv_cell_;
-    c[a] = floorToCell(double(p[a]), inv_cell_);
+    c[a] = static_cast<int64_t>(std::floor(t));  // floorToCell, t computed once
     const double f = t - double(c[a]);
     const bool far = std::abs(t) > kFar;
     lo[a] = far || f < 0.5 + kHair ? -1 : 0;

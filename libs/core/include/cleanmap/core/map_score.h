@@ -28,7 +28,7 @@ class RadiusIndex {
   bool indexable(const Eigen::Vector3f& p) const;
   std::vector<Eigen::Vector3f> pts_;              // sorted by cell
   CellMap<std::pair<uint32_t, uint32_t>> cells_;  // key -> [begin, end)
-  double radius_, inv_, inv_cell_;                // 1 / radius, 1 / (2 radius)
+  double inv_, inv_cell_;                         // 1 / radius, 1 / (2 radius)
   float r2_;
 };
 
