@@ -56,8 +56,8 @@ bool RadiusIndex::hasNeighbour(const Eigen::Vector3f& p) const {
   int64_t c[3];
   int lo[3], hi[3];
   for (int a = 0; a < 3; ++a) {
-    const double t = double(p[a]) * inv_cell_;
-    c[a] = static_cast<int64_t>(std::floor(t));  // floorToCell, t computed once
+    c[a] = floorToCell(double(p[a]), inv_cell_);
+    const double t = double(p[a]) * inv_cell_;  // the same product: the place in the cell
     const double f = t - double(c[a]);
     const bool far = std::abs(t) > kFar;
     lo[a] = far || f < 0.5 + kHair ? -1 : 0;
