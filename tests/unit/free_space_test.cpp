@@ -170,28 +170,30 @@ TEST(FreeSpace, SpaceOnlyEmptyAfterItsLastReturnWasVacated) {
 
 TEST(FreeSpace, SpaceEmptiedBetweenTwoReturnsWasVacated) {
   // A queue passing a standing sensor: car sides at x = 10 return in scans 0..9, the gap to the
-  // next car is seen through in scans 10..15, the next car returns in 16..25. Fewer empty scans
-  // than hits (6 < 0.5 x 20), but a run of 6 >= vacated_scans lay between two returns: the
-  // voxel goes. Foliage hit 3 scans in 4 never stays empty that long, and a gap of 4 scans is
-  // not enough. Cut into chunks inside the gap, the merged runs (3 + 3) find it as the whole
-  // run does, in either order of merging.
+  // next car is seen through in scans 10..13, the next car returns in 14..23. Fewer empty scans
+  // than hits (4 < 0.5 x 20), but a run of 4 >= between_scans lay between two returns: the voxel
+  // goes. Foliage hit 3 scans in 4 never stays empty that long, and a gap of 2 scans is not
+  // enough. Cut into chunks inside the gap, the merged runs (2 + 2) find it as the whole run
+  // does, in either order of merging. The rule is its own: vacated_scans (the run after the last
+  // return) off leaves it on.
   MapParams p = params();
   p.free_ratio = 0.5;
   p.vacated_scans = 5;
+  p.between_scans = 3;
   const PointXYZI side{10.05f, 0.f, 0.f, 0.f};
   auto queue = [&](int gap, int k) {
     return k < 10 || k >= 10 + gap ? ring(20.f, {side}) : ring(20.f);
   };
   FreeSpaceMap whole(p), short_gap(p), foliage(p), a(p), b(p);
-  for (int k = 0; k < 26; ++k) {
-    whole.insertScan(queue(6, k), at(0), k);
-    (k < 13 ? a : b).insertScan(queue(6, k), at(0), k);
-    short_gap.insertScan(queue(4, k), at(0), k);
+  for (int k = 0; k < 24; ++k) {
+    whole.insertScan(queue(4, k), at(0), k);
+    (k < 12 ? a : b).insertScan(queue(4, k), at(0), k);
+    short_gap.insertScan(queue(2, k), at(0), k);
   }
   for (int k = 0; k < 40; ++k)
     foliage.insertScan(k % 4 == 3 ? ring(20.f) : ring(20.f, {side}), at(0), k);
   const FreeEvidence w = whole.evidence(side.xyz());
-  EXPECT_EQ(w.count, 6);
+  EXPECT_EQ(w.count, 4);
   EXPECT_EQ(w.hits, 20);
   EXPECT_TRUE(w.emptied_between);
   EXPECT_TRUE(removedByPolicy(w, 3, p));
@@ -199,15 +201,26 @@ TEST(FreeSpace, SpaceEmptiedBetweenTwoReturnsWasVacated) {
   EXPECT_FALSE(removedByPolicy(short_gap.evidence(side.xyz()), 3, p));
   EXPECT_FALSE(foliage.evidence(side.xyz()).emptied_between);
   EXPECT_FALSE(removedByPolicy(foliage.evidence(side.xyz()), 3, p));
-  EXPECT_FALSE(a.evidence(side.xyz()).emptied_between);  // 3 empty scans each side of the cut
+  EXPECT_FALSE(a.evidence(side.xyz()).emptied_between);  // 2 empty scans each side of the cut
   EXPECT_FALSE(b.evidence(side.xyz()).emptied_between);
   FreeSpaceMap ab(a), ba(b);
   ab.merge(b);
   ba.merge(a);
   EXPECT_TRUE(ab.evidence(side.xyz()).emptied_between);
   EXPECT_TRUE(ba.evidence(side.xyz()).emptied_between);
-  p.vacated_scans = 0;  // off
+  p.vacated_scans = 0;  // the run after the last return off: the run between two still counts
+  EXPECT_TRUE(removedByPolicy(w, 3, p));
+  p.between_scans = 0;  // off
   EXPECT_FALSE(removedByPolicy(w, 3, p));
+  p.between_scans = 5;  // a longer run needed: the gap of 4 is kept (at insertion and merging)
+  FreeSpaceMap strict(p), sa(p), sb(p);
+  for (int k = 0; k < 24; ++k) {
+    strict.insertScan(queue(4, k), at(0), k);
+    (k < 12 ? sa : sb).insertScan(queue(4, k), at(0), k);
+  }
+  sa.merge(sb);
+  EXPECT_FALSE(strict.evidence(side.xyz()).emptied_between);
+  EXPECT_FALSE(sa.evidence(side.xyz()).emptied_between);
 }
 
 TEST(FreeSpace, AScanSeesNothingEmptyNextToItsOwnStaticReturns) {

@@ -39,7 +39,7 @@ struct FreeSpaceMap::Voxel {
   uint16_t count = 0;             // scans that saw it empty (saturating)
   uint16_t hits = 0;              // scans that returned from it (saturating)
   // Runs of empty scans (saturating at 255; scans come in order within an accumulator): those
-  // before the first return, those since the last, and whether a run of at least vacated_scans
+  // before the first return, those since the last, and whether a run of at least between_scans
   // lay between two returns.
   uint8_t lead = 0, trail = 0;
   uint8_t emptied_between = 0;
@@ -95,10 +95,10 @@ bool removedByPolicy(const FreeEvidence& e, int64_t scan, const MapParams& p) {
   // fences, windows) or grazing beams past a surface, not a place something left.
   // Unless only empty for vacated_scans after its last return: it stood there, then left (every
   // scan after the last hit saw it empty, by definition; see-through space is hit again).
-  // Or a run of that many scans saw it empty between two of its returns: a queue's cars, a body
-  // that left and another that came (DESIGN §2e).
-  const bool vacated =
-      p.vacated_scans > 0 && (e.last - e.last_hit >= p.vacated_scans || e.emptied_between);
+  // Or a run of between_scans scans saw it empty between two of its returns: a queue's cars, a
+  // body that left and another that came (DESIGN §2e).
+  const bool vacated = (p.vacated_scans > 0 && e.last - e.last_hit >= p.vacated_scans) ||
+                       (p.between_scans > 0 && e.emptied_between);
   if (!vacated && double(e.count) < p.free_ratio * double(e.hits)) return false;
   if (p.policy == MapPolicy::kTransient) return true;
   return e.first < scan && e.last > scan;  // kMoving: empty before and after (it came and went)
@@ -324,7 +324,7 @@ void FreeSpaceMap::insertScan(const std::vector<PointXYZI>& points, const Eigen:
     for (int w = 0; w < kVoxels / 64; ++w) {
       for (uint64_t m = tb->hit[w]; m; m &= m - 1) {
         auto& v = voxel(*tb, w * 64 + __builtin_ctzll(m));
-        if (v.hits > 0 && p_.vacated_scans > 0 && v.trail >= p_.vacated_scans)
+        if (v.hits > 0 && p_.between_scans > 0 && v.trail >= p_.between_scans)
           v.emptied_between = 1;  // something stood here, left, and something came again
         v.trail = 0;
         if (v.hits < 0xFFFF) ++v.hits;
@@ -398,7 +398,7 @@ void FreeSpaceMap::merge(const FreeSpaceMap& o) {
       const uint8_t trail = b.hits ? b.trail : sat(a.trail + b.trail);
       const bool between =
           a.emptied_between || b.emptied_between ||
-          (a.hits && b.hits && p_.vacated_scans > 0 && a.trail + b.lead >= p_.vacated_scans);
+          (a.hits && b.hits && p_.between_scans > 0 && a.trail + b.lead >= p_.between_scans);
       m.lead = lead;
       m.trail = trail;
       m.emptied_between = between;

@@ -133,6 +133,7 @@ std::map<std::string, Key> table(PipelineParams& p) {
       {"static_map.min_free_scans", i(p.map.min_free_scans)},
       {"static_map.free_ratio", d(p.map.free_ratio)},
       {"static_map.vacated_scans", i(p.map.vacated_scans)},
+      {"static_map.between_scans", i(p.map.between_scans)},
       {"static_map.hit_inflate", d(p.map.hit_inflate)},
       {"static_map.margin", d(p.map.margin)},
       {"static_map.min_range", d(p.map.min_range)},

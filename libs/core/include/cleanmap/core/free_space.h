@@ -27,7 +27,7 @@ struct FreeEvidence {
   int hits = 0;  ///< scans that returned from the voxel
   int64_t first = -1, last = -1;
   int64_t last_hit = -1;  ///< the last scan that returned from it
-  /// A run of at least vacated_scans scans saw it empty between two of its returns.
+  /// A run of at least between_scans scans saw it empty between two of its returns.
   bool emptied_between = false;
 };
 
