@@ -1,0 +1,142 @@
+#!/usr/bin/env python3
+# SPDX-License-Identifier: BSD-3-Clause
+"""Runs the shipped simulated scenarios perturbed, to see which results hold beyond them (doc/BENCHMARK.md).
+
+Each scenario of datasets/scenarios/ (or those named) is rewritten per variant, simulated with
+cleanmap-sim (no images, no rawlog), run through cleanmap (laser only, no MRPT outputs) and scored
+with cleanmap-eval; one line per run: per-point P / R / IoU, map SA / DA / AA, and the share of
+each moving object's points labelled moving. Variants:
+  base      as shipped              seed      another noise and dropout draw (seed + 10)
+  ego_slow  the ego at 0.6x speed   ego_fast  the ego at 1.5x speed
+  mov_slow  every mover at 0.5x     mov_fast  every mover at 1.5x
+  noisy     twice the range noise   hdl32     an HDL-32E instead of the scene's lidar
+The bars the named tests check are for the shipped scenes; this looks around them. A run's
+folders are removed once scored (about 100 MB each); --keep keeps them.
+
+usage: perturb_scenarios.py --apps BUILD/apps -o WORKDIR [--scenarios a,b] [--variants v,w]
+                            [-c CONFIG.ini] [--threads N] [--keep]
+"""
+import argparse
+import json
+import os
+import re
+import shutil
+import subprocess
+import sys
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+VARIANTS = ["base", "seed", "ego_slow", "ego_fast", "mov_slow", "mov_fast", "noisy", "hdl32"]
+# (section, key) -> factor, per variant
+SCALE = {
+    "ego_slow": ("ego", "speed", 0.6),
+    "ego_fast": ("ego", "speed", 1.5),
+    "mov_slow": ("mover", "speed", 0.5),
+    "mov_fast": ("mover", "speed", 1.5),
+    "noisy": ("sensor", "range_noise", 2.0),
+}
+
+
+def fail(msg):
+    sys.exit(f"perturb_scenarios.py: {msg}")
+
+
+def perturb(text, variant):
+    """The scenario ini rewritten for one variant (doc/SIMULATOR.md's format)."""
+    out, section, seen = [], None, set()
+    for line in text.splitlines():
+        m = re.match(r"\s*\[(\w+)\]", line)
+        if m:
+            section = m.group(1)
+        kv = re.match(r"\s*(\w+)\s*=\s*([^#]*)", line)
+        if kv:
+            key, value = kv.group(1), kv.group(2).strip()
+            seen.add((section, key))
+            if variant == "seed" and (section, key) == ("scenario", "seed"):
+                line = f"seed = {int(value) + 10}"
+            elif variant in SCALE and (section, key) == SCALE[variant][:2]:
+                f = SCALE[variant][2]
+                line = f"{key} = " + " ".join(f"{float(x) * f:g}" for x in value.split())
+            elif variant == "hdl32" and section == "sensor" and key in (
+                    "model", "azimuth_step_deg", "rings", "vertical_fov_deg"):
+                line = "# " + line  # the preset's rings and azimuth step
+        out.append(line)
+    text = "\n".join(out) + "\n"
+    if "[sensor]" not in text:
+        text += "[sensor]\n"
+    if variant == "seed" and ("scenario", "seed") not in seen:
+        text = text.replace("[scenario]", "[scenario]\nseed = 11", 1)
+    if variant == "noisy" and ("sensor", "range_noise") not in seen:
+        text = text.replace("[sensor]", "[sensor]\nrange_noise = 0.02", 1)  # twice the default
+    if variant == "hdl32":
+        text = text.replace("[sensor]", "[sensor]\nmodel = hdl32", 1)
+    return text
+
+
+def run(cmd, what):
+    r = subprocess.run(cmd, capture_output=True, text=True)
+    if r.returncode != 0:
+        last = (r.stderr.strip().splitlines() or ["(no message)"])[-1]
+        raise RuntimeError(f"{what}: {last}")
+    return r.stdout
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--apps", required=True, help="folder holding cleanmap, cleanmap-sim, cleanmap-eval")
+    ap.add_argument("-o", "--output", required=True, help="work folder (created)")
+    ap.add_argument("--scenarios", default="", help="comma-separated names (default: all shipped)")
+    ap.add_argument("--variants", default=",".join(VARIANTS))
+    ap.add_argument("-c", "--config", help="cleanmap configuration for every run")
+    ap.add_argument("--threads", type=int, default=2)
+    ap.add_argument("--keep", action="store_true", help="keep each run's folders")
+    a = ap.parse_args()
+    tools = {t: os.path.join(a.apps, t) for t in ("cleanmap", "cleanmap-sim", "cleanmap-eval")}
+    for t, p in tools.items():
+        if not os.access(p, os.X_OK):
+            fail(f"{p}: no {t} executable there (build first: make demo)")
+    scen_dir = os.path.join(HERE, "scenarios")
+    shipped = sorted(f[:-4] for f in os.listdir(scen_dir) if f.endswith(".ini"))
+    names = [s for s in a.scenarios.split(",") if s] or shipped
+    for s in names:
+        if s not in shipped:
+            fail(f"{s}: no such scenario in {scen_dir}")
+    variants = [v for v in a.variants.split(",") if v]
+    for v in variants:
+        if v not in VARIANTS:
+            fail(f"{v}: unknown variant (known: {', '.join(VARIANTS)})")
+    if a.config and not os.path.isfile(a.config):
+        fail(f"{a.config}: no such configuration file")
+    os.makedirs(a.output, exist_ok=True)
+    failed = 0
+    for s in names:
+        with open(os.path.join(scen_dir, s + ".ini")) as f:
+            text = f.read()
+        for v in variants:
+            base = os.path.join(a.output, f"{s}_{v}")
+            gt, out = base + "_gt", base + "_out"
+            with open(base + ".ini", "w") as f:
+                f.write(perturb(text, v))
+            try:
+                run([tools["cleanmap-sim"], base + ".ini", "-o", gt, "--no-images", "--no-rawlog",
+                     "--threads", str(a.threads)], "cleanmap-sim")
+                cmd = [tools["cleanmap"], gt, "-o", out, "--quiet", "--threads", str(a.threads),
+                       "--images", "off", "--no-mrpt-outputs", "--force"]
+                run(cmd + (["-c", a.config] if a.config else []), "cleanmap")
+                j = json.loads(run([tools["cleanmap-eval"], gt, out, "--json"], "cleanmap-eval"))
+            except RuntimeError as e:
+                print(f"{s:18} {v:9} FAILED {e}", flush=True)
+                failed += 1
+                continue
+            finally:
+                if not a.keep:
+                    shutil.rmtree(gt, ignore_errors=True)
+                    shutil.rmtree(out, ignore_errors=True)
+            objs = " ".join(f"{o['name']}:{o['fraction']:.2f}" for o in j["objects"].get("list", []))
+            print(f"{s:18} {v:9} P {j['precision']:.3f} R {j['recall']:.3f} IoU {j['iou']:.3f} "
+                  f"SA {j['SA']:.4f} DA {j['DA']:.4f} AA {j['AA']:.4f} | {objs}", flush=True)
+    if failed:
+        fail(f"{failed} run(s) failed")
+
+
+if __name__ == "__main__":
+    main()
