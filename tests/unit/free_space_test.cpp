@@ -184,12 +184,16 @@ TEST(FreeSpace, SpaceEmptiedBetweenTwoReturnsWasVacated) {
   auto queue = [&](int gap, int k) {
     return k < 10 || k >= 10 + gap ? ring(20.f, {side}) : ring(20.f);
   };
+  // The queue with a gap of 4 scans, whole and cut into two chunks at scan 12 (inside the gap).
+  auto insert = [&](FreeSpaceMap& whole, FreeSpaceMap& first, FreeSpaceMap& second) {
+    for (int k = 0; k < 24; ++k) {
+      whole.insertScan(queue(4, k), at(0), k);
+      (k < 12 ? first : second).insertScan(queue(4, k), at(0), k);
+    }
+  };
   FreeSpaceMap whole(p), short_gap(p), foliage(p), a(p), b(p);
-  for (int k = 0; k < 24; ++k) {
-    whole.insertScan(queue(4, k), at(0), k);
-    (k < 12 ? a : b).insertScan(queue(4, k), at(0), k);
-    short_gap.insertScan(queue(2, k), at(0), k);
-  }
+  insert(whole, a, b);
+  for (int k = 0; k < 24; ++k) short_gap.insertScan(queue(2, k), at(0), k);
   for (int k = 0; k < 40; ++k)
     foliage.insertScan(k % 4 == 3 ? ring(20.f) : ring(20.f, {side}), at(0), k);
   const FreeEvidence w = whole.evidence(side.xyz());
@@ -214,10 +218,7 @@ TEST(FreeSpace, SpaceEmptiedBetweenTwoReturnsWasVacated) {
   EXPECT_FALSE(removedByPolicy(w, 3, p));
   p.between_scans = 5;  // a longer run needed: the gap of 4 is kept (at insertion and merging)
   FreeSpaceMap strict(p), sa(p), sb(p);
-  for (int k = 0; k < 24; ++k) {
-    strict.insertScan(queue(4, k), at(0), k);
-    (k < 12 ? sa : sb).insertScan(queue(4, k), at(0), k);
-  }
+  insert(strict, sa, sb);
   sa.merge(sb);
   EXPECT_FALSE(strict.evidence(side.xyz()).emptied_between);
   EXPECT_FALSE(sa.evidence(side.xyz()).emptied_between);
