@@ -36,6 +36,7 @@ ScanStats& ScanStats::operator+=(const ScanStats& o) {
   early_decisions += o.early_decisions;
   settled_skips += o.settled_skips;
   conflicting_scans += o.conflicting_scans;
+  ring_votes += o.ring_votes;
   objects_moving += o.objects_moving;
   consensus_points += o.consensus_points;
   consensus_removed += o.consensus_removed;

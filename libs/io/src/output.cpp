@@ -359,6 +359,7 @@ void OutputWriter::finish(double wall_s, const FreeSpaceMap* free_space) {
                  {"static", total.static_points},
                  {"total_conflicts", total.total_conflicts},
                  {"conflicting_scan_votes", total.conflicting_scans},
+                 {"ring_votes", total.ring_votes},
                  {"objects_turned_moving", total.objects_moving},
                  {"objects_kept_moving_by_hysteresis", total.objects_persisted},
                  {"consensus_points_added", total.consensus_points},

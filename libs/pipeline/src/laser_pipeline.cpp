@@ -758,6 +758,7 @@ void LaserPipeline::classify(const std::vector<WindowScan>& window, Prepared& s,
     s.stats.total_conflicts += a.total_conflicts;
     s.stats.no_evidence += a.no_evidence;
     s.stats.conflicting_scans += a.conflicting_scans;
+    s.stats.ring_votes += a.ring_votes;
     s.stats.scans_visited += a.scans_visited;
     s.stats.beams += a.beams;
     s.stats.early_decisions += a.early;

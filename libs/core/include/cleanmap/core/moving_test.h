@@ -30,10 +30,11 @@ struct alignas(64) MovingTestStats {
   std::size_t total_conflicts = 0;    ///< Dempster combinations with K = 1 (set to unknown)
   std::size_t no_evidence = 0;        ///< points that no window scan saw (all unknown)
   std::size_t conflicting_scans = 0;  ///< empty scan votes made unknown (DsParams::scan_conflict)
-  std::size_t scans_visited = 0;      ///< (point, window scan) pairs looked up
-  std::size_t beams = 0;              ///< beams inside the cone, each a beam mass (Eq. 2-5)
-  std::size_t early = 0;              ///< points decided before the last window scan
-  std::size_t points = 0;             ///< points tested (isMoving / windowMass calls)
+  std::size_t ring_votes = 0;     ///< empty votes of a sparse scan's rings (MovingTest::ringVote)
+  std::size_t scans_visited = 0;  ///< (point, window scan) pairs looked up
+  std::size_t beams = 0;          ///< beams inside the cone, each a beam mass (Eq. 2-5)
+  std::size_t early = 0;          ///< points decided before the last window scan
+  std::size_t points = 0;         ///< points tested (isMoving / windowMass calls)
 };
 
 /// How the beam masses are computed: kFast (the default) evaluates a batch of beams on vector
@@ -89,6 +90,9 @@ class MovingTest {
   // both from its visit order.
   ds::Mass scanMassAt(const Eigen::Vector3d& pl, double d, const WindowScan& s,
                       MovingTestStats* stats, uint8_t edges = 0) const;
+  // Issue #15: the empty mass a sparse scan's rings around P give it (0: no vote; DESIGN §2b).
+  double ringVote(const Eigen::Vector3f& dir, float d, const WindowScan& s) const;
+  static constexpr float kRingFront = 1.0f;  // m; see ringVote
   DsParams p_;
   BeamMath math_;
   ds::BeamModel model_;

@@ -58,6 +58,10 @@ struct DsParams {
   /// (foliage, fences, thin poles: some beams pass P, some return at P), the scan's empty vote
   /// becomes unknown. 1 = off (the paper's rule alone).
   double scan_conflict = 0.3;
+  /// Our addition (issue #15, DESIGN §2b "Sparse lidars"): where a sparse lidar's scan has no beam
+  /// in P's cone, the rings just above and below P vote empty if both pass well beyond P and no
+  /// return of the scan lies near P (MovingTest::ringVote). false = such scans stay unknown.
+  bool ring_vote = true;
 };
 
 /// DESIGN §2c: octree leaf sampling.

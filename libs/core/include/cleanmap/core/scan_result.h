@@ -36,6 +36,7 @@ struct ScanStats {
   /// §2c; `tested` counts them too).
   std::size_t settled_skips = 0;
   std::size_t conflicting_scans = 0;  ///< empty scan votes made unknown (doc/SCAN_CONFLICT.md)
+  std::size_t ring_votes = 0;  ///< empty votes of a sparse lidar's rings around P (DESIGN §2b)
   std::size_t objects_moving = 0, consensus_points = 0, consensus_removed = 0;  ///< doc/OBJECTS.md
   std::size_t objects_persisted = 0;  ///< of objects_moving, kept moving by the hysteresis
   std::size_t empty = 0;              ///< 1 for a scan without valid points (summed: empty scans)
