@@ -128,14 +128,19 @@ double MovingTest::ringVote(const Eigen::Vector3f& dir, float d, const WindowSca
   const float widen = static_cast<float>(p_.search_lambdas) * noise / d;  // the pose error's angle
   const float near_behind = std::max(static_cast<float>(2.0 * model_.sigma), d * gap) + noise;
   const float near_front = std::max(near_behind, kRingFront + noise);
-  const auto cone = static_cast<float>(radius_);
+  const float el_band = 1.5f * gap + widen;
+  auto offset = [&](const BeamIndex::Beam& q) {  // r = |OP'| - |OQ|, as scanMassAt's
+    return d * std::sqrt(1.0f - dir.cross(q.dir).squaredNorm()) - q.range;
+  };
+  auto is_near = [&](float r) { return r >= -near_behind && r <= near_front; };
+  // The rings around P first (the cone's width in azimuth): most static points end here, the
+  // rings meeting P's surface. Then the rest of the neighbourhood, a ring step to either side.
   float el_above = 2.0f, r_above = 0.0f, el_below = -2.0f, r_below = 0.0f;
   bool near = false;
-  forEachInBand(*s.beams, dir, east, up, gap + widen, 0.0f, 1.5f * gap + widen,
+  forEachInBand(*s.beams, dir, east, up, static_cast<float>(radius_), 0.0f, el_band,
                 [&](const BeamIndex::Beam& q, float el) {
-                  const float r = d * std::sqrt(1.0f - dir.cross(q.dir).squaredNorm()) - q.range;
-                  near = near || (r >= -near_behind && r <= near_front);
-                  if (std::abs(q.dir.dot(east)) > cone) return;
+                  const float r = offset(q);
+                  near = near || is_near(r);
                   if (el > 0.0f && el < el_above) {
                     el_above = el;
                     r_above = r;
@@ -147,6 +152,9 @@ double MovingTest::ringVote(const Eigen::Vector3f& dir, float d, const WindowSca
   const float pass = s.pose_noise2 > 0 ? std::max(2.0f * sigma, kRingFront) : 2.0f * sigma;
   if (near || el_above > 1.0f || el_below < -1.0f || !(r_above < -pass && r_below < -pass))
     return 0.0;
+  forEachInBand(*s.beams, dir, east, up, gap + widen, 0.0f, el_band,
+                [&](const BeamIndex::Beam& q, float) { near = near || is_near(offset(q)); });
+  if (near) return 0.0;
   return ds::Phi(-std::max(r_above, r_below) / sigma);
 }
 
