@@ -164,10 +164,11 @@ TEST(Regression, ResidentialFalseAlarms) {
 // Issue #15's bars on the labelled sets decimated to 16 rings (default parameters): residential
 // flags <= 0.2 % of its points, highway and city keep their recall within 0.05 of the 64-ring
 // run's (0.903 and 0.999, Regression.Highway / City). Each of the four ways to keep every 4th
-// laser is another 16-ring lidar of the same streets. Measured (doc/BENCHMARK.md, 16 rings):
-// residential 0.045 / 0.098 / 0.078 / 0.128 % flagged, highway recall 0.870 / 0.881 / 0.863 /
-// 0.863, city 0.976 (offset 0); before the edge rule (MovingTest::edgesOf) 0.13-0.37 % and
-// highway 0.812-0.868.
+// laser is another 16-ring lidar of the same streets. Measured with the app (doc/BENCHMARK.md,
+// "Sparse lidars vote through their rings"): residential 0.048 / 0.104 / 0.080 / 0.136 % flagged,
+// highway recall 0.922 / 0.903 / 0.881 / 0.877, city 0.978 (offset 0); without the rings' vote
+// 0.045 / 0.100 / 0.078 / 0.135 % and 0.870 / 0.883 / 0.862 / 0.863; before the edge rule
+// (MovingTest::edgesOf) 0.13-0.37 % and highway 0.812-0.868.
 TEST(Regression, SixteenRingBars) {
   for (const char* set : {"kitti_city", "kitti_highway", "kitti_residential"})
     CLEANMAP_REQUIRE_DATASET(set);
