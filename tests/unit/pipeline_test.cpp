@@ -466,35 +466,45 @@ TEST(MovingTest, SparseRingsWidenTheConflictCheckInElevation) {
 
 namespace {
 
-// A sparse lidar at the origin: rings at elevations el0 + k * step degrees (k = -4..4), columns
-// every 0.2 degrees within +-10 degrees; each ray hits the first of: a box [x0, x1] x [-2, 2] x
-// [bottom, top] (front face, then top face), the road z = -1.73, a wall at x = 20 m.
-std::vector<PointXYZI> sparseScan(double el0, double step, double x0, double x1, double top,
-                                  bool with_box = true, double bottom = -1.7) {
+// The rays of a lidar at the origin: rings at elevations el0 + k * step degrees (k = k0..k1),
+// columns every 0.2 degrees within +-10 degrees; each returns at range(u, el_deg, az_deg) metres
+// along its unit direction u.
+template <class F>
+std::vector<PointXYZI> castRings(double el0, double step, int k0, int k1, F&& range) {
   constexpr double kDeg = M_PI / 180.0;
   std::vector<PointXYZI> scan;
-  for (int ring = -4; ring <= 4; ++ring)
+  for (int k = k0; k <= k1; ++k)
     for (int a = -50; a <= 50; ++a) {
-      const double el = (el0 + step * ring) * kDeg, az = 0.2 * a * kDeg;
+      const double el_deg = el0 + step * k, az_deg = 0.2 * a;
+      const double el = el_deg * kDeg, az = az_deg * kDeg;
       const Eigen::Vector3d u(std::cos(el) * std::cos(az), std::cos(el) * std::sin(az),
                               std::sin(el));
-      double t = 20.0 / u.x();  // the wall
-      auto hits = [&](double tt, bool ok) {
-        if (ok && tt > 0 && tt < t) t = tt;
-      };
-      if (with_box) {
-        const Eigen::Vector3d f = u * (x0 / u.x());
-        hits(x0 / u.x(), std::abs(f.y()) <= 2.0 && f.z() >= bottom && f.z() <= top);
-        if (u.z() < 0) {
-          const Eigen::Vector3d q = u * (top / u.z());
-          hits(top / u.z(), q.x() >= x0 && q.x() <= x1 && std::abs(q.y()) <= 2.0);
-        }
-      }
-      if (u.z() < 0) hits(-1.73 / u.z(), true);
-      const Eigen::Vector3d h = u * t;
+      const Eigen::Vector3d h = u * range(u, el_deg, az_deg);
       scan.push_back({float(h.x()), float(h.y()), float(h.z()), 0.5f});
     }
   return scan;
+}
+
+// A sparse lidar (castRings, k = -4..4): each ray hits the first of: a box [x0, x1] x [-2, 2] x
+// [bottom, top] (front face, then top face), the road z = -1.73, a wall at x = 20 m.
+std::vector<PointXYZI> sparseScan(double el0, double step, double x0, double x1, double top,
+                                  bool with_box = true, double bottom = -1.7) {
+  return castRings(el0, step, -4, 4, [&](const Eigen::Vector3d& u, double, double) {
+    double t = 20.0 / u.x();  // the wall
+    auto hits = [&](double tt, bool ok) {
+      if (ok && tt > 0 && tt < t) t = tt;
+    };
+    if (with_box) {
+      const Eigen::Vector3d f = u * (x0 / u.x());
+      hits(x0 / u.x(), std::abs(f.y()) <= 2.0 && f.z() >= bottom && f.z() <= top);
+      if (u.z() < 0) {
+        const Eigen::Vector3d q = u * (top / u.z());
+        hits(top / u.z(), q.x() >= x0 && q.x() <= x1 && std::abs(q.y()) <= 2.0);
+      }
+    }
+    if (u.z() < 0) hits(-1.73 / u.z(), true);
+    return t;
+  });
 }
 
 }  // namespace
@@ -558,18 +568,9 @@ namespace {
 // within +-10 degrees; each ray returns at `range(el_deg, az_deg)` metres.
 template <class F>
 std::vector<PointXYZI> ringScan(F&& range) {
-  constexpr double kDeg = M_PI / 180.0;
-  std::vector<PointXYZI> scan;
-  for (int k = -3; k <= 2; ++k)
-    for (int a = -50; a <= 50; ++a) {
-      const double el_deg = 0.8 + 2.0 * k, az_deg = 0.2 * a;
-      const double el = el_deg * kDeg, az = az_deg * kDeg;
-      const Eigen::Vector3d h =
-          range(el_deg, az_deg) *
-          Eigen::Vector3d(std::cos(el) * std::cos(az), std::cos(el) * std::sin(az), std::sin(el));
-      scan.push_back({float(h.x()), float(h.y()), float(h.z()), 0.5f});
-    }
-  return scan;
+  return castRings(0.8, 2.0, -3, 2, [&](const Eigen::Vector3d&, double el_deg, double az_deg) {
+    return range(el_deg, az_deg);
+  });
 }
 
 }  // namespace

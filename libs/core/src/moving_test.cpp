@@ -115,8 +115,8 @@ uint8_t MovingTest::edgesOf(const Eigen::Vector3f& p, const WindowScan& own) con
 // Phi(-r / sigma) of the two). It does not where a return of the scan lies near P: within a ring
 // step in azimuth and 1.5 in elevation (widened by the pose error), from 1 m in front of P to
 // max(2 sigma, d * gap) beyond it. Such a return may be the surface P lies on, seen grazing (a
-// car's roof or bonnet: the ring below meets it in front of P, the one above passes over) or
-// through glass, or its edge: those were the false alarms of the plain rule (doc/BENCHMARK.md).
+// car's roof: both rings pass over it, the next one down meets it in front of P) or through
+// glass, or its edge: those were the false alarms of the plain rule (doc/BENCHMARK.md).
 // With estimated poses both rings must also pass P by 1 m: a sparse scan's GICP pose was measured
 // 0.5 m off between neighbouring scans, far beyond registration.relative_error's model.
 double MovingTest::ringVote(const Eigen::Vector3f& dir, float d, const WindowScan& s) const {

@@ -21,7 +21,8 @@ struct WindowScan {
   double pose_noise2 = 0.0;
   /// rad; the elevation step between this scan's rings where it exceeds the beam cone (a sparse
   /// lidar: 16 or 32 rings), 0 otherwise. A return at P's range on the rings just above or below
-  /// P's direction keeps the scan from voting empty (MovingTest::scanMass, DESIGN §2b).
+  /// P's direction keeps the scan from voting empty (MovingTest::scanMass, DESIGN §2b); where its
+  /// cone holds no beam, the rings around P may vote (DsParams::ring_vote).
   double ring_gap = 0.0;
 };
 
@@ -54,6 +55,7 @@ class MovingTest {
 
   /// m(P, S_i) = (+)_Q m'(P, Q) over the beams of S_i within search radius of O_i->P (Eq. 6);
   /// unknown where that is empty but the scan's own beams conflict (DsParams::scan_conflict).
+  /// A sparse scan with no beam near P may vote through its rings around P (DsParams::ring_vote).
   ds::Mass scanMass(const Eigen::Vector3d& p_world, const WindowScan& s, double* range_p,
                     MovingTestStats* stats) const;
   /// Window decision: Dempster combination (Eq. 6) of the discretised scan masses (Eq. 8-10).
