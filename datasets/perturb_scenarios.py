@@ -10,6 +10,7 @@ each moving object's points labelled moving. Variants:
   ego_slow  the ego at 0.6x speed   ego_fast  the ego at 1.5x speed
   mov_slow  every mover at 0.5x     mov_fast  every mover at 1.5x
   noisy     twice the range noise   hdl32     an HDL-32E instead of the scene's lidar
+  vlp16     a VLP-16 instead of the scene's lidar (not in the default list)
 The bars the named tests check are for the shipped scenes; this looks around them. A run's
 folders are removed once scored (about 100 MB each); --keep keeps them.
 
@@ -26,6 +27,7 @@ import sys
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 VARIANTS = ["base", "seed", "ego_slow", "ego_fast", "mov_slow", "mov_fast", "noisy", "hdl32"]
+SENSORS = {"hdl32": "hdl32", "vlp16": "vlp16"}  # variant -> the [sensor] model preset it uses
 # (section, key) -> factor, per variant
 SCALE = {
     "ego_slow": ("ego", "speed", 0.6),
@@ -56,7 +58,7 @@ def perturb(text, variant):
             elif variant in SCALE and (section, key) == SCALE[variant][:2]:
                 f = SCALE[variant][2]
                 line = f"{key} = " + " ".join(f"{float(x) * f:g}" for x in value.split())
-            elif variant == "hdl32" and section == "sensor" and key in (
+            elif variant in SENSORS and section == "sensor" and key in (
                     "model", "azimuth_step_deg", "rings", "vertical_fov_deg"):
                 line = "# " + line  # the preset's rings and azimuth step
         out.append(line)
@@ -67,8 +69,8 @@ def perturb(text, variant):
         text = text.replace("[scenario]", "[scenario]\nseed = 11", 1)
     if variant == "noisy" and ("sensor", "range_noise") not in seen:
         text = text.replace("[sensor]", "[sensor]\nrange_noise = 0.02", 1)  # twice the default
-    if variant == "hdl32":
-        text = text.replace("[sensor]", "[sensor]\nmodel = hdl32", 1)
+    if variant in SENSORS:
+        text = text.replace("[sensor]", f"[sensor]\nmodel = {SENSORS[variant]}", 1)
     return text
 
 
@@ -102,8 +104,8 @@ def main():
             fail(f"{s}: no such scenario in {scen_dir}")
     variants = [v for v in a.variants.split(",") if v]
     for v in variants:
-        if v not in VARIANTS:
-            fail(f"{v}: unknown variant (known: {', '.join(VARIANTS)})")
+        if v not in VARIANTS and v not in SENSORS:
+            fail(f"{v}: unknown variant (known: {', '.join(VARIANTS + ['vlp16'])})")
     if a.config and not os.path.isfile(a.config):
         fail(f"{a.config}: no such configuration file")
     os.makedirs(a.output, exist_ok=True)
