@@ -53,6 +53,8 @@ void validate(const PipelineParams& p, const std::string& name) {
           "registration.max_iterations and map_points_per_voxel must be >= 1");
   require(r.map_radius > r.max_correspondence,
           "registration.map_radius must exceed max_correspondence");
+  require(r.map_lag >= 0 && r.map_lag <= 50,
+          "registration.map_lag must be in [0, 50] scans (0: align against every entry)");
   require(r.max_speed > 0 && r.max_turn_rate > 0,
           "registration.max_speed and max_turn_rate must be > 0");
   require(p.threads >= 1, "run.threads must be >= 1");

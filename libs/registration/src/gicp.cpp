@@ -40,7 +40,7 @@ struct Normal {
 }  // namespace
 
 GicpResult alignGicp(const CovCloud& src, const VoxelMap& target, const Eigen::Isometry3d& guess,
-                     const GicpParams& p, int threads) {
+                     const GicpParams& p, int threads, int64_t newest_scan) {
   GicpResult r;
   r.T = guess;
   if (src.size() < static_cast<std::size_t>(p.min_correspondences)) {
@@ -62,7 +62,7 @@ GicpResult alignGicp(const CovCloud& src, const VoxelMap& target, const Eigen::I
     const Eigen::Matrix3d R = r.T.linear();
     if (search) {
       parallelFor(src.size(), threads, [&](std::size_t i) {
-        match[i] = target.nearest(r.T * src.points[i], p.max_correspondence);
+        match[i] = target.nearest(r.T * src.points[i], p.max_correspondence, newest_scan);
       });
       searched_at = r.T;
       search = false;

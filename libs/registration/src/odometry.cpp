@@ -21,6 +21,7 @@ Odometry::Odometry(const Odometry& o)
       threads_(o.threads_),
       map_(o.map_),
       last_(o.last_),
+      accepted_(o.accepted_),
       scratch_(std::make_unique<Scratch>()) {}
 
 Odometry::Odometry(const RegistrationParams& p, int threads)
@@ -112,7 +113,10 @@ OdometryStep Odometry::track(const std::vector<PointXYZI>& points, double t, int
                       ? "first"
                       : "too few points to start the map (" + std::to_string(cloud.size()) + ")";
   } else {
-    step.gicp = alignGicp(align, map_, guess, gicp_, threads_);
+    // DESIGN §2.1, "Traffic that moves with the sensor": the entries of the last map_lag accepted
+    // scans are left out (until map_lag + 1 are accepted, all but the first scan's).
+    step.gicp = alignGicp(align, map_, guess, gicp_, threads_,
+                          accepted_.empty() ? INT64_MAX : accepted_.front());
     step.pose = step.gicp.T;
     step.status = step.gicp.failure.empty() ? "ok" : step.gicp.failure;
     if (step.gicp.failure.empty() && !last_.empty()) {  // a jump beyond what the motion allows
@@ -139,6 +143,8 @@ OdometryStep Odometry::track(const std::vector<PointXYZI>& points, double t, int
     map_.prune(step.pose.translation(), p_.map_radius);
     last_.emplace_back(t, step.pose);
     if (last_.size() > 2) last_.erase(last_.begin());
+    accepted_.push_back(scan);
+    if (accepted_.size() > static_cast<std::size_t>(p_.map_lag) + 1) accepted_.pop_front();
   }
   step.ms_map = msSince(t0);
   return step;

@@ -3,6 +3,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <stdexcept>
+#include <string>
 
 #include "cleanmap/core/cell_key.h"
 
@@ -14,6 +16,10 @@ VoxelMap::VoxelMap(double voxel, int max_per_voxel)
       max_per_voxel_(static_cast<std::size_t>(std::max(1, max_per_voxel))) {}
 
 void VoxelMap::insert(const CovCloud& world, int64_t scan) {
+  if (scan < last_scan_)
+    throw std::invalid_argument("VoxelMap::insert: scan " + std::to_string(scan) + " after scan " +
+                                std::to_string(last_scan_) + " (scans come in order)");
+  last_scan_ = scan;
   std::vector<uint64_t> keys;
   for (std::size_t i = 0; i < world.size(); ++i) {
     const Eigen::Vector3d& p = world.points[i];
@@ -69,7 +75,8 @@ void VoxelMap::prune(const Eigen::Vector3d& centre, double radius) {
   }
 }
 
-VoxelMap::Match VoxelMap::nearest(const Eigen::Vector3d& p, double max_dist) const {
+VoxelMap::Match VoxelMap::nearest(const Eigen::Vector3d& p, double max_dist,
+                                  int64_t newest_scan) const {
   Match best;
   double best2 = max_dist * max_dist;
   const Eigen::Vector3d u = p * inv_;
@@ -81,7 +88,10 @@ VoxelMap::Match VoxelMap::nearest(const Eigen::Vector3d& p, double max_dist) con
     const Voxel* found = grid_.find(key);
     if (!found) return;
     const Voxel& v = *found;
-    for (std::size_t e = 0; e < v.p.size(); ++e) {
+    // Entries are in scan order: those of scans after newest_scan are at the end.
+    std::size_t n = v.p.size();
+    while (n > 0 && v.origin[n - 1].first > newest_scan) --n;
+    for (std::size_t e = 0; e < n; ++e) {
       const double d2 = (v.p[e] - p).squaredNorm();
       if (d2 < best2) best2 = d2, best = Match{&v.p[e], &v.cov[e]};
     }

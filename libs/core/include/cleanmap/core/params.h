@@ -103,6 +103,12 @@ struct RegistrationParams {
   double map_radius = 100.0;   ///< m; the local map forgets what lies farther
   double max_speed = 50.0;     ///< m/s; a faster step is a failed alignment (a jump)
   double max_turn_rate = 1.5;  ///< rad/s; likewise
+  /// GICP aligns each scan against the local map without the entries of the last `map_lag`
+  /// accepted scans (until map_lag + 1 are accepted: the first scan's only). Traffic moving with
+  /// the sensor sits where its newest entries are and drags the pose back to them; 1 cuts that
+  /// drag on a 16-ring lidar in stop-and-go traffic, but can lose the pose in scenes with little
+  /// static hold (DESIGN §2.1, "Traffic that moves with the sensor"). 0 = every entry.
+  int map_lag = 0;
   /// Undo the motion during the sweep before aligning (constant velocity; a point's time from its
   /// azimuth, the sweep running clockwise from the rear as on KITTI's HDL-64E). 0 = off.
   bool deskew = false;

@@ -38,8 +38,9 @@ struct GicpResult {
   std::string failure;      ///< empty when the alignment is usable
 };
 
-/// Aligns `source` (sensor frame, with covariances) to `target` from `guess` (sensor to world).
+/// Aligns `source` (sensor frame, with covariances) to `target` from `guess` (sensor to world),
+/// matching only the target's entries of scans up to `newest_scan`.
 GicpResult alignGicp(const CovCloud& source, const VoxelMap& target, const Eigen::Isometry3d& guess,
-                     const GicpParams& p, int threads);
+                     const GicpParams& p, int threads, int64_t newest_scan = INT64_MAX);
 
 }  // namespace cleanmap::reg

@@ -2,9 +2,12 @@
 // DESIGN §2.1: scan-to-local-map GICP odometry. The map starts with the first scan; each new scan
 // is aligned from a constant-velocity guess (or a given prior), checked (too few points,
 // degenerate scene, a jump beyond max_speed / max_turn_rate) and, if accepted, added to the map.
-// Points the pipeline later decides moving are taken out of the map (dropPoints).
+// Points the pipeline later decides moving are taken out of the map (dropPoints). A scan is not
+// aligned against the entries of the last `map_lag` accepted scans (traffic moving with the
+// sensor sits in them; DESIGN §2.1).
 #pragma once
 #include <Eigen/Geometry>
+#include <deque>
 #include <memory>
 #include <optional>
 #include <string>
@@ -51,7 +54,8 @@ class Odometry {
   int threads_;
   VoxelMap map_;
   std::vector<std::pair<double, Eigen::Isometry3d>> last_;  // the last two accepted (time, pose)
-  struct Scratch;                                           // per-scan tables, reused
+  std::deque<int64_t> accepted_;  // the last map_lag + 1 accepted scans; the oldest is aligned to
+  struct Scratch;                 // per-scan tables, reused
   std::unique_ptr<Scratch> scratch_;
 };
 

@@ -2,7 +2,8 @@
 // DESIGN §2.1: the local map GICP aligns to — world points with their covariances in a voxel hash
 // (at most `max_per_voxel` per voxel), searched in the 27 voxels around a query. Each entry
 // remembers the scan and point it came from, so the points the pipeline later decides moving can
-// be taken out again, and the map forgets what lies beyond a radius of the sensor.
+// be taken out again, and the map forgets what lies beyond a radius of the sensor. Scans come in
+// order, so a voxel's entries are in scan order and a search can leave out the newest scans.
 #pragma once
 #include <Eigen/Core>
 #include <cstdint>
@@ -25,15 +26,17 @@ class VoxelMap {
 
   VoxelMap(double voxel, int max_per_voxel);
 
-  /// Adds a cloud already in the world frame (covariances too), tagged with its scan.
+  /// Adds a cloud already in the world frame (covariances too), tagged with its scan; scans come
+  /// in non-decreasing order (std::invalid_argument otherwise).
   void insert(const CovCloud& world, int64_t scan);
   /// Removes the entries of `scan` whose point index is flagged in `drop` (indexed by point).
   void remove(int64_t scan, const std::vector<uint8_t>& drop);
   /// Forgets voxels farther than `radius` from `centre` (horizontally and vertically alike).
   void prune(const Eigen::Vector3d& centre, double radius);
-  /// The nearest entry within `max_dist` (<= voxel) of p; empty if none. Neighbour voxels are
-  /// visited only while their box is nearer than the best match so far.
-  Match nearest(const Eigen::Vector3d& p, double max_dist) const;
+  /// The nearest entry within `max_dist` (<= voxel) of p among those of scans up to
+  /// `newest_scan`; empty if none. Neighbour voxels are visited only while their box is nearer
+  /// than the best match so far.
+  Match nearest(const Eigen::Vector3d& p, double max_dist, int64_t newest_scan = INT64_MAX) const;
 
   std::size_t size() const { return count_; }
   bool empty() const { return count_ == 0; }
@@ -53,6 +56,7 @@ class VoxelMap {
   CellMap<Voxel> grid_;
   std::deque<std::pair<int64_t, std::vector<uint64_t>>> touched_;  // voxels each scan filled
   std::size_t count_ = 0;
+  int64_t last_scan_ = INT64_MIN;  // the scan inserted last
 };
 
 }  // namespace cleanmap::reg
