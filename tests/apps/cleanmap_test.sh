@@ -98,9 +98,27 @@ expect_error 1 "has no pose to refine" "$bin/cleanmap" "$scratch/noposes.rawlog"
 expect_error 2 "--poses is given, gicp or refine" "$bin/cleanmap" "$seq" -o "$scratch/x" --poses odometry
 
 # Without poses, the run estimates them (GICP odometry, DESIGN §2.1) and says so per scan.
-"$bin/cleanmap" "$scratch/noposes" -o "$scratch/gicp" --last 5 >/dev/null || fail "an unposed input did not run"
+"$bin/cleanmap" "$scratch/noposes" -o "$scratch/gicp" --last 5 >/dev/null 2>"$scratch/gicp.err" || fail "an unposed input did not run"
 grep -q '"source": "gicp"' "$scratch/gicp/report.json" || fail "report.json does not say the poses came from gicp"
 [[ $(wc -l <"$scratch/gicp/poses_tum.txt") -eq 6 ]] || fail "poses_tum.txt does not hold 6 poses"
+grep -q "GICP refused" "$scratch/gicp.err" && fail "a street GICP tracks got a refusal warning: $(cat "$scratch/gicp.err")"
+grep -q "^6 of 6 scans aligned or first" "$scratch/gicp/report.md" || fail "report.md: no registration summary"
+# The road alone (its points below 1.5 m under the sensor): nothing holds the step along it, every
+# alignment is refused as degenerate, and the run says so in one line and in report.md.
+cp -r "$scratch/noposes" "$scratch/road"; rm -rf "$scratch/road/labels"
+python3 - "$scratch/road/velodyne" <<'PY'
+import os, struct, sys
+for f in sorted(os.listdir(sys.argv[1]))[:6]:
+    path = os.path.join(sys.argv[1], f)
+    b = open(path, 'rb').read()
+    p = struct.unpack('<%df' % (len(b) // 4), b)
+    road = [p[i:i + 4] for i in range(0, len(p), 4) if p[i + 2] < -1.5]
+    open(path, 'wb').write(b''.join(struct.pack('<4f', *q) for q in road))
+PY
+"$bin/cleanmap" "$scratch/road" -o "$scratch/road_out" --last 5 --quiet >/dev/null 2>"$scratch/road.err" || fail "the road alone did not run"
+grep -q "warning: GICP refused the alignment of 5 of 6 scans (degenerate scene: 5); their poses are the motion model's guess" "$scratch/road.err" ||
+  fail "no warning for refused alignments: $(cat "$scratch/road.err")"
+grep -q "| degenerate scene | 5 |" "$scratch/road_out/report.md" || fail "report.md does not count the refused alignments"
 # MRPT's own one-scan VLP-16 rawlog (no pose): a window of one.
 vlp=/usr/share/mrpt/datasets/test_velodyne_VLP16.rawlog
 if [[ -f $vlp ]]; then

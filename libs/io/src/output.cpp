@@ -151,6 +151,25 @@ OutputWriter::~OutputWriter() {
   }
 }
 
+namespace {
+// A refused alignment's status without its figures: "degenerate scene (a translation is ...)" ->
+// "degenerate scene", "jump of 3.1 m / ..." -> "a jump beyond max_speed / max_turn_rate".
+std::string refusalReason(const std::string& status) {
+  if (status.rfind("jump of", 0) == 0) return "a jump beyond max_speed / max_turn_rate";
+  return status.substr(0, status.find(" ("));
+}
+}  // namespace
+
+std::vector<std::pair<std::string, std::size_t>> OutputWriter::refusedAlignments() const {
+  std::map<std::string, std::size_t> by_reason;
+  for (const PoseInfo& p : pose_info_)
+    if (!p.accepted && p.source != "given") ++by_reason[refusalReason(p.status)];
+  std::vector<std::pair<std::string, std::size_t>> out(by_reason.begin(), by_reason.end());
+  std::stable_sort(out.begin(), out.end(),
+                   [](const auto& a, const auto& b) { return a.second > b.second; });
+  return out;
+}
+
 std::optional<double> OutputWriter::measuredSensorHeight() const {
   std::vector<double> m;
   for (const double g : ground_measured_)
@@ -502,6 +521,19 @@ void OutputWriter::finish(double wall_s, const FreeSpaceMap* free_space) {
       const Spread s = spread(*v);
       std::snprintf(buf, sizeof buf, "| %s | %.1f | %.1f |\n", name, s.median, s.p95);
       os << buf;
+    }
+    // DESIGN §2.1: estimated poses, and the scans whose alignment was refused.
+    if (!pose_info_.empty() && pose_info_.front().source != "given") {
+      std::size_t refused = 0;
+      const auto reasons = refusedAlignments();
+      for (const auto& [reason, n] : reasons) refused += n;
+      os << "\n## Registration (" << pose_info_.front().source << ")\n"
+         << pose_info_.size() - refused << " of " << pose_info_.size()
+         << " scans aligned or first; a refused scan keeps the motion model's guess.\n";
+      if (!reasons.empty()) {
+        os << "\n| refused: reason | scans |\n|---|---|\n";
+        for (const auto& [reason, n] : reasons) os << "| " << reason << " | " << n << " |\n";
+      }
     }
     if (has_eval_) {
       std::snprintf(buf, sizeof buf,
