@@ -107,6 +107,7 @@ OdometryStep Odometry::track(const std::vector<PointXYZI>& points, double t, int
   t0 = Clock::now();
   const Eigen::Isometry3d guess = prior ? *prior : predict(t);
   if (map_.empty()) {
+    accepted_.clear();  // the map starts again with this scan
     step.pose = guess;
     step.accepted = cloud.size() >= static_cast<std::size_t>(gicp_.min_correspondences);
     step.status = step.accepted
@@ -114,7 +115,7 @@ OdometryStep Odometry::track(const std::vector<PointXYZI>& points, double t, int
                       : "too few points to start the map (" + std::to_string(cloud.size()) + ")";
   } else {
     // DESIGN §2.1, "Traffic that moves with the sensor": the entries of the last map_lag accepted
-    // scans are left out (until map_lag + 1 are accepted, all but the first scan's).
+    // scans are left out (until map_lag + 1 are accepted, only the first scan's are aligned to).
     step.gicp = alignGicp(align, map_, guess, gicp_, threads_,
                           accepted_.empty() ? INT64_MAX : accepted_.front());
     step.pose = step.gicp.T;
