@@ -21,6 +21,7 @@ Odometry::Odometry(const Odometry& o)
       threads_(o.threads_),
       map_(o.map_),
       last_(o.last_),
+      last_accepted_(o.last_accepted_),
       accepted_(o.accepted_),
       scratch_(std::make_unique<Scratch>()) {}
 
@@ -120,9 +121,10 @@ OdometryStep Odometry::track(const std::vector<PointXYZI>& points, double t, int
                           accepted_.empty() ? INT64_MAX : accepted_.front());
     step.pose = step.gicp.T;
     step.status = step.gicp.failure.empty() ? "ok" : step.gicp.failure;
-    if (step.gicp.failure.empty() && !last_.empty()) {  // a jump beyond what the motion allows
-      const Eigen::Isometry3d rel = last_.back().second.inverse() * step.pose;
-      const double dt = std::max(t - last_.back().first, 0.1);
+    if (step.gicp.failure.empty() && last_accepted_) {  // a jump beyond what the motion allows
+      // From the last accepted scan: after refusals the guess may have drifted from the truth.
+      const Eigen::Isometry3d rel = last_accepted_->second.inverse() * step.pose;
+      const double dt = std::max(t - last_accepted_->first, 0.1);
       const double turn = Eigen::AngleAxisd(rel.linear()).angle();
       if (rel.translation().norm() > p_.max_speed * dt + 0.5 || turn > p_.max_turn_rate * dt + 0.05)
         step.status = "jump of " + std::to_string(rel.translation().norm()) + " m / " +
@@ -142,11 +144,15 @@ OdometryStep Odometry::track(const std::vector<PointXYZI>& points, double t, int
     }
     map_.insert(world, scan);
     map_.prune(step.pose.translation(), p_.map_radius);
-    last_.emplace_back(t, step.pose);
-    if (last_.size() > 2) last_.erase(last_.begin());
     accepted_.push_back(scan);
     if (accepted_.size() > static_cast<std::size_t>(p_.map_lag) + 1) accepted_.pop_front();
+    last_accepted_.emplace(t, step.pose);
   }
+  // The motion model goes on from a refused scan's guess too: through a stretch GICP cannot hold
+  // (a corridor, a tunnel) the sensor keeps its last velocity, where extrapolating from the last
+  // accepted scan alone stopped it 5 steps in (predict's cap for gaps in time).
+  last_.emplace_back(t, step.pose);
+  if (last_.size() > 2) last_.erase(last_.begin());
   step.ms_map = msSince(t0);
   return step;
 }
