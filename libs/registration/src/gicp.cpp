@@ -49,6 +49,7 @@ GicpResult alignGicp(const CovCloud& src, const VoxelMap& target, const Eigen::I
   }
   if (target.size() < static_cast<std::size_t>(p.min_correspondences)) {
     r.failure = "the map holds too few points (" + std::to_string(target.size()) + ")";
+    r.no_overlap = true;
     return r;
   }
   constexpr std::size_t kBlock = 256;
@@ -98,6 +99,7 @@ GicpResult alignGicp(const CovCloud& src, const VoxelMap& target, const Eigen::I
     r.iterations = it + 1;
     if (total.n < static_cast<std::size_t>(p.min_correspondences)) {
       r.failure = "too few correspondences (" + std::to_string(total.n) + ")";
+      r.no_overlap = true;
       return r;
     }
     const Vec6 delta = total.H.ldlt().solve(-total.g);

@@ -132,6 +132,13 @@ OdometryStep Odometry::track(const std::vector<PointXYZI>& points, double t, int
     }
     step.accepted = step.status == "ok";
     if (!step.accepted) step.pose = guess;
+    // The map is out of the scan's reach (a long gap, a stretch that was never added): it starts
+    // again at the next scan, from the motion model's guess (or the given pose), instead of every
+    // later scan being refused against it.
+    if (step.gicp.no_overlap) {
+      map_ = VoxelMap(p_.max_correspondence, p_.map_points_per_voxel);
+      step.status += "; the map starts again at the next scan";
+    }
   }
   step.ms_align = msSince(t0);
   t0 = Clock::now();

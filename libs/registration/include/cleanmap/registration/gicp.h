@@ -35,7 +35,10 @@ struct GicpResult {
   double rmse = 0;                  ///< m; of the correspondences at the end
   bool converged = false;
   bool degenerate = false;  ///< some translation is barely constrained (a plane, a corridor)
-  std::string failure;      ///< empty when the alignment is usable
+  /// Failed because the scan and the map barely overlap (too few correspondences, or a map of
+  /// too few points): the map is elsewhere, not just the guess a little off.
+  bool no_overlap = false;
+  std::string failure;  ///< empty when the alignment is usable
 };
 
 /// Aligns `source` (sensor frame, with covariances) to `target` from `guess` (sensor to world),
