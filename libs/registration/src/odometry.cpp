@@ -21,7 +21,7 @@ Odometry::Odometry(const Odometry& o)
       threads_(o.threads_),
       map_(o.map_),
       last_(o.last_),
-      last_accepted_(o.last_accepted_),
+      prev_(o.prev_),
       accepted_(o.accepted_),
       scratch_(std::make_unique<Scratch>()) {}
 
@@ -35,21 +35,26 @@ Odometry::Odometry(const RegistrationParams& p, int threads)
   gicp_.max_iterations = p.max_iterations;
 }
 
-// Constant velocity: the last relative motion, scaled to the time since the last scan.
+// Constant velocity: the relative motion between the last two accepted scans, scaled to the time
+// since the previous scan and applied to its pose (accepted, or itself a guess). Through a run of
+// refused scans (a corridor, a lidar dropout) the sensor so keeps that velocity; extrapolating
+// from the last accepted scan stopped it 5 scans in (the cap, meant for gaps in time). The
+// velocity is not taken from a guess: a refused stretch's accumulated error, corrected by the
+// next accepted scan, is not a motion (DESIGN §2.1 step 4).
 Eigen::Isometry3d Odometry::predict(double t) const {
-  if (last_.empty()) return Eigen::Isometry3d::Identity();
-  if (last_.size() < 2) return last_.back().second;
+  if (!prev_) return Eigen::Isometry3d::Identity();
+  if (last_.size() < 2) return prev_->second;
   const auto& [t0, T0] = last_[0];
   const auto& [t1, T1] = last_[1];
   const Eigen::Isometry3d delta = T0.inverse() * T1;
-  const double dt_prev = t1 - t0, dt = t - t1;
+  const double dt_prev = t1 - t0, dt = t - prev_->first;
   double s = (dt_prev > 1e-6 && dt > 0) ? dt / dt_prev : 1.0;
   s = std::min(s, 5.0);  // a long gap: do not extrapolate wildly
   const Eigen::AngleAxisd aa(delta.linear());
   Eigen::Isometry3d step = Eigen::Isometry3d::Identity();
   step.linear() = Eigen::AngleAxisd(aa.angle() * s, aa.axis()).toRotationMatrix();
   step.translation() = delta.translation() * s;
-  return T1 * step;
+  return prev_->second * step;
 }
 
 OdometryStep Odometry::track(const std::vector<PointXYZI>& points, double t, int64_t scan,
@@ -121,10 +126,9 @@ OdometryStep Odometry::track(const std::vector<PointXYZI>& points, double t, int
                           accepted_.empty() ? INT64_MAX : accepted_.front());
     step.pose = step.gicp.T;
     step.status = step.gicp.failure.empty() ? "ok" : step.gicp.failure;
-    if (step.gicp.failure.empty() && last_accepted_) {  // a jump beyond what the motion allows
-      // From the last accepted scan: after refusals the guess may have drifted from the truth.
-      const Eigen::Isometry3d rel = last_accepted_->second.inverse() * step.pose;
-      const double dt = std::max(t - last_accepted_->first, 0.1);
+    if (step.gicp.failure.empty() && !last_.empty()) {  // a jump beyond what the motion allows
+      const Eigen::Isometry3d rel = last_.back().second.inverse() * step.pose;
+      const double dt = std::max(t - last_.back().first, 0.1);
       const double turn = Eigen::AngleAxisd(rel.linear()).angle();
       if (rel.translation().norm() > p_.max_speed * dt + 0.5 || turn > p_.max_turn_rate * dt + 0.05)
         step.status = "jump of " + std::to_string(rel.translation().norm()) + " m / " +
@@ -151,15 +155,12 @@ OdometryStep Odometry::track(const std::vector<PointXYZI>& points, double t, int
     }
     map_.insert(world, scan);
     map_.prune(step.pose.translation(), p_.map_radius);
+    last_.emplace_back(t, step.pose);
+    if (last_.size() > 2) last_.erase(last_.begin());
     accepted_.push_back(scan);
     if (accepted_.size() > static_cast<std::size_t>(p_.map_lag) + 1) accepted_.pop_front();
-    last_accepted_.emplace(t, step.pose);
   }
-  // The motion model goes on from a refused scan's guess too: through a stretch GICP cannot hold
-  // (a corridor, a tunnel) the sensor keeps its last velocity, where extrapolating from the last
-  // accepted scan alone stopped it 5 steps in (predict's cap for gaps in time).
-  last_.emplace_back(t, step.pose);
-  if (last_.size() > 2) last_.erase(last_.begin());
+  prev_.emplace(t, step.pose);
   step.ms_map = msSince(t0);
   return step;
 }

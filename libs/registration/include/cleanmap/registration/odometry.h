@@ -53,9 +53,8 @@ class Odometry {
   GicpParams gicp_;
   int threads_;
   VoxelMap map_;
-  // The last two scans (time, pose), accepted or refused (the motion model), and the last accepted.
-  std::vector<std::pair<double, Eigen::Isometry3d>> last_;
-  std::optional<std::pair<double, Eigen::Isometry3d>> last_accepted_;
+  std::vector<std::pair<double, Eigen::Isometry3d>> last_;    // the last two accepted (time, pose)
+  std::optional<std::pair<double, Eigen::Isometry3d>> prev_;  // the previous scan, even refused
   std::deque<int64_t> accepted_;  // the last map_lag + 1 accepted scans; the oldest is aligned to
   struct Scratch;                 // per-scan tables, reused
   std::unique_ptr<Scratch> scratch_;
