@@ -113,3 +113,37 @@ TEST(Output, TheSteadyIntervalLeavesOutTheScansDecidedAfterTheInput) {
   EXPECT_GE(t.at("median_ms").get<double>(), 30.0);
   EXPECT_GE(t.at("mean_ms").get<double>(), 30.0);
 }
+
+// DESIGN §2.1 step 4: the refused alignments counted by reason, without their figures, for the
+// app's warning line and report.md; a refusal after which GICP's map started again says so.
+TEST(Output, RefusedAlignmentsAreCountedByReason) {
+  const auto dir = test::scratchDir("output_refused");
+  const char* statuses[] = {
+      "first",
+      "ok",
+      "degenerate scene (a translation is unconstrained: one plane or one corridor)",
+      "degenerate scene (a translation is unconstrained: one plane or one corridor)",
+      "jump of 31.000000 m / 0.000000 rad in 0.100000 s",
+      "too few correspondences (0); the map starts again at the next scan",
+      "first",
+      "too few points (0)"};
+  io::OutputWriter w((dir / "out").string(), "input", PipelineParams{});
+  for (std::size_t i = 0; i < std::size(statuses); ++i) {
+    ScanResult r = result(i, 5);
+    r.pose_info.source = "gicp";
+    r.pose_info.status = statuses[i];
+    r.pose_info.accepted = r.pose_info.status == "ok" || r.pose_info.status == "first";
+    w.write(r, std::nullopt);
+  }
+  const std::vector<std::pair<std::string, std::size_t>> expected = {
+      {"degenerate scene", 2},
+      {"a jump beyond max_speed / max_turn_rate", 1},
+      {"too few correspondences, the map started again", 1},
+      {"too few points", 1}};
+  EXPECT_EQ(w.refusedAlignments(), expected);
+  w.finish(0.1);
+  const std::string md = io::readTextFile((dir / "out/report.md").string());
+  EXPECT_NE(md.find("3 of 8 scans aligned or first"), std::string::npos) << md;
+  EXPECT_NE(md.find("| too few correspondences, the map started again | 1 |"), std::string::npos)
+      << md;
+}

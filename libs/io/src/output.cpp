@@ -153,10 +153,14 @@ OutputWriter::~OutputWriter() {
 
 namespace {
 // A refused alignment's status without its figures: "degenerate scene (a translation is ...)" ->
-// "degenerate scene", "jump of 3.1 m / ..." -> "a jump beyond max_speed / max_turn_rate".
+// "degenerate scene", "jump of 3.1 m / ..." -> "a jump beyond max_speed / max_turn_rate"; where
+// the map started again after it (DESIGN §2.1 step 4), that is said too.
 std::string refusalReason(const std::string& status) {
-  if (status.rfind("jump of", 0) == 0) return "a jump beyond max_speed / max_turn_rate";
-  return status.substr(0, status.find(" ("));
+  const bool restarted = status.find("; the map starts again") != std::string::npos;
+  std::string reason = status.rfind("jump of", 0) == 0 ? "a jump beyond max_speed / max_turn_rate"
+                                                       : status.substr(0, status.find(" ("));
+  if (restarted) reason = reason.substr(0, reason.find(';')) + ", the map started again";
+  return reason;
 }
 }  // namespace
 
