@@ -33,7 +33,8 @@ int main(int argc, char** argv) {
     auto src = cleanmap::mrpt::openInput(input, opts);
     const auto* kitti = dynamic_cast<const cleanmap::io::KittiSequence*>(src.get());
     std::vector<std::size_t> sizes;
-    std::size_t dropped = 0, posed = 0, images = 0, empty = 0, moving = 0, labelled = 0;
+    std::size_t dropped = 0, posed = 0, images = 0, empty = 0, moving = 0, labelled = 0,
+                odometry = 0;
     double length = 0, t0 = 0, t1 = 0;
     std::optional<Eigen::Vector3d> last;
     while (auto f = src->next()) {
@@ -44,6 +45,7 @@ int main(int argc, char** argv) {
       dropped += s.dropped_invalid;
       empty += s.empty();
       images += f->image.has_value();
+      odometry += f->odometry.has_value();
       if (s.has_pose) {
         ++posed;
         if (last) length += (s.pose.translation() - *last).norm();
@@ -66,6 +68,8 @@ int main(int argc, char** argv) {
                 sizes.size(), t1 - t0, sorted.front(), sorted[sorted.size() / 2], sorted.back());
     std::printf("invalid: %zu NaN/inf points dropped, %zu empty scans\n", dropped, empty);
     std::printf("poses:   %zu of %zu scans; trajectory %.2f m\n", posed, sizes.size(), length);
+    if (odometry)  // rawlog odometry: GICP's guess with --poses gicp (DESIGN §2.1)
+      std::printf("odometry: %zu of %zu scans\n", odometry, sizes.size());
     if (const auto cam = src->camera())
       std::printf("images:  %zu; camera %s %dx%d, focal %.1f px\n", images, cam->name.c_str(),
                   cam->width, cam->height, cam->focal());

@@ -10,6 +10,7 @@
 #include "cleanmap/io/kitti.h"
 #include "cleanmap/mrpt/rawlog.h"
 #include "cleanmap/sim/generate.h"
+#include "cleanmap/sim/world.h"
 
 namespace {
 
@@ -86,9 +87,12 @@ int main(int argc, char** argv) {
       auto seq = cleanmap::io::KittiSequence::open(out, ro);
       cleanmap::mrpt::RawlogWriter writer(out + "/sequence.rawlog");
       const auto camera = seq.camera();
-      for (std::size_t i = 0; i < seq.size(); ++i)
-        writer.write(seq.frame(i), camera, seq.scanPath(i),
+      for (std::size_t i = 0; i < seq.size(); ++i) {
+        cleanmap::Frame f = seq.frame(i);
+        f.odometry = cleanmap::sim::odometryPose(sc, static_cast<int>(i));  // [ego] odometry
+        writer.write(f, camera, seq.scanPath(i),
                      seq.hasImages() ? seq.imagePath(i) : std::string());
+      }
       writer.close();
     }
     std::printf("cleanmap-sim: %s: %zu frames, %zu points (%zu moving), %zu images%s -> %s\n",

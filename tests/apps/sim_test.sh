@@ -21,6 +21,19 @@ if command -v rawlog-edit >/dev/null; then
     fail "rawlog-edit does not see 3 LIDAR observations"
 fi
 
+# [ego] odometry: sequence.rawlog carries wheel odometry (CObservationOdometry) per frame.
+sed 's/^\[ego\]/[ego]\nodometry = 0.01/' "$(dirname "$0")/../../datasets/scenarios/default.ini" >"$scratch/odo.ini"
+"$bin/cleanmap-sim" "$scratch/odo.ini" -o "$scratch/odo" --frames 3 --no-images >/dev/null 2>&1 ||
+  fail "generation with odometry failed"
+grep -q "odometry: 3 of 3 scans" <<<"$("$bin/cleanmap-info" "$scratch/odo/sequence.rawlog")" ||
+  fail "cleanmap-info sees no odometry in sequence.rawlog"
+grep -q "odometry" <<<"$("$bin/cleanmap-info" "$scratch/a/sequence.rawlog")" &&
+  fail "odometry written without [ego] odometry"
+if command -v rawlog-edit >/dev/null; then
+  grep -Eq "ODOMETRY / +3 " <<<"$(rawlog-edit --info -i "$scratch/odo/sequence.rawlog" 2>/dev/null)" ||
+    fail "rawlog-edit does not see 3 ODOMETRY observations"
+fi
+
 printf '[scenario]\nframes = many\n' >"$scratch/bad.ini"
 expect_error 1 "bad.ini:2" "$bin/cleanmap-sim" "$scratch/bad.ini" -o "$scratch/c"
 expect_error 1 "missing.ini" "$bin/cleanmap-sim" "$scratch/missing.ini" -o "$scratch/c"

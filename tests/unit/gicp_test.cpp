@@ -261,6 +261,51 @@ TEST(Odometry, StartsTheMapAgainWhereItNoLongerOverlapsTheScans) {
   }
 }
 
+// DESIGN §2.1 step 4: with input odometry, an alignment held by a truck driving ahead at the
+// sensor's speed in a corridor (the only hold along the road) is refused where it strays from the
+// odometry's guess, and the odometry kept; a given pose as the guess only starts GICP.
+TEST(Odometry, InputOdometryBoundsTheAlignment) {
+  constexpr double kStep = 0.8;  // m per scan, 8 m/s
+  auto scanAt = [&](int k, uint64_t seed) {
+    std::mt19937_64 rng(seed);
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    std::normal_distribution<double> noise(0.0, 0.01);
+    std::vector<PointXYZI> s;
+    auto add = [&](const Eigen::Vector3d& w) {  // w in the world; the sensor at x = kStep k
+      const Eigen::Vector3d q =
+          w - Eigen::Vector3d(kStep * k, 0, 0) + Eigen::Vector3d(noise(rng), noise(rng), 0);
+      s.push_back({float(q.x()), float(q.y()), float(q.z()), 0});
+    };
+    for (int i = 0; i < 30000; ++i) add({-30 + 60 * u(rng), -10 + 20 * u(rng), -1.7});  // road
+    for (int side : {-1, 1})
+      for (int i = 0; i < 12000; ++i)  // plain facades: no hold along the road
+        add({-30 + 60 * u(rng), side * 10.0, -1.7 + 8 * u(rng)});
+    for (int i = 0; i < 4000; ++i) {  // the truck's back and sides, 6 m ahead, moving along
+      const double x0 = 6 + kStep * k, a = u(rng), c = u(rng);
+      if (i % 3 == 0)
+        add({x0, -1.25 + 2.5 * a, -1.2 + 3.5 * c});
+      else
+        add({x0 + 8 * a, i % 3 == 1 ? -1.25 : 1.25, -1.2 + 3.5 * c});
+    }
+    return s;
+  };
+  // Scans 0 and 1, the guess the true pose (exact odometry, or a given pose).
+  auto run = [&](Prior kind) {
+    Odometry odo(RegistrationParams{}, 2);
+    odo.track(scanAt(0, 500), 0.0, 0, pose(0, 0, 0, 0, 0, 0), kind);
+    return odo.track(scanAt(1, 501), 0.1, 1, pose(kStep, 0, 0, 0, 0, 0), kind);
+  };
+  const OdometryStep odo = run(Prior::kOdometry), given = run(Prior::kGiven);
+  std::printf("  one step of %.1f m: odometry guess %.3f m (%s), given guess %.3f m (%s)\n", kStep,
+              odo.pose.translation().x(), odo.status.c_str(), given.pose.translation().x(),
+              given.status.c_str());
+  EXPECT_FALSE(odo.accepted);
+  EXPECT_NE(odo.status.find("disagrees with the odometry"), std::string::npos) << odo.status;
+  EXPECT_NEAR(odo.pose.translation().x(), kStep, 1e-9);
+  EXPECT_TRUE(given.accepted) << given.status;
+  EXPECT_LT(given.pose.translation().x(), 0.5 * kStep);  // the truck holds it near the first pose
+}
+
 // DESIGN §2.1, "Traffic that moves with the sensor": a corridor held along the road by a wall far
 // ahead and a row of poles, beside three trucks driving at the sensor's speed. The trucks sit in
 // the sensor frame where they were one scan before, so aligned against the newest map entries

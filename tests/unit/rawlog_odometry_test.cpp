@@ -58,3 +58,44 @@ TEST(RawlogSource, OdometryActionsAreSummedAndSensorPoseIsTheMount) {
     EXPECT_LE((f->mount->matrix() - cleanmap::mrpt::toIsometry(sensor).matrix()).norm(), 1e-12);
   }
 }
+
+// A frame's odometry written by RawlogWriter (a CObservationOdometry: x, y, yaw, as wheel odometry
+// gives; cleanmap-sim's `[ego] odometry`) reads back as the same planar pose, with the scan's own
+// pose beside it.
+TEST(RawlogWriter, OdometryRoundTrips) {
+  const auto dir = cleanmap::test::scratchDir("rawlog_odometry_write");
+  const std::string path = (dir / "odo.rawlog").string();
+  auto planar = [](double x, double y, double yaw) {
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.linear() = Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+    T.translation() = Eigen::Vector3d(x, y, 0);
+    return T;
+  };
+  std::vector<Eigen::Isometry3d> odo;
+  {
+    cleanmap::mrpt::RawlogWriter w(path);
+    for (int k = 0; k < 3; ++k) {
+      cleanmap::Frame f;
+      f.stem = std::to_string(k);
+      for (int i = 0; i < 100; ++i)
+        f.scan.points.push_back({float(i % 10), float(i / 10), 0.f, 0.5f});
+      f.scan.timestamp = 0.1 * k;
+      f.scan.pose = planar(2.0 * k, 0.1 * k, 0.0);
+      f.scan.has_pose = true;
+      odo.push_back(planar(100 + 1.9 * k, -3 + 0.2 * k, 0.3 + 0.05 * k));
+      f.odometry = odo.back();
+      w.write(f, std::nullopt);
+    }
+    EXPECT_EQ(w.odometries(), 3u);
+    w.close();
+  }
+  cleanmap::mrpt::RawlogSource src(path);
+  for (int k = 0; k < 3; ++k) {
+    const auto f = src.next();
+    ASSERT_TRUE(f);
+    ASSERT_TRUE(f->odometry) << "frame " << k;
+    EXPECT_LE((f->odometry->matrix() - odo[k].matrix()).norm(), 1e-9) << "frame " << k;
+    EXPECT_LE((f->scan.pose.matrix() - planar(2.0 * k, 0.1 * k, 0.0).matrix()).norm(), 1e-9);
+  }
+  EXPECT_FALSE(src.next());
+}

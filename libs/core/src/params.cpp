@@ -55,6 +55,9 @@ void validate(const PipelineParams& p, const std::string& name) {
           "registration.map_radius must exceed max_correspondence");
   require(r.map_lag >= 0 && r.map_lag <= 50,
           "registration.map_lag must be in [0, 50] scans (0: align against every entry)");
+  require(r.odometry_tolerance >= 0 && r.odometry_drift >= 0 && r.odometry_drift <= 1,
+          "registration.odometry_tolerance must be >= 0 m (0: no check) and odometry_drift in "
+          "[0, 1]");
   require(r.max_speed > 0 && r.max_turn_rate > 0,
           "registration.max_speed and max_turn_rate must be > 0");
   require(p.threads >= 1, "run.threads must be >= 1");

@@ -122,6 +122,8 @@ std::map<std::string, Key> table(PipelineParams& p) {
       {"registration.max_speed", d(p.registration.max_speed)},
       {"registration.max_turn_rate", d(p.registration.max_turn_rate)},
       {"registration.map_lag", i(p.registration.map_lag)},
+      {"registration.odometry_tolerance", d(p.registration.odometry_tolerance)},
+      {"registration.odometry_drift", d(p.registration.odometry_drift)},
       {"registration.deskew", Key{[&p](double v) { p.registration.deskew = v != 0; },
                                   [&p] { return p.registration.deskew ? 1.0 : 0.0; }, true}},
       {"registration.relative_error", d(p.registration.relative_error)},

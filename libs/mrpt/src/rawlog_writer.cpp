@@ -6,6 +6,7 @@
 
 #include <mrpt/io/CFileGZOutputStream.h>
 #include <mrpt/obs/CObservationImage.h>
+#include <mrpt/obs/CObservationOdometry.h>
 #include <mrpt/obs/CObservationPointCloud.h>
 #include <mrpt/obs/CObservationRobotPose.h>
 #include <mrpt/serialization/CArchive.h>
@@ -61,6 +62,19 @@ void RawlogWriter::write(const Frame& frame, const std::optional<PinholeCamera>&
     obs->pose.cov.setZero();
     arch << *obs;
     ++poses_;
+  }
+
+  if (frame.odometry) {  // planar, as a wheel odometry reports it
+    const Eigen::Isometry3d& T = *frame.odometry;
+    if (!T.matrix().allFinite())
+      throw Error(path_, "frame " + frame.stem + ": odometry not finite");
+    auto od = CObservationOdometry::Create();
+    od->sensorLabel = opts_.odometry_label;
+    od->timestamp = stamp;
+    od->odometry = ::mrpt::poses::CPose2D(T.translation().x(), T.translation().y(),
+                                          std::atan2(T.linear()(1, 0), T.linear()(0, 0)));
+    arch << *od;
+    ++odometries_;
   }
 
   auto pc = CObservationPointCloud::Create();

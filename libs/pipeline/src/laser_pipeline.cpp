@@ -332,16 +332,18 @@ PoseInfo LaserPipeline::registerFrame(Frame& f) {
   // against its labels), and input odometry moves the last estimate by its increment; otherwise
   // the odometry extrapolates at constant velocity.
   std::optional<Eigen::Isometry3d> prior;
+  reg::Prior kind = reg::Prior::kGiven;
   info.guess = "constant velocity";
   if (source_ == PoseSource::kRefine || (odo_->map().empty() && f.scan.has_pose)) {
     prior = f.scan.pose;
     info.guess = "given";
   } else if (f.odometry && prev_odometry_) {
     prior = prev_pose_ * (prev_odometry_->inverse() * *f.odometry);
+    kind = reg::Prior::kOdometry;
     info.guess = "odometry";
   }
   const reg::OdometryStep step =
-      odo_->track(f.scan.points, f.scan.timestamp, static_cast<int64_t>(f.index), prior);
+      odo_->track(f.scan.points, f.scan.timestamp, static_cast<int64_t>(f.index), prior, kind);
   prev_odometry_ = f.odometry;
   prev_pose_ = step.pose;
   f.scan.pose = step.pose;

@@ -22,6 +22,7 @@ Odometry::Odometry(const Odometry& o)
       map_(o.map_),
       last_(o.last_),
       prev_(o.prev_),
+      odometry_path_(o.odometry_path_),
       accepted_(o.accepted_),
       scratch_(std::make_unique<Scratch>()) {}
 
@@ -58,7 +59,7 @@ Eigen::Isometry3d Odometry::predict(double t) const {
 }
 
 OdometryStep Odometry::track(const std::vector<PointXYZI>& points, double t, int64_t scan,
-                             const std::optional<Eigen::Isometry3d>& prior) {
+                             const std::optional<Eigen::Isometry3d>& prior, Prior kind) {
   auto t0 = Clock::now();
   OdometryStep step;
   // The points to align: within [min_range, max_range], one per voxel, in one pass over the
@@ -134,6 +135,19 @@ OdometryStep Odometry::track(const std::vector<PointXYZI>& points, double t, int
         step.status = "jump of " + std::to_string(rel.translation().norm()) + " m / " +
                       std::to_string(turn) + " rad in " + std::to_string(dt) + " s";
     }
+    // DESIGN §2.1 step 4: GICP moved the pose farther from the input odometry's guess than that
+    // odometry errs (per scan, plus its drift over what it alone has covered since the last
+    // accepted scan): traffic moving with the sensor or a corridor holds the alignment.
+    if (step.status == "ok" && prior && kind == Prior::kOdometry && p_.odometry_tolerance > 0) {
+      const double moved = (step.pose.translation() - guess.translation()).norm();
+      const double odo_step =
+          prev_ ? (guess.translation() - prev_->second.translation()).norm() : 0;
+      const double allowed =
+          p_.odometry_tolerance + p_.odometry_drift * (odometry_path_ + odo_step);
+      if (moved > allowed)
+        step.status = "disagrees with the odometry (" + std::to_string(moved) +
+                      " m from its guess, " + std::to_string(allowed) + " allowed)";
+    }
     step.accepted = step.status == "ok";
     if (!step.accepted) step.pose = guess;
     // The map is out of the scan's reach (a long gap, a stretch that was never added): it starts
@@ -160,6 +174,12 @@ OdometryStep Odometry::track(const std::vector<PointXYZI>& points, double t, int
     accepted_.push_back(scan);
     if (accepted_.size() > static_cast<std::size_t>(p_.map_lag) + 1) accepted_.pop_front();
   }
+  // The path odometry alone moved the pose (a refused scan with an odometry guess), since the
+  // last accepted scan.
+  if (step.accepted)
+    odometry_path_ = 0;
+  else if (prior && kind == Prior::kOdometry && prev_)
+    odometry_path_ += (step.pose.translation() - prev_->second.translation()).norm();
   prev_.emplace(t, step.pose);
   step.ms_map = msSince(t0);
   return step;

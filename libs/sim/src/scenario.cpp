@@ -149,6 +149,8 @@ Scenario parseScenario(const std::string& text, const std::string& name) {
       sc.ego_speed = r.number(k, v, 0, 60);
     else if (k == "pose_drift")
       sc.ego_pose_drift = r.number(k, v, 0, 0.1);
+    else if (k == "odometry")
+      sc.ego_odometry = r.number(k, v, 0, 0.1);
     else
       return false;
     return true;

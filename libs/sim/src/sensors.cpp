@@ -53,21 +53,34 @@ std::vector<int> cull(const World& w, const Eigen::Isometry3d& pose, double a_lo
 
 }  // namespace
 
-Eigen::Isometry3d reportedPose(const Scenario& sc, int k) {
+namespace {
+// egoPose of frame k plus a seeded random walk on x and y of `drift` per metre travelled; `salt`
+// keeps the walks of the written poses and of the odometry apart.
+Eigen::Isometry3d driftedPose(const Scenario& sc, int k, double drift, uint64_t salt) {
   Eigen::Isometry3d T = egoPose(sc, k / sc.rate_hz);
-  if (sc.ego_pose_drift <= 0) return T;
-  const double step = sc.ego_pose_drift * sc.ego_speed / sc.rate_hz;  // sigma per frame, m
+  if (drift <= 0) return T;
+  const double step = drift * sc.ego_speed / sc.rate_hz;  // sigma per frame, m
   Eigen::Vector2d e = Eigen::Vector2d::Zero();
   for (int j = 1; j <= k; ++j)
     for (int a = 0; a < 2; ++a) {
       const uint64_t h =
-          splitmix(sc.seed * 0x9E3779B97F4A7C15ull ^ (0xD1F7ull << 40) ^ (uint64_t(j) * 2 + a));
+          splitmix(sc.seed * 0x9E3779B97F4A7C15ull ^ (salt << 40) ^ (uint64_t(j) * 2 + a));
       const double g = std::sqrt(-2 * std::log(uniform(splitmix(h ^ 1)))) *
                        std::cos(2 * M_PI * uniform(splitmix(h ^ 2)));
       e[a] += step * g;
     }
   T.translation().head<2>() += e;
   return T;
+}
+}  // namespace
+
+Eigen::Isometry3d reportedPose(const Scenario& sc, int k) {
+  return driftedPose(sc, k, sc.ego_pose_drift, 0xD1F7);
+}
+
+std::optional<Eigen::Isometry3d> odometryPose(const Scenario& sc, int k) {
+  if (sc.ego_odometry < 0) return std::nullopt;
+  return driftedPose(sc, k, sc.ego_odometry, 0x0D0E);
 }
 
 SimScan simulateScan(const Scenario& sc, int k, int threads) {

@@ -109,6 +109,13 @@ struct RegistrationParams {
   /// drag on a 16-ring lidar in stop-and-go traffic, but can lose the pose in scenes with little
   /// static hold (DESIGN §2.1, "Traffic that moves with the sensor"). 0 = every entry.
   int map_lag = 0;
+  /// Where the input has odometry (its increment is GICP's initial guess), an alignment that
+  /// moves the pose farther than odometry_tolerance + odometry_drift * (odometry path since the
+  /// last accepted scan) from that guess is refused, and the odometry kept: traffic that moves
+  /// with the sensor, or a corridor, can hold GICP where the wheels say otherwise (DESIGN §2.1
+  /// step 4). 0 = no such check.
+  double odometry_tolerance = 0.2;  ///< m per scan: a 10 Hz odometry's error is centimetres
+  double odometry_drift = 0.05;     ///< fraction of the path odometry alone has covered
   /// Undo the motion during the sweep before aligning (constant velocity; a point's time from its
   /// azimuth, the sweep running clockwise from the rear as on KITTI's HDL-64E). 0 = off.
   bool deskew = false;

@@ -21,9 +21,11 @@ struct RawlogWriteOptions {
   std::string lidar_label = "LIDAR";
   std::string camera_label = "CAMERA";
   std::string pose_label = "POSE";
+  std::string odometry_label = "ODOMETRY";
 };
 
 /// Streams frames into a rawlog: per frame a CObservationRobotPose (when the scan has a pose),
+/// a CObservationOdometry (when the frame has odometry: x, y and yaw, as wheel odometry gives),
 /// a CObservationPointCloud (XYZI, sensorPose = identity: the robot frame is the lidar frame) and
 /// a CObservationImage (with TCamera and camera pose), all with the scan's timestamp (relative
 /// times from 2000-01-01, see toMrptTime). Written to a temporary file and moved into place by
@@ -44,13 +46,14 @@ class RawlogWriter {
   std::size_t scans() const { return scans_; }
   std::size_t images() const { return images_; }
   std::size_t poses() const { return poses_; }
+  std::size_t odometries() const { return odometries_; }
 
  private:
   struct Impl;
   std::unique_ptr<Impl> impl_;
   std::string path_;
   RawlogWriteOptions opts_;
-  std::size_t scans_ = 0, images_ = 0, poses_ = 0;
+  std::size_t scans_ = 0, images_ = 0, poses_ = 0, odometries_ = 0;
 };
 
 struct RawlogReadOptions {

@@ -30,6 +30,11 @@ struct OdometryStep {
   double ms_downsample = 0, ms_covariances = 0, ms_align = 0, ms_map = 0;
 };
 
+/// Where track()'s `prior` comes from: given poses (refine, the first scan) only start GICP;
+/// input odometry also bounds how far GICP may move from it
+/// (RegistrationParams::odometry_tolerance).
+enum class Prior { kGiven, kOdometry };
+
 class Odometry {
  public:
   Odometry(const RegistrationParams& p, int threads);
@@ -38,9 +43,10 @@ class Odometry {
   ~Odometry();
 
   /// The pose of a scan (sensor-frame points) taken at `timestamp` (s). `prior` replaces the
-  /// constant-velocity guess (--poses refine, rawlog odometry).
+  /// constant-velocity guess (--poses refine, rawlog odometry: `kind`).
   OdometryStep track(const std::vector<PointXYZI>& points, double timestamp, int64_t scan,
-                     const std::optional<Eigen::Isometry3d>& prior = std::nullopt);
+                     const std::optional<Eigen::Isometry3d>& prior = std::nullopt,
+                     Prior kind = Prior::kGiven);
   /// Takes the points of `scan` flagged in `drop` (indexed like the scan's points) out of the map.
   void dropPoints(int64_t scan, const std::vector<uint8_t>& drop) { map_.remove(scan, drop); }
 
@@ -55,6 +61,7 @@ class Odometry {
   VoxelMap map_;
   std::vector<std::pair<double, Eigen::Isometry3d>> last_;    // the last two accepted (time, pose)
   std::optional<std::pair<double, Eigen::Isometry3d>> prev_;  // the previous scan, even refused
+  double odometry_path_ = 0;  // m odometry alone has moved the pose since the last accepted scan
   std::deque<int64_t> accepted_;  // the last map_lag + 1 accepted scans; the oldest is aligned to
   struct Scratch;                 // per-scan tables, reused
   std::unique_ptr<Scratch> scratch_;

@@ -82,6 +82,9 @@ struct Scenario {
   /// Pose error of the written poses (the scans are cast from the true pose): a seeded random
   /// walk, per horizontal axis, of this standard deviation per metre travelled (0.01 = 1 %).
   double ego_pose_drift = 0.0;
+  /// Wheel odometry written to sequence.rawlog (CObservationOdometry): the true pose plus a seeded
+  /// random walk of this standard deviation per metre, like pose drift; -1 = no odometry.
+  double ego_odometry = -1.0;
   std::vector<BoxSpec> boxes;
   std::vector<CylinderSpec> cylinders;
   std::vector<MoverSpec> movers;

@@ -4,6 +4,7 @@
 #pragma once
 #include <Eigen/Geometry>
 #include <opencv2/core.hpp>
+#include <optional>
 #include <vector>
 
 #include "cleanmap/core/frame.h"
@@ -69,6 +70,9 @@ Eigen::Isometry3d egoPose(const Scenario& sc, double t);
 /// The pose of frame k as a localisation system would report it: egoPose plus a random walk of
 /// Scenario::ego_pose_drift per metre travelled on x and y (seeded; 0 drift = egoPose).
 Eigen::Isometry3d reportedPose(const Scenario& sc, int k);
+/// The wheel odometry of frame k where the scenario has it (Scenario::ego_odometry; its own
+/// seeded walk, in the world frame: only its increments mean something), else nothing.
+std::optional<Eigen::Isometry3d> odometryPose(const Scenario& sc, int k);
 /// Position and heading along a polyline after arc length s (clamped to the ends).
 Eigen::Vector3d alongPath(const std::vector<Eigen::Vector2d>& path, double s);  // x, y, yaw
 /// Arc length a mover has covered by time t (start delay and stop interval applied).
