@@ -82,6 +82,20 @@ Eigen::Isometry3d pose(double x, double y, double z, double yaw, double pitch, d
   return T;
 }
 
+// `world` seen from the sensor pose T (points in the sensor frame), 1 cm of seeded noise per axis.
+std::vector<PointXYZI> scanFrom(const std::vector<Eigen::Vector3d>& world,
+                                const Eigen::Isometry3d& T, uint64_t seed) {
+  std::vector<PointXYZI> s;
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> noise(0.0, 0.01);
+  const Eigen::Isometry3d inv = T.inverse();
+  for (const auto& p : world) {
+    const Eigen::Vector3d q = inv * p + Eigen::Vector3d(noise(rng), noise(rng), noise(rng));
+    s.push_back({float(q.x()), float(q.y()), float(q.z()), 0});
+  }
+  return s;
+}
+
 double degrees(const Eigen::Isometry3d& E) {
   return Eigen::AngleAxisd(E.linear()).angle() * 180.0 / M_PI;
 }
@@ -152,17 +166,7 @@ TEST(Odometry, TracksAConstantMotionAndRefusesJumps) {
   RegistrationParams rp;
   Odometry odo(rp, 2);
   const auto world = street(9);
-  auto scanAt = [&](const Eigen::Isometry3d& T, uint64_t seed) {
-    std::vector<PointXYZI> s;
-    std::mt19937_64 rng(seed);
-    std::normal_distribution<double> noise(0.0, 0.01);
-    for (const auto& p : world) {
-      const Eigen::Vector3d q =
-          T.inverse() * p + Eigen::Vector3d(noise(rng), noise(rng), noise(rng));
-      s.push_back({float(q.x()), float(q.y()), float(q.z()), 0});
-    }
-    return s;
-  };
+  auto scanAt = [&](const Eigen::Isometry3d& T, uint64_t seed) { return scanFrom(world, T, seed); };
   for (int k = 0; k < 6; ++k) {
     const Eigen::Isometry3d truth = pose(0.8 * k, 0.05 * k, 0, 0.01 * k, 0, 0);  // 8 m/s at 10 Hz
     const OdometryStep s = odo.track(scanAt(truth, 100 + uint64_t(k)), 0.1 * k, k);
@@ -187,15 +191,7 @@ TEST(Odometry, KeepsItsVelocityThroughScansItCannotAlign) {
   Odometry odo(rp, 2);
   const auto world = street(9), road = street(10, true);
   auto scanAt = [&](const std::vector<Eigen::Vector3d>& pts, double x, uint64_t seed) {
-    std::vector<PointXYZI> s;
-    std::mt19937_64 rng(seed);
-    std::normal_distribution<double> noise(0.0, 0.01);
-    for (const auto& p : pts) {
-      const Eigen::Vector3d q =
-          p - Eigen::Vector3d(x, 0, 0) + Eigen::Vector3d(noise(rng), noise(rng), noise(rng));
-      s.push_back({float(q.x()), float(q.y()), float(q.z()), 0});
-    }
-    return s;
+    return scanFrom(pts, pose(x, 0, 0, 0, 0, 0), seed);
   };
   constexpr double kStep = 0.5;  // m per scan, 5 m/s
   for (int k = 0; k < 18; ++k) {
@@ -221,15 +217,7 @@ TEST(Odometry, StartsTheMapAgainWhereItNoLongerOverlapsTheScans) {
   auto after = street(12);
   for (auto& p : after) p.x() += 100;  // another street, 100 m on
   auto scanAt = [&](const std::vector<Eigen::Vector3d>& pts, double x, uint64_t seed) {
-    std::vector<PointXYZI> s;
-    std::mt19937_64 rng(seed);
-    std::normal_distribution<double> noise(0.0, 0.01);
-    for (const auto& p : pts) {
-      const Eigen::Vector3d q =
-          p - Eigen::Vector3d(x, 0, 0) + Eigen::Vector3d(noise(rng), noise(rng), noise(rng));
-      s.push_back({float(q.x()), float(q.y()), float(q.z()), 0});
-    }
-    return s;
+    return scanFrom(pts, pose(x, 0, 0, 0, 0, 0), seed);
   };
   constexpr double kStep = 2.0;  // m per scan, 20 m/s
   double restart = 0;
