@@ -208,8 +208,9 @@ TEST(Odometry, KeepsItsVelocityThroughScansItCannotAlign) {
 }
 
 // DESIGN §2.1 step 4: after a long gap (4 s without returns at 20 m/s) the scans hold nothing the
-// map holds. The first of them is refused and the map starts again at the next, from the motion
-// model's guess, so the odometry tracks again (refused for good when the map was kept).
+// map holds. The first two of them are refused and the map starts again at the next, from the
+// motion model's guess, so the odometry tracks again (refused for good when the map was kept).
+// One odd scan that overlaps nothing (scan 3) is refused and the map kept.
 TEST(Odometry, StartsTheMapAgainWhereItNoLongerOverlapsTheScans) {
   RegistrationParams rp;
   Odometry odo(rp, 2);
@@ -223,28 +224,33 @@ TEST(Odometry, StartsTheMapAgainWhereItNoLongerOverlapsTheScans) {
   double restart = 0;
   for (int k = 0; k < 56; ++k) {
     const double x = kStep * k;
-    const std::vector<PointXYZI> pts = k < 4    ? scanAt(before, x, 400 + uint64_t(k))
+    const std::vector<PointXYZI> pts = k == 3   ? scanAt(after, x, 400 + uint64_t(k))
+                                       : k < 6  ? scanAt(before, x, 400 + uint64_t(k))
                                        : k < 44 ? std::vector<PointXYZI>{}
                                                 : scanAt(after, x, 400 + uint64_t(k));
     // Scan 1 starts from its true pose (as from input odometry): the model starts at 20 m/s.
     const OdometryStep s =
         odo.track(pts, 0.1 * k, k, k < 2 ? std::optional(pose(x, 0, 0, 0, 0, 0)) : std::nullopt);
-    if (k < 4) {
-      EXPECT_TRUE(s.accepted) << "scan " << k << ": " << s.status;
+    if (k == 3) {
+      EXPECT_FALSE(s.accepted);
+      EXPECT_EQ(s.status.find("the map starts again"), std::string::npos) << s.status;
+    } else if (k < 6) {
+      EXPECT_EQ(s.status, k == 0 ? "first" : "ok") << "scan " << k;  // the map kept
     }
     if (k < 44) continue;
-    if (k == 44) {
+    if (k < 46) {
       EXPECT_FALSE(s.accepted);
       EXPECT_NE(s.status.find("too few correspondences"), std::string::npos) << s.status;
+      EXPECT_EQ(s.status.find("the map starts again") != std::string::npos, k == 45) << s.status;
     } else {
-      EXPECT_TRUE(s.accepted) << "scan " << k << ": " << s.status;
+      EXPECT_EQ(s.status, k == 46 ? "first" : "ok") << "scan " << k;
     }
     // The guess drifted by what the model's speed was off, 4 s long; past the new start, the
     // alignment holds each step.
     EXPECT_NEAR(s.pose.translation().x(), x, 0.1) << "scan " << k << ": " << s.status;
-    if (k == 45) restart = s.pose.translation().x();
-    if (k > 45) {
-      EXPECT_NEAR(s.pose.translation().x() - restart, x - 90, 0.02) << "scan " << k;
+    if (k == 46) restart = s.pose.translation().x();
+    if (k > 46) {
+      EXPECT_NEAR(s.pose.translation().x() - restart, x - 92, 0.02) << "scan " << k;
     }
   }
 }

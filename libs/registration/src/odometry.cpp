@@ -23,6 +23,7 @@ Odometry::Odometry(const Odometry& o)
       last_(o.last_),
       prev_(o.prev_),
       odometry_path_(o.odometry_path_),
+      no_overlap_(o.no_overlap_),
       accepted_(o.accepted_),
       scratch_(std::make_unique<Scratch>()) {}
 
@@ -150,10 +151,11 @@ OdometryStep Odometry::track(const std::vector<PointXYZI>& points, double t, int
     }
     step.accepted = step.status == "ok";
     if (!step.accepted) step.pose = guess;
-    // The map is out of the scan's reach (a long gap, a stretch that was never added): it starts
-    // again at the next scan, from the motion model's guess (or the given pose), instead of every
-    // later scan being refused against it.
-    if (step.gicp.no_overlap) {
+    // The map is out of the scans' reach (a long gap, a stretch that was never added): after two
+    // such refusals since the last accepted scan (one odd scan, fog or a blocked view, keeps the
+    // map) it starts again at the next scan, from the motion model's guess (or the given pose),
+    // instead of every later scan being refused against it.
+    if (step.gicp.no_overlap && ++no_overlap_ >= 2) {
       map_ = VoxelMap(p_.max_correspondence, p_.map_points_per_voxel);
       step.status += "; the map starts again at the next scan";
     }
@@ -176,9 +178,10 @@ OdometryStep Odometry::track(const std::vector<PointXYZI>& points, double t, int
   }
   // The path odometry alone moved the pose (a refused scan with an odometry guess), since the
   // last accepted scan.
-  if (step.accepted)
+  if (step.accepted) {
     odometry_path_ = 0;
-  else if (prior && kind == Prior::kOdometry && prev_)
+    no_overlap_ = 0;
+  } else if (prior && kind == Prior::kOdometry && prev_)
     odometry_path_ += (step.pose.translation() - prev_->second.translation()).norm();
   prev_.emplace(t, step.pose);
   step.ms_map = msSince(t0);
