@@ -365,8 +365,8 @@ int main(int argc, char** argv) {
                    "or the right value\n",
                    config_name.c_str(), cleanmap::io::shortestDouble(params.sensor.height).c_str(),
                    *h);
-    // DESIGN §2.1: estimated poses that are only the motion model's guess (a degenerate scene,
-    // too few correspondences, a jump) are said, not left to report.json.
+    // DESIGN §2.1: estimated poses that are only the guess (a degenerate scene, too few
+    // correspondences, a jump, a pull away from the odometry) are said, not left to report.json.
     if (const auto refused = out.refusedAlignments(); !refused.empty()) {
       std::size_t n = 0;
       std::string why;
@@ -376,8 +376,8 @@ int main(int argc, char** argv) {
       }
       std::fprintf(stderr,
                    "cleanmap: warning: GICP refused the alignment of %zu of %zu scans (%s); their "
-                   "poses are the motion model's guess (report.json: registration.per_scan); give "
-                   "poses or odometry if they are wrong\n",
+                   "poses are the guess, the motion model's or the input odometry's (report.json: "
+                   "registration.per_scan); give poses or odometry if they are wrong\n",
                    n, out.scans(), why.c_str());
     }
     std::printf("cleanmap: %zu scans in %.1f s; results in %s\n", out.scans(), wall,

@@ -147,19 +147,23 @@ TEST(Gicp, DegenerateInputsFailClearly) {
   CovCloud few;
   few.points.assign(10, Eigen::Vector3d(1, 2, 3));
   few.covs.assign(10, Eigen::Matrix3d::Identity());
-  EXPECT_NE(
-      alignGicp(few, target, Eigen::Isometry3d::Identity(), p, 2).failure.find("too few points"),
-      std::string::npos);
+  const GicpResult f = alignGicp(few, target, Eigen::Isometry3d::Identity(), p, 2);
+  EXPECT_NE(f.failure.find("too few points (10)"), std::string::npos) << f.failure;
+  EXPECT_EQ(f.reason, "too few points");  // what reports count refusals by
+  EXPECT_FALSE(f.no_overlap);
   // A road alone: the translation along it (and across) is not observable.
   const VoxelMap road = mapOf(cloudOf(street(6, true), Eigen::Isometry3d::Identity()));
   const GicpResult r = alignGicp(cloudOf(street(7, true), Eigen::Isometry3d::Identity()), road,
                                  pose(0.3, 0, 0, 0, 0, 0), p, 2);
   EXPECT_TRUE(r.degenerate);
   EXPECT_NE(r.failure.find("degenerate"), std::string::npos) << r.failure;
+  EXPECT_EQ(r.reason, "degenerate scene");
   // Nothing near: no correspondences.
   const GicpResult far = alignGicp(cloudOf(street(8), pose(500, 0, 0, 0, 0, 0)), target,
                                    Eigen::Isometry3d::Identity(), p, 2);
   EXPECT_NE(far.failure.find("too few correspondences"), std::string::npos) << far.failure;
+  EXPECT_EQ(far.reason, "too few correspondences");
+  EXPECT_TRUE(far.no_overlap);
 }
 
 TEST(Odometry, TracksAConstantMotionAndRefusesJumps) {
@@ -180,6 +184,7 @@ TEST(Odometry, TracksAConstantMotionAndRefusesJumps) {
       odo.track(scanAt(pose(34, 0, 0, 0, 0, 0), 7), 0.6, 6, pose(34, 0, 0, 0, 0, 0));
   EXPECT_FALSE(j.accepted);
   EXPECT_NE(j.status.find("jump"), std::string::npos) << j.status;
+  EXPECT_EQ(j.reason, "a jump beyond max_speed / max_turn_rate");
 }
 
 // DESIGN §2.1 step 4: scans GICP refuses (here a stretch of bare road, degenerate) get the motion
@@ -242,6 +247,8 @@ TEST(Odometry, StartsTheMapAgainWhereItNoLongerOverlapsTheScans) {
       EXPECT_FALSE(s.accepted);
       EXPECT_NE(s.status.find("too few correspondences"), std::string::npos) << s.status;
       EXPECT_EQ(s.status.find("the map starts again") != std::string::npos, k == 45) << s.status;
+      EXPECT_EQ(s.reason, "too few correspondences");
+      EXPECT_EQ(s.map_restarts, k == 45);
     } else {
       EXPECT_EQ(s.status, k == 46 ? "first" : "ok") << "scan " << k;
     }
@@ -295,6 +302,7 @@ TEST(Odometry, InputOdometryBoundsTheAlignment) {
               given.status.c_str());
   EXPECT_FALSE(odo.accepted);
   EXPECT_NE(odo.status.find("disagrees with the odometry"), std::string::npos) << odo.status;
+  EXPECT_EQ(odo.reason, "disagrees with the odometry");
   EXPECT_NEAR(odo.pose.translation().x(), kStep, 1e-9);
   EXPECT_TRUE(given.accepted) << given.status;
   EXPECT_LT(given.pose.translation().x(), 0.5 * kStep);  // the truck holds it near the first pose

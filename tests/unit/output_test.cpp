@@ -114,25 +114,26 @@ TEST(Output, TheSteadyIntervalLeavesOutTheScansDecidedAfterTheInput) {
   EXPECT_GE(t.at("mean_ms").get<double>(), 30.0);
 }
 
-// DESIGN §2.1 step 4: the refused alignments counted by reason, without their figures, for the
-// app's warning line and report.md; a refusal after which GICP's map started again says so.
+// DESIGN §2.1 step 4: the refused alignments counted by reason, for the app's warning line and
+// report.md; a refusal after which GICP's map started again says so.
 TEST(Output, RefusedAlignmentsAreCountedByReason) {
   const auto dir = test::scratchDir("output_refused");
-  const char* statuses[] = {
-      "first",
-      "ok",
-      "degenerate scene (a translation is unconstrained: one plane or one corridor)",
-      "degenerate scene (a translation is unconstrained: one plane or one corridor)",
-      "jump of 31.000000 m / 0.000000 rad in 0.100000 s",
-      "too few correspondences (0); the map starts again at the next scan",
-      "first",
-      "too few points (0)"};
+  const char* reasons[] = {"",
+                           "",
+                           "degenerate scene",
+                           "degenerate scene",
+                           "a jump beyond max_speed / max_turn_rate",
+                           "too few correspondences",
+                           "",
+                           "too few points"};
   io::OutputWriter w((dir / "out").string(), "input", PipelineParams{});
-  for (std::size_t i = 0; i < std::size(statuses); ++i) {
+  for (std::size_t i = 0; i < std::size(reasons); ++i) {
     ScanResult r = result(i, 5);
     r.pose_info.source = "gicp";
-    r.pose_info.status = statuses[i];
-    r.pose_info.accepted = r.pose_info.status == "ok" || r.pose_info.status == "first";
+    r.pose_info.reason = reasons[i];
+    r.pose_info.accepted = r.pose_info.reason.empty();
+    r.pose_info.status = r.pose_info.accepted ? "ok" : r.pose_info.reason + " (figures)";
+    r.pose_info.map_restarts = i == 5;
     w.write(r, std::nullopt);
   }
   const std::vector<std::pair<std::string, std::size_t>> expected = {

@@ -152,22 +152,18 @@ OutputWriter::~OutputWriter() {
 }
 
 namespace {
-// A refused alignment's status without its figures: "degenerate scene (a translation is ...)" ->
-// "degenerate scene", "jump of 3.1 m / ..." -> "a jump beyond max_speed / max_turn_rate"; where
-// the map started again after it (DESIGN §2.1 step 4), that is said too.
-std::string refusalReason(const std::string& status) {
-  const bool restarted = status.find("; the map starts again") != std::string::npos;
-  std::string reason = status.rfind("jump of", 0) == 0 ? "a jump beyond max_speed / max_turn_rate"
-                                                       : status.substr(0, status.find(" ("));
-  if (restarted) reason = reason.substr(0, reason.find(';')) + ", the map started again";
-  return reason;
+// A refused alignment's reason (its status without the figures); where GICP's map started again
+// after it (DESIGN §2.1 step 4), that is said too.
+std::string refusalReason(const PoseInfo& p) {
+  const std::string reason = p.reason.empty() ? p.status.substr(0, p.status.find(" (")) : p.reason;
+  return p.map_restarts ? reason + ", the map started again" : reason;
 }
 }  // namespace
 
 std::vector<std::pair<std::string, std::size_t>> OutputWriter::refusedAlignments() const {
   std::map<std::string, std::size_t> by_reason;
   for (const PoseInfo& p : pose_info_)
-    if (!p.accepted && p.source != "given") ++by_reason[refusalReason(p.status)];
+    if (!p.accepted && p.source != "given") ++by_reason[refusalReason(p)];
   std::vector<std::pair<std::string, std::size_t>> out(by_reason.begin(), by_reason.end());
   std::stable_sort(out.begin(), out.end(),
                    [](const auto& a, const auto& b) { return a.second > b.second; });
@@ -533,7 +529,8 @@ void OutputWriter::finish(double wall_s, const FreeSpaceMap* free_space) {
       for (const auto& [reason, n] : reasons) refused += n;
       os << "\n## Registration (" << pose_info_.front().source << ")\n"
          << pose_info_.size() - refused << " of " << pose_info_.size()
-         << " scans aligned or first; a refused scan keeps the motion model's guess.\n";
+         << " scans aligned or first; a refused scan keeps the guess (the motion model's, or the "
+            "input odometry's).\n";
       if (!reasons.empty()) {
         os << "\n| refused: reason | scans |\n|---|---|\n";
         for (const auto& [reason, n] : reasons) os << "| " << reason << " | " << n << " |\n";

@@ -350,6 +350,8 @@ PoseInfo LaserPipeline::registerFrame(Frame& f) {
   f.scan.has_pose = true;
   info.source = source_ == PoseSource::kRefine ? "refine" : "gicp";
   info.status = step.status;
+  info.reason = step.reason;
+  info.map_restarts = step.map_restarts;
   info.accepted = step.accepted;
   info.iterations = step.gicp.iterations;
   info.fitness = step.gicp.fitness;

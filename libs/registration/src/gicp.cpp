@@ -45,10 +45,12 @@ GicpResult alignGicp(const CovCloud& src, const VoxelMap& target, const Eigen::I
   r.T = guess;
   if (src.size() < static_cast<std::size_t>(p.min_correspondences)) {
     r.failure = "too few points (" + std::to_string(src.size()) + ")";
+    r.reason = "too few points";
     return r;
   }
   if (target.size() < static_cast<std::size_t>(p.min_correspondences)) {
     r.failure = "the map holds too few points (" + std::to_string(target.size()) + ")";
+    r.reason = "the map holds too few points";
     r.no_overlap = true;
     return r;
   }
@@ -99,12 +101,13 @@ GicpResult alignGicp(const CovCloud& src, const VoxelMap& target, const Eigen::I
     r.iterations = it + 1;
     if (total.n < static_cast<std::size_t>(p.min_correspondences)) {
       r.failure = "too few correspondences (" + std::to_string(total.n) + ")";
+      r.reason = "too few correspondences";
       r.no_overlap = true;
       return r;
     }
     const Vec6 delta = total.H.ldlt().solve(-total.g);
     if (!delta.allFinite()) {
-      r.failure = "the normal equations are singular";
+      r.failure = r.reason = "the normal equations are singular";
       return r;
     }
     const Eigen::Vector3d w = delta.head<3>(), v = delta.tail<3>();
@@ -129,6 +132,7 @@ GicpResult alignGicp(const CovCloud& src, const VoxelMap& target, const Eigen::I
   if (es.eigenvalues()(0) / static_cast<double>(total.n) < p.min_information) {
     r.degenerate = true;
     r.failure = "degenerate scene (a translation is unconstrained: one plane or one corridor)";
+    r.reason = "degenerate scene";
   }
   return r;
 }

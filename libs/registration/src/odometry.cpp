@@ -121,6 +121,7 @@ OdometryStep Odometry::track(const std::vector<PointXYZI>& points, double t, int
     step.status = step.accepted
                       ? "first"
                       : "too few points to start the map (" + std::to_string(cloud.size()) + ")";
+    if (!step.accepted) step.reason = "too few points to start the map";
   } else {
     // DESIGN §2.1, "Traffic that moves with the sensor": the entries of the last map_lag accepted
     // scans are left out (until map_lag + 1 are accepted, only the first scan's are aligned to).
@@ -128,6 +129,7 @@ OdometryStep Odometry::track(const std::vector<PointXYZI>& points, double t, int
                           accepted_.empty() ? INT64_MAX : accepted_.front());
     step.pose = step.gicp.T;
     step.status = step.gicp.failure.empty() ? "ok" : step.gicp.failure;
+    step.reason = step.gicp.reason;
     if (step.gicp.failure.empty() && !last_.empty()) {  // a jump beyond what the motion allows
       const Eigen::Isometry3d rel = last_.back().second.inverse() * step.pose;
       const double dt = std::max(t - last_.back().first, 0.1);
@@ -135,6 +137,7 @@ OdometryStep Odometry::track(const std::vector<PointXYZI>& points, double t, int
       if (rel.translation().norm() > p_.max_speed * dt + 0.5 || turn > p_.max_turn_rate * dt + 0.05)
         step.status = "jump of " + std::to_string(rel.translation().norm()) + " m / " +
                       std::to_string(turn) + " rad in " + std::to_string(dt) + " s";
+      step.reason = "a jump beyond max_speed / max_turn_rate";
     }
     // DESIGN §2.1 step 4: GICP moved the pose farther from the input odometry's guess than that
     // odometry errs (per scan, plus its drift over what it alone has covered since the last
@@ -145,9 +148,11 @@ OdometryStep Odometry::track(const std::vector<PointXYZI>& points, double t, int
           prev_ ? (guess.translation() - prev_->second.translation()).norm() : 0;
       const double allowed =
           p_.odometry_tolerance + p_.odometry_drift * (odometry_path_ + odo_step);
-      if (moved > allowed)
+      if (moved > allowed) {
         step.status = "disagrees with the odometry (" + std::to_string(moved) +
                       " m from its guess, " + std::to_string(allowed) + " allowed)";
+        step.reason = "disagrees with the odometry";
+      }
     }
     step.accepted = step.status == "ok";
     if (!step.accepted) step.pose = guess;
@@ -158,6 +163,7 @@ OdometryStep Odometry::track(const std::vector<PointXYZI>& points, double t, int
     if (step.gicp.no_overlap && ++no_overlap_ >= 2) {
       map_ = VoxelMap(p_.max_correspondence, p_.map_points_per_voxel);
       step.status += "; the map starts again at the next scan";
+      step.map_restarts = true;
     }
   }
   step.ms_align = msSince(t0);

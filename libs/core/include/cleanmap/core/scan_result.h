@@ -62,6 +62,8 @@ struct PoseInfo {
   std::string source = "given";  ///< "given", "gicp" or "refine"
   std::string status = "given";  ///< "given", "first", "ok", or why the alignment was refused
   bool accepted = true;          ///< false: the pose is the guess (the alignment was refused)
+  std::string reason;            ///< a refusal's reason without its figures ("" when accepted)
+  bool map_restarts = false;     ///< refused for want of overlap: GICP's map started again
   std::string guess = "none";    ///< GICP's initial guess: "constant velocity", "odometry", "given"
   int iterations = 0;
   double fitness = 0;  ///< share of aligned points with a correspondence

@@ -39,6 +39,7 @@ struct GicpResult {
   /// too few points): the map is elsewhere, not just the guess a little off.
   bool no_overlap = false;
   std::string failure;  ///< empty when the alignment is usable
+  std::string reason;   ///< the failure without its figures (reports count refusals by it)
 };
 
 /// Aligns `source` (sensor frame, with covariances) to `target` from `guess` (sensor to world),

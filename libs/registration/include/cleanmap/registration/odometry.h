@@ -25,6 +25,8 @@ struct OdometryStep {
   GicpResult gicp;        ///< the alignment (iterations 0 for the first scan)
   bool accepted = false;  ///< false: `pose` is the prediction, the scan was not added to the map
   std::string status;     ///< "first", "ok", or why the alignment was refused
+  std::string reason;     ///< a refusal's reason without its figures ("" when accepted)
+  bool map_restarts = false;  ///< refused for want of overlap: the map starts again next scan
   /// Wall time of each step, ms: range crop + downsampling (and de-skew), covariances, GICP,
   /// map update.
   double ms_downsample = 0, ms_covariances = 0, ms_align = 0, ms_map = 0;
