@@ -3,6 +3,7 @@
 // synthetic street sampled twice with different point sets; degenerate scenes refused clearly.
 #include <gtest/gtest.h>
 
+#include <functional>
 #include <random>
 #include <unordered_map>
 
@@ -93,6 +94,31 @@ std::vector<PointXYZI> scanFrom(const std::vector<Eigen::Vector3d>& world,
     const Eigen::Vector3d q = inv * p + Eigen::Vector3d(noise(rng), noise(rng), noise(rng));
     s.push_back({float(q.x()), float(q.y()), float(q.z()), 0});
   }
+  return s;
+}
+
+// A corridor (road and plain facades: nothing holds the step along the road) seen from x_sensor on
+// its axis, 1 cm of seeded noise across; `more(add, u)` adds the scene's other surfaces, world
+// points through `add`, with uniform draws from `u`.
+using AddPoint = std::function<void(const Eigen::Vector3d&)>;
+using Uniform = std::function<double()>;
+std::vector<PointXYZI> corridorScan(
+    double x_sensor, uint64_t seed,
+    const std::function<void(const AddPoint&, const Uniform&)>& more) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> uniform(0.0, 1.0);
+  std::normal_distribution<double> noise(0.0, 0.01);
+  std::vector<PointXYZI> s;
+  const AddPoint add = [&](const Eigen::Vector3d& w) {
+    const Eigen::Vector3d q =
+        w - Eigen::Vector3d(x_sensor, 0, 0) + Eigen::Vector3d(noise(rng), noise(rng), 0);
+    s.push_back({float(q.x()), float(q.y()), float(q.z()), 0});
+  };
+  const Uniform u = [&] { return uniform(rng); };
+  for (int i = 0; i < 30000; ++i) add({-30 + 60 * u(), -10 + 20 * u(), -1.7});  // road
+  for (int side : {-1, 1})
+    for (int i = 0; i < 12000; ++i) add({-30 + 60 * u(), side * 10.0, -1.7 + 8 * u()});
+  more(add, u);
   return s;
 }
 
@@ -268,27 +294,15 @@ TEST(Odometry, StartsTheMapAgainWhereItNoLongerOverlapsTheScans) {
 TEST(Odometry, InputOdometryBoundsTheAlignment) {
   constexpr double kStep = 0.8;  // m per scan, 8 m/s
   auto scanAt = [&](int k, uint64_t seed) {
-    std::mt19937_64 rng(seed);
-    std::uniform_real_distribution<double> u(0.0, 1.0);
-    std::normal_distribution<double> noise(0.0, 0.01);
-    std::vector<PointXYZI> s;
-    auto add = [&](const Eigen::Vector3d& w) {  // w in the world; the sensor at x = kStep k
-      const Eigen::Vector3d q =
-          w - Eigen::Vector3d(kStep * k, 0, 0) + Eigen::Vector3d(noise(rng), noise(rng), 0);
-      s.push_back({float(q.x()), float(q.y()), float(q.z()), 0});
-    };
-    for (int i = 0; i < 30000; ++i) add({-30 + 60 * u(rng), -10 + 20 * u(rng), -1.7});  // road
-    for (int side : {-1, 1})
-      for (int i = 0; i < 12000; ++i)  // plain facades: no hold along the road
-        add({-30 + 60 * u(rng), side * 10.0, -1.7 + 8 * u(rng)});
-    for (int i = 0; i < 4000; ++i) {  // the truck's back and sides, 6 m ahead, moving along
-      const double x0 = 6 + kStep * k, a = u(rng), c = u(rng);
-      if (i % 3 == 0)
-        add({x0, -1.25 + 2.5 * a, -1.2 + 3.5 * c});
-      else
-        add({x0 + 8 * a, i % 3 == 1 ? -1.25 : 1.25, -1.2 + 3.5 * c});
-    }
-    return s;
+    return corridorScan(kStep * k, seed, [&](const AddPoint& add, const Uniform& u) {
+      for (int i = 0; i < 4000; ++i) {  // the truck's back and sides, 6 m ahead, moving along
+        const double x0 = 6 + kStep * k, a = u(), c = u();
+        if (i % 3 == 0)
+          add({x0, -1.25 + 2.5 * a, -1.2 + 3.5 * c});
+        else
+          add({x0 + 8 * a, i % 3 == 1 ? -1.25 : 1.25, -1.2 + 3.5 * c});
+      }
+    });
   };
   // Scans 0 and 1, the guess the true pose (exact odometry, or a given pose).
   auto run = [&](Prior kind) {
@@ -316,48 +330,36 @@ TEST(Odometry, InputOdometryBoundsTheAlignment) {
 TEST(Odometry, MapLagKeepsTrafficMovingWithTheSensorFromDraggingIt) {
   constexpr double kStep = 0.25;  // m per scan, 2.5 m/s
   auto scanAt = [&](int k, uint64_t seed) {
-    std::mt19937_64 rng(seed);
-    std::uniform_real_distribution<double> u(0.0, 1.0);
-    std::normal_distribution<double> noise(0.0, 0.01);
-    const Eigen::Isometry3d T_sensor_world = pose(kStep * k, 0, 0, 0, 0, 0).inverse();
-    std::vector<PointXYZI> s;
-    auto add = [&](const Eigen::Vector3d& w) {
-      const Eigen::Vector3d q = T_sensor_world * w + Eigen::Vector3d(noise(rng), noise(rng), 0);
-      s.push_back({float(q.x()), float(q.y()), float(q.z()), 0});
-    };
-    for (int i = 0; i < 30000; ++i) add({-30 + 60 * u(rng), -10 + 20 * u(rng), -1.7});  // road
-    for (int side : {-1, 1})
-      for (int i = 0; i < 12000; ++i)  // plain facades: no hold along the road
-        add({-30 + 60 * u(rng), side * 10.0, -1.7 + 8 * u(rng)});
-    for (int i = 0; i < 500; ++i)  // a wall across the road ahead: what holds the step
-      add({28.0, -10 + 20 * u(rng), -1.7 + 8 * u(rng)});
-    for (double x = -24; x < 30; x += 9)
-      for (int i = 0; i < 300; ++i) {  // poles
-        const double t = 2 * M_PI * u(rng);
-        add({x + 0.1 * std::cos(t), 8 + 0.1 * std::sin(t), -1.7 + 4 * u(rng)});
-      }
-    const double trucks[][2] = {{4, -4.5}, {-14, 3}, {12, 3}};  // rear x, right side y
-    for (const auto& t : trucks)
-      for (int i = 0; i < 2000; ++i) {  // 8 x 2.5 x 3.5 m boxes moving with the sensor
-        const double x0 = t[0] + kStep * k, a = u(rng), c = u(rng);
-        switch (i % 5) {
-          case 0:
-            add({x0 + 8 * a, t[1], -1.2 + 3.5 * c});
-            break;
-          case 1:
-            add({x0 + 8 * a, t[1] + 2.5, -1.2 + 3.5 * c});
-            break;
-          case 2:
-            add({x0, t[1] + 2.5 * a, -1.2 + 3.5 * c});
-            break;
-          case 3:
-            add({x0 + 8, t[1] + 2.5 * a, -1.2 + 3.5 * c});
-            break;
-          default:
-            add({x0 + 8 * a, t[1] + 2.5 * c, 2.3});
+    return corridorScan(kStep * k, seed, [&](const AddPoint& add, const Uniform& u) {
+      for (int i = 0; i < 500; ++i)  // a wall across the road ahead: what holds the step
+        add({28.0, -10 + 20 * u(), -1.7 + 8 * u()});
+      for (double x = -24; x < 30; x += 9)
+        for (int i = 0; i < 300; ++i) {  // poles
+          const double t = 2 * M_PI * u();
+          add({x + 0.1 * std::cos(t), 8 + 0.1 * std::sin(t), -1.7 + 4 * u()});
         }
-      }
-    return s;
+      const double trucks[][2] = {{4, -4.5}, {-14, 3}, {12, 3}};  // rear x, right side y
+      for (const auto& t : trucks)
+        for (int i = 0; i < 2000; ++i) {  // 8 x 2.5 x 3.5 m boxes moving with the sensor
+          const double x0 = t[0] + kStep * k, a = u(), c = u();
+          switch (i % 5) {
+            case 0:
+              add({x0 + 8 * a, t[1], -1.2 + 3.5 * c});
+              break;
+            case 1:
+              add({x0 + 8 * a, t[1] + 2.5, -1.2 + 3.5 * c});
+              break;
+            case 2:
+              add({x0, t[1] + 2.5 * a, -1.2 + 3.5 * c});
+              break;
+            case 3:
+              add({x0 + 8, t[1] + 2.5 * a, -1.2 + 3.5 * c});
+              break;
+            default:
+              add({x0 + 8 * a, t[1] + 2.5 * c, 2.3});
+          }
+        }
+    });
   };
   auto run = [&](int lag) {
     RegistrationParams rp;

@@ -105,19 +105,6 @@ MosCounts runSetSixteenRings(
   return runSetEdited(set, rings, params, poses);
 }
 
-// Mean translation error of the relative poses over `d` scans, as a share of the path.
-double relativeError(const std::vector<std::pair<Eigen::Isometry3d, Eigen::Isometry3d>>& poses,
-                     std::size_t d) {
-  double err = 0, path = 0;
-  for (std::size_t k = 0; k + d < poses.size(); ++k) {
-    const Eigen::Isometry3d est = poses[k].first.inverse() * poses[k + d].first;
-    const Eigen::Isometry3d truth = poses[k].second.inverse() * poses[k + d].second;
-    err += (est.translation() - truth.translation()).norm();
-    path += truth.translation().norm();
-  }
-  return err / path;
-}
-
 // The set through the pipeline and the OutputWriter as the app runs it (the map cleaned with the
 // whole sequence's free space), then static_map_full.ply scored the DynamicMap way (DESIGN §5).
 MapScore cleanMapScore(const std::string& set) {
@@ -240,7 +227,7 @@ TEST(Regression, SixteenRingGicpWithMapLagHoldsInTraffic) {
     std::vector<std::pair<Eigen::Isometry3d, Eigen::Isometry3d>> poses;
     const MosCounts h = runSetSixteenRings("kitti_highway", offset, p, &poses);
     ASSERT_EQ(poses.size(), 30u);
-    const double err = relativeError(poses, 10);
+    const double err = test::relativeError(poses, 10);
     std::printf("  lasers %d + 4k, map_lag 1: 10-scan error %.1f %% of the path, P %.3f R %.3f\n",
                 offset, 100.0 * err, h.precision(), h.recall());
     EXPECT_LE(err, 0.08) << "lasers " << offset << " + 4k";
@@ -270,7 +257,7 @@ TEST(Regression, GicpKeepsTheVelocityThroughALidarDropout) {
     gicp.poses = PoseSource::kGicp;
     std::vector<std::pair<Eigen::Isometry3d, Eigen::Isometry3d>> poses;
     const MosCounts own = runSetEdited(set, gap, gicp, &poses), given = runSetEdited(set, gap);
-    const double err = relativeError(poses, 10);
+    const double err = test::relativeError(poses, 10);
     std::printf("  %s: 10-scan error %.1f %% of the path; P %.3f R %.3f (given poses %.3f %.3f)\n",
                 set, 100.0 * err, own.precision(), own.recall(), given.precision(), given.recall());
     EXPECT_LE(err, 0.04) << set;

@@ -15,6 +15,7 @@
 #include "cleanmap/core/sensor.h"
 #include "cleanmap/pipeline/laser_pipeline.h"
 #include "cleanmap/sim/world.h"
+#include "test_data.h"
 
 using namespace cleanmap;
 namespace fs = std::filesystem;
@@ -266,16 +267,10 @@ TEST(SimCases, GicpWithWheelOdometryBehindAFollowingCar) {
   std::vector<PoseInfo> info;
   const auto r = runCase(sc, p, &poses, &info, true);
   ASSERT_EQ(poses.size(), static_cast<std::size_t>(sc.frames));
-  double err = 0, path = 0;
-  for (std::size_t k = 0; k + 10 < poses.size(); ++k) {
-    const Eigen::Isometry3d est = poses[k].first.inverse() * poses[k + 10].first;
-    const Eigen::Isometry3d truth = poses[k].second.inverse() * poses[k + 10].second;
-    err += (est.translation() - truth.translation()).norm();
-    path += truth.translation().norm();
-  }
+  const double err = test::relativeError(poses, 10);
   std::printf("  following_car, gicp + odometry: 10-scan error %.2f %% of the path; scan 1: %s\n",
-              100 * err / path, info[1].status.c_str());
-  EXPECT_LE(err, 0.03 * path);
+              100 * err, info[1].status.c_str());
+  EXPECT_LE(err, 0.03);
   EXPECT_NE(info[1].status.find("disagrees with the odometry"), std::string::npos)
       << info[1].status;
   EXPECT_GE(r.per_mover.at("follower").recall(), 0.80);  // the given-pose bars (above)

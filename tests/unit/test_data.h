@@ -3,6 +3,7 @@
 #pragma once
 #include <gtest/gtest.h>
 
+#include <Eigen/Geometry>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
@@ -59,6 +60,20 @@ inline std::vector<std::size_t> kittiRingsKept(const std::vector<PointXYZI>& pts
       out.push_back(i);
   }
   return out;
+}
+
+/// Mean translation error of the relative poses over `d` scans, as a share of the path; `poses`
+/// holds (estimated, true) per scan.
+inline double relativeError(
+    const std::vector<std::pair<Eigen::Isometry3d, Eigen::Isometry3d>>& poses, std::size_t d) {
+  double err = 0, path = 0;
+  for (std::size_t k = 0; k + d < poses.size(); ++k) {
+    const Eigen::Isometry3d est = poses[k].first.inverse() * poses[k + d].first;
+    const Eigen::Isometry3d truth = poses[k].second.inverse() * poses[k + d].second;
+    err += (est.translation() - truth.translation()).norm();
+    path += truth.translation().norm();
+  }
+  return err / path;
 }
 
 /// Runs f and expects a cleanmap::Error whose one-line message names `file` and holds `what`.
