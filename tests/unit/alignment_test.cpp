@@ -140,3 +140,41 @@ TEST(Alignment, LeavesAnExactPoseAndAnUntexturedSceneAlone) {
     EXPECT_FALSE(vision::alignView(va, vb, world(a), tight).has_value());
   }
 }
+
+// A correction beyond `small_translation` must lower the error by `large_gain`, not `min_gain`:
+// a true misalignment that large leaves most of the error (here the render is exact, so nearly
+// all of it), while a wrong minimum explains only the images' noise. The simulated drift of 10 %
+// of the path has steps of 0.15-0.25 m between two scans (DESIGN §3 "Camera poses").
+TEST(Alignment, CorrectsALargeErrorWhereTheErrorFallsAsMuchAsItShould) {
+  const Eigen::Isometry3d first = Eigen::Isometry3d::Identity();
+  const Eigen::Isometry3d second = pose(0.05, 0, 0.6, 0.3);
+  const Shot a = shoot(first, false), b = shoot(second, false);
+  const auto va = vision::makeCameraView(a.image, a.points, first, camera(), 0, "a", 4);
+  const auto truth = vision::makeCameraView(b.image, b.points, second, camera(), 1, "b", 4);
+  // Given 20 cm off sideways and 12 cm off forward: beyond small_translation (0.15 m).
+  const auto vb =
+      vision::makeCameraView(b.image, b.points, second * pose(0.2, 0, -0.12), camera(), 1, "b", 4);
+  const vision::AlignParams p;
+  const auto al = vision::alignView(va, vb, world(a), p);
+  ASSERT_TRUE(al.has_value());
+  EXPECT_GT(al->correction.translation().norm(), p.small_translation);
+  const Eigen::Isometry3d err =
+      vision::corrected(vb, al->correction).optical_from_world * truth.optical_from_world.inverse();
+  EXPECT_LT(err.translation().norm(), 0.01) << err.translation().transpose();
+  const double gain = 1 - al->error_after / al->error_before;
+  EXPECT_GT(gain, p.large_gain);
+  {  // the same alignment, asked for more than it gained: refused
+    vision::AlignParams strict = p;
+    strict.large_gain = 0.5 * (gain + 1);
+    EXPECT_FALSE(vision::alignView(va, vb, world(a), strict).has_value());
+    // ... while a small error still needs only min_gain
+    const auto vs = vision::makeCameraView(b.image, b.points, second * pose(0.06, 0, -0.04),
+                                           camera(), 1, "b", 4);
+    EXPECT_TRUE(vision::alignView(va, vs, world(a), strict).has_value());
+  }
+  {  // small_translation = max_translation: every larger correction refused (the former rule)
+    vision::AlignParams capped = p;
+    capped.max_translation = capped.small_translation;
+    EXPECT_FALSE(vision::alignView(va, vb, world(a), capped).has_value());
+  }
+}

@@ -334,6 +334,49 @@ TEST(SimCases, CameraAlignedPosesRemoveTheDriftFalsePositives) {
     EXPECT_GE(on.per_mover.at(name).recall(), c.recall() - 0.03) << name;
 }
 
+// The same bar on another seed of the drift, whose random walk steps 0.155 and 0.251 m between
+// two scans (6 cm per scan and axis has such steps now and then). Until the thirty-sixth session
+// a correction over 0.15 m was refused as "beyond any drift": those two steps stayed in every
+// window that spans them, and the laser flagged the walls around them (precision 0.258 -> 0.312
+// with images). A correction beyond image.align_small_shift is kept where the images' error falls
+// by 70 % (these: 88 % and 93 %).
+TEST(SimCases, CameraAlignedPosesCorrectTheDriftsLargerSteps) {
+  auto sc = sim::defaultScenario();
+  sc.frames = 30;
+  sc.ego_pose_drift = 0.10;
+  sc.seed = 9;
+  PipelineParams laser;
+  laser.image.enabled = false;
+  const auto off = runCase(sc, laser, nullptr, nullptr, false, true);
+  const auto on = runCase(sc, PipelineParams{}, nullptr, nullptr, false, true);
+  std::printf("  laser only: P %.4f R %.4f; with images: P %.4f R %.4f\n", off.all.precision(),
+              off.all.recall(), on.all.precision(), on.all.recall());
+  // Measured (cleanmap on the same street): 0.258 / 0.864 -> 0.997 / 0.857.
+  EXPECT_GE(on.all.precision(), off.all.precision() + 0.25);
+  EXPECT_GE(on.all.precision(), 0.95);
+  EXPECT_GE(on.all.recall(), off.all.recall() - 0.03);
+}
+
+// What the 70 % guards against: on curved_path (the ego at 3 m/s; a car and a cyclist turning
+// across the road ahead) with the same drift, the road's alignment finds wrong minima 0.2-0.8 m
+// away that lower the error by 30-58 % (not traced: aliasing, or the movers' pull). Kept, they
+// made the laser flag the scene (precision 1.000 -> 0.32); the images must cost nothing here.
+TEST(SimCases, CameraLinksRefuseWrongMinimaOnCurvedPaths) {
+  auto sc = scenario("curved_path");
+  sc.frames = 30;
+  sc.ego_pose_drift = 0.10;
+  sc.seed = 3;
+  PipelineParams laser;
+  laser.image.enabled = false;
+  const auto off = runCase(sc, laser, nullptr, nullptr, false, true);
+  const auto on = runCase(sc, PipelineParams{}, nullptr, nullptr, false, true);
+  std::printf("  laser only: P %.4f R %.4f; with images: P %.4f R %.4f\n", off.all.precision(),
+              off.all.recall(), on.all.precision(), on.all.recall());
+  // Measured (cleanmap): 1.000 / 0.930 -> 1.000 / 0.935.
+  EXPECT_GE(on.all.precision(), off.all.precision() - 0.01);
+  EXPECT_GE(on.all.recall(), off.all.recall() - 0.03);
+}
+
 // DESIGN §3 "Camera poses" and §2f: a link depends on its two scans alone, so a chunk that starts
 // later (epochs of 10 scans, K = 5, as Regression.ChunksReproduceTheWholeRun) labels the scans it
 // owns as the whole run does, with the cameras' corrections in play.

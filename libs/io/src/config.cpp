@@ -162,6 +162,7 @@ std::map<std::string, Key> table(PipelineParams& p) {
       {"image.align", Key{[&p](double v) { p.image.align = v != 0; },
                           [&p] { return p.image.align ? 1.0 : 0.0; }, true}},
       {"image.align_max_shift", d(p.image.align_max_shift)},
+      {"image.align_small_shift", d(p.image.align_small_shift)},
       {"run.seed", Key{[&p](double v) { p.seed = static_cast<uint64_t>(v); },
                        [&p] { return double(p.seed); },
                        true,

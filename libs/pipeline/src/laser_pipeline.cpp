@@ -483,6 +483,7 @@ void LaserPipeline::linkToPrevious(const Prepared& prev, Prepared& s,
   vision::AlignParams ap;
   ap.occlusion = p_.image.occlusion;
   ap.max_translation = p_.image.align_max_shift;
+  ap.small_translation = p_.image.align_small_shift;
   const auto a = vision::alignView(*prev.view, *s.view, ref, ap);
   if (!a) return;
   const Eigen::Isometry3d L = camera.opticalFromLidar();

@@ -157,8 +157,10 @@ std::optional<Alignment> alignView(const CameraView& ref, const CameraView& othe
   out.error_after = af.error / std::max(af.weights, 1e-12);
   out.correction = c;
   const double rot_deg = Eigen::AngleAxisd(c.linear()).angle() * 180 / M_PI;
-  if (af.n < p.min_points || c.translation().norm() > p.max_translation ||
-      rot_deg > p.max_rotation_deg || !(out.error_after < (1 - p.min_gain) * out.error_before))
+  const double shift = c.translation().norm();
+  const double gain = shift > p.small_translation ? p.large_gain : p.min_gain;
+  if (af.n < p.min_points || shift > p.max_translation || rot_deg > p.max_rotation_deg ||
+      !(out.error_after < (1 - gain) * out.error_before))
     return std::nullopt;
   return out;
 }

@@ -210,9 +210,14 @@ struct ImageParams {
   /// freedom), and the laser test and the camera check compare the scans of a window at the
   /// corrected relative poses. 0: the poses as given.
   bool align = true;
-  /// m; a larger correction of one scan's pose relative to the previous is refused: no 10 Hz
-  /// odometry errs that much between two scans, the alignment found a wrong minimum.
-  double align_max_shift = 0.15;
+  /// m; a larger correction of one scan's pose relative to the previous is refused: no pose
+  /// source errs that much between two scans (a drift of 10 % of the path at 15 m/s: 4 sigma is
+  /// 0.6 m), the alignment found a wrong minimum.
+  double align_max_shift = 0.5;
+  /// m; a correction up to this is kept if it lowers the images' robust error by 30 %, a larger
+  /// one only if by 70 % (the error a true misalignment leaves grows with it; a wrong minimum
+  /// explains only the images' noise). Equal to align_max_shift: larger ones are all refused.
+  double align_small_shift = 0.15;
 };
 
 /// Where scan poses come from (DESIGN §2.1): `kAuto` is `kGiven` when the first scan has a pose
