@@ -182,6 +182,17 @@ TEST(Config, BadIniIsAClearError) {
         io::parseParams("[ds]\nscan_conflict = 0\n", "x.ini", q);
       },
       "x.ini", "ds.scan_conflict must be in (0, 1]");
+  test::expectError(
+      [] {
+        PipelineParams q;
+        io::parseParams("[image]\nalign_small_shift = 0\n", "x.ini", q);
+      },
+      "x.ini", "image.align_small_shift must be in (0, 5] m");
+  {  // an ini of before the thirty-sixth session: a bound below align_small_shift still loads
+    PipelineParams q;
+    io::parseParams("[image]\nalign_max_shift = 0.1\n", "x.ini", q);
+    EXPECT_EQ(q.image.align_max_shift, 0.1);
+  }
   test::expectError([&] { io::loadParams("/nonexistent.ini", p); }, "/nonexistent.ini",
                     "does not exist");
 }

@@ -95,8 +95,8 @@ void validate(const PipelineParams& p, const std::string& name) {
           "image.max_incidence_deg must be in (0, 90]");
   require(im.align_max_shift > 0 && im.align_max_shift <= 5,
           "image.align_max_shift must be in (0, 5] m");
-  require(im.align_small_shift > 0 && im.align_small_shift <= im.align_max_shift,
-          "image.align_small_shift must be in (0, image.align_max_shift] m");
+  require(im.align_small_shift > 0 && im.align_small_shift <= 5,
+          "image.align_small_shift must be in (0, 5] m");
 }
 
 }  // namespace cleanmap

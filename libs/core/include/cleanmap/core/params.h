@@ -216,7 +216,7 @@ struct ImageParams {
   double align_max_shift = 0.5;
   /// m; a correction up to this is kept if it lowers the images' robust error by 30 %, a larger
   /// one only if by 70 % (the error a true misalignment leaves grows with it; a wrong minimum
-  /// explains only the images' noise). Equal to align_max_shift: larger ones are all refused.
+  /// explains only the images' noise). At or above align_max_shift: larger ones are all refused.
   double align_small_shift = 0.15;
 };
 
