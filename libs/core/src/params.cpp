@@ -58,6 +58,8 @@ void validate(const PipelineParams& p, const std::string& name) {
   require(r.odometry_tolerance >= 0 && r.odometry_drift >= 0 && r.odometry_drift <= 1,
           "registration.odometry_tolerance must be >= 0 m (0: no check) and odometry_drift in "
           "[0, 1]");
+  require(r.odometry_window >= 1 && r.odometry_window <= 1000,
+          "registration.odometry_window must be in [1, 1000] scans");
   require(r.max_speed > 0 && r.max_turn_rate > 0,
           "registration.max_speed and max_turn_rate must be > 0");
   require(p.threads >= 1, "run.threads must be >= 1");

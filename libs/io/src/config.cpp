@@ -124,6 +124,7 @@ std::map<std::string, Key> table(PipelineParams& p) {
       {"registration.map_lag", i(p.registration.map_lag)},
       {"registration.odometry_tolerance", d(p.registration.odometry_tolerance)},
       {"registration.odometry_drift", d(p.registration.odometry_drift)},
+      {"registration.odometry_window", i(p.registration.odometry_window)},
       {"registration.deskew", Key{[&p](double v) { p.registration.deskew = v != 0; },
                                   [&p] { return p.registration.deskew ? 1.0 : 0.0; }, true}},
       {"registration.relative_error", d(p.registration.relative_error)},

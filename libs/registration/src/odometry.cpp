@@ -23,6 +23,7 @@ Odometry::Odometry(const Odometry& o)
       last_(o.last_),
       prev_(o.prev_),
       odometry_path_(o.odometry_path_),
+      marks_(o.marks_),
       no_overlap_(o.no_overlap_),
       accepted_(o.accepted_),
       scratch_(std::make_unique<Scratch>()) {}
@@ -114,6 +115,23 @@ OdometryStep Odometry::track(const std::vector<PointXYZI>& points, double t, int
   step.ms_covariances = msSince(t0);
   t0 = Clock::now();
   const Eigen::Isometry3d guess = prior ? *prior : predict(t);
+  // The input odometry's own chain of poses: its increment since the previous scan (the guess
+  // is the previous estimate moved by it) on its pose there; a scan without it breaks the chain.
+  std::optional<Eigen::Isometry3d> odometry;
+  double path = 0;
+  if (prior && kind == Prior::kOdometry) {
+    if (!prev_) {
+      marks_.clear();
+      odometry = guess;
+    } else {
+      // The chain starts at the previous scan where that one had no odometry.
+      if (marks_.empty()) marks_.push_back({prev_->second, prev_->second, 0.0});
+      const Eigen::Isometry3d inc = prev_->second.inverse() * guess;
+      odometry = marks_.back().odometry * inc;
+      path = marks_.back().path + inc.translation().norm();
+    }
+  } else
+    marks_.clear();
   if (map_.empty()) {
     accepted_.clear();  // the map starts again with this scan
     step.pose = guess;
@@ -139,19 +157,24 @@ OdometryStep Odometry::track(const std::vector<PointXYZI>& points, double t, int
                       std::to_string(turn) + " rad in " + std::to_string(dt) + " s";
       step.reason = "a jump beyond max_speed / max_turn_rate";
     }
-    // DESIGN §2.1 step 4: GICP moved the pose farther from the input odometry's guess than that
-    // odometry errs (per scan, plus its drift over what it alone has covered since the last
+    // DESIGN §2.1 step 4: GICP moved the pose farther from the input odometry than that
+    // odometry errs, between this scan and any of the last odometry_window scans (per scan,
+    // plus its drift over the path between them and what it alone has covered since the last
     // accepted scan): traffic moving with the sensor or a corridor holds the alignment.
-    if (step.status == "ok" && prior && kind == Prior::kOdometry && p_.odometry_tolerance > 0) {
-      const double moved = (step.pose.translation() - guess.translation()).norm();
-      const double odo_step =
-          prev_ ? (guess.translation() - prev_->second.translation()).norm() : 0;
-      const double allowed =
-          p_.odometry_tolerance + p_.odometry_drift * (odometry_path_ + odo_step);
-      if (moved > allowed) {
-        step.status = "disagrees with the odometry (" + std::to_string(moved) +
-                      " m from its guess, " + std::to_string(allowed) + " allowed)";
+    if (step.status == "ok" && odometry && p_.odometry_tolerance > 0) {
+      for (auto j = marks_.rbegin(); j != marks_.rend(); ++j) {
+        const Eigen::Vector3d est = (j->pose.inverse() * step.pose).translation();
+        const Eigen::Vector3d odo = (j->odometry.inverse() * *odometry).translation();
+        const double moved = (est - odo).norm();
+        const double allowed =
+            p_.odometry_tolerance + p_.odometry_drift * (path - j->path + odometry_path_);
+        if (moved <= allowed) continue;
+        const auto back = j - marks_.rbegin() + 1;  // scans before this one
+        step.status = "disagrees with the odometry (" + std::to_string(moved) + " m from it over " +
+                      std::to_string(back) + (back == 1 ? " scan, " : " scans, ") +
+                      std::to_string(allowed) + " allowed)";
         step.reason = "disagrees with the odometry";
+        break;
       }
     }
     step.accepted = step.status == "ok";
@@ -190,6 +213,10 @@ OdometryStep Odometry::track(const std::vector<PointXYZI>& points, double t, int
   } else if (prior && kind == Prior::kOdometry && prev_)
     odometry_path_ += (step.pose.translation() - prev_->second.translation()).norm();
   prev_.emplace(t, step.pose);
+  if (odometry) {
+    marks_.push_back({*odometry, step.pose, path});
+    if (marks_.size() > static_cast<std::size_t>(p_.odometry_window)) marks_.pop_front();
+  }
   step.ms_map = msSince(t0);
   return step;
 }

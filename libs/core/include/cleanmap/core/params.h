@@ -116,6 +116,11 @@ struct RegistrationParams {
   /// step 4). 0 = no such check.
   double odometry_tolerance = 0.2;  ///< m per scan: a 10 Hz odometry's error is centimetres
   double odometry_drift = 0.05;     ///< fraction of the path odometry alone has covered
+  /// Scans: the same bound holds between the scan and each of this many scans before it (the
+  /// odometry's path between them added to the drift's): a GICP that errs a few centimetres a
+  /// scan the same way, under the tolerance each step, strays from the odometry over the window
+  /// the laser test compares scans in (DESIGN §2.1 step 4). 1 = the previous scan only.
+  int odometry_window = 10;
   /// Undo the motion during the sweep before aligning (constant velocity; a point's time from its
   /// azimuth, the sweep running clockwise from the rear as on KITTI's HDL-64E). 0 = off.
   bool deskew = false;

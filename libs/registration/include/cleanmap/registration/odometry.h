@@ -64,7 +64,14 @@ class Odometry {
   std::vector<std::pair<double, Eigen::Isometry3d>> last_;    // the last two accepted (time, pose)
   std::optional<std::pair<double, Eigen::Isometry3d>> prev_;  // the previous scan, even refused
   double odometry_path_ = 0;  // m odometry alone has moved the pose since the last accepted scan
-  int no_overlap_ = 0;        // refusals for want of overlap with the map since then
+  // The last odometry_window scans with input odometry: the odometry's own chain of poses (its
+  // increments, anchored at the first estimate), the estimate, and the odometry's path so far.
+  struct OdometryMark {
+    Eigen::Isometry3d odometry, pose;
+    double path;
+  };
+  std::deque<OdometryMark> marks_;
+  int no_overlap_ = 0;            // refusals for want of overlap with the map since then
   std::deque<int64_t> accepted_;  // the last map_lag + 1 accepted scans; the oldest is aligned to
   struct Scratch;                 // per-scan tables, reused
   std::unique_ptr<Scratch> scratch_;
