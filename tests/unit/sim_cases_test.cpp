@@ -313,6 +313,21 @@ TEST(SimCases, CameraCheckKeepsMoversAndRelabelsOnlyStaticPoints) {
   EXPECT_GT(double(on.relabelled_static) / double(std::max<std::size_t>(relabelled, 1)), 0.6);
 }
 
+namespace {
+
+// `sc` with its rendered images, laser only and then with the camera stage (default parameters).
+std::pair<CaseResult, CaseResult> laserThenImages(const sim::Scenario& sc) {
+  PipelineParams laser;
+  laser.image.enabled = false;
+  auto off = runCase(sc, laser, nullptr, nullptr, false, true);
+  auto on = runCase(sc, PipelineParams{}, nullptr, nullptr, false, true);
+  std::printf("  laser only: P %.4f R %.4f; with images: P %.4f R %.4f\n", off.all.precision(),
+              off.all.recall(), on.all.precision(), on.all.recall());
+  return {std::move(off), std::move(on)};
+}
+
+}  // namespace
+
 // DESIGN §3 "Camera poses", the #14 bar: a street whose written poses drift (10 % of the path,
 // a random walk of 6 cm per scan and axis) makes the laser flag textured walls and parked cars.
 // Each camera aligned on the previous scan's road gives the window its true relative poses:
@@ -321,12 +336,7 @@ TEST(SimCases, CameraAlignedPosesRemoveTheDriftFalsePositives) {
   auto sc = sim::defaultScenario();
   sc.frames = 30;
   sc.ego_pose_drift = 0.10;
-  PipelineParams laser;
-  laser.image.enabled = false;
-  const auto off = runCase(sc, laser, nullptr, nullptr, false, true);
-  const auto on = runCase(sc, PipelineParams{}, nullptr, nullptr, false, true);
-  std::printf("  laser only: P %.4f R %.4f; with images: P %.4f R %.4f\n", off.all.precision(),
-              off.all.recall(), on.all.precision(), on.all.recall());
+  const auto [off, on] = laserThenImages(sc);
   // Measured (cleanmap on the same street): 0.740 / 0.860 -> 0.996 / 0.860.
   EXPECT_GE(on.all.precision(), off.all.precision() + 0.25);
   EXPECT_GE(on.all.recall(), off.all.recall() - 0.03);
@@ -345,12 +355,7 @@ TEST(SimCases, CameraAlignedPosesCorrectTheDriftsLargerSteps) {
   sc.frames = 30;
   sc.ego_pose_drift = 0.10;
   sc.seed = 9;
-  PipelineParams laser;
-  laser.image.enabled = false;
-  const auto off = runCase(sc, laser, nullptr, nullptr, false, true);
-  const auto on = runCase(sc, PipelineParams{}, nullptr, nullptr, false, true);
-  std::printf("  laser only: P %.4f R %.4f; with images: P %.4f R %.4f\n", off.all.precision(),
-              off.all.recall(), on.all.precision(), on.all.recall());
+  const auto [off, on] = laserThenImages(sc);
   // Measured (cleanmap on the same street): 0.258 / 0.864 -> 0.997 / 0.857.
   EXPECT_GE(on.all.precision(), off.all.precision() + 0.25);
   EXPECT_GE(on.all.precision(), 0.95);
@@ -366,12 +371,7 @@ TEST(SimCases, CameraLinksRefuseWrongMinimaOnCurvedPaths) {
   sc.frames = 30;
   sc.ego_pose_drift = 0.10;
   sc.seed = 3;
-  PipelineParams laser;
-  laser.image.enabled = false;
-  const auto off = runCase(sc, laser, nullptr, nullptr, false, true);
-  const auto on = runCase(sc, PipelineParams{}, nullptr, nullptr, false, true);
-  std::printf("  laser only: P %.4f R %.4f; with images: P %.4f R %.4f\n", off.all.precision(),
-              off.all.recall(), on.all.precision(), on.all.recall());
+  const auto [off, on] = laserThenImages(sc);
   // Measured (cleanmap): 1.000 / 0.930 -> 1.000 / 0.935.
   EXPECT_GE(on.all.precision(), off.all.precision() - 0.01);
   EXPECT_GE(on.all.recall(), off.all.recall() - 0.03);
