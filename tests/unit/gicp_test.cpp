@@ -331,7 +331,8 @@ TEST(Odometry, InputOdometryBoundsTheAlignment) {
 TEST(Odometry, InputOdometryBoundsTheDriftOverItsWindow) {
   constexpr double kScan = 0.16, kWheels = 0.10;  // m per scan
   const auto world = street(900);
-  auto run = [&](int window) {
+  // `blind`: a scan without odometry (the constant-velocity guess), which breaks its chain.
+  auto run = [&](int window, int blind = -1) {
     RegistrationParams p;
     p.odometry_window = window;
     Odometry odo(p, 2);
@@ -340,8 +341,9 @@ TEST(Odometry, InputOdometryBoundsTheDriftOverItsWindow) {
     for (int k = 0; k < 12; ++k) {
       // The guess: the previous estimate moved by the odometry's increment.
       const Eigen::Isometry3d guess = k == 0 ? prev : prev * pose(kWheels, 0, 0, 0, 0, 0);
-      steps.push_back(odo.track(scanFrom(world, pose(kScan * k, 0, 0, 0, 0, 0), 900 + k), 0.1 * k,
-                                k, guess, Prior::kOdometry));
+      const auto scan = scanFrom(world, pose(kScan * k, 0, 0, 0, 0, 0), 900 + k);
+      steps.push_back(k == blind ? odo.track(scan, 0.1 * k, k)
+                                 : odo.track(scan, 0.1 * k, k, guess, Prior::kOdometry));
       prev = steps.back().pose;
     }
     return steps;
@@ -365,6 +367,15 @@ TEST(Odometry, InputOdometryBoundsTheDriftOverItsWindow) {
               first_refused > 0 ? windowed[first_refused].status.c_str() : "");
   EXPECT_EQ(first_refused, 4);
   EXPECT_EQ(windowed[first_refused].reason, "disagrees with the odometry");
+  // Scan 3 without odometry: the chain starts again at its estimate, so the window reaches back
+  // to scan 3 only and the first refusal comes four scans later.
+  const auto broken = run(RegistrationParams{}.odometry_window, 3);
+  int first_after_break = -1;
+  for (int k = 1; k < 12 && first_after_break < 0; ++k)
+    if (!broken[k].accepted) first_after_break = k;
+  EXPECT_TRUE(broken[3].accepted) << broken[3].status;
+  EXPECT_EQ(first_after_break, 7) << (first_after_break > 0 ? broken[first_after_break].status
+                                                            : "");
 }
 
 // DESIGN §2.1, "Traffic that moves with the sensor": a corridor held along the road by a wall far
