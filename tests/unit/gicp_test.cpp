@@ -201,6 +201,7 @@ TEST(Odometry, TracksAConstantMotionAndRefusesJumps) {
     const Eigen::Isometry3d truth = pose(0.8 * k, 0.05 * k, 0, 0.01 * k, 0, 0);  // 8 m/s at 10 Hz
     const OdometryStep s = odo.track(scanAt(truth, 100 + uint64_t(k)), 0.1 * k, k);
     EXPECT_TRUE(s.accepted) << s.status;
+    EXPECT_EQ(s.reason, "") << "scan " << k;  // an accepted scan has no refusal reason
     const Eigen::Isometry3d err = truth.inverse() * s.pose;
     EXPECT_LE(err.translation().norm(), 0.02) << "scan " << k;
     EXPECT_LE(degrees(err), 0.05) << "scan " << k;

@@ -152,10 +152,12 @@ OdometryStep Odometry::track(const std::vector<PointXYZI>& points, double t, int
       const Eigen::Isometry3d rel = last_.back().second.inverse() * step.pose;
       const double dt = std::max(t - last_.back().first, 0.1);
       const double turn = Eigen::AngleAxisd(rel.linear()).angle();
-      if (rel.translation().norm() > p_.max_speed * dt + 0.5 || turn > p_.max_turn_rate * dt + 0.05)
+      if (rel.translation().norm() > p_.max_speed * dt + 0.5 ||
+          turn > p_.max_turn_rate * dt + 0.05) {
         step.status = "jump of " + std::to_string(rel.translation().norm()) + " m / " +
                       std::to_string(turn) + " rad in " + std::to_string(dt) + " s";
-      step.reason = "a jump beyond max_speed / max_turn_rate";
+        step.reason = "a jump beyond max_speed / max_turn_rate";
+      }
     }
     // DESIGN §2.1 step 4: GICP moved the pose farther from the input odometry than that
     // odometry errs, between this scan and any of the last odometry_window scans (per scan,
