@@ -51,6 +51,16 @@ expect_error 1 "000006.bin: truncated scan" "$bin/cleanmap" "$scratch/cut" -o "$
 [[ "$(cat "$scratch/out/report.json")" == "$before" ]] || fail "a failed run touched the earlier run"
 [[ $(ls -A "$scratch" | grep -c cleanmap-staging) -eq 0 ]] || fail "a failed run left its staging folder"
 
+# A disk that fills up (a file-size limit with SIGXFSZ ignored: writes fail as on a full disk),
+# early and in the last kilobyte of the run's largest file: one line, the earlier run as it was.
+largest=$(find "$scratch/clean" -type f -printf '%s\n' | sort -n | tail -1)
+for kb in 64 $(((largest - 1) / 1024)); do
+  expect_error 1 "write failed (disk full?)" bash -c "trap '' XFSZ; ulimit -f $kb; exec \"\$@\"" _ \
+    "$bin/cleanmap" "$seq" -o "$scratch/out" --quiet
+  [[ "$(cat "$scratch/out/report.json")" == "$before" ]] || fail "full disk at $kb KB: the earlier run was touched"
+  [[ $(ls -A "$scratch" | grep -c cleanmap-staging) -eq 0 ]] || fail "full disk at $kb KB: staging folder left"
+done
+
 # cleanmap-eval refuses a folder that is no finished run.
 mkdir -p "$scratch/half/labels"; cp "$scratch/out/labels/000000.label" "$scratch/half/labels/"
 expect_error 1 "not a finished cleanmap run" "$bin/cleanmap-eval" "$seq" "$scratch/half"
@@ -220,4 +230,4 @@ mkdir -p "$scratch/alone" && cp "$bin/cleanmap" "$scratch/alone/"
   fail "launcher without its app: exit $rc, message '$(cat "$scratch/err")'"
 
 [[ $fails -eq 0 ]] && echo "cleanmap_test: all checks passed"
-exit $((fails > 0))
+finish

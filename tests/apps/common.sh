@@ -20,3 +20,11 @@ require_dataset() {
   if [[ "${CI:-}" == true ]]; then echo "FAIL: dataset missing in CI: $1"; exit 1; fi
   echo "SKIP: $1 not found (set CLEANMAP_DATA_DIR or -DCLEANMAP_SHARED_DATA_DIR)"; exit 77
 }
+
+# finish: the script's exit. A passing script removes its scratch folder (an app test writes up to
+# 1.5 GB: `make test` must fit a small disk); a failing one keeps it to look at, as does
+# CLEANMAP_KEEP_SCRATCH=1.
+finish() {
+  if (( fails == 0 )) && [[ -z ${CLEANMAP_KEEP_SCRATCH:-} ]]; then rm -rf "$scratch"; fi
+  exit $((fails > 0))
+}

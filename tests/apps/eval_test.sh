@@ -41,4 +41,4 @@ expect_error 2 "--sigma-r" "$bin/cleanmap-eval" roc "$city" -o "$scratch/r2" --s
 
 expect_error 1 "output folder is the input folder" "$bin/cleanmap" "$scratch/run" -o "$scratch/run/"
 [[ $fails -eq 0 ]] && echo "eval_test: all checks passed"
-exit $((fails > 0))
+finish

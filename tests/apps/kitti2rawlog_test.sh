@@ -65,4 +65,4 @@ expect_error 1 "truncated" "$bin/cleanmap-info" "$scratch/cut.rawlog"
 "$bin/cleanmap-kitti2rawlog" --help | grep -q -- "--external" || fail "--help does not explain --external"
 
 [[ $fails -eq 0 ]] && echo "all kitti2rawlog checks passed"
-exit $((fails > 0))
+finish

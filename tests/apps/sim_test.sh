@@ -41,4 +41,4 @@ expect_error 2 "need -o" "$bin/cleanmap-sim"
 expect_error 2 "unknown option" "$bin/cleanmap-sim" -o "$scratch/c" --fast
 
 [[ $fails -eq 0 ]] && echo "sim_test: all checks passed"
-exit $((fails > 0))
+finish

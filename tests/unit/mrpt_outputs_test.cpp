@@ -6,6 +6,7 @@
 
 #include <cstring>
 #include <fstream>
+#include <map>
 #include <random>
 #include <set>
 #include <tuple>
@@ -254,6 +255,43 @@ TEST(MrptOutputs, CompressedOutputsReadBackTheSame) {
   EXPECT_TRUE(ba == bb);
   EXPECT_EQ(readObservations((gz / "labelled.rawlog").string()).size(), 9u);
   EXPECT_FALSE(fs::exists(gz / "static_map.3Dscene"));
+}
+
+// gzip outputs on a disk that fills up, during the writes or in the last flush (8 bytes short of
+// the largest file: its gzip trailer, which MRPT's close() and `out << in.rdbuf()` do not
+// report): one line naming the folder's file; no temporary left, and the files that are there
+// whole (the app's staging folder removes those too).
+TEST(MrptOutputs, FullDiskIsAClearErrorAndLeavesNoPartialFile) {
+  CLEANMAP_REQUIRE_DATASET("kitti_city");
+  const auto dir = test::scratchDir("full");
+  cleanmap::mrpt::MrptOutputOptions o;
+  o.scene = false;
+  o.gzip_level = 1;
+  o.background = false;
+  runAndWrite("kitti_city", 3, dir, o);
+  std::map<std::string, std::uint64_t> whole;
+  for (const auto& e : fs::directory_iterator(dir))
+    whole[e.path().filename().string()] = e.file_size();
+  ASSERT_EQ(whole.size(), 3u);
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  std::uint64_t smallest = UINTMAX_MAX, largest = 0;
+  for (const auto& [name, size] : whole) {
+    smallest = std::min(smallest, size);
+    largest = std::max(largest, size);
+  }
+  for (const std::uint64_t limit : {std::uint64_t{64} << 10, smallest - 8, largest - 8}) {
+    {
+      const test::FileSizeLimit disk(limit);
+      test::expectError([&] { runAndWrite("kitti_city", 3, dir, o); }, dir.string(),
+                        "write failed (disk full?)");
+    }
+    for (const auto& e : fs::directory_iterator(dir)) {
+      const std::string name = e.path().filename().string();
+      ASSERT_TRUE(whole.count(name)) << name << " left with files of at most " << limit << " bytes";
+      EXPECT_EQ(e.file_size(), whole[name]) << name << " cut short at " << limit << " bytes";
+    }
+  }
 }
 
 // As the app writes them (map_decisions): cleaned.rawlog, the simplemap and the scene hold what

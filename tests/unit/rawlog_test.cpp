@@ -171,6 +171,25 @@ TEST(RawlogWriter, UnfinishedWriteLeavesNothing) {
   EXPECT_TRUE(fs::is_empty(dir)) << "a partial rawlog or temporary was left behind";
 }
 
+// A disk that fills up, during the writes or in close()'s last flush (cut 8 bytes short: the
+// gzip trailer, which MRPT's own close() would not report): one line naming the rawlog, no file.
+TEST(RawlogWriter, FullDiskIsAClearErrorAndLeavesNothing) {
+  CLEANMAP_REQUIRE_DATASET("kitti_city");
+  const auto seq = io::KittiSequence::open(test::dataDir() + "/kitti_city");
+  const auto dir = test::scratchDir("rawlog_full");
+  convert(seq, (dir / "whole.rawlog").string(), false, 4);
+  const std::uint64_t whole = fs::file_size(dir / "whole.rawlog");
+  fs::remove(dir / "whole.rawlog");
+  for (const std::uint64_t limit : {std::uint64_t{64} << 10, whole - 8}) {
+    {
+      const test::FileSizeLimit disk(limit);
+      test::expectError([&] { convert(seq, (dir / "x.rawlog").string(), false, 4); }, "x.rawlog",
+                        "write failed (disk full?)");
+    }
+    EXPECT_TRUE(fs::is_empty(dir)) << "a file was left with " << limit << " bytes a file";
+  }
+}
+
 TEST(RawlogSource, EmptyScanIsAnErrorUnlessAllowed) {
   const auto dir = test::scratchDir("rawlog_emptyscan");
   {

@@ -3,8 +3,12 @@
 #pragma once
 #include <gtest/gtest.h>
 
+#include <sys/resource.h>
+
 #include <Eigen/Geometry>
 #include <cmath>
+#include <csignal>
+#include <cstdint>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -27,13 +31,63 @@ inline bool inCI() {
   return ci && std::string(ci) == "true";
 }
 
-/// A fresh empty directory under the build tree, removed at the start of each use.
+/// The scratch folders made by the running test.
+inline std::vector<std::filesystem::path>& scratchOfThisTest() {
+  static std::vector<std::filesystem::path> dirs;
+  return dirs;
+}
+
+/// Removes the running test's scratch folders when it ends without failing: the tests write
+/// ~2 GB in all, and `make test` runs on machines with little disk. A failing test keeps its
+/// folders to look at, as every test does with CLEANMAP_KEEP_SCRATCH=1.
+class ScratchCleaner : public ::testing::EmptyTestEventListener {
+  void OnTestEnd(const ::testing::TestInfo& info) override {
+    auto& dirs = scratchOfThisTest();
+    if (!info.result()->Failed() && !std::getenv("CLEANMAP_KEEP_SCRATCH"))
+      for (const auto& d : dirs) {
+        std::error_code ec;  // a folder that cannot be removed is left, not a failure
+        std::filesystem::remove_all(d, ec);
+      }
+    dirs.clear();
+  }
+};
+inline const bool kScratchCleanerInstalled = [] {
+  ::testing::UnitTest::GetInstance()->listeners().Append(new ScratchCleaner);
+  return true;
+}();
+
+/// A fresh empty directory under the build tree, removed at the start of each use and when the
+/// test that made it passes (ScratchCleaner).
 inline std::filesystem::path scratchDir(const std::string& name) {
   const auto p = std::filesystem::path(CLEANMAP_TEST_SCRATCH_DIR) / name;
   std::filesystem::remove_all(p);
   std::filesystem::create_directories(p);
+  scratchOfThisTest().push_back(p);
   return p;
 }
+
+/// While alive, no file of this process grows past `bytes`: writes beyond fail with EFBIG
+/// (RLIMIT_FSIZE, with SIGXFSZ ignored), as they would with ENOSPC on a full disk.
+class FileSizeLimit {
+ public:
+  explicit FileSizeLimit(std::uint64_t bytes) {
+    ::getrlimit(RLIMIT_FSIZE, &old_);
+    old_handler_ = std::signal(SIGXFSZ, SIG_IGN);
+    rlimit r = old_;
+    r.rlim_cur = bytes;
+    ::setrlimit(RLIMIT_FSIZE, &r);
+  }
+  ~FileSizeLimit() {
+    ::setrlimit(RLIMIT_FSIZE, &old_);
+    std::signal(SIGXFSZ, old_handler_);
+  }
+  FileSizeLimit(const FileSizeLimit&) = delete;
+  FileSizeLimit& operator=(const FileSizeLimit&) = delete;
+
+ private:
+  rlimit old_{};
+  void (*old_handler_)(int) = SIG_DFL;
+};
 
 /// Writes `text` to `p`, creating its folder.
 inline void writeText(const std::filesystem::path& p, const std::string& text) {

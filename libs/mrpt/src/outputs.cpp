@@ -39,6 +39,7 @@
 #include "cleanmap/io/ply.h"
 #include "cleanmap/mrpt/convert.h"
 #include "cleanmap/mrpt/rawlog.h"
+#include "gz_file.h"
 
 namespace fs = std::filesystem;
 
@@ -101,22 +102,20 @@ struct OutFile {
     else if (gz.Write(data, n) != n)
       throw Error(path, "write failed (disk full?)");
   }
+  // Closed and checked; the temporary stays until close() moves it or the destructor removes it.
   void finishWriting() {
-    open = false;
     if (plain)
       plain->close();
     else
-      gz.close();
+      closeGzChecked(gz, tmp, path);
   }
   void close() {
     if (!open) return;
     finishWriting();
     std::error_code ec;
     fs::rename(tmp, path, ec);
-    if (ec) {
-      std::remove(tmp.c_str());
-      throw Error(path, "cannot move into place: " + ec.message());
-    }
+    if (ec) throw Error(path, "cannot move into place: " + ec.message());
+    open = false;
   }
 };
 
@@ -389,18 +388,30 @@ struct MrptOutputWriter::Impl {
     head.finishWriting();
     const std::string tmp = path + ".part." + std::to_string(::getpid());
     {
+      // read / write, not `out << in.rdbuf()`: that reports no error once a byte went through
       std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+      std::vector<char> buf(1 << 20);
       for (const std::string& part : {head.tmp, simplemap_body->tmp}) {
         std::ifstream in(part, std::ios::binary);
-        out << in.rdbuf();
+        while (in && out) {
+          in.read(buf.data(), static_cast<std::streamsize>(buf.size()));
+          out.write(buf.data(), in.gcount());
+        }
+        if (!in.eof()) out.setstate(std::ios::badbit);  // a part that could not be read
       }
-      if (!out) throw Error(path, "write failed (disk full?)");
+      out.close();
+      if (!out) {
+        std::remove(tmp.c_str());
+        throw Error(path, "write failed (disk full?)");
+      }
     }
-    std::remove(head.tmp.c_str());
-    std::remove(simplemap_body->tmp.c_str());
+    simplemap_body.reset();  // removes its temporary (the head's goes with `head`)
     std::error_code ec;
     fs::rename(tmp, path, ec);
-    if (ec) throw Error(path, "cannot move into place: " + ec.message());
+    if (ec) {
+      std::remove(tmp.c_str());
+      throw Error(path, "cannot move into place: " + ec.message());
+    }
   }
 };
 

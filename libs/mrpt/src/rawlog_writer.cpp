@@ -14,6 +14,7 @@
 #include "cleanmap/core/error.h"
 #include "cleanmap/mrpt/convert.h"
 #include "cleanmap/mrpt/rawlog.h"
+#include "gz_file.h"
 
 namespace fs = std::filesystem;
 
@@ -50,6 +51,18 @@ RawlogWriter::~RawlogWriter() {
 
 void RawlogWriter::write(const Frame& frame, const std::optional<PinholeCamera>& camera,
                          const std::string& scan_source, const std::string& image_source) {
+  try {
+    writeObservations(frame, camera, scan_source, image_source);
+  } catch (const Error&) {
+    throw;
+  } catch (const std::exception&) {  // MRPT's archive: "Cannot write bytes to stream!" + a trace
+    throw Error(path_, "write failed (disk full?)");
+  }
+}
+
+void RawlogWriter::writeObservations(const Frame& frame, const std::optional<PinholeCamera>& camera,
+                                     const std::string& scan_source,
+                                     const std::string& image_source) {
   using namespace ::mrpt::obs;
   auto arch = ::mrpt::serialization::archiveFrom(impl_->out);
   const auto stamp = toMrptTime(frame.scan.timestamp);
@@ -111,14 +124,11 @@ void RawlogWriter::write(const Frame& frame, const std::optional<PinholeCamera>&
 
 void RawlogWriter::close() {
   if (!impl_->open) return;
-  impl_->out.close();
-  impl_->open = false;
+  closeGzChecked(impl_->out, impl_->tmp, path_);  // on error the destructor removes the temporary
   std::error_code ec;
   fs::rename(impl_->tmp, path_, ec);
-  if (ec) {
-    std::remove(impl_->tmp.c_str());
-    throw Error(path_, "cannot move the finished rawlog into place: " + ec.message());
-  }
+  if (ec) throw Error(path_, "cannot move the finished rawlog into place: " + ec.message());
+  impl_->open = false;
 }
 
 }  // namespace cleanmap::mrpt

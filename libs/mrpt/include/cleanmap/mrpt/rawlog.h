@@ -38,7 +38,8 @@ class RawlogWriter {
   RawlogWriter& operator=(const RawlogWriter&) = delete;
 
   /// `camera` is required for frames with an image. `scan_source` / `image_source` are the files
-  /// the data came from (needed with `external`).
+  /// the data came from (needed with `external`). A failed write (a full disk) is a
+  /// cleanmap::Error naming the rawlog.
   void write(const Frame& frame, const std::optional<PinholeCamera>& camera,
              const std::string& scan_source = {}, const std::string& image_source = {});
   void close();
@@ -49,6 +50,9 @@ class RawlogWriter {
   std::size_t odometries() const { return odometries_; }
 
  private:
+  void writeObservations(const Frame& frame, const std::optional<PinholeCamera>& camera,
+                         const std::string& scan_source, const std::string& image_source);
+
   struct Impl;
   std::unique_ptr<Impl> impl_;
   std::string path_;
