@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: BSD-3-Clause
 // cleanmap-sim: synthetic HDL-64E + camera sequences with exact labels (issue #4).
 #include <cstdio>
+#include <filesystem>
 #include <iostream>
 #include <string>
 
@@ -11,6 +12,8 @@
 #include "cleanmap/mrpt/rawlog.h"
 #include "cleanmap/sim/generate.h"
 #include "cleanmap/sim/world.h"
+
+namespace fs = std::filesystem;
 
 namespace {
 
@@ -26,7 +29,8 @@ and the same sequence as an MRPT rawlog, OUTDIR/sequence.rawlog.
 Without SCENARIO.ini the default scenario (datasets/scenarios/default.ini) is used.
 Scenario format: doc/SIMULATOR.md; examples in datasets/scenarios/.
 
--o, --output DIR   output folder (created; files are written atomically)
+-o, --output DIR   output folder, written as a whole (an error leaves it as it was); an
+                   earlier sequence there is replaced, another non-empty folder refused
 --frames N         generate the first N frames only
 --threads N        ray-casting threads (default 2; the output does not depend on it)
 --no-images        skip the camera images
@@ -73,19 +77,29 @@ int main(int argc, char** argv) {
     cleanmap::sim::GenerateOptions opt;
     opt.threads = static_cast<int>(threads);
     opt.images = images;
-    const auto sum = cleanmap::sim::generateSequence(sc, out, opt, [](int d, int t) {
+    // Written as a whole (a staging folder beside OUTDIR, then one rename): an error or a signal
+    // leaves OUTDIR as it was. An earlier sequence is replaced; any other non-empty folder is not.
+    std::error_code ec;
+    if (fs::is_directory(out, ec) && !fs::is_empty(out, ec) &&
+        !fs::exists(fs::path(out) / "scenario.ini", ec))
+      throw cleanmap::Error(out,
+                            "is a non-empty folder that holds no cleanmap-sim sequence (no "
+                            "scenario.ini); choose another -o");
+    cleanmap::io::StagedFolder staged(out, "cleanmap-sim");
+    const std::string dir = staged.path();
+    const auto sum = cleanmap::sim::generateSequence(sc, dir, opt, [](int d, int t) {
       g_progress_shown = true;
       std::fprintf(stderr, "\rcleanmap-sim: frame %d/%d   ", d, t);
     });
     std::fprintf(stderr, "\n");
-    cleanmap::io::writeFileAtomic(out + "/scenario.ini", [&](std::ostream& os) {
+    cleanmap::io::writeFileAtomic(dir + "/scenario.ini", [&](std::ostream& os) {
       os << (scenario.empty() ? cleanmap::sim::defaultScenarioText()
                               : cleanmap::io::readTextFile(scenario));
     });
     if (rawlog) {
       cleanmap::io::KittiReadOptions ro;
-      auto seq = cleanmap::io::KittiSequence::open(out, ro);
-      cleanmap::mrpt::RawlogWriter writer(out + "/sequence.rawlog");
+      auto seq = cleanmap::io::KittiSequence::open(dir, ro);
+      cleanmap::mrpt::RawlogWriter writer(dir + "/sequence.rawlog");
       const auto camera = seq.camera();
       for (std::size_t i = 0; i < seq.size(); ++i) {
         cleanmap::Frame f = seq.frame(i);
@@ -95,6 +109,7 @@ int main(int argc, char** argv) {
       }
       writer.close();
     }
+    staged.publish();
     std::printf("cleanmap-sim: %s: %zu frames, %zu points (%zu moving), %zu images%s -> %s\n",
                 sc.name.c_str(), sum.frames, sum.points, sum.moving_points, sum.images,
                 rawlog ? ", sequence.rawlog" : "", out.c_str());

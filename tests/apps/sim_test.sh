@@ -40,5 +40,18 @@ expect_error 1 "missing.ini" "$bin/cleanmap-sim" "$scratch/missing.ini" -o "$scr
 expect_error 2 "need -o" "$bin/cleanmap-sim"
 expect_error 2 "unknown option" "$bin/cleanmap-sim" -o "$scratch/c" --fast
 
+# The output folder is written as a whole: an earlier sequence is replaced (no stale frames), a
+# foreign folder refused, and a full disk (a file-size limit) leaves the earlier one as it was.
+"$bin/cleanmap-sim" -o "$scratch/a" --frames 2 --threads 2 --no-images >/dev/null 2>&1 || fail "regeneration failed"
+[[ $(ls "$scratch/a/velodyne" | wc -l) -eq 2 && ! -e $scratch/a/image_2 ]] || fail "stale files of the earlier sequence survived"
+mkdir -p "$scratch/mine" && echo keep >"$scratch/mine/notes.txt"
+expect_error 1 "holds no cleanmap-sim sequence" "$bin/cleanmap-sim" -o "$scratch/mine" --frames 2
+[[ -f $scratch/mine/notes.txt ]] || fail "a foreign folder was touched"
+cp -r "$scratch/a" "$scratch/a.before"
+expect_error 1 "write failed (disk full?)" bash -c "trap '' XFSZ; ulimit -f 64; exec \"\$@\"" _ \
+  "$bin/cleanmap-sim" -o "$scratch/a" --frames 3 --threads 2
+diff -r "$scratch/a" "$scratch/a.before" >/dev/null || fail "a failed generation touched the earlier sequence"
+[[ $(ls -A "$scratch" | grep -c staging) -eq 0 ]] || fail "a failed generation left its staging folder"
+
 [[ $fails -eq 0 ]] && echo "sim_test: all checks passed"
 finish

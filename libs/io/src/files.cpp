@@ -1,8 +1,13 @@
 // SPDX-License-Identifier: BSD-3-Clause
 #include "cleanmap/io/files.h"
 
+#include <fcntl.h>
+#include <signal.h>
+#include <stdio.h>
 #include <unistd.h>
 
+#include <cerrno>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -116,6 +121,61 @@ void requireDirectory(const std::string& path) {
   std::error_code ec;
   if (!fs::exists(path, ec)) throw Error(path, "directory does not exist");
   if (!fs::is_directory(path, ec)) throw Error(path, "is not a directory");
+}
+
+namespace {
+
+// Staging folders of runs that were killed (SIGKILL, power loss) are removed by the next run.
+void removeStaleStaging(const fs::path& parent, const std::string& prefix) {
+  std::error_code ec;
+  for (const auto& e : fs::directory_iterator(parent.empty() ? "." : parent, ec)) {
+    const std::string n = e.path().filename().string();
+    if (n.rfind(prefix, 0) != 0) continue;
+    const long pid = std::atol(n.c_str() + prefix.size());
+    if (pid > 0 && ::kill(static_cast<pid_t>(pid), 0) != 0 && errno == ESRCH)
+      fs::remove_all(e.path(), ec);
+  }
+}
+
+}  // namespace
+
+StagedFolder::StagedFolder(const std::string& dir, const std::string& tag) : dir_(dir) {
+  while (dir_.size() > 1 && dir_.back() == '/') dir_.pop_back();
+  const fs::path out(dir_);
+  const std::string prefix = "." + out.filename().string() + "." + tag + "-staging-";
+  std::error_code ec;
+  if (!out.parent_path().empty()) fs::create_directories(out.parent_path(), ec);
+  if (ec) throw Error(dir_, "cannot create the parent folder: " + ec.message());
+  removeStaleStaging(out.parent_path(), prefix);
+  staging_ = (out.parent_path() / (prefix + std::to_string(::getpid()))).string();
+  fs::remove_all(staging_, ec);
+  fs::create_directories(staging_, ec);
+  if (ec) throw Error(dir_, "cannot create the staging folder " + staging_ + ": " + ec.message());
+}
+
+StagedFolder::~StagedFolder() {
+  if (published_) return;
+  std::error_code ec;
+  fs::remove_all(staging_, ec);
+}
+
+void StagedFolder::publish() {
+  std::error_code ec;
+  if (!fs::exists(dir_, ec)) {
+    fs::rename(staging_, dir_, ec);
+    if (ec) throw Error(dir_, "cannot move the finished folder into place: " + ec.message());
+  } else if (::renameat2(AT_FDCWD, staging_.c_str(), AT_FDCWD, dir_.c_str(), RENAME_EXCHANGE) !=
+             0) {
+    const std::string old = staging_ + ".old";
+    fs::rename(dir_, old, ec);
+    if (!ec) fs::rename(staging_, dir_, ec);
+    if (ec) throw Error(dir_, "cannot replace the earlier folder: " + ec.message());
+    fs::remove_all(old, ec);
+    published_ = true;
+    return;
+  }
+  published_ = true;
+  fs::remove_all(staging_, ec);  // after a swap: the earlier folder
 }
 
 }  // namespace cleanmap::io

@@ -88,37 +88,16 @@ void checkOutputFolder(const std::string& outdir, const OutputOptions& opts) {
               "choose another -o, or pass --force to replace it and everything in it");
 }
 
-namespace {
-
-// Staging folders of runs that were killed (SIGKILL, power loss) are removed by the next run.
-void removeStaleStaging(const fs::path& parent, const std::string& prefix) {
-  std::error_code ec;
-  for (const auto& e : fs::directory_iterator(parent.empty() ? "." : parent, ec)) {
-    const std::string n = e.path().filename().string();
-    if (n.rfind(prefix, 0) != 0) continue;
-    const long pid = std::atol(n.c_str() + prefix.size());
-    if (pid > 0 && ::kill(static_cast<pid_t>(pid), 0) != 0 && errno == ESRCH)
-      fs::remove_all(e.path(), ec);
-  }
-}
-
-}  // namespace
-
 OutputWriter::OutputWriter(const std::string& outdir, const std::string& input,
                            const PipelineParams& params, const OutputOptions& opts)
     : dir_(outdir), input_(input), params_(params) {
   while (dir_.size() > 1 && dir_.back() == '/') dir_.pop_back();
   checkOutputFolder(dir_, opts);
-  const fs::path out(dir_);
-  const std::string prefix = "." + out.filename().string() + ".cleanmap-staging-";
+  staged_ = std::make_unique<StagedFolder>(dir_, "cleanmap");
+  staging_ = staged_->path();
   std::error_code ec;
-  if (!out.parent_path().empty()) fs::create_directories(out.parent_path(), ec);
-  if (ec) throw Error(dir_, "cannot create the parent folder: " + ec.message());
-  removeStaleStaging(out.parent_path(), prefix);
-  staging_ = (out.parent_path() / (prefix + std::to_string(::getpid()))).string();
-  fs::remove_all(staging_, ec);
   fs::create_directories(fs::path(staging_) / "labels", ec);
-  if (ec) throw Error(dir_, "cannot create the staging folder " + staging_ + ": " + ec.message());
+  if (ec) throw Error(staging_, "cannot create labels/: " + ec.message());
   // DESIGN §4: the maps in RGB (static by height above the sensor, moving in red), the compact
   // map and the moving points also as PCD.
   const CloudStreamOptions height{CloudColour::kHeight, {}};
@@ -145,10 +124,7 @@ OutputWriter::~OutputWriter() {
   moving_.reset();
   removed_.reset();
   spool_.reset();
-  if (!published_ && !staging_.empty()) {
-    std::error_code ec;
-    fs::remove_all(staging_, ec);
-  }
+  staged_.reset();  // unpublished: removes the staging folder
 }
 
 namespace {
@@ -301,26 +277,8 @@ void OutputWriter::writeMaps(const FreeSpaceMap* free_space, const MapScanSink& 
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 }
 
-// The staging folder becomes OUTDIR in one step: renameat2(RENAME_EXCHANGE) swaps it with an
-// earlier run atomically; where the file system cannot swap, two renames leave OUTDIR missing
-// for an instant, never half-written.
 void OutputWriter::publish() {
-  std::error_code ec;
-  if (!fs::exists(dir_, ec)) {
-    fs::rename(staging_, dir_, ec);
-    if (ec) throw Error(dir_, "cannot move the finished run into place: " + ec.message());
-  } else if (::renameat2(AT_FDCWD, staging_.c_str(), AT_FDCWD, dir_.c_str(), RENAME_EXCHANGE) !=
-             0) {
-    const std::string old = staging_ + ".old";
-    fs::rename(dir_, old, ec);
-    if (!ec) fs::rename(staging_, dir_, ec);
-    if (ec) throw Error(dir_, "cannot replace the earlier run: " + ec.message());
-    fs::remove_all(old, ec);
-    published_ = true;
-    return;
-  }
-  published_ = true;
-  fs::remove_all(staging_, ec);  // after a swap: the earlier run
+  staged_->publish();
 }
 
 void OutputWriter::finish(double wall_s, const FreeSpaceMap* free_space) {

@@ -36,6 +36,29 @@ void writeFileAtomic(const std::string& path, const std::function<void(std::ostr
 /// sibling to write before renaming it to `path` (writeFileAtomic, io::writeBytesAtomic).
 std::string atomicTemporaryFor(const std::string& path);
 
+/// A folder written as a whole, so that an error or a signal never leaves it half-written: its
+/// files go into a staging folder `.<name>.<tag>-staging-<pid>` beside it (those of killed runs
+/// are removed first), and publish() moves that into place in one step, swapping it with an
+/// earlier folder where the file system can (renameat2 RENAME_EXCHANGE; else two renames leave
+/// the folder missing for an instant, never half-written). Destroyed unpublished, it removes the
+/// staging folder and leaves the folder as it was.
+class StagedFolder {
+ public:
+  /// Throws cleanmap::Error naming `dir` if the staging folder cannot be made.
+  StagedFolder(const std::string& dir, const std::string& tag);
+  ~StagedFolder();
+  StagedFolder(const StagedFolder&) = delete;
+  StagedFolder& operator=(const StagedFolder&) = delete;
+
+  const std::string& path() const { return staging_; }  ///< where to write
+  const std::string& dir() const { return dir_; }       ///< the folder, once published
+  void publish();
+
+ private:
+  std::string dir_, staging_;
+  bool published_ = false;
+};
+
 /// Whole file as text; throws cleanmap::Error naming the file if it cannot be read.
 std::string readTextFile(const std::string& path);
 

@@ -19,6 +19,8 @@
 
 namespace cleanmap::io {
 
+class StagedFolder;  // files.h
+
 class PlyStreamWriter;
 class DirectFile;
 
@@ -101,7 +103,7 @@ class OutputWriter {
   void publish();
 
   std::string dir_, staging_, input_;
-  bool published_ = false;
+  std::unique_ptr<StagedFolder> staged_;
   PipelineParams params_;
   void spoolScan(const ScanResult& r);
   bool maps_written_ = false;
