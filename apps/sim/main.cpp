@@ -80,6 +80,8 @@ int main(int argc, char** argv) {
     // Written as a whole (a staging folder beside OUTDIR, then one rename): an error or a signal
     // leaves OUTDIR as it was. An earlier sequence is replaced; any other non-empty folder is not.
     std::error_code ec;
+    if (fs::exists(out, ec) && !fs::is_directory(out, ec))
+      throw cleanmap::Error(out, "exists and is not a folder; choose another -o");
     if (fs::is_directory(out, ec) && !fs::is_empty(out, ec) &&
         !fs::exists(fs::path(out) / "scenario.ini", ec))
       throw cleanmap::Error(out,

@@ -47,6 +47,7 @@ expect_error 2 "unknown option" "$bin/cleanmap-sim" -o "$scratch/c" --fast
 mkdir -p "$scratch/mine" && echo keep >"$scratch/mine/notes.txt"
 expect_error 1 "holds no cleanmap-sim sequence" "$bin/cleanmap-sim" -o "$scratch/mine" --frames 2
 [[ -f $scratch/mine/notes.txt ]] || fail "a foreign folder was touched"
+expect_error 1 "exists and is not a folder" "$bin/cleanmap-sim" -o "$scratch/mine/notes.txt" --frames 2
 cp -r "$scratch/a" "$scratch/a.before"
 expect_error 1 "write failed (disk full?)" bash -c "trap '' XFSZ; ulimit -f 64; exec \"\$@\"" _ \
   "$bin/cleanmap-sim" -o "$scratch/a" --frames 3 --threads 2
