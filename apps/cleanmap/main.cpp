@@ -393,7 +393,8 @@ int main(int argc, char** argv) {
     return 128 + i.sig;
   } catch (const std::exception& e) {
     if (progress_shown) std::fprintf(stderr, "\n");
-    std::cerr << "cleanmap: error: " << e.what() << '\n';
+    std::cerr << "cleanmap: error: "
+              << cleanmap::io::messageWithoutStaging(e.what(), outdir, "cleanmap") << '\n';
     return 1;
   }
   return 0;

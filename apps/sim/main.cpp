@@ -116,7 +116,8 @@ int main(int argc, char** argv) {
                 sc.name.c_str(), sum.frames, sum.points, sum.moving_points, sum.images,
                 rawlog ? ", sequence.rawlog" : "", out.c_str());
   } catch (const std::exception& e) {
-    std::cerr << (g_progress_shown ? "\n" : "") << "cleanmap-sim: error: " << e.what() << '\n';
+    std::cerr << (g_progress_shown ? "\n" : "") << "cleanmap-sim: error: "
+              << cleanmap::io::messageWithoutStaging(e.what(), out, "cleanmap-sim") << '\n';
     return 1;
   }
   return 0;

@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: BSD-3-Clause
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <cstring>
 #include <fstream>
@@ -98,6 +99,38 @@ TEST(AtomicWrite, InterruptedWriteLeavesNothing) {
   std::size_t files = 0;
   for (const auto& e : fs::directory_iterator(dir)) files += e.is_regular_file() ? 1 : 0;
   EXPECT_EQ(files, 1u) << "a temporary file was left behind";
+}
+
+// A folder written as a whole: nothing in it until publish(), an earlier folder replaced as a
+// whole, and an unpublished one leaves nothing behind; errors name the folder's own paths.
+TEST(StagedFolder, PublishesAsAWholeAndLeavesNothingUnpublished) {
+  const auto root = test::scratchDir("staged");
+  const std::string dir = (root / "out").string();
+  {
+    io::StagedFolder s(dir, "t");
+    test::writeText(std::filesystem::path(s.path()) / "a.txt", "first");
+    EXPECT_FALSE(std::filesystem::exists(dir));
+    s.publish();
+  }
+  EXPECT_EQ(io::readTextFile(dir + "/a.txt"), "first");
+  {
+    io::StagedFolder s(dir + "/", "t");
+    test::writeText(std::filesystem::path(s.path()) / "b.txt", "second");
+    const std::string msg = s.path() + "/b.txt.tmp." + std::to_string(::getpid()) + ": failed";
+    EXPECT_EQ(io::messageWithoutStaging(msg, dir + "/", "t"), dir + "/b.txt: failed");
+  }  // not published: the earlier folder as it was, no staging left
+  EXPECT_EQ(io::readTextFile(dir + "/a.txt"), "first");
+  EXPECT_FALSE(std::filesystem::exists(dir + "/b.txt"));
+  {
+    io::StagedFolder s(dir, "t");
+    test::writeText(std::filesystem::path(s.path()) / "b.txt", "second");
+    s.publish();
+  }
+  EXPECT_FALSE(std::filesystem::exists(dir + "/a.txt")) << "the earlier folder was not replaced";
+  EXPECT_EQ(io::readTextFile(dir + "/b.txt"), "second");
+  std::size_t entries = 0;
+  for ([[maybe_unused]] const auto& e : std::filesystem::directory_iterator(root)) ++entries;
+  EXPECT_EQ(entries, 1u) << "a staging folder was left";
 }
 
 TEST(Directories, MissingDirectoryIsAnError) {

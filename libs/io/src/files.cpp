@@ -137,17 +137,44 @@ void removeStaleStaging(const fs::path& parent, const std::string& prefix) {
   }
 }
 
+std::string trimmedFolder(std::string dir) {
+  while (dir.size() > 1 && dir.back() == '/') dir.pop_back();
+  return dir;
+}
+
+std::string stagingPrefix(const std::string& dir, const std::string& tag) {
+  return "." + fs::path(dir).filename().string() + "." + tag + "-staging-";
+}
+
+std::string stagingPath(const std::string& dir, const std::string& tag) {
+  return (fs::path(dir).parent_path() / (stagingPrefix(dir, tag) + std::to_string(::getpid())))
+      .string();
+}
+
 }  // namespace
 
-StagedFolder::StagedFolder(const std::string& dir, const std::string& tag) : dir_(dir) {
-  while (dir_.size() > 1 && dir_.back() == '/') dir_.pop_back();
+std::string messageWithoutStaging(std::string message, const std::string& dir,
+                                  const std::string& tag) {
+  const std::string d = trimmedFolder(dir);
+  auto replaceAll = [&](const std::string& from, const std::string& to) {
+    for (std::size_t at = message.find(from); at != std::string::npos;
+         at = message.find(from, at + to.size()))
+      message.replace(at, from.size(), to);
+  };
+  replaceAll(stagingPath(d, tag), d);
+  const std::string pid = std::to_string(::getpid());
+  for (const char* suffix : {".tmp.", ".part.", ".head."}) replaceAll(suffix + pid, "");
+  return message;
+}
+
+StagedFolder::StagedFolder(const std::string& dir, const std::string& tag)
+    : dir_(trimmedFolder(dir)) {
   const fs::path out(dir_);
-  const std::string prefix = "." + out.filename().string() + "." + tag + "-staging-";
   std::error_code ec;
   if (!out.parent_path().empty()) fs::create_directories(out.parent_path(), ec);
   if (ec) throw Error(dir_, "cannot create the parent folder: " + ec.message());
-  removeStaleStaging(out.parent_path(), prefix);
-  staging_ = (out.parent_path() / (prefix + std::to_string(::getpid()))).string();
+  removeStaleStaging(out.parent_path(), stagingPrefix(dir_, tag));
+  staging_ = stagingPath(dir_, tag);
   fs::remove_all(staging_, ec);
   fs::create_directories(staging_, ec);
   if (ec) throw Error(dir_, "cannot create the staging folder " + staging_ + ": " + ec.message());

@@ -59,6 +59,12 @@ class StagedFolder {
   bool published_ = false;
 };
 
+/// An error message as the user should read it: paths inside this process's staging folder for
+/// `dir` (StagedFolder with `tag`) named as they will be in `dir`, and the temporaries' suffixes
+/// (".tmp.<pid>", ".part.<pid>", ".head.<pid>") dropped.
+std::string messageWithoutStaging(std::string message, const std::string& dir,
+                                  const std::string& tag);
+
 /// Whole file as text; throws cleanmap::Error naming the file if it cannot be read.
 std::string readTextFile(const std::string& path);
 
