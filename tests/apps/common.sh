@@ -21,6 +21,13 @@ require_dataset() {
   echo "SKIP: $1 not found (set CLEANMAP_DATA_DIR or -DCLEANMAP_SHARED_DATA_DIR)"; exit 77
 }
 
+# full_disk KB cmd...: runs cmd with no file of it growing past KB kilobytes (SIGXFSZ ignored):
+# its writes then fail as they would on a full disk.
+full_disk() {
+  local kb=$1; shift
+  (trap '' XFSZ; ulimit -f "$kb"; exec "$@")
+}
+
 # finish: the script's exit. A passing script removes its scratch folder (an app test writes up to
 # 1.5 GB: `make test` must fit a small disk); a failing one keeps it to look at, as does
 # CLEANMAP_KEEP_SCRATCH=1.

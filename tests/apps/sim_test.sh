@@ -49,8 +49,7 @@ expect_error 1 "holds no cleanmap-sim sequence" "$bin/cleanmap-sim" -o "$scratch
 [[ -f $scratch/mine/notes.txt ]] || fail "a foreign folder was touched"
 expect_error 1 "exists and is not a folder" "$bin/cleanmap-sim" -o "$scratch/mine/notes.txt" --frames 2
 cp -r "$scratch/a" "$scratch/a.before"
-expect_error 1 "write failed (disk full?)" bash -c "trap '' XFSZ; ulimit -f 64; exec \"\$@\"" _ \
-  "$bin/cleanmap-sim" -o "$scratch/a" --frames 3 --threads 2
+expect_error 1 "write failed (disk full?)" full_disk 64 "$bin/cleanmap-sim" -o "$scratch/a" --frames 3 --threads 2
 diff -r "$scratch/a" "$scratch/a.before" >/dev/null || fail "a failed generation touched the earlier sequence"
 [[ $(ls -A "$scratch" | grep -c staging) -eq 0 ]] || fail "a failed generation left its staging folder"
 

@@ -38,7 +38,7 @@ inline std::vector<std::filesystem::path>& scratchOfThisTest() {
 }
 
 /// Removes the running test's scratch folders when it ends without failing: the tests write
-/// ~2 GB in all, and `make test` runs on machines with little disk. A failing test keeps its
+/// 3.7 GB in all, and `make test` runs on machines with little disk. A failing test keeps its
 /// folders to look at, as every test does with CLEANMAP_KEEP_SCRATCH=1.
 class ScratchCleaner : public ::testing::EmptyTestEventListener {
   void OnTestEnd(const ::testing::TestInfo& info) override {
