@@ -2,7 +2,10 @@
 // cleanmap-eval: scores a result against a labelled sequence (DESIGN §5), runs the ROC sweep, and
 // sums reports into one table.
 #include <cstdio>
+#include <filesystem>
+#include <fstream>
 #include <iostream>
+#include <memory>
 #include <sstream>
 #include <string>
 
@@ -11,9 +14,24 @@
 #include "cleanmap/eval/evaluate.h"
 #include "cleanmap/eval/roc.h"
 #include "cleanmap/io/config.h"
+#include "cleanmap/io/files.h"
 #include "cleanmap/maps/map_config.h"
 
 namespace {
+
+namespace fs = std::filesystem;
+
+// The folders written here (--report, roc -o) are written as a whole (io::StagedFolder): an error
+// or a signal leaves the earlier folder as it was, and a rerun over fewer scans leaves no pictures
+// of the earlier one. Only an earlier folder of the same kind is replaced.
+constexpr const char* kStagingTag = "cleanmap-eval";
+std::string g_staged;  // the folder being written, so that errors name its own paths
+
+bool firstLineStarts(const fs::path& file, const std::string& prefix) {
+  std::ifstream in(file);
+  std::string line;
+  return in && std::getline(in, line) && line.rfind(prefix, 0) == 0;
+}
 
 constexpr const char* kUsage = R"(usage:
   cleanmap-eval GT_DIR RESULT [--first N --last M] [--labels DIR] [--report DIR] [--json]
@@ -96,6 +114,12 @@ int runRoc(int argc, char** argv) {
   cleanmap::PipelineParams base;
   if (!config.empty()) base = cleanmap_maps::loadPipelineParams(config);  // MRPT or flat ini
   if (threads > 0) base.threads = static_cast<int>(threads);
+  cleanmap::io::requireReplaceableFolder(
+      out,
+      [](const std::string& d) { return firstLineStarts(fs::path(d) / "roc.md", "# ROC sweep"); },
+      "ROC sweep of cleanmap-eval (no roc.md)", "-o");
+  cleanmap::io::StagedFolder staged(out, kStagingTag);
+  g_staged = out;
   const auto res = cleanmap::eval::rocSweep(gt, base, opt, [](std::size_t d, std::size_t t) {
     std::fprintf(stderr, "\rcleanmap-eval roc: %zu/%zu settings   ", d, t);
   });
@@ -103,7 +127,8 @@ int runRoc(int argc, char** argv) {
   std::string seq = gt;
   while (!seq.empty() && seq.back() == '/') seq.pop_back();
   seq = seq.substr(seq.find_last_of('/') + 1);
-  cleanmap::eval::writeRoc(out, seq, res, base);
+  cleanmap::eval::writeRoc(staged.path(), seq, res, base);
+  staged.publish();
   std::printf("cleanmap-eval roc: %zu settings; table %s/roc.md, plot %s/roc.png\n", res.size(),
               out.c_str(), out.c_str());
   return 0;
@@ -152,10 +177,24 @@ int runEval(int argc, char** argv) {
   }
   if (gt.empty() || result.empty()) args.fail("need GT_DIR and RESULT");
   if (opt.last >= 0 && opt.last < opt.first) args.fail("--last must be >= --first");
-  opt.pictures_dir = report;
   const auto in = cleanmap::eval::ResultInput::fromPath(result, labels);
+  std::unique_ptr<cleanmap::io::StagedFolder> staged;
+  if (!report.empty()) {
+    cleanmap::io::requireReplaceableFolder(
+        report,
+        [](const std::string& d) {
+          return firstLineStarts(fs::path(d) / "report.md", "# cleanmap evaluation");
+        },
+        "report of cleanmap-eval (no report.md of one)", "--report");
+    staged = std::make_unique<cleanmap::io::StagedFolder>(report, kStagingTag);
+    g_staged = report;
+    opt.pictures_dir = staged->path();
+  }
   const auto rep = cleanmap::eval::evaluate(gt, in, opt);
-  if (!report.empty()) cleanmap::eval::writeReport(report, rep);
+  if (staged) {
+    cleanmap::eval::writeReport(staged->path(), rep);
+    staged->publish();
+  }
   if (json) {
     std::cout << cleanmap::eval::toJson(rep) << '\n';
     return 0;
@@ -191,7 +230,11 @@ int main(int argc, char** argv) {
     if (cmd == "roc") return runRoc(argc, argv);
     return runEval(argc, argv);
   } catch (const std::exception& e) {
-    std::cerr << "cleanmap-eval: error: " << e.what() << '\n';
+    std::cerr << "cleanmap-eval: error: "
+              << (g_staged.empty()
+                      ? e.what()
+                      : cleanmap::io::messageWithoutStaging(e.what(), g_staged, kStagingTag))
+              << '\n';
     return 1;
   }
 }

@@ -79,14 +79,9 @@ int main(int argc, char** argv) {
     opt.images = images;
     // Written as a whole (a staging folder beside OUTDIR, then one rename): an error or a signal
     // leaves OUTDIR as it was. An earlier sequence is replaced; any other non-empty folder is not.
-    std::error_code ec;
-    if (fs::exists(out, ec) && !fs::is_directory(out, ec))
-      throw cleanmap::Error(out, "exists and is not a folder; choose another -o");
-    if (fs::is_directory(out, ec) && !fs::is_empty(out, ec) &&
-        !fs::exists(fs::path(out) / "scenario.ini", ec))
-      throw cleanmap::Error(out,
-                            "is a non-empty folder that holds no cleanmap-sim sequence (no "
-                            "scenario.ini); choose another -o");
+    cleanmap::io::requireReplaceableFolder(
+        out, [](const std::string& d) { return fs::exists(fs::path(d) / "scenario.ini"); },
+        "cleanmap-sim sequence (no scenario.ini)", "-o");
     cleanmap::io::StagedFolder staged(out, "cleanmap-sim");
     const std::string dir = staged.path();
     const auto sum = cleanmap::sim::generateSequence(sc, dir, opt, [](int d, int t) {

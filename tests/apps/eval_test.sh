@@ -22,6 +22,22 @@ sa=$(grep -o '"SA": [0-9.e-]*' <<<"$json" | cut -d' ' -f2)
 awk -v s="$sa" 'BEGIN { exit !(s > 0.9 && s <= 1) }' || fail "SA $sa not in (0.9, 1]"
 [[ -s $scratch/report/report.md && -s $scratch/report/bev_000010.png && -s $scratch/report/map_overview.png ]] ||
   fail "report folder incomplete"
+# The report folder is written as a whole: a rerun over fewer scans leaves none of the earlier
+# pictures; a run that fails (here a full disk at the map's overview) leaves the earlier report as
+# it was and nothing beside it; a folder that holds no report (the run's own) is refused untouched.
+"$bin/cleanmap-eval" "$city" "$scratch/run" --first 10 --last 12 --report "$scratch/report" >/dev/null ||
+  fail "cleanmap-eval over fewer scans failed"
+[[ -s $scratch/report/bev_000011.png && ! -e $scratch/report/bev_000008.png ]] ||
+  fail "the report of scans 10-12 is not the one folder: $(ls "$scratch/report" | tr '\n' ' ')"
+before=$(cd "$scratch/report" && md5sum -- *)
+expect_error 1 "$scratch/report/map_overview.png: write failed" \
+  full_disk 100 "$bin/cleanmap-eval" "$city" "$scratch/run" --first 8 --last 14 --report "$scratch/report"
+[[ $(cd "$scratch/report" && md5sum -- *) == "$before" ]] || fail "a failed report changed the earlier one"
+ls -a "$scratch" | grep -q staging && fail "a failed report left its staging folder"
+run_report=$(md5sum <"$scratch/run/report.json")
+expect_error 1 "holds no report of cleanmap-eval" "$bin/cleanmap-eval" "$city" "$scratch/run" --report "$scratch/run"
+[[ $(md5sum <"$scratch/run/report.json") == "$run_report" ]] || fail "--report into the run changed its report.json"
+expect_error 1 "holds no ROC sweep" "$bin/cleanmap-eval" roc "$city" -o "$scratch/run" --first 9 --last 11
 printf '%s\n' "$json" >"$scratch/a.json"
 "$bin/cleanmap-eval" summary "$scratch/a.json" "$scratch/a.json" | grep -q "all (summed counts)" ||
   fail "summary has no overall row"

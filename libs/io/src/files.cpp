@@ -167,6 +167,20 @@ std::string messageWithoutStaging(std::string message, const std::string& dir,
   return message;
 }
 
+void requireReplaceableFolder(const std::string& dir,
+                              const std::function<bool(const std::string&)>& isOurs,
+                              const std::string& what, const std::string& option,
+                              const std::string& alternative) {
+  std::error_code ec;
+  const auto st = fs::status(dir, ec);
+  if (!fs::exists(st)) return;
+  if (!fs::is_directory(st))
+    throw Error(dir, "exists and is not a folder; choose another " + option);
+  if (fs::is_empty(dir, ec) || isOurs(dir)) return;
+  throw Error(dir, "is a non-empty folder that holds no " + what + "; choose another " + option +
+                       alternative);
+}
+
 StagedFolder::StagedFolder(const std::string& dir, const std::string& tag)
     : dir_(trimmedFolder(dir)) {
   const fs::path out(dir_);

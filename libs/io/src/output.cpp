@@ -75,14 +75,10 @@ bool isCleanmapRun(const std::string& dir) {
 }
 
 void checkOutputFolder(const std::string& outdir, const OutputOptions& opts) {
-  std::error_code ec;
-  const auto st = fs::status(outdir, ec);
-  if (!fs::exists(st)) return;
-  if (!fs::is_directory(st)) throw Error(outdir, "exists and is not a folder; choose another -o");
-  if (fs::is_empty(outdir, ec) || isCleanmapRun(outdir) || opts.force) return;
-  throw Error(outdir,
-              "is a non-empty folder that holds no cleanmap run (no cleanmap report.json); "
-              "choose another -o, or pass --force to replace it and everything in it");
+  requireReplaceableFolder(
+      outdir, [&](const std::string& d) { return opts.force || isCleanmapRun(d); },
+      "cleanmap run (no cleanmap report.json)", "-o",
+      ", or pass --force to replace it and everything in it");
 }
 
 OutputWriter::OutputWriter(const std::string& outdir, const std::string& input,

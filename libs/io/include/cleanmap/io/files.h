@@ -59,6 +59,15 @@ class StagedFolder {
   bool published_ = false;
 };
 
+/// Before a StagedFolder replaces `dir`: returns if `dir` is absent, an empty folder, or a folder
+/// `isOurs` recognises as this tool's earlier output; else throws cleanmap::Error naming `dir`
+/// ("exists and is not a folder", or "is a non-empty folder that holds no <what>; choose another
+/// <option><alternative>"), so that a folder a user keeps other things in is never replaced.
+void requireReplaceableFolder(const std::string& dir,
+                              const std::function<bool(const std::string&)>& isOurs,
+                              const std::string& what, const std::string& option,
+                              const std::string& alternative = "");
+
 /// An error message as the user should read it: paths inside this process's staging folder for
 /// `dir` (StagedFolder with `tag`) named as they will be in `dir`, and the temporaries' suffixes
 /// (".tmp.<pid>", ".part.<pid>", ".head.<pid>") dropped.
