@@ -334,6 +334,12 @@ int main(int argc, char** argv) {
       throw cleanmap::Error(input, "no scans in the requested range: the input has " +
                                        std::to_string(seen) + " scans (--first " +
                                        std::to_string(first) + ")");
+    // Paper §II-B: a scan is tested against the other scans of its window; alone, nothing is.
+    if (out.scans() == 1)
+      std::fprintf(stderr,
+                   "cleanmap: warning: %s: one scan: the moving test compares each scan with the "
+                   "others of its window, so every point is labelled static; give a sequence\n",
+                   input.c_str());
     const double wall =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     // The map's decisions first: the MRPT outputs hold what static_map_full.ply holds.

@@ -21,6 +21,12 @@ cp -r "$scratch/out" "$scratch/clean"  # a default run, scored against one witho
 [[ $(ls -A "$scratch" | grep -c cleanmap-staging) -eq 0 ]] || fail "a staging folder was left"
 "$bin/cleanmap-eval" "$seq" "$scratch/out" --last 4 --json >/dev/null || fail "eval refused a finished run"
 
+# One scan: nothing to compare it with; said in one warning, every point static (no 251).
+"$bin/cleanmap" "$seq" -o "$scratch/one" --first 3 --last 3 --quiet >/dev/null 2>"$scratch/one.err" ||
+  fail "a one-scan run failed"
+grep -q "one scan: the moving test compares" "$scratch/one.err" || fail "a one-scan run gave no warning"
+od -An -tu4 -v "$scratch/one/labels/000003.label" | grep -qw 251 && fail "a lone scan has moving points"
+
 # A real signal in the middle of a run: exit 128 + signal, one line, staging removed, the earlier
 # run untouched.
 before=$(cat "$scratch/out/report.json")
