@@ -139,6 +139,9 @@ vlp=/usr/share/mrpt/datasets/test_velodyne_VLP16.rawlog
 if [[ -f $vlp ]]; then
   "$bin/cleanmap" "$vlp" -o "$scratch/vlp" >/dev/null || fail "the one-scan VLP-16 rawlog did not run"
   [[ -f $scratch/vlp/labels/000000.label ]] || fail "no labels for the VLP-16 scan"
+  # Its columns are 0.4 degrees apart (0.007 rad): the free-space walk's bins follow (DESIGN §2e).
+  azbin=$(grep -A2 '"free_space_azimuth_bin_rad"' "$scratch/vlp/report.json" | grep -o '"min": [0-9.e-]*' | cut -d' ' -f2)
+  awk -v b="$azbin" 'BEGIN { exit !(b > 0.0068 && b < 0.0085) }' || fail "VLP-16 free-space azimuth bin '$azbin', expected its 0.007 rad step"
 fi
 # MRPT's rotating-scan rawlog (CObservationRotatingScan), and the MRPT outputs as MRPT's own tool
 # reads them: the cleaned rawlog holds one LIDAR and one POSE observation, stamped after 1970.

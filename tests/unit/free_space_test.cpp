@@ -249,3 +249,65 @@ TEST(FreeSpace, AScanSeesNothingEmptyNextToItsOwnStaticReturns) {
   moving.pop_back();
   EXPECT_THROW(flagged.insertScan(pts, at(0), 1, &moving), std::invalid_argument);
 }
+
+namespace {
+// A lidar of `rings` rings evenly over -15..15 degrees and `columns` columns, every beam returning
+// from a cylinder wall `range` away horizontally; no returns over azimuths in [blocked_from, pi).
+std::vector<PointXYZI> lidar(int columns, int rings, float range, float blocked_from = 10.f) {
+  std::vector<PointXYZI> pts;
+  for (int c = 0; c < columns; ++c) {
+    const float az = -float(M_PI) + 2.f * float(M_PI) * (float(c) + 0.5f) / float(columns);
+    if (az >= blocked_from) continue;
+    for (int r = 0; r < rings; ++r) {
+      const float el = float(M_PI / 180.0) * (-15.f + 30.f * float(r) / float(rings - 1));
+      pts.push_back({range * std::cos(az), range * std::sin(az), range * std::tan(el), 0.f});
+    }
+  }
+  return pts;
+}
+}  // namespace
+
+TEST(FreeSpace, AzimuthBinIsTheLidarsOwnStepWhereItIsWiderThanTheBeamSpacing) {
+  const double spacing = MapParams{}.beam_spacing;
+  // Denser than the bins (an HDL-64E's 0.09 degrees): the configured spacing, bit for bit.
+  EXPECT_EQ(freeSpaceAzimuthBin(lidar(4000, 16, 12.f), spacing), spacing);
+  EXPECT_EQ(freeSpaceAzimuthBin(lidar(4000, 16, 12.f), 0.0), 0.0);
+  // An Ouster at 1024 columns, a VLP-16 at 0.2 and at 0.4 degrees: at least their step (every
+  // bin holds a beam of each ring), at most 15 % over it; a quarter of the view blocked (the
+  // vehicle, an empty sector) does not change it.
+  for (const int columns : {1024, 1800, 900}) {
+    const double step = 2 * M_PI / columns;
+    const double whole = freeSpaceAzimuthBin(lidar(columns, 16, 12.f), spacing);
+    EXPECT_GE(whole, step) << columns << " columns";
+    EXPECT_LE(whole, 1.15 * step) << columns << " columns";
+    EXPECT_NEAR(freeSpaceAzimuthBin(lidar(columns, 16, 12.f, float(M_PI / 2)), spacing), whole,
+                0.01 * whole)
+        << columns << " columns, a quarter blocked";
+  }
+}
+
+TEST(FreeSpace, ASparseLidarSeesEmptyTheSpaceNearItAsEveryBeamWould) {
+  // Near the sensor the walk leaves out beams whose neighbours cross the same voxels (DESIGN §2e).
+  // For an Ouster at 1024 columns that must not leave voxels unseen: every voxel 2-5 m away that
+  // the walk of every beam from min_range (beam_spacing 0) sees empty is seen empty.
+  const auto scan = lidar(1024, 16, 12.f);
+  MapParams all = params();
+  all.beam_spacing = 0;
+  FreeSpaceMap thinned(params()), every(all);
+  thinned.insertScan(scan, at(0), 0);
+  every.insertScan(scan, at(0), 0);
+  std::size_t seen = 0, kept = 0;
+  const float v = static_cast<float>(all.voxel);
+  for (float x = -5.f + v / 2; x < 5.f; x += v)
+    for (float y = -5.f + v / 2; y < 5.f; y += v)
+      for (float z = -1.5f + v / 2; z < 1.5f; z += v) {
+        const float rh = std::hypot(x, y);
+        if (rh < 2.f || rh > 5.f || every.evidence({x, y, z}).count == 0) continue;
+        ++seen;
+        kept += thinned.evidence({x, y, z}).count > 0;
+      }
+  ASSERT_GT(seen, 1000u);
+  EXPECT_GE(double(kept) / double(seen), 0.97) << kept << " of " << seen;
+  EXPECT_LT(thinned.voxelsMarked(), every.voxelsMarked());  // it still walks less
+  EXPECT_GT(thinned.azimuthBinMin(), 2 * M_PI / 1024);
+}

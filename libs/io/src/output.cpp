@@ -352,7 +352,11 @@ void OutputWriter::finish(double wall_s, const FreeSpaceMap* free_space) {
                 {"policy", m.policy == MapPolicy::kMoving ? "moving" : "transient"},
                 {"removed_points", map_removed_},
                 {"clean_ms", map_ms_},
-                {"free_space_mib", free_space ? double(free_space->bytes()) / (1 << 20) : 0.0}};
+                {"free_space_mib", free_space ? double(free_space->bytes()) / (1 << 20) : 0.0},
+                // DESIGN §2e: the walk's azimuth bins, the lidar's own step where it is wider
+                {"free_space_azimuth_bin_rad",
+                 {{"min", free_space ? free_space->azimuthBinMin() : 0.0},
+                  {"max", free_space ? free_space->azimuthBinMax() : 0.0}}}};
   }
   {  // DESIGN §3: the camera check
     const auto& im = params_.image;

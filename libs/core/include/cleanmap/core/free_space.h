@@ -12,6 +12,7 @@
 #include <Eigen/Geometry>
 #include <array>
 #include <cstdint>
+#include <limits>
 #include <memory>
 #include <vector>
 
@@ -39,6 +40,14 @@ inline bool operator==(const FreeEvidence& a, const FreeEvidence& b) {
 /// Is a map point (non-ground) of scan `scan` removed, given its voxel's evidence?
 bool removedByPolicy(const FreeEvidence& e, int64_t scan, const MapParams& p);
 
+/// DESIGN §2e: the azimuth bin of the free-space walk's levels for one scan (sensor frame): the
+/// configured `spacing` (static_map.beam_spacing), or wider where the lidar's returns are
+/// sparser in azimuth than that, so that every bin holds a beam (the levels' spacing assumes it).
+/// Measured per band of elevation as the share of bins holding a return among the bins in gaps
+/// of at most 16 between two that do; `occupancy`, if given, receives that share.
+double freeSpaceAzimuthBin(const std::vector<PointXYZI>& points, double spacing,
+                           double* occupancy = nullptr);
+
 class FreeSpaceMap {
  public:
   explicit FreeSpaceMap(const MapParams& p);
@@ -65,6 +74,10 @@ class FreeSpaceMap {
   std::size_t bytes() const;                            ///< memory held by the voxels
   std::size_t subBlocks() const { return subs_; }       ///< 4 x 4 x 4 voxel groups written
   std::size_t voxelsMarked() const { return marked_; }  ///< voxel visits that counted, so far
+  /// The narrowest and widest azimuth bin the scans so far were walked with
+  /// (freeSpaceAzimuthBin); 0 before any scan, or with beam_spacing 0.
+  double azimuthBinMin() const { return bin_max_ > 0 ? bin_min_ : 0.0; }
+  double azimuthBinMax() const { return bin_max_; }
   const MapParams& params() const { return p_; }
 
  private:
@@ -97,6 +110,8 @@ class FreeSpaceMap {
   MapParams p_;
   double inv_;
   CellMap<std::unique_ptr<Block>> blocks_;
+  std::vector<float> azimuth_;      // the scan being inserted: each return's fast::atan2(y, x)
+  std::vector<uint64_t> bin_bits_;  // and its azimuth bins holding a return, per elevation band
   std::vector<Block*> touched_;  // blocks the scan being inserted visits (its voxels updated last)
   // The scan's recent blocks, direct-mapped by key (cleared per scan): neighbouring beams and
   // returns meet the same blocks, so most lookups end here in L1 (issue #16).
@@ -107,6 +122,7 @@ class FreeSpaceMap {
   std::array<Recent, 1024> recent_{};
   Block& recentBlock(uint64_t key, int64_t scan);
   std::size_t marked_ = 0;
+  double bin_min_ = std::numeric_limits<double>::infinity(), bin_max_ = 0;
   // The sub-blocks, in chunks that never move (blocks point into them); freed with the map.
   std::vector<std::unique_ptr<SubBlock[]>> pool_;
   std::size_t pool_used_ = 0, subs_ = 0;
