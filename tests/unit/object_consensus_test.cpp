@@ -68,6 +68,41 @@ TEST(ObjectConsensus, PedestrianBesideAWallKeepsItsLabels) {
   EXPECT_EQ(wall_moving, 0u);
 }
 
+TEST(ObjectConsensus, ABodyTouchingAPieceOfWallStaysMoving) {
+  // From a low mount the wall behind a walker is seen in pieces (his shadow cuts its visible
+  // band): he joins a 17 m piece, "vehicle-sized", of which his points are under 10 %. Rule 2
+  // would turn it all static; his group (its voxels mostly his moving points) is a body and stays.
+  std::vector<PointXYZI> pts;
+  addBox(pts, 0, 17, -0.3f, 0, 1.1f, 0.05f);
+  const std::size_t wall = pts.size();
+  addBox(pts, 16.2f, 16.7f, 0.05f, 0.65f, 1.1f, 0.05f);  // both seen as densely (same range)
+  std::vector<uint8_t> member(pts.size(), 1), moving(pts.size(), 0);
+  for (std::size_t i = wall; i < pts.size(); ++i) moving[i] = 1;
+  ASSERT_GE(pts.size() - wall, 100u);
+  ASSERT_LT(double(pts.size() - wall), 0.1 * double(pts.size()));
+  const auto st = objectConsensus(pts, member, moving, ObjectParams{});
+  EXPECT_EQ(st.body_points_kept, pts.size() - wall);
+  for (std::size_t i = wall; i < pts.size(); ++i) ASSERT_EQ(moving[i], 1);
+  for (std::size_t i = 0; i < wall; ++i) ASSERT_EQ(moving[i], 0);
+}
+
+TEST(ObjectConsensus, AlarmsSpreadOverAParkedCarAreNoBody) {
+  // A connected patch of 150 alarms on a parked car (under 10 % of it), every fourth return of
+  // its side: its voxels hold three static returns of the car for each alarm, so it is no body.
+  std::vector<PointXYZI> pts;
+  addBox(pts, 0, 4.5f, -1, 1, 1.5f, 0.05f);
+  std::vector<uint8_t> member(pts.size(), 1), moving(pts.size(), 0);
+  std::size_t alarms = 0;
+  for (std::size_t i = 0; i < pts.size() && alarms < 150; ++i)
+    if (pts[i].y < -0.99f && pts[i].x > 1.f && pts[i].z > 0.6f && i % 8 == 0)
+      moving[i] = 1, ++alarms;
+  ASSERT_EQ(alarms, 150u);
+  ASSERT_LT(double(alarms), 0.1 * double(pts.size()));
+  const auto st = objectConsensus(pts, member, moving, ObjectParams{});
+  EXPECT_EQ(st.body_points_kept, 0u);
+  for (uint8_t m : moving) ASSERT_EQ(m, 0);
+}
+
 TEST(ObjectConsensus, SeparateObjectsDoNotInfectEachOther) {
   // Two cars 1 m apart: one moving, one parked. Only the moving one is moving.
   std::vector<PointXYZI> pts;

@@ -135,7 +135,9 @@ MapScore cleanMapScore(const std::string& set) {
 // the points beyond the 30 m crop within static_map.radius (50 m) too; the other digests stayed.
 // Issue #15 changed every digest on purpose: the ground segmentation starts from the ground
 // height measured in the scans (sensor.height = auto, 1.81-1.90 m on these sets) instead of
-// KITTI's nominal 1.73 m (recall up on all three sets, doc/BENCHMARK.md).
+// KITTI's nominal 1.73 m (recall up on all three sets, doc/BENCHMARK.md). The object consensus's
+// bodies (doc/OBJECTS.md rule 2) changed highway's on purpose: a car's 129 moving points that
+// its component turned static stay moving (IoU 0.8531 -> 0.8543); city and residential stayed.
 void expectDigest(const OutputDigest& d, uint64_t labels, uint64_t compact, uint64_t full,
                   uint64_t moving) {
   EXPECT_EQ(d.labels, labels) << "labels differ from the reference run";
@@ -155,8 +157,8 @@ TEST(Regression, OutputsByteIdenticalToTheReference) {
   runSet("kitti_residential", &residential);
   expectDigest(city, 0xe6503807ad3d06bcull, 0x7eb7ed012f3a1fc7ull, 0xb137387dc6583b49ull,
                0x0273601384a59ac0ull);
-  expectDigest(highway, 0x612aa65e1c11970eull, 0x9ba0b1221c1a02cbull, 0xdc16afb13cd95c31ull,
-               0x769de5db8c58e281ull);
+  expectDigest(highway, 0x4e0d53331aeb115cull, 0x51f22a2f53d54675ull, 0x781cccb4f6756c43ull,
+               0x65228450cc429427ull);
   expectDigest(residential, 0x0429edf7ae4c8167ull, 0xad062af9b96b7417ull, 0x57278e46f91ae27bull,
                0x3fbeafc779a54342ull);
 }

@@ -79,6 +79,7 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
     c.hi = c.hi.cwiseMax(points[i].xyz());
   }
   std::vector<uint8_t> turn(voxels.size(), 0);  // 1: all moving, 2: all static
+  bool body_check = false;  // a component turned static holds enough moving points for a body
   for (uint32_t v = 0; v < voxels.size(); ++v) {
     const Comp& c = comps[v];
     if (c.n == 0) continue;
@@ -101,8 +102,46 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
                (static_cast<int>(c.moving) < p.min_moving ||
                 static_cast<double>(c.moving) < p.static_fraction * static_cast<double>(c.n))) {
       turn[v] = 2;
+      body_check = body_check || static_cast<int64_t>(c.moving) >= 5 * int64_t(p.min_moving);
     }
   }
+  // Bodies (doc/OBJECTS.md, rule 2's exception): connected groups of voxels holding moving points,
+  // with at least 5 min_moving moving points that are at least half of their voxels' points. A
+  // body touching a static surface (a walker against a wall) joins its component; alarms on a
+  // static object share their voxels with its other returns.
+  std::vector<uint32_t> body_of, group_moving, group_all;  // per voxel: its group's root
+  if (body_check) {
+    body_of.assign(voxels.size(), UINT32_MAX);
+    group_moving.assign(voxels.size(), 0);
+    group_all.assign(voxels.size(), 0);
+    std::vector<uint32_t> in_voxel(voxels.size(), 0), moving_in_voxel(voxels.size(), 0);
+    for (std::size_t i = 0; i < points.size(); ++i)
+      if (point_voxel[i] != UINT32_MAX) {
+        ++in_voxel[point_voxel[i]];
+        moving_in_voxel[point_voxel[i]] += moving[i] != 0;
+      }
+    UnionFind guf(voxels.size());
+    for (uint32_t v = 0; v < voxels.size(); ++v) {
+      if (!moving_in_voxel[v]) continue;
+      const Eigen::Vector3i& c = voxels[v];
+      forEachNeighbour13([&](int dx, int dy, int dz) {
+        const uint32_t* n = voxel_of.find(cellKey(c.x() + dx, c.y() + dy, c.z() + dz));
+        if (n && moving_in_voxel[*n]) guf.unite(v, *n);
+      });
+    }
+    for (uint32_t v = 0; v < voxels.size(); ++v)
+      if (moving_in_voxel[v]) {
+        body_of[v] = guf.find(v);
+        group_moving[body_of[v]] += moving_in_voxel[v];
+        group_all[body_of[v]] += in_voxel[v];
+      }
+  }
+  const auto in_body = [&](uint32_t voxel) {
+    if (!body_check) return false;
+    const uint32_t g = body_of[voxel];
+    return g != UINT32_MAX && static_cast<int64_t>(group_moving[g]) >= 5 * int64_t(p.min_moving) &&
+           2 * group_moving[g] >= group_all[g];
+  };
   for (std::size_t i = 0; i < points.size(); ++i) {
     if (point_voxel[i] == UINT32_MAX) continue;
     const uint8_t t = turn[uf.find(point_voxel[i])];
@@ -110,6 +149,10 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
       moving[i] = 1;
       ++st.points_added;
     } else if (t == 2 && moving[i]) {
+      if (in_body(point_voxel[i])) {
+        ++st.body_points_kept;
+        continue;
+      }
       moving[i] = 0;
       ++st.points_removed;
     }

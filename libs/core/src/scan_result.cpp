@@ -40,6 +40,7 @@ ScanStats& ScanStats::operator+=(const ScanStats& o) {
   objects_moving += o.objects_moving;
   consensus_points += o.consensus_points;
   consensus_removed += o.consensus_removed;
+  consensus_body_kept += o.consensus_body_kept;
   objects_persisted += o.objects_persisted;
   empty += o.empty;
   image_scans += o.image_scans;

@@ -334,6 +334,7 @@ void OutputWriter::finish(double wall_s, const FreeSpaceMap* free_space) {
                  {"objects_kept_moving_by_hysteresis", total.objects_persisted},
                  {"consensus_points_added", total.consensus_points},
                  {"consensus_points_removed", total.consensus_removed},
+                 {"consensus_body_points_kept", total.consensus_body_kept},
                  {"no_evidence_points", total.no_evidence},
                  {"test_scans_visited", total.scans_visited},
                  {"test_beams_evaluated", total.beams},

@@ -13,11 +13,12 @@
 namespace cleanmap {
 
 struct ObjectConsensusStats {
-  std::size_t objects = 0;         ///< connected groups of non-ground points
-  std::size_t moving_objects = 0;  ///< groups turned moving as a whole
-  std::size_t points_added = 0;    ///< points turned moving by the consensus
-  std::size_t points_removed = 0;  ///< moving points turned static (a few in a static object)
-  std::size_t persisted = 0;       ///< of moving_objects, those kept moving by the hysteresis
+  std::size_t objects = 0;           ///< connected groups of non-ground points
+  std::size_t moving_objects = 0;    ///< groups turned moving as a whole
+  std::size_t points_added = 0;      ///< points turned moving by the consensus
+  std::size_t points_removed = 0;    ///< moving points turned static (a few in a static object)
+  std::size_t persisted = 0;         ///< of moving_objects, those kept moving by the hysteresis
+  std::size_t body_points_kept = 0;  ///< moving points of a body a static component kept
 };
 
 /// Groups `points[i]` with `member[i]` (in crop, not ground) into 26-connected voxel components

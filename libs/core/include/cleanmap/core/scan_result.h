@@ -38,8 +38,9 @@ struct ScanStats {
   std::size_t conflicting_scans = 0;  ///< empty scan votes made unknown (doc/SCAN_CONFLICT.md)
   std::size_t ring_votes = 0;  ///< empty votes of a sparse lidar's rings around P (DESIGN §2b)
   std::size_t objects_moving = 0, consensus_points = 0, consensus_removed = 0;  ///< doc/OBJECTS.md
-  std::size_t objects_persisted = 0;  ///< of objects_moving, kept moving by the hysteresis
-  std::size_t empty = 0;              ///< 1 for a scan without valid points (summed: empty scans)
+  std::size_t objects_persisted = 0;    ///< of objects_moving, kept moving by the hysteresis
+  std::size_t consensus_body_kept = 0;  ///< moving points of bodies a static component kept
+  std::size_t empty = 0;                ///< 1 for a scan without valid points (summed: empty scans)
   /// DESIGN §3, the camera check: scans that had an image; decision units (cells of moving
   /// points) tested, of which confirmed moving by the colour / depth test, relabelled static
   /// when every camera found them similar (by colour only / with the depth test), and unseen
