@@ -63,6 +63,20 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
       if (n) uf.unite(v, *n);
     });
   }
+  // The voxels that hold moving points (moving_in[v] > 0), joined with their 26-neighbours that
+  // do: connected groups of moving points.
+  const auto movingGroups = [&](const std::vector<uint32_t>& moving_in) {
+    UnionFind g(voxels.size());
+    for (uint32_t v = 0; v < voxels.size(); ++v) {
+      if (!moving_in[v]) continue;
+      const Eigen::Vector3i& c = voxels[v];
+      forEachNeighbour13([&](int dx, int dy, int dz) {
+        const uint32_t* n = voxel_of.find(cellKey(c.x() + dx, c.y() + dy, c.z() + dz));
+        if (n && moving_in[*n]) g.unite(v, *n);
+      });
+    }
+    return g;
+  };
   // Per component: point counts and extent.
   struct Comp {
     std::size_t n = 0, moving = 0, near_prev = 0;
@@ -120,15 +134,7 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
         ++in_voxel[point_voxel[i]];
         moving_in_voxel[point_voxel[i]] += moving[i] != 0;
       }
-    UnionFind guf(voxels.size());
-    for (uint32_t v = 0; v < voxels.size(); ++v) {
-      if (!moving_in_voxel[v]) continue;
-      const Eigen::Vector3i& c = voxels[v];
-      forEachNeighbour13([&](int dx, int dy, int dz) {
-        const uint32_t* n = voxel_of.find(cellKey(c.x() + dx, c.y() + dy, c.z() + dz));
-        if (n && moving_in_voxel[*n]) guf.unite(v, *n);
-      });
-    }
+    UnionFind guf = movingGroups(moving_in_voxel);
     for (uint32_t v = 0; v < voxels.size(); ++v)
       if (moving_in_voxel[v]) {
         body_of[v] = guf.find(v);
@@ -159,18 +165,10 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
   }
   // Inside structures (too large for the rule above), moving points count only in groups: a
   // connected group of moving points smaller than min_moving is static.
-  UnionFind muf(voxels.size());
   std::vector<uint32_t> moving_in(voxels.size(), 0);
   for (std::size_t i = 0; i < points.size(); ++i)
     if (point_voxel[i] != UINT32_MAX && moving[i]) ++moving_in[point_voxel[i]];
-  for (uint32_t v = 0; v < voxels.size(); ++v) {
-    if (!moving_in[v]) continue;
-    const Eigen::Vector3i& c = voxels[v];
-    forEachNeighbour13([&](int dx, int dy, int dz) {
-      const uint32_t* n = voxel_of.find(cellKey(c.x() + dx, c.y() + dy, c.z() + dz));
-      if (n && moving_in[*n]) muf.unite(v, *n);
-    });
-  }
+  UnionFind muf = movingGroups(moving_in);
   std::vector<uint32_t> group(voxels.size(), 0);
   for (uint32_t v = 0; v < voxels.size(); ++v)
     if (moving_in[v]) group[muf.find(v)] += moving_in[v];
