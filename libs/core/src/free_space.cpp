@@ -267,12 +267,11 @@ void FreeSpaceMap::insertScan(const std::vector<PointXYZI>& points, const Eigen:
   // than the map radius marks up to the radius (its return lies beyond). Near the sensor,
   // neighbouring beams of a ring cross the same voxels, so a beam starts where the beams of its
   // azimuth level alone would leave voxels unvisited: the beams of azimuth bin b (bins of
-  // beam_spacing) with 2^L dividing b are 2^L bins apart, which at range t is one voxel when
-  // t = voxel / (2^L beam_spacing); a beam of level L < kLevels starts at voxel / (2^(L+1)
-  // beam_spacing), those of the top level at min_range.
-  // The bins are the lidar's own azimuth step where it is wider than beam_spacing (a VLP-16,
-  // an Ouster at 1024 columns): with bins a beam does not fill, the beams of a level lie farther
-  // apart than 2^L bins and leave voxels unvisited near the sensor.
+  // `spacing`) with 2^L dividing b are 2^L bins apart, which at range t is one voxel when
+  // t = voxel / (2^L spacing); a beam of level L < kLevels starts at voxel / (2^(L+1) spacing),
+  // those of the top level at min_range. That holds only if every bin holds a beam: `spacing` is
+  // beam_spacing, or the lidar's own wider azimuth step (a VLP-16, an Ouster at 1024 columns),
+  // measured in the scan (freeSpaceAzimuthBin).
   azimuth_.resize(points.size());
   if (p_.beam_spacing > 0)
     for (std::size_t n = 0; n < points.size(); ++n)
