@@ -16,6 +16,15 @@ seq=$scratch/seq
 "$bin/cleanmap" "$seq" -o "$scratch/out" --quiet >/dev/null || fail "first run failed"
 [[ $(ls "$scratch/out/labels" | wc -l) -eq 24 ]] || fail "expected 24 label files"
 cp -r "$scratch/out" "$scratch/clean"  # a default run, scored against one without cleaning below
+# DESIGN §2b: the auto window spans 1 s at the rate of the scans' timestamps, from times.txt and
+# from the rawlog's observations alike (10 Hz: K 10).
+window_of() {
+  python3 -c 'import json,sys; w=json.load(open(sys.argv[1]))["window"]; print(w["k"], round(w["scan_rate_hz"], 3), w["window_k"])' "$1"
+}
+[[ $(window_of "$scratch/out/report.json") == "10 10.0 auto" ]] || fail "window: $(window_of "$scratch/out/report.json")"
+"$bin/cleanmap" "$seq/sequence.rawlog" -o "$scratch/rawwin" --quiet --last 6 --no-mrpt-outputs >/dev/null ||
+  fail "a rawlog run failed"
+[[ $(window_of "$scratch/rawwin/report.json") == "10 10.0 auto" ]] || fail "rawlog window: $(window_of "$scratch/rawwin/report.json")"
 "$bin/cleanmap" "$seq" -o "$scratch/out" --quiet --last 4 >/dev/null || fail "second run failed"
 [[ $(ls "$scratch/out/labels" | wc -l) -eq 5 ]] || fail "stale label files survived the shorter run"
 [[ $(ls -A "$scratch" | grep -c cleanmap-staging) -eq 0 ]] || fail "a staging folder was left"
@@ -175,7 +184,7 @@ diff -rq "$scratch/ini/labels" "$scratch/noini/labels" >/dev/null || fail "confi
 diff -rq "$scratch/ini/labels" "$scratch/flat/labels" >/dev/null || fail "params.ini labels differ"
 sed 's/^cleanmap_moving_count/cleanmap_movin_count/' "$ini" >"$scratch/typo.ini"
 expect_error 1 "typo.ini: [MappingApplication]: unknown map 'cleanmap_movin'" "$bin/cleanmap" "$seq" -o "$scratch/t" -c "$scratch/typo.ini"
-sed 's/^ds.window_k = 10/ds.windw_k = 10/' "$ini" >"$scratch/key.ini"
+sed 's/^ds.window_k = auto/ds.windw_k = auto/' "$ini" >"$scratch/key.ini"
 expect_error 1 "unknown key 'ds.windw_k'; did you mean 'ds.window_k'?" "$bin/cleanmap" "$seq" -o "$scratch/t" -c "$scratch/key.ini"
 sed 's/^height = auto/height = 1.9/' "$ini" >"$scratch/ground.ini"
 expect_error 1 "the cleanmap_ground map's height (1.9) differs from cleanmap_moving's sensor.height (auto)" "$bin/cleanmap" "$seq" -o "$scratch/t" -c "$scratch/ground.ini"

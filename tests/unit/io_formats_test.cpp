@@ -153,7 +153,7 @@ TEST(Config, SetParamByKeyAndListValues) {
   test::expectError([&] { io::setParam(p, "ds.window", "4", "[s]"); }, "[s]",
                     "unknown key 'ds.window'");
   test::expectError([&] { io::setParam(p, "ds.window_k", "4.5", "[s]"); }, "[s]",
-                    "'ds.window_k' needs an integer, got '4.5'");
+                    "'ds.window_k' needs an integer or auto, got '4.5'");
   const auto values = io::paramValues(p);
   ASSERT_EQ(values.size(), io::paramKeys().size());
   bool found = false;
@@ -357,8 +357,10 @@ TEST(Config, RepeatedKeysAndEmptyWindowAreErrors) {
                         "x.ini", p);
       },
       "x.ini:6", "'sigma_r' given twice in [ds]");
-  test::expectError([&] { io::parseParams("[ds]\nwindow_k = 0\n", "x.ini", p); }, "x.ini",
-                    "ds.window_k must be >= 1");
+  test::expectError([&] { io::parseParams("[ds]\nwindow_k = 0\n", "x.ini", p); }, "x.ini:2",
+                    "'window_k' needs auto or an integer >= 1, got '0'");
+  test::expectError([&] { io::parseParams("[ds]\nwindow_k = 51\n", "x.ini", p); }, "x.ini",
+                    "ds.window_k must be auto or in [1, 50] scans");
 }
 
 TEST(Config, PrintsTheShortestExactForm) {

@@ -191,7 +191,7 @@ TEST(MovingObjectsMap, InsertedObservationsDecidedAsThePipelineDecides) {
     const auto obs = observation(f, sensor, robot);
     EXPECT_TRUE(mm.insertObservation(*obs, robot));
   }
-  EXPECT_EQ(moving->pending(), static_cast<std::size_t>(PipelineParams{}.ds.window_k));
+  EXPECT_EQ(moving->pending(), std::size_t(kDefaultWindowK));  // auto K: 1 s of the 10 Hz scans
   moving->flush();
   ASSERT_EQ(via_mrpt.size(), direct.size());
   std::size_t differ = 0, total = 0, moving_points = 0;

@@ -203,6 +203,76 @@ TEST(Pipeline, StreamsWithDelayKAndBoundedWindow) {
   EXPECT_EQ(max_window, 8u);  // 2K scans, never more
 }
 
+// DESIGN §2b: an auto K is window_s (1 s) at the rate of the first scans' timestamps; a dropped
+// scan or a repeated stamp does not move it; no usable interval gives the paper's K = 10.
+TEST(Pipeline, AutoWindowSpansOneSecondAtTheScanRate) {
+  DsParams ds;
+  auto stamps = [](double period, int n) {
+    std::vector<double> t;
+    for (int i = 0; i < n; ++i) t.push_back(1.6e9 + period * i);  // epoch seconds, as rawlogs
+    return t;
+  };
+  double hz = -1;
+  EXPECT_EQ(windowScans(ds, stamps(0.1, 5), &hz), 10);
+  EXPECT_NEAR(hz, 10.0, 1e-4);
+  EXPECT_EQ(windowScans(ds, stamps(0.05, 5), &hz), 20);
+  EXPECT_EQ(windowScans(ds, stamps(0.2, 5), &hz), 5);
+  EXPECT_EQ(windowScans(ds, stamps(0.1036, 5)), 10);                  // KITTI raw's 9.65 Hz
+  EXPECT_EQ(windowScans(ds, {0.0, 0.1, 0.3, 0.4, 0.5}), 10);          // one scan dropped
+  EXPECT_EQ(windowScans(ds, {0.0, 0.05, 0.05, 0.1, 0.15}), 20);       // a stamp repeated
+  EXPECT_EQ(windowScans(ds, {0, 0, 0, 0, 0}, &hz), kDefaultWindowK);  // no timestamps
+  EXPECT_EQ(hz, 0.0);
+  EXPECT_EQ(windowScans(ds, {5.0}), kDefaultWindowK);               // one scan
+  EXPECT_EQ(windowScans(ds, stamps(0.001 * 1.5, 5)), kMaxWindowK);  // 667 Hz: clamped
+  EXPECT_EQ(windowScans(ds, stamps(0.9, 5)), 1);
+  ds.window_s = 0.5;
+  EXPECT_EQ(windowScans(ds, stamps(0.1, 5)), 5);
+  ds.window_k = 7;  // a set K is the user's word
+  EXPECT_EQ(windowScans(ds, stamps(0.05, 5), &hz), 7);
+  EXPECT_EQ(hz, 0.0);
+}
+
+// The pipeline resolves it from the pushed scans and decides nothing before; at 2 Hz (K = 2,
+// below the kRateScans - 1 scans pushed first) the first scans are decided late but with windows
+// of K scans each side, as a pipeline given K = 2 decides them.
+TEST(Pipeline, AutoWindowFromThePushedScans) {
+  auto run_at = [](double period, int window_k, std::size_t n, std::size_t* k_seen) {
+    PipelineParams p = testParams();
+    p.ds.window_k = window_k;
+    std::vector<ScanResult> out;
+    LaserPipeline pl(p, [&](ScanResult&& r) { out.push_back(std::move(r)); });
+    for (std::size_t i = 0; i < n; ++i) {
+      Frame f = castScene(i, double(i) * 0.5, 10.0 + 0.5 * double(i), nullptr);
+      f.scan.timestamp = period * double(i);
+      pl.push(std::move(f));
+      if (i + 1 < static_cast<std::size_t>(kRateScans) && window_k == 0) {
+        EXPECT_EQ(pl.decided(), 0u) << i;
+      }
+    }
+    *k_seen = pl.windowK();
+    pl.finish();
+    return out;
+  };
+  std::size_t k = 0;
+  const auto at20 = run_at(0.05, 0, 8, &k);
+  EXPECT_EQ(k, 20u);
+  ASSERT_EQ(at20.size(), 8u);
+  EXPECT_EQ(at20[0].stats.window, 7u);  // all the others: K 20 holds the whole sequence
+  EXPECT_EQ(at20[0].stats.window_k, 20u);
+  EXPECT_NEAR(at20[0].stats.scan_rate_hz, 20.0, 1e-9);
+  std::size_t k2 = 0;
+  const auto at2 = run_at(0.5, 0, 8, &k);
+  const auto given2 = run_at(0.5, 2, 8, &k2);
+  EXPECT_EQ(k, 2u);
+  EXPECT_EQ(k2, 2u);
+  ASSERT_EQ(at2.size(), given2.size());
+  for (std::size_t i = 0; i < at2.size(); ++i) {
+    EXPECT_EQ(at2[i].stats.window, given2[i].stats.window) << i;
+    EXPECT_LE(at2[i].stats.window, 4u) << i;
+    EXPECT_TRUE(at2[i].labels == given2[i].labels) << i;
+  }
+}
+
 TEST(Pipeline, DegenerateInputs) {
   PipelineParams p = testParams();
   std::vector<ScanResult> out;
@@ -259,9 +329,13 @@ TEST(Pipeline, DegenerateInputs) {
   }
   {  // parameters are validated by the pipeline itself, not only when read from a file
     PipelineParams bad = p;
-    bad.ds.window_k = 0;
+    bad.ds.window_k = -1;
     test::expectError([&] { LaserPipeline(bad, [](ScanResult&&) {}); }, "parameters",
-                      "ds.window_k must be >= 1");
+                      "ds.window_k must be auto or in [1, 50] scans");
+    bad = p;
+    bad.ds.window_s = 0;
+    test::expectError([&] { LaserPipeline(bad, [](ScanResult&&) {}); }, "parameters",
+                      "ds.window_s must be in (0, 10] s");
     bad = p;
     bad.octree.leaf = -1;
     test::expectError([&] { LaserPipeline(bad, [](ScanResult&&) {}); }, "parameters",

@@ -332,6 +332,7 @@ TEST(Regression, RegisteringAheadChangesNothing) {
   params.poses = PoseSource::kGicp;
   params.threads = 2;
   const std::size_t n = std::min<std::size_t>(seq.size(), 20), cut = 12;
+  const std::size_t K = 10;  // window_k auto: 1 s at KITTI's 10 Hz
   using Results = std::map<std::size_t, std::pair<Eigen::Matrix4d, uint64_t>>;
   const auto into = [](Results& out) {
     return [&out](ScanResult&& r) {
@@ -354,9 +355,11 @@ TEST(Regression, RegisteringAheadChangesNothing) {
     std::unique_ptr<LaserPipeline> c;
     for (std::size_t i = 0; i < n; ++i) {
       pl.push(seq.frame(i));
-      EXPECT_EQ(pl.pending(), std::min<std::size_t>(i + 1, params.ds.window_k + 1)) << i;
+      EXPECT_EQ(pl.pending(), std::min<std::size_t>(i + 1, K + 1)) << i;
       if (i == cut) c = pl.clone(into(copy));
     }
+    EXPECT_EQ(pl.windowK(), K);
+    EXPECT_EQ(c->windowK(), K);
     for (std::size_t i = cut + 1; i < n; ++i) c->push(seq.frame(i));
     pl.finish();
     c->finish();
@@ -379,7 +382,7 @@ TEST(Regression, RegisteringAheadChangesNothing) {
     EXPECT_TRUE(toggled[i].first == r.first) << "toggled: pose of scan " << i;
     EXPECT_EQ(toggled[i].second, r.second) << "toggled: labels of scan " << i;
   }
-  ASSERT_EQ(copy.size(), n - (cut - params.ds.window_k));  // the scans decided after the cut
+  ASSERT_EQ(copy.size(), n - (cut - K));  // the scans decided after the cut
   for (const auto& [i, r] : copy) {
     EXPECT_TRUE(ahead[i].first == r.first) << "clone: pose of scan " << i;
     EXPECT_EQ(ahead[i].second, r.second) << "clone: labels of scan " << i;

@@ -1,6 +1,9 @@
 // SPDX-License-Identifier: BSD-3-Clause
 #include "cleanmap/core/params.h"
 
+#include <algorithm>
+#include <cmath>
+
 #include "cleanmap/core/error.h"
 
 namespace cleanmap {
@@ -23,7 +26,9 @@ void validate(const PipelineParams& p, const std::string& name) {
   require(p.ds.search_lambdas > 0, "ds.search_lambdas must be > 0");
   require(0 <= p.ds.r_inf && p.ds.r_inf <= p.ds.r_sup && p.ds.r_sup < 1,
           "need 0 <= ds.r_inf <= ds.r_sup < 1");
-  require(p.ds.window_k >= 1, "ds.window_k must be >= 1 (K = 0 leaves no scan to compare with)");
+  require(p.ds.window_k >= 0 && p.ds.window_k <= kMaxWindowK,
+          "ds.window_k must be auto or in [1, " + std::to_string(kMaxWindowK) + "] scans");
+  require(p.ds.window_s > 0 && p.ds.window_s <= 10, "ds.window_s must be in (0, 10] s");
   require(p.ds.scan_conflict > 0 && p.ds.scan_conflict <= 1,
           "ds.scan_conflict must be in (0, 1] (1 = off)");
   require(p.octree.leaf > 0, "octree.leaf must be > 0");
@@ -99,6 +104,23 @@ void validate(const PipelineParams& p, const std::string& name) {
           "image.align_max_shift must be in (0, 5] m");
   require(im.align_small_shift > 0 && im.align_small_shift <= 5,
           "image.align_small_shift must be in (0, 5] m");
+}
+
+int windowScans(const DsParams& ds, const std::vector<double>& stamps, double* rate_hz) {
+  if (rate_hz) *rate_hz = 0;
+  if (ds.window_k > 0) return ds.window_k;
+  std::vector<double> dt;
+  for (std::size_t i = 1; i < stamps.size(); ++i) {
+    const double d = stamps[i] - stamps[i - 1];
+    if (d > 1e-3 && d <= 1.0) dt.push_back(d);  // a lidar of 1 to 1000 Hz; repeats, gaps out
+  }
+  if (dt.empty()) return kDefaultWindowK;
+  std::sort(dt.begin(), dt.end());
+  const std::size_t n = dt.size();
+  const double period = n % 2 ? dt[n / 2] : 0.5 * (dt[n / 2 - 1] + dt[n / 2]);
+  if (rate_hz) *rate_hz = 1.0 / period;
+  const double k = std::round(ds.window_s / period);
+  return static_cast<int>(std::clamp(k, 1.0, double(kMaxWindowK)));
 }
 
 }  // namespace cleanmap

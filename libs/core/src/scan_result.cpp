@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: BSD-3-Clause
 #include "cleanmap/core/scan_result.h"
 
+#include <algorithm>
+
 namespace cleanmap {
 
 StageTimes& StageTimes::operator+=(const StageTimes& o) {
@@ -28,6 +30,8 @@ ScanStats& ScanStats::operator+=(const ScanStats& o) {
   moving += o.moving;
   static_points += o.static_points;
   window += o.window;
+  window_k = std::max(window_k, o.window_k);
+  scan_rate_hz = std::max(scan_rate_hz, o.scan_rate_hz);
   map_far += o.map_far;
   total_conflicts += o.total_conflicts;
   no_evidence += o.no_evidence;

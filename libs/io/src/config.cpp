@@ -43,7 +43,13 @@ std::optional<double> parseValue(const Key& k, const std::string& text, std::str
   if (k.auto_zero && text == "auto") return 0.0;
   if (k.names.empty()) {
     auto v = parseNumber(text, k.integer, why);
-    if (!v && k.auto_zero) why = "needs a number or auto, got '" + text + "'";
+    if (!v && k.auto_zero)
+      why = std::string("needs ") + (k.integer ? "an integer" : "a number") + " or auto, got '" +
+            text + "'";
+    if (v && k.auto_zero && k.integer && *v == 0) {  // a count of 0 is not a way to say auto
+      why = "needs auto or an integer >= 1, got '" + text + "'";
+      return std::nullopt;
+    }
     if (v && k.non_negative && *v < 0) {
       why = "needs a non-negative integer, got '" + text + "'";
       return std::nullopt;
@@ -72,6 +78,8 @@ std::map<std::string, Key> table(PipelineParams& p) {
   };
   Key height = d(p.sensor.height);
   height.auto_zero = true;
+  Key window_k = i(p.ds.window_k);
+  window_k.auto_zero = true;
   return {
       {"sensor.height", height},
       {"sensor.model", Key{[&p](double v) { p.sensor.model = static_cast<SensorModel>(int(v)); },
@@ -92,7 +100,8 @@ std::map<std::string, Key> table(PipelineParams& p) {
       {"ds.search_lambdas", d(p.ds.search_lambdas)},
       {"ds.r_sup", d(p.ds.r_sup)},
       {"ds.r_inf", d(p.ds.r_inf)},
-      {"ds.window_k", i(p.ds.window_k)},
+      {"ds.window_k", window_k},
+      {"ds.window_s", d(p.ds.window_s)},
       {"ds.scan_conflict", d(p.ds.scan_conflict)},
       {"ds.ring_vote", Key{[&p](double v) { p.ds.ring_vote = v != 0; },
                            [&p] { return p.ds.ring_vote ? 1.0 : 0.0; }, true}},

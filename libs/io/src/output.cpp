@@ -359,6 +359,12 @@ void OutputWriter::finish(double wall_s, const FreeSpaceMap* free_space) {
                  {{"min", free_space ? free_space->azimuthBinMin() : 0.0},
                   {"max", free_space ? free_space->azimuthBinMax() : 0.0}}}};
   }
+  // DESIGN §2b: the window's K, set or from the scan rate (auto)
+  j["window"] = {{"k", total.window_k},
+                 {"window_k", params_.ds.window_k > 0 ? nlohmann::json(params_.ds.window_k)
+                                                      : nlohmann::json("auto")},
+                 {"window_s", params_.ds.window_s},
+                 {"scan_rate_hz", total.scan_rate_hz}};
   {  // DESIGN §3: the camera check
     const auto& im = params_.image;
     j["images"] = {

@@ -307,8 +307,12 @@ void CMovingObjectsMap::getVisualizationInto(mrpt::opengl::CSetOfObjects& o) con
 std::string CMovingObjectsMap::asString() const {
   std::ostringstream os;
   os << "cleanmap moving-objects map: " << trajectory_.size() << " scans decided, " << pending()
-     << " pending (K = " << params_.ds.window_k << "); " << static_.size() << " static and "
-     << moving_.size() << " moving points (voxel " << map_voxel_ << " m)";
+     << " pending (K = "
+     << (pipe_ && pipe_->windowK() ? std::to_string(pipe_->windowK())
+         : params_.ds.window_k > 0 ? std::to_string(params_.ds.window_k)
+                                   : std::string("auto"))
+     << "); " << static_.size() << " static and " << moving_.size() << " moving points (voxel "
+     << map_voxel_ << " m)";
   return os.str();
 }
 

@@ -86,6 +86,17 @@ LaserPipeline::LaserPipeline(const PipelineParams& params, Sink sink)
       work_(std::make_unique<Work>()),
       source_(params.poses) {
   if (p_.map.clean) free_ = std::make_unique<FreeSpaceMap>(p_.map);
+  if (p_.ds.window_k > 0) k_ = static_cast<std::size_t>(p_.ds.window_k);
+}
+
+// DESIGN §2b: an auto K spans window_s at the scan rate of the first kRateScans scans (a chunk
+// of a steady stream gets the whole run's K). Nothing is decided before it is known: a scan is
+// decided once K scans follow it, and K >= kRateScans - 1 at 3.5 Hz and above; slower, the
+// first scans are decided at the kRateScans-th push, with the same windows (inWindow).
+void LaserPipeline::resolveWindow() {
+  k_ = static_cast<std::size_t>(windowScans(p_.ds, stamps_, &rate_hz_));
+  stamps_.clear();
+  stamps_.shrink_to_fit();
 }
 
 // DESIGN §2e: the free-space insertions of the decided scans, one at a time in scan order, on a
@@ -267,6 +278,9 @@ std::unique_ptr<LaserPipeline> LaserPipeline::clone(Sink sink) const {
   else
     c->held_ = held_;
   c->register_ahead_ = register_ahead_;
+  c->k_ = k_;
+  c->rate_hz_ = rate_hz_;
+  c->stamps_ = stamps_;
   c->pushed_ = pushed_;
   c->drops_ = drops_;
   c->test_ = test_;
@@ -305,7 +319,7 @@ PoseSource LaserPipeline::resolveSource(const Frame& f) {
 // the scan K + 2 pushes after it: the scan K + 1 after it may be registering while it is decided
 // (registerAhead), and the same lag without it keeps the poses the same.
 void LaserPipeline::applyDrops(long seq) {
-  const long K = p_.ds.window_k;
+  const long K = static_cast<long>(k_);
   while (!drops_.empty() && drops_.front().seq <= seq - K - 2) {
     if (odo_) odo_->dropPoints(drops_.front().index, drops_.front().moving);
     drops_.pop_front();
@@ -523,7 +537,9 @@ double LaserPipeline::groundBelowSensor(Prepared& s, const std::vector<PointXYZI
   if (p_.sensor.height > 0) return -p_.sensor.height;
   std::vector<double> m;
   if (measured) m.push_back(*measured);
-  const std::size_t K = static_cast<std::size_t>(p_.ds.window_k);
+  // Before an auto K is resolved, every buffered scan: fewer than kRateScans, so no more than K
+  // unless K is below kRateScans - 1 (a lidar under 3.5 Hz: the first few scans only).
+  const std::size_t K = k_ ? k_ : buf_.size();
   for (std::size_t i = 0; i < std::min(K, buf_.size()); ++i) {
     const double g = buf_[buf_.size() - 1 - i]->ground_measured;
     if (std::isfinite(g)) m.push_back(g);
@@ -541,11 +557,15 @@ void LaserPipeline::push(Frame&& frame) {
   r.frame = std::move(frame);
   r.seq = pushed_++;
   r.camera = camera_;
-  const auto K = static_cast<std::size_t>(p_.ds.window_k);
-  // A registered frame joins the buffer, and the scans whose windows are then complete are decided.
+  if (!k_) {
+    stamps_.push_back(r.frame.scan.timestamp);
+    if (stamps_.size() >= static_cast<std::size_t>(kRateScans)) resolveWindow();
+  }
+  // A registered frame joins the buffer, and the scans whose windows are then complete are decided
+  // (none while K is unknown).
   auto take_in = [&](Registered&& x, bool registered_beside) {
     buf_.push_back(prepare(std::move(x), registered_beside));
-    decideReady(K);
+    decideReady(k_ ? k_ : std::numeric_limits<std::size_t>::max());
   };
   if (source == PoseSource::kGiven) return take_in(std::move(r), false);
   std::optional<Registered> prev = std::move(held_);  // a frame registered ahead, not prepared
@@ -594,6 +614,7 @@ void LaserPipeline::joinFreeSpace() const {
 }
 
 void LaserPipeline::finish() {
+  if (!k_) resolveWindow();
   std::optional<Registered> last = std::move(held_);
   held_.reset();
   if (reg_queue_ && reg_queue_->in_flight) last = reg_queue_->take();
@@ -607,7 +628,7 @@ void LaserPipeline::finish() {
 // Decides every buffered scan that has at least `future` scans after it, then keeps only the K
 // scans before the next one to decide.
 void LaserPipeline::decideReady(std::size_t future) {
-  const std::size_t K = static_cast<std::size_t>(p_.ds.window_k);
+  const std::size_t K = k_;
   while (next_ < buf_.size() && buf_.size() - 1 - next_ >= future) {
     decide(next_);
     ++next_;
@@ -643,6 +664,8 @@ void LaserPipeline::decide(std::size_t pos) {
   const double view_ms = s.stats.ms.images;  // the camera view, built before (validation adds)
   const std::vector<WindowScan> window = windowAround(pos);
   s.stats.window = window.size();
+  s.stats.window_k = k_;
+  s.stats.scan_rate_hz = rate_hz_;
   Work& w = *work_;
   w.clear();
   startEpoch(static_cast<long>(s.index));  // §2f
@@ -675,7 +698,7 @@ std::vector<WindowScan> LaserPipeline::windowAround(std::size_t pos) const {
   const double e = p_.registration.relative_error;
   const auto corrected = posesAround(pos);  // DESIGN §3 "Camera poses"
   for (std::size_t j = 0; j < buf_.size(); ++j)
-    if (j != pos && !buf_[j]->beams.empty()) {
+    if (inWindow(j, pos) && !buf_[j]->beams.empty()) {
       double path = 0;  // summed between the two scans, so a chunk gets the same bits
       if (estimated && e > 0)
         for (std::size_t a = std::min(j, pos); a < std::max(j, pos); ++a)
@@ -825,7 +848,7 @@ void LaserPipeline::validateImages(std::size_t pos, Prepared& s, Work& w) const 
   std::deque<vision::CameraView> moved;  // corrected copies (the images are shared)
   std::vector<std::pair<std::size_t, const vision::CameraView*>> order;
   for (std::size_t j = 0; j < buf_.size(); ++j) {
-    if (j == pos || !buf_[j]->view) continue;
+    if (!inWindow(j, pos) || !buf_[j]->view) continue;
     const vision::CameraView* v = &*buf_[j]->view;
     if (poses[j]) {  // optical_from_world L T'^-1 = (L T'^-1 T L^-1) L T^-1
       moved.push_back(

@@ -4,6 +4,7 @@
 #pragma once
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include "cleanmap/core/sensor.h"
 
@@ -19,6 +20,14 @@ struct FilterParams {
 /// m; the height assumed when sensor.height is auto and a scan's ground cannot be measured
 /// (KITTI's HDL-64E).
 constexpr double kDefaultSensorHeight = 1.73;
+
+/// DESIGN §2b: K where ds.window_k is auto and the timestamps give no scan rate (the paper's, at
+/// KITTI's 10 Hz), and the largest K (the window's 2K + 1 scans are held in memory).
+constexpr int kDefaultWindowK = 10;
+constexpr int kMaxWindowK = 50;
+/// Scans whose timestamps measure the scan rate for an auto K (4 intervals: one dropped scan or a
+/// repeated stamp does not move their median).
+constexpr int kRateScans = 5;
 
 /// DESIGN §2a: the lidar and its mounting (issue #15).
 struct SensorParams {
@@ -52,7 +61,12 @@ struct DsParams {
   double search_lambdas = 3.0;   ///< beams within search_lambdas * lambda_theta are considered
   double r_sup = 0.8;            ///< discretised belief near the sensor
   double r_inf = 0.6;            ///< discretised belief at the farthest range
-  int window_k = 10;             ///< K: scans before and after
+  /// K: scans before and after. 0 = auto: the scans of window_s at the input's scan rate,
+  /// measured from the first scans' timestamps (LaserPipeline::windowK; 10 where they give none).
+  int window_k = 0;
+  /// s; with window_k auto, the time the window spans on each side: the paper's K = 10 at
+  /// KITTI's 10 Hz, so a 20 Hz lidar compares over the same second, not half of it (DESIGN §2b).
+  double window_s = 1.0;
   /// Our addition (doc/SCAN_CONFLICT.md): a scan votes empty only if its own beams agree. When
   /// its most-empty and most-occupied beams conflict by K = e_max * o_max >= scan_conflict
   /// (foliage, fences, thin poles: some beams pass P, some return at P), the scan's empty vote
@@ -253,5 +267,11 @@ struct PipelineParams {
 /// Checks physical sense (positive sizes, r_inf <= r_sup < 1, K >= 1, ...); throws
 /// cleanmap::Error(name, "<section.key> must ...") naming the offending key.
 void validate(const PipelineParams& params, const std::string& name);
+
+/// DESIGN §2b: the window's K. ds.window_k where it is set; auto: round(window_s x rate), the
+/// rate from the median interval between consecutive `stamps` (seconds; those of the run's first
+/// kRateScans scans) among those in (1 ms, 1 s], clamped to [1, kMaxWindowK]; kDefaultWindowK
+/// where no interval is usable (no timestamps, one scan). `rate_hz` gets the rate (0: none).
+int windowScans(const DsParams& ds, const std::vector<double>& stamps, double* rate_hz = nullptr);
 
 }  // namespace cleanmap

@@ -37,6 +37,11 @@ class LaserPipeline {
   void finish();
 
   std::size_t decided() const { return decided_; }
+  /// DESIGN §2b: the window's K, ds.window_k or, where that is auto, resolved from the scan rate
+  /// once kRateScans scans (or all, at finish()) have been pushed; 0 until then.
+  std::size_t windowK() const { return k_; }
+  /// The scan rate an auto K was resolved from (Hz; 0: set K, not resolved yet, or no timestamps).
+  double scanRateHz() const { return rate_hz_; }
   /// Scans pushed but not yet decided (at most K until finish(), K + 1 registering ahead).
   std::size_t pending() const;
   /// A deep copy of the whole state (window, duplicate history, odometry map) handing its
@@ -111,8 +116,16 @@ class LaserPipeline {
   void remember(const ScanResult& r, long index);
   void startEpoch(long index);
 
+  void resolveWindow();  // DESIGN §2b: k_ from the pushed scans' timestamps (auto K)
+  bool inWindow(std::size_t j, std::size_t pos) const {
+    return j != pos && (j < pos ? pos - j : j - pos) <= k_;
+  }
+
   PipelineParams p_;
   Sink sink_;
+  std::size_t k_ = 0;           // the window's K; 0 until resolved (resolveWindow)
+  double rate_hz_ = 0;          // the scan rate it was resolved from
+  std::vector<double> stamps_;  // the first pushed scans' timestamps, until k_ is resolved
   MovingTest test_;
   DuplicateFilter dup_;
   std::deque<std::unique_ptr<Prepared>> buf_;  // scans k-K .. k+K around the next to decide
