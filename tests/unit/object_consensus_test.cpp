@@ -41,6 +41,39 @@ TEST(ObjectConsensus, LongVehicleWithMovingEndsMovesAsAWhole) {
   for (uint8_t m : moving) ASSERT_EQ(m, 1);
 }
 
+TEST(ObjectConsensus, ACarLeavingTheCurbDoesNotTakeTheSidewalkAlong) {
+  // doc/OBJECTS.md rule 2's foot: from a low mount the sidewalk (0.12 m up, not ground) beside a
+  // car touches it; the car's half tested moving turns the component moving. The car moves as a
+  // whole, its sills under its body included; the sidewalk farther than a column from it stays.
+  std::vector<PointXYZI> pts;
+  addBox(pts, 0, 4.4f, -1, 0.8f, 1.5f);
+  for (auto& q : pts) q.z += 0.1f;  // the body from 0.1 m up
+  const std::size_t car = pts.size();
+  for (float x = -1; x <= 5.4f; x += 0.1f)
+    for (float y = -4; y < -1.05f; y += 0.1f) pts.push_back({x, y, 0.12f, 0});
+  std::vector<uint8_t> member(pts.size(), 1), moving(pts.size(), 0);
+  for (std::size_t i = 0; i < car; ++i) moving[i] = pts[i].x < 2.2f;
+  const auto before = moving;
+  const auto st = objectConsensus(pts, member, moving, ObjectParams{});
+  EXPECT_EQ(st.moving_objects, 1u);
+  std::size_t far_sidewalk = 0;
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    if (i < car) ASSERT_EQ(moving[i], 1) << "car point " << i;
+    if (i >= car && pts[i].y < -1.7f) {
+      ++far_sidewalk;
+      ASSERT_EQ(moving[i], 0) << "sidewalk point at y " << pts[i].y;
+    }
+  }
+  EXPECT_GT(far_sidewalk, 1000u);
+  EXPECT_GE(st.foot_points_left, far_sidewalk);
+  // Without the foot rule (foot_height 0) the sidewalk went with it.
+  ObjectParams off;
+  off.foot_height = 0;
+  auto all = before;
+  objectConsensus(pts, member, all, off);
+  for (std::size_t i = car; i < pts.size(); ++i) ASSERT_EQ(all[i], 1);
+}
+
 TEST(ObjectConsensus, AFewFalseAlarmsOnAParkedCarAreDropped) {
   std::vector<PointXYZI> pts;
   addBox(pts, 0, 4.5f, -1, 1, 1.5f);

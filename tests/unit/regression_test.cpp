@@ -138,6 +138,10 @@ MapScore cleanMapScore(const std::string& set) {
 // KITTI's nominal 1.73 m (recall up on all three sets, doc/BENCHMARK.md). The object consensus's
 // bodies (doc/OBJECTS.md rule 2) changed highway's on purpose: a car's 129 moving points that
 // its component turned static stay moving (IoU 0.8531 -> 0.8543); city and residential stayed.
+// Rule 2's foot (the same file) changed highway's and residential's on purpose: a component turned
+// moving no longer takes along its low points with nothing of it above them (from a low mount, the
+// sidewalk beside a car that leaves); highway 40 points (recall 0.9044 -> 0.9043, IoU 0.8543),
+// residential 81 points, all outside the labelled area (label 0); city stayed.
 void expectDigest(const OutputDigest& d, uint64_t labels, uint64_t compact, uint64_t full,
                   uint64_t moving) {
   EXPECT_EQ(d.labels, labels) << "labels differ from the reference run";
@@ -157,10 +161,10 @@ TEST(Regression, OutputsByteIdenticalToTheReference) {
   runSet("kitti_residential", &residential);
   expectDigest(city, 0xe6503807ad3d06bcull, 0x7eb7ed012f3a1fc7ull, 0xb137387dc6583b49ull,
                0x0273601384a59ac0ull);
-  expectDigest(highway, 0x4e0d53331aeb115cull, 0x51f22a2f53d54675ull, 0x781cccb4f6756c43ull,
-               0x65228450cc429427ull);
-  expectDigest(residential, 0x0429edf7ae4c8167ull, 0xad062af9b96b7417ull, 0x57278e46f91ae27bull,
-               0x3fbeafc779a54342ull);
+  expectDigest(highway, 0x089116527e572e1cull, 0x1c9e0fd497e20796ull, 0x313c558d582f8aedull,
+               0x543aa68f9a88aab9ull);
+  expectDigest(residential, 0xf2cc10d0ebd1e4f5ull, 0x7d9ca198b67f4e41ull, 0xd8050921615df7b1ull,
+               0x6a49428e88496860ull);
 }
 
 TEST(Regression, City) {

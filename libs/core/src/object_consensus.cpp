@@ -148,10 +148,40 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
     return g != UINT32_MAX && static_cast<int64_t>(group_moving[g]) >= 5 * int64_t(p.min_moving) &&
            2 * group_moving[g] >= group_all[g];
   };
+  // Rule 2's spread stops at the component's foot (doc/OBJECTS.md): a point less than foot_height
+  // above the component's lowest with no point of the component at or above that height in its
+  // 3 x 3 column of voxels is a low surface the object touches, not a part of it (from 0.8 m a
+  // sidewalk 0.12 m up, not ground, joins a car that leaves the curb). A vehicle's low parts,
+  // its wheels and sills, have its body above them.
+  CellMap<uint8_t> raised;  // (column, component) holding a point at or above the foot
+  const auto low = [&](std::size_t i, uint32_t root) {
+    return p.foot_height > 0 && points[i].z < comps[root].lo.z() + p.foot_height;
+  };
+  const auto columnKey = [&](uint32_t v, int dx, int dy, uint32_t root) {
+    return cellKey(voxels[v].x() + dx, voxels[v].y() + dy, static_cast<int64_t>(root));
+  };
+  if (p.foot_height > 0)
+    for (std::size_t i = 0; i < points.size(); ++i) {
+      if (point_voxel[i] == UINT32_MAX) continue;
+      const uint32_t root = uf.find(point_voxel[i]);
+      if (turn[root] == 1 && !low(i, root)) raised.get(columnKey(point_voxel[i], 0, 0, root)) = 1;
+    }
+  const auto at_foot = [&](std::size_t i, uint32_t root) {
+    if (!low(i, root)) return false;
+    for (int dx = -1; dx <= 1; ++dx)
+      for (int dy = -1; dy <= 1; ++dy)
+        if (raised.contains(columnKey(point_voxel[i], dx, dy, root))) return false;
+    return true;
+  };
   for (std::size_t i = 0; i < points.size(); ++i) {
     if (point_voxel[i] == UINT32_MAX) continue;
-    const uint8_t t = turn[uf.find(point_voxel[i])];
+    const uint32_t root = uf.find(point_voxel[i]);
+    const uint8_t t = turn[root];
     if (t == 1 && !moving[i]) {
+      if (at_foot(i, root)) {
+        ++st.foot_points_left;
+        continue;
+      }
       moving[i] = 1;
       ++st.points_added;
     } else if (t == 2 && moving[i]) {

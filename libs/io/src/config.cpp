@@ -117,6 +117,7 @@ std::map<std::string, Key> table(PipelineParams& p) {
       {"object.max_length", d(p.object.max_length)},
       {"object.max_height", d(p.object.max_height)},
       {"object.persist_radius", d(p.object.persist_radius)},
+      {"object.foot_height", d(p.object.foot_height)},
       {"registration.min_range", d(p.registration.min_range)},
       {"registration.max_range", d(p.registration.max_range)},
       {"registration.voxel", d(p.registration.voxel)},

@@ -829,6 +829,7 @@ void LaserPipeline::objectConsensus(Prepared& s, Work& w) const {
   s.stats.consensus_points = oc.points_added;
   s.stats.consensus_removed = oc.points_removed;
   s.stats.consensus_body_kept = oc.body_points_kept;
+  s.stats.consensus_foot_left = oc.foot_points_left;
   s.stats.ms.objects = msSince(t0);
 }
 

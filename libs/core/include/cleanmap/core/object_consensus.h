@@ -19,6 +19,7 @@ struct ObjectConsensusStats {
   std::size_t points_removed = 0;    ///< moving points turned static (a few in a static object)
   std::size_t persisted = 0;         ///< of moving_objects, those kept moving by the hysteresis
   std::size_t body_points_kept = 0;  ///< moving points of a body a static component kept
+  std::size_t foot_points_left = 0;  ///< points at a moving component's foot not turned moving
 };
 
 /// Groups `points[i]` with `member[i]` (in crop, not ground) into 26-connected voxel components

@@ -99,6 +99,10 @@ struct ObjectParams {
   /// static_fraction and moving_fraction stays moving if most of its points lie within
   /// `persist_radius` of the previous scan's moving points (0 = off).
   double persist_radius = 1.5;  ///< m
+  /// m; a component turned moving takes along its points below this height above its lowest
+  /// point only where some of its points stand at or above it in their column (a car's wheels
+  /// under its body, not the sidewalk it touches; doc/OBJECTS.md rule 2). 0 = all of them.
+  double foot_height = 0.3;
 };
 
 /// DESIGN §2.1: GICP scan-to-map odometry (used with --poses gicp / refine, or when the input has
