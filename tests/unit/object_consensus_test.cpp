@@ -58,7 +58,9 @@ TEST(ObjectConsensus, ACarLeavingTheCurbDoesNotTakeTheSidewalkAlong) {
   EXPECT_EQ(st.moving_objects, 1u);
   std::size_t far_sidewalk = 0;
   for (std::size_t i = 0; i < pts.size(); ++i) {
-    if (i < car) ASSERT_EQ(moving[i], 1) << "car point " << i;
+    if (i < car) {
+      ASSERT_EQ(moving[i], 1) << "car point " << i;
+    }
     if (i >= car && pts[i].y < -1.7f) {
       ++far_sidewalk;
       ASSERT_EQ(moving[i], 0) << "sidewalk point at y " << pts[i].y;

@@ -230,6 +230,11 @@ TEST(Pipeline, AutoWindowSpansOneSecondAtTheScanRate) {
   ds.window_k = 7;  // a set K is the user's word
   EXPECT_EQ(windowScans(ds, stamps(0.05, 5), &hz), 7);
   EXPECT_EQ(hz, 0.0);
+  // The stride: every scan up to K = 19, then scans 0.1 s apart or closer (10-19 each side).
+  for (const auto& [k, stride] : {std::pair{1, 1}, {10, 1}, {19, 1}, {20, 2}, {29, 2}, {50, 5}})
+    EXPECT_EQ(windowStride(ds, k), stride) << k;
+  ds.window_stride = 3;
+  EXPECT_EQ(windowStride(ds, 10), 3);
 }
 
 // The pipeline resolves it from the pushed scans and decides nothing before; at 2 Hz (K = 2,
@@ -257,8 +262,10 @@ TEST(Pipeline, AutoWindowFromThePushedScans) {
   const auto at20 = run_at(0.05, 0, 8, &k);
   EXPECT_EQ(k, 20u);
   ASSERT_EQ(at20.size(), 8u);
-  EXPECT_EQ(at20[0].stats.window, 7u);  // all the others: K 20 holds the whole sequence
+  EXPECT_EQ(at20[0].stats.window, 3u);  // scans 2, 4 and 6: K 20, stride 2
+  EXPECT_EQ(at20[1].stats.window, 3u);  // 3, 5 and 7
   EXPECT_EQ(at20[0].stats.window_k, 20u);
+  EXPECT_EQ(at20[0].stats.window_stride, 2u);
   EXPECT_NEAR(at20[0].stats.scan_rate_hz, 20.0, 1e-9);
   std::size_t k2 = 0;
   const auto at2 = run_at(0.5, 0, 8, &k);

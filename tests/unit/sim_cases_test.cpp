@@ -131,14 +131,14 @@ TEST(SimCases, PedestrianWalkingAlongAWallSeenFromALowMount) {
 }
 
 // DESIGN §2b: the window spans 1 s, not 10 scans. A 20 Hz lidar compares the walker with the scans
-// of the same second as a 10 Hz one (K 20): with K fixed at 10 (half a second) he overlaps where
-// he stood in most of his window (recall 0.359, measured).
+// of the same second as a 10 Hz one (K 20, every other one): with K fixed at 10 (half a second)
+// he overlaps where he stood in most of his window (recall 0.359, measured).
 TEST(SimCases, PedestrianWalkingAlongAWallSeenAt20Hz) {
   auto sc = scenario("pedestrian_wall");
   sc.rate_hz = 20;
   sc.frames *= 2;  // the same 3 s
   const auto r = runCase(sc);
-  EXPECT_GE(r.per_mover.at("walker").recall(), 0.75);  // measured 0.799 (0.84 at 10 Hz)
+  EXPECT_GE(r.per_mover.at("walker").recall(), 0.75);  // measured 0.819 (0.84 at 10 Hz)
   EXPECT_GE(r.all.precision(), 0.95);
 }
 

@@ -29,6 +29,8 @@ void validate(const PipelineParams& p, const std::string& name) {
   require(p.ds.window_k >= 0 && p.ds.window_k <= kMaxWindowK,
           "ds.window_k must be auto or in [1, " + std::to_string(kMaxWindowK) + "] scans");
   require(p.ds.window_s > 0 && p.ds.window_s <= 10, "ds.window_s must be in (0, 10] s");
+  require(p.ds.window_stride >= 0 && p.ds.window_stride <= kMaxWindowK,
+          "ds.window_stride must be auto or in [1, " + std::to_string(kMaxWindowK) + "] scans");
   require(p.ds.scan_conflict > 0 && p.ds.scan_conflict <= 1,
           "ds.scan_conflict must be in (0, 1] (1 = off)");
   require(p.octree.leaf > 0, "octree.leaf must be > 0");
@@ -123,6 +125,11 @@ int windowScans(const DsParams& ds, const std::vector<double>& stamps, double* r
   if (rate_hz) *rate_hz = 1.0 / period;
   const double k = std::round(ds.window_s / period);
   return static_cast<int>(std::clamp(k, 1.0, double(kMaxWindowK)));
+}
+
+int windowStride(const DsParams& ds, int k) {
+  if (ds.window_stride > 0) return ds.window_stride;
+  return std::max(1, k / kDefaultWindowK);
 }
 
 }  // namespace cleanmap

@@ -31,6 +31,7 @@ ScanStats& ScanStats::operator+=(const ScanStats& o) {
   static_points += o.static_points;
   window += o.window;
   window_k = std::max(window_k, o.window_k);
+  window_stride = std::max(window_stride, o.window_stride);
   scan_rate_hz = std::max(scan_rate_hz, o.scan_rate_hz);
   map_far += o.map_far;
   total_conflicts += o.total_conflicts;

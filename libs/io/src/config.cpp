@@ -80,6 +80,8 @@ std::map<std::string, Key> table(PipelineParams& p) {
   height.auto_zero = true;
   Key window_k = i(p.ds.window_k);
   window_k.auto_zero = true;
+  Key window_stride = i(p.ds.window_stride);
+  window_stride.auto_zero = true;
   return {
       {"sensor.height", height},
       {"sensor.model", Key{[&p](double v) { p.sensor.model = static_cast<SensorModel>(int(v)); },
@@ -102,6 +104,7 @@ std::map<std::string, Key> table(PipelineParams& p) {
       {"ds.r_inf", d(p.ds.r_inf)},
       {"ds.window_k", window_k},
       {"ds.window_s", d(p.ds.window_s)},
+      {"ds.window_stride", window_stride},
       {"ds.scan_conflict", d(p.ds.scan_conflict)},
       {"ds.ring_vote", Key{[&p](double v) { p.ds.ring_vote = v != 0; },
                            [&p] { return p.ds.ring_vote ? 1.0 : 0.0; }, true}},

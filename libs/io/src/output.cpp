@@ -365,6 +365,7 @@ void OutputWriter::finish(double wall_s, const FreeSpaceMap* free_space) {
                  {"window_k", params_.ds.window_k > 0 ? nlohmann::json(params_.ds.window_k)
                                                       : nlohmann::json("auto")},
                  {"window_s", params_.ds.window_s},
+                 {"stride", total.window_stride},
                  {"scan_rate_hz", total.scan_rate_hz}};
   {  // DESIGN §3: the camera check
     const auto& im = params_.image;

@@ -86,7 +86,10 @@ LaserPipeline::LaserPipeline(const PipelineParams& params, Sink sink)
       work_(std::make_unique<Work>()),
       source_(params.poses) {
   if (p_.map.clean) free_ = std::make_unique<FreeSpaceMap>(p_.map);
-  if (p_.ds.window_k > 0) k_ = static_cast<std::size_t>(p_.ds.window_k);
+  if (p_.ds.window_k > 0) {
+    k_ = static_cast<std::size_t>(p_.ds.window_k);
+    stride_ = static_cast<std::size_t>(cleanmap::windowStride(p_.ds, p_.ds.window_k));
+  }
 }
 
 // DESIGN §2b: an auto K spans window_s at the scan rate of the first kRateScans scans (a chunk
@@ -94,7 +97,9 @@ LaserPipeline::LaserPipeline(const PipelineParams& params, Sink sink)
 // decided once K scans follow it, and K >= kRateScans - 1 at 3.5 Hz and above; slower, the
 // first scans are decided at the kRateScans-th push, with the same windows (inWindow).
 void LaserPipeline::resolveWindow() {
-  k_ = static_cast<std::size_t>(windowScans(p_.ds, stamps_, &rate_hz_));
+  const int k = windowScans(p_.ds, stamps_, &rate_hz_);
+  k_ = static_cast<std::size_t>(k);
+  stride_ = static_cast<std::size_t>(cleanmap::windowStride(p_.ds, k));
   stamps_.clear();
   stamps_.shrink_to_fit();
 }
@@ -279,6 +284,7 @@ std::unique_ptr<LaserPipeline> LaserPipeline::clone(Sink sink) const {
     c->held_ = held_;
   c->register_ahead_ = register_ahead_;
   c->k_ = k_;
+  c->stride_ = stride_;
   c->rate_hz_ = rate_hz_;
   c->stamps_ = stamps_;
   c->pushed_ = pushed_;
@@ -665,6 +671,7 @@ void LaserPipeline::decide(std::size_t pos) {
   const std::vector<WindowScan> window = windowAround(pos);
   s.stats.window = window.size();
   s.stats.window_k = k_;
+  s.stats.window_stride = stride_;
   s.stats.scan_rate_hz = rate_hz_;
   Work& w = *work_;
   w.clear();

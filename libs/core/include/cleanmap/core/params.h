@@ -67,6 +67,11 @@ struct DsParams {
   /// s; with window_k auto, the time the window spans on each side: the paper's K = 10 at
   /// KITTI's 10 Hz, so a 20 Hz lidar compares over the same second, not half of it (DESIGN §2b).
   double window_s = 1.0;
+  /// The test compares with every window_stride-th scan of the window (offsets that are
+  /// multiples of it). 0 = auto: K / 10 (integer, at least 1), so a lidar faster than 20 Hz
+  /// compares with 10-19 scans each side, 0.1 s apart, as at KITTI's 10 Hz, not twice as many
+  /// near-copies (DESIGN §2b).
+  int window_stride = 0;
   /// Our addition (doc/SCAN_CONFLICT.md): a scan votes empty only if its own beams agree. When
   /// its most-empty and most-occupied beams conflict by K = e_max * o_max >= scan_conflict
   /// (foliage, fences, thin poles: some beams pass P, some return at P), the scan's empty vote
@@ -277,5 +282,7 @@ void validate(const PipelineParams& params, const std::string& name);
 /// kRateScans scans) among those in (1 ms, 1 s], clamped to [1, kMaxWindowK]; kDefaultWindowK
 /// where no interval is usable (no timestamps, one scan). `rate_hz` gets the rate (0: none).
 int windowScans(const DsParams& ds, const std::vector<double>& stamps, double* rate_hz = nullptr);
+/// The stride of a window of K scans: ds.window_stride, or auto max(1, K / kDefaultWindowK).
+int windowStride(const DsParams& ds, int k);
 
 }  // namespace cleanmap

@@ -27,9 +27,9 @@ struct ScanStats {
   std::size_t in_crop = 0, ground = 0, duplicates = 0, candidates = 0, tested = 0;
   std::size_t moving = 0, static_points = 0;
   std::size_t window = 0;  ///< scans in the window
-  /// DESIGN §2b: the window's K and the scan rate an auto K came from (Hz, 0: none); one value per
-  /// run, so sums keep the largest.
-  std::size_t window_k = 0;
+  /// DESIGN §2b: the window's K and stride, and the scan rate an auto K came from (Hz, 0: none);
+  /// one value per run, so sums keep the largest.
+  std::size_t window_k = 0, window_stride = 0;
   double scan_rate_hz = 0;
   std::size_t map_far = 0;  ///< points beyond the crop within the map radius (DESIGN §2e)
   std::size_t total_conflicts = 0, no_evidence = 0;

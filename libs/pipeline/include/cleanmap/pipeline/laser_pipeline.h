@@ -42,6 +42,8 @@ class LaserPipeline {
   std::size_t windowK() const { return k_; }
   /// The scan rate an auto K was resolved from (Hz; 0: set K, not resolved yet, or no timestamps).
   double scanRateHz() const { return rate_hz_; }
+  /// The window's stride (ds.window_stride, or auto from K); 1 until K is resolved.
+  std::size_t windowStride() const { return stride_; }
   /// Scans pushed but not yet decided (at most K until finish(), K + 1 registering ahead).
   std::size_t pending() const;
   /// A deep copy of the whole state (window, duplicate history, odometry map) handing its
@@ -118,12 +120,14 @@ class LaserPipeline {
 
   void resolveWindow();  // DESIGN §2b: k_ from the pushed scans' timestamps (auto K)
   bool inWindow(std::size_t j, std::size_t pos) const {
-    return j != pos && (j < pos ? pos - j : j - pos) <= k_;
+    const std::size_t d = j < pos ? pos - j : j - pos;
+    return d > 0 && d <= k_ && d % stride_ == 0;
   }
 
   PipelineParams p_;
   Sink sink_;
   std::size_t k_ = 0;           // the window's K; 0 until resolved (resolveWindow)
+  std::size_t stride_ = 1;      // the window's stride (ds.window_stride), with k_
   double rate_hz_ = 0;          // the scan rate it was resolved from
   std::vector<double> stamps_;  // the first pushed scans' timestamps, until k_ is resolved
   MovingTest test_;
