@@ -160,7 +160,7 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
   const auto columnKey = [&](uint32_t v, int dx, int dy, uint32_t root) {
     return cellKey(voxels[v].x() + dx, voxels[v].y() + dy, static_cast<int64_t>(root));
   };
-  if (p.foot_height > 0)
+  if (p.foot_height > 0 && st.moving_objects > 0)  // no component turned moving: no foot to find
     for (std::size_t i = 0; i < points.size(); ++i) {
       if (point_voxel[i] == UINT32_MAX) continue;
       const uint32_t root = uf.find(point_voxel[i]);
