@@ -118,7 +118,7 @@ TEST(Config, IniRoundTripRestoresEveryParameter) {
 TEST(Config, SensorHeightAndModel) {
   PipelineParams p;
   EXPECT_EQ(p.sensor.height, 0.0);  // auto
-  EXPECT_NE(io::toIni(p).find("[sensor]\nheight = auto\n"), std::string::npos);
+  EXPECT_NE(io::toIni(p).find("[sensor]\ndeskew = auto\nheight = auto\n"), std::string::npos);
   io::parseParams("[sensor]\nheight = 2.2\n", "x.ini", p);
   EXPECT_DOUBLE_EQ(p.sensor.height, 2.2);
   PipelineParams q;
@@ -139,6 +139,14 @@ TEST(Config, SensorHeightAndModel) {
   EXPECT_NE(io::toIni(q).find("model = vlp16\n"), std::string::npos);
   test::expectError([&] { io::parseParams("[sensor]\nmodel = vlp-16\n", "x.ini", p); }, "x.ini:2",
                     "needs one of auto, hdl64, hdl32, vlp16, os1-64, os1-128; got 'vlp-16'");
+  // DESIGN §2.0: the de-skew is auto, 0 or 1.
+  io::parseParams("[sensor]\ndeskew = 1\n", "x.ini", q);
+  EXPECT_EQ(q.sensor.deskew, DeskewMode::kOn);
+  EXPECT_NE(io::toIni(q).find("deskew = 1\n"), std::string::npos);
+  io::parseParams("[sensor]\ndeskew = 0\n", "x.ini", q);
+  EXPECT_EQ(q.sensor.deskew, DeskewMode::kOff);
+  test::expectError([&] { io::parseParams("[sensor]\ndeskew = yes\n", "x.ini", p); }, "x.ini:2",
+                    "'deskew' needs one of auto, 0, 1; got 'yes'");
   test::expectError([&] { io::parseParams("[ground]\nsensor_height = -1.73\n", "x.ini", p); },
                     "x.ini:2", "'sensor_height' in [ground] is now [sensor] height");
   test::expectError([&] { io::setParam(p, "ground.sensor_height", "-1.73", "[s]"); }, "[s]",

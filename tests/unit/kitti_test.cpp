@@ -55,6 +55,7 @@ TEST(KittiOdometry, OpensEachSharedSet) {
     EXPECT_GT(s.size(), 100000u);
     EXPECT_LT(s.size(), 140000u);
     EXPECT_EQ(seq.loadLabels(0, s.original_size).size(), s.original_size);
+    EXPECT_TRUE(s.point_time.empty()) << "odometry folders come de-skewed (DESIGN §2.0)";
   }
 }
 
@@ -218,6 +219,37 @@ TEST(KittiRaw, OxtsPosesFollowTheDrivenPath) {
   EXPECT_EQ(cam->height, 375);
   EXPECT_TRUE(cam->project({20, 0, 0}).has_value());
   EXPECT_EQ(seq.loadScan(1).size(), 2u);
+}
+
+// DESIGN §2.0: a raw drive's scans are not de-skewed (KITTI's readme), so each point carries its
+// time in the sweep from its azimuth: facing forward (the timestamp) 0, the sweep clockwise from
+// the rear over timestamps_end - timestamps_start, else the scan period. Odometry folders' scans,
+// de-skewed by KITTI, carry none.
+TEST(KittiRaw, ScansCarryTheirTimesInTheSweep) {
+  const auto drive = rawDrive("raw_sweep", 0, 1.0);
+  const double az = std::atan2(1.0, 5.0);  // the second point, (5, 1, -1.7)
+  {
+    const auto scan = io::KittiSequence::open(drive.string()).loadScan(1);
+    ASSERT_EQ(scan.point_time.size(), 2u);
+    EXPECT_NEAR(scan.point_time[0], 0.0, 1e-7);
+    EXPECT_NEAR(scan.point_time[1], -az / (2 * M_PI) * 0.1, 1e-6);
+  }
+  std::string start, end;
+  for (int i = 0; i < 3; ++i) {
+    char a[64], b[64];
+    std::snprintf(a, sizeof a, "2011-09-26 13:02:25.%09d\n", 12389445 + i * 100000000);
+    std::snprintf(b, sizeof b, "2011-09-26 13:02:25.%09d\n", 116389445 + i * 100000000);
+    start += a;
+    end += b;
+  }
+  test::writeText(drive / "velodyne_points/timestamps_start.txt", start);
+  test::writeText(drive / "velodyne_points/timestamps_end.txt", end);
+  const auto scan = io::KittiSequence::open(drive.string()).loadScan(1);
+  ASSERT_EQ(scan.point_time.size(), 2u);
+  EXPECT_NEAR(scan.point_time[1], -az / (2 * M_PI) * 0.104, 1e-6);
+  test::writeText(drive / "velodyne_points/timestamps_end.txt", end.substr(0, end.find('\n') + 1));
+  test::expectError([&] { io::KittiSequence::open(drive.string()); }, "timestamps_end.txt",
+                    "has 1 timestamps but the sequence has 3 scans");
 }
 
 TEST(KittiRaw, MercatorConversionMatchesTheDevkit) {

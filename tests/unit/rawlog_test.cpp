@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: BSD-3-Clause
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstring>
 #include <fstream>
 
@@ -115,6 +116,25 @@ TEST(RawlogSource, ReadsMrptVelodyneScan) {
   EXPECT_LT(max_range, 130.0);  // VLP-16 spec: 100 m
   EXPECT_GT(max_range, 2.0);
   EXPECT_FALSE(f->scan.has_pose);
+  // DESIGN §2.0: each point's firing time after the observation's (the first firing's): a sweep
+  // of a 5-20 Hz lidar, later firings turned further clockwise (MRPT's y = -sin(azimuth)).
+  ASSERT_EQ(f->scan.point_time.size(), f->scan.size());
+  const auto [lo, hi] = std::minmax_element(f->scan.point_time.begin(), f->scan.point_time.end());
+  EXPECT_GE(*lo, 0.0f);
+  EXPECT_GT(*hi, 0.04f);
+  EXPECT_LT(*hi, 0.21f);
+  std::size_t turned = 0, pairs = 0;
+  for (std::size_t i = 400; i < f->scan.size(); ++i) {  // 400 returns: about 25 firings apart
+    const auto& a = f->scan.points[i - 400];
+    const auto& b = f->scan.points[i];
+    const float dt = f->scan.point_time[i] - f->scan.point_time[i - 400];
+    if (dt <= 0 || dt > 0.01f) continue;
+    const float cross = a.x * b.y - a.y * b.x;  // > 0: counter-clockwise from a to b
+    ++pairs;
+    turned += cross < 0;
+  }
+  EXPECT_GT(pairs, 1000u);
+  EXPECT_GT(double(turned), 0.9 * double(pairs)) << "firings turn clockwise seen from above";
 }
 
 TEST(RawlogSource, ReadsMrpt3DRangeScan) {
@@ -245,6 +265,13 @@ TEST(RawlogSource, ReadsMrptRotatingScanAsThePacketsGive) {
   const auto got = cleanmap::mrpt::scanFromObservation(rot);
   ASSERT_TRUE(got.has_value());
   EXPECT_NEAR(double(got->size()), double(ref->size()), 0.05 * double(ref->size()));
+  // DESIGN §2.0: the columns' times over the sweep, as the packets' firings.
+  ASSERT_GT(rot.sweepDuration, 0.0);
+  ASSERT_EQ(got->point_time.size(), got->size());
+  const auto [lo, hi] = std::minmax_element(got->point_time.begin(), got->point_time.end());
+  const auto [rlo, rhi] = std::minmax_element(ref->point_time.begin(), ref->point_time.end());
+  EXPECT_NEAR(*lo, *rlo, 0.002);
+  EXPECT_NEAR(*hi, *rhi, 0.002);
 
   // Nearest reference point of each converted point, through a 0.5 m hash grid.
   std::unordered_map<uint64_t, std::vector<Eigen::Vector3f>> grid;

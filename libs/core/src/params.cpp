@@ -110,18 +110,23 @@ void validate(const PipelineParams& p, const std::string& name) {
           "image.align_small_shift must be in (0, 5] m");
 }
 
-int windowScans(const DsParams& ds, const std::vector<double>& stamps, double* rate_hz) {
-  if (rate_hz) *rate_hz = 0;
-  if (ds.window_k > 0) return ds.window_k;
+double scanPeriod(const std::vector<double>& stamps) {
   std::vector<double> dt;
   for (std::size_t i = 1; i < stamps.size(); ++i) {
     const double d = stamps[i] - stamps[i - 1];
     if (d > 1e-3 && d <= 1.0) dt.push_back(d);  // a lidar of 1 to 1000 Hz; repeats, gaps out
   }
-  if (dt.empty()) return kDefaultWindowK;
+  if (dt.empty()) return 0.0;
   std::sort(dt.begin(), dt.end());
   const std::size_t n = dt.size();
-  const double period = n % 2 ? dt[n / 2] : 0.5 * (dt[n / 2 - 1] + dt[n / 2]);
+  return n % 2 ? dt[n / 2] : 0.5 * (dt[n / 2 - 1] + dt[n / 2]);
+}
+
+int windowScans(const DsParams& ds, const std::vector<double>& stamps, double* rate_hz) {
+  if (rate_hz) *rate_hz = 0;
+  if (ds.window_k > 0) return ds.window_k;
+  const double period = scanPeriod(stamps);
+  if (!(period > 0)) return kDefaultWindowK;
   if (rate_hz) *rate_hz = 1.0 / period;
   const double k = std::round(ds.window_s / period);
   return static_cast<int>(std::clamp(k, 1.0, double(kMaxWindowK)));

@@ -30,15 +30,19 @@ std::size_t dropInvalidPoints(Scan& scan) {
   if (bad == 0) return 0;
   std::vector<PointXYZI> kept;
   std::vector<uint32_t> index;
+  std::vector<float> times;
+  const bool timed = scan.point_time.size() == scan.points.size();
   kept.reserve(scan.points.size() - bad);
   index.reserve(scan.points.size() - bad);
   for (std::size_t i = 0; i < scan.points.size(); ++i) {
     if (!finite(scan.points[i])) continue;
     kept.push_back(scan.points[i]);
     index.push_back(scan.originalIndex(i));
+    if (timed) times.push_back(scan.point_time[i]);
   }
   scan.points = std::move(kept);
   scan.original_index = std::move(index);
+  if (timed) scan.point_time = std::move(times);
   scan.dropped_invalid += bad;
   return bad;
 }

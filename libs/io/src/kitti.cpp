@@ -10,7 +10,9 @@
 
 #include <opencv2/imgcodecs.hpp>
 
+#include "cleanmap/core/deskew.h"
 #include "cleanmap/core/error.h"
+#include "cleanmap/core/params.h"
 #include "cleanmap/io/calib.h"
 
 namespace fs = std::filesystem;
@@ -252,6 +254,20 @@ void KittiSequence::openRaw() {
   } else {
     for (std::size_t i = 0; i < n; ++i) times_.push_back(0.1 * static_cast<double>(i));
   }
+  // DESIGN §2.0: a raw drive's scans are not de-skewed (KITTI's readme: "untwist" them). Each
+  // sweep lasts from timestamps_start to timestamps_end (timestamps.txt: facing forward), else
+  // the scan period.
+  const double period = scanPeriod(times_);
+  sweeps_.assign(n, period > 0 ? period : 0.1);
+  if (isFile(velo / "timestamps_start.txt") && isFile(velo / "timestamps_end.txt")) {
+    const std::string ps = (velo / "timestamps_start.txt").string();
+    const std::string pe = (velo / "timestamps_end.txt").string();
+    const auto start = readTimestampLines(ps), end = readTimestampLines(pe);
+    requireCount(ps, "timestamps", start.size(), n);
+    requireCount(pe, "timestamps", end.size(), n);
+    for (std::size_t i = 0; i < n; ++i)
+      if (end[i] - start[i] > 1e-3 && end[i] - start[i] <= 1.0) sweeps_[i] = end[i] - start[i];
+  }
 
   const fs::path oxts = d / "oxts" / "data";
   if (isDir(oxts)) {
@@ -321,6 +337,7 @@ std::optional<std::string> KittiSequence::objectsPath() const {
 Scan KittiSequence::loadScan(std::size_t i) const {
   Scan s = readKittiBin(scan_files_.at(i), opts_.scan);
   s.timestamp = times_.at(i);
+  if (!sweeps_.empty()) s.point_time = azimuthTimes(s.points, sweeps_[i]);  // a raw drive
   if (hasPoses()) {
     s.pose = poses_[i];
     s.has_pose = true;

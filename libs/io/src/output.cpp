@@ -360,6 +360,12 @@ void OutputWriter::finish(double wall_s, const FreeSpaceMap* free_space) {
                  {{"min", free_space ? free_space->azimuthBinMin() : 0.0},
                   {"max", free_space ? free_space->azimuthBinMax() : 0.0}}}};
   }
+  // DESIGN §2.0: the de-skew
+  j["deskew"] = {{"mode", params_.sensor.deskew == DeskewMode::kAuto ? "auto"
+                          : params_.sensor.deskew == DeskewMode::kOn ? "1"
+                                                                     : "0"},
+                 {"scans", total.deskewed},
+                 {"max_shift_m", total.deskew_max_shift}};
   // DESIGN §2b: the window's K, set or from the scan rate (auto)
   j["window"] = {{"k", total.window_k},
                  {"window_k", params_.ds.window_k > 0 ? nlohmann::json(params_.ds.window_k)

@@ -16,6 +16,7 @@
 #include <mrpt/obs/CObservationRotatingScan.h>
 #include <mrpt/obs/CObservationVelodyneScan.h>
 #include <mrpt/opengl/CPointCloudColoured.h>
+#include <mrpt/system/datetime.h>
 
 #include "cleanmap/core/error.h"
 
@@ -185,8 +186,11 @@ Scan fromRotatingScan(const ::mrpt::obs::CObservationRotatingScan& o) {
     if (!beyond) used = firings;
   }
   const double cols = std::max(1, velodyne ? used : used - 1);
+  // DESIGN §2.0: firings at a fixed rate over sweepDuration from the first (the timestamp's).
+  const bool timed = o.sweepDuration > 0 && std::isfinite(o.sweepDuration);
   for (int c = 0; c < used; ++c) {
     const double az = o.startAzimuth + o.azimuthSpan * c / cols;
+    const auto t = static_cast<float>(o.sweepDuration * c / cols);
     const double ca = std::cos(az), sa = velodyne ? -std::sin(az) : std::sin(az);
     for (int r = 0; r < o.rowCount; ++r) {
       const uint16_t raw = o.rangeImage(r, c);
@@ -196,6 +200,7 @@ Scan fromRotatingScan(const ::mrpt::obs::CObservationRotatingScan& o) {
       s.points.push_back(PointXYZI{static_cast<float>(x), static_cast<float>(y),
                                    static_cast<float>(z),
                                    has_i ? o.intensityImage(r, c) / 255.0f : 0.0f});
+      if (timed) s.point_time.push_back(t);
     }
   }
   return s;
@@ -212,12 +217,20 @@ std::optional<Scan> scanFromObservation(const ::mrpt::obs::CObservation& obs) {
     out = fromPointsMap(*pc->pointcloud);
   } else if (const auto* velo = dynamic_cast<const CObservationVelodyneScan*>(&obs)) {
     auto copy = *velo;  // generatePointCloud() is non-const
-    copy.generatePointCloud();
+    ::mrpt::obs::CObservationVelodyneScan::TGeneratePointCloudParameters gen;
+    gen.generatePerPointTimestamp = true;  // DESIGN §2.0: each firing's time, for the de-skew
+    copy.generatePointCloud(gen);
     const auto& c = copy.point_cloud;
     Scan s;
     s.points.resize(c.size());
     for (std::size_t i = 0; i < c.size(); ++i)
       s.points[i] = PointXYZI{c.x[i], c.y[i], c.z[i], c.intensity[i] / 255.0f};
+    if (c.timestamp.size() == c.size() && velo->timestamp != ::mrpt::Clock::time_point()) {
+      s.point_time.resize(c.size());
+      for (std::size_t i = 0; i < c.size(); ++i)
+        s.point_time[i] =
+            static_cast<float>(::mrpt::system::timeDifference(velo->timestamp, c.timestamp[i]));
+    }
     out = std::move(s);
   } else if (const auto* rot = dynamic_cast<const CObservationRotatingScan*>(&obs)) {
     out = fromRotatingScan(*rot);

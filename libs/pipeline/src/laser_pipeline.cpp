@@ -13,6 +13,7 @@
 
 #include "cleanmap/core/beam_index.h"
 #include "cleanmap/core/cell_key.h"
+#include "cleanmap/core/deskew.h"
 #include "cleanmap/core/error.h"
 #include "cleanmap/core/ground.h"
 #include "cleanmap/core/median.h"
@@ -271,7 +272,8 @@ LaserPipeline::~LaserPipeline() {
 }
 
 std::size_t LaserPipeline::pending() const {
-  return buf_.size() - next_ + (reg_queue_ && reg_queue_->in_flight ? 1 : 0) + (held_ ? 1 : 0);
+  return buf_.size() - next_ + (reg_queue_ && reg_queue_->in_flight ? 1 : 0) + (held_ ? 1 : 0) +
+         (deskew_first_ ? 1 : 0);
 }
 
 std::unique_ptr<LaserPipeline> LaserPipeline::clone(Sink sink) const {
@@ -306,6 +308,10 @@ std::unique_ptr<LaserPipeline> LaserPipeline::clone(Sink sink) const {
   if (odo_) c->odo_ = std::make_unique<reg::Odometry>(*odo_);
   c->prev_odometry_ = prev_odometry_;
   c->prev_pose_ = prev_pose_;
+  c->period_stamps_ = period_stamps_;
+  c->deskew_prev_ = deskew_prev_;
+  c->deskew_first_ = deskew_first_;
+  c->deskew_first_beside_ = deskew_first_beside_;
   joinFreeSpace();
   if (free_) c->free_ = std::make_unique<FreeSpaceMap>(*free_);
   return c;
@@ -363,7 +369,8 @@ PoseInfo LaserPipeline::registerFrame(Frame& f) {
     info.guess = "odometry";
   }
   const reg::OdometryStep step =
-      odo_->track(f.scan.points, f.scan.timestamp, static_cast<int64_t>(f.index), prior, kind);
+      odo_->track(f.scan.points, f.scan.timestamp, static_cast<int64_t>(f.index), prior, kind,
+                  f.scan.point_time.empty() ? nullptr : &f.scan.point_time);
   prev_odometry_ = f.odometry;
   prev_pose_ = step.pose;
   f.scan.pose = step.pose;
@@ -408,6 +415,8 @@ std::unique_ptr<LaserPipeline::Prepared> LaserPipeline::prepare(Registered&& r,
   st.points = s->scan.original_size ? s->scan.original_size : s->scan.size();
   st.invalid = s->scan.dropped_invalid;
   st.empty = s->scan.empty() ? 1 : 0;
+  st.deskewed = r.deskew_shift >= 0 ? 1 : 0;
+  st.deskew_max_shift = std::max(0.0, r.deskew_shift);
 
   auto t0 = Clock::now();
   // Every valid point is a beam (ground and far points included, DESIGN §2.4).
@@ -567,11 +576,9 @@ void LaserPipeline::push(Frame&& frame) {
     stamps_.push_back(r.frame.scan.timestamp);
     if (stamps_.size() >= static_cast<std::size_t>(kRateScans)) resolveWindow();
   }
-  // A registered frame joins the buffer, and the scans whose windows are then complete are decided
-  // (none while K is unknown).
+  sweepTimes(r.frame);
   auto take_in = [&](Registered&& x, bool registered_beside) {
-    buf_.push_back(prepare(std::move(x), registered_beside));
-    decideReady(k_ ? k_ : std::numeric_limits<std::size_t>::max());
+    admit(std::move(x), registered_beside);
   };
   if (source == PoseSource::kGiven) return take_in(std::move(r), false);
   std::optional<Registered> prev = std::move(held_);  // a frame registered ahead, not prepared
@@ -619,12 +626,79 @@ void LaserPipeline::joinFreeSpace() const {
   free_queue_->take();  // rethrows its error
 }
 
+// DESIGN §2.0: a scan's point times, where it is de-skewed (sensor.deskew): the input's, or
+// from its azimuths at the scan period of the first timestamps (0.1 s where they give none).
+void LaserPipeline::sweepTimes(Frame& f) {
+  auto& times = f.scan.point_time;
+  const DeskewMode mode = p_.sensor.deskew;
+  if (mode == DeskewMode::kOff || (mode == DeskewMode::kAuto && times.empty())) {
+    std::vector<float>().swap(times);
+    return;
+  }
+  if (period_stamps_.size() < static_cast<std::size_t>(kRateScans))
+    period_stamps_.push_back(f.scan.timestamp);
+  if (times.empty()) {
+    const double period = scanPeriod(period_stamps_);
+    times = azimuthTimes(f.scan.points, period > 0 ? period : 0.1);
+  } else if (times.size() != f.scan.size()) {
+    throw Error(f.source.empty() ? "scan " + f.stem : f.source,
+                "has " + std::to_string(times.size()) + " point times for " +
+                    std::to_string(f.scan.size()) + " points");
+  }
+}
+
+// DESIGN §2.0: a registered frame, de-skewed where it has point times, joins the buffer, and the
+// scans whose windows are then complete are decided (none while K is unknown). The motion is the
+// previous scan's pose to this one's; the first scan waits for the second's pose (the motion to
+// it). A gap over 1 s between the two: none.
+void LaserPipeline::admit(Registered&& r, bool registered_beside) {
+  Scan& scan = r.frame.scan;
+  if (r.error || !scan.has_pose || scan.point_time.empty()) {
+    if (!r.error && scan.has_pose) deskew_prev_.emplace(scan.timestamp, scan.pose);
+    return takeIn(std::move(r), registered_beside);
+  }
+  auto motion = [](double ta, const Eigen::Isometry3d& a, double tb, const Eigen::Isometry3d& b) {
+    return tb - ta <= 1.0 ? SweepMotion::between(a, ta, b, tb) : SweepMotion{};
+  };
+  if (!deskew_prev_ && !deskew_first_) {
+    deskew_first_ = std::move(r);
+    deskew_first_beside_ = registered_beside;
+    return;
+  }
+  if (deskew_first_) {
+    Registered first = std::move(*deskew_first_);
+    deskew_first_.reset();
+    Scan& fs = first.frame.scan;
+    first.deskew_shift = deskewPoints(fs.points, fs.point_time,
+                                      motion(fs.timestamp, fs.pose, scan.timestamp, scan.pose));
+    std::vector<float>().swap(fs.point_time);
+    deskew_prev_.emplace(fs.timestamp, fs.pose);
+    takeIn(std::move(first), deskew_first_beside_);
+  }
+  r.deskew_shift =
+      deskewPoints(scan.points, scan.point_time,
+                   motion(deskew_prev_->first, deskew_prev_->second, scan.timestamp, scan.pose));
+  std::vector<float>().swap(scan.point_time);
+  deskew_prev_.emplace(scan.timestamp, scan.pose);
+  takeIn(std::move(r), registered_beside);
+}
+
+void LaserPipeline::takeIn(Registered&& r, bool registered_beside) {
+  buf_.push_back(prepare(std::move(r), registered_beside));
+  decideReady(k_ ? k_ : std::numeric_limits<std::size_t>::max());
+}
+
 void LaserPipeline::finish() {
   if (!k_) resolveWindow();
   std::optional<Registered> last = std::move(held_);
   held_.reset();
   if (reg_queue_ && reg_queue_->in_flight) last = reg_queue_->take();
-  if (last) buf_.push_back(prepare(std::move(*last), true));
+  if (last) admit(std::move(*last), true);
+  if (deskew_first_) {  // the only scan: no motion to undo it by
+    std::vector<float>().swap(deskew_first_->frame.scan.point_time);
+    admit(std::move(*deskew_first_), deskew_first_beside_);
+    deskew_first_.reset();
+  }
   decideReady(0);  // the windows shrink at the end
   joinFreeSpace();
   buf_.clear();

@@ -2,6 +2,7 @@
 #include "cleanmap/registration/odometry.h"
 
 #include "cleanmap/core/cell_key.h"
+#include "cleanmap/core/deskew.h"
 #include "cleanmap/core/stopwatch.h"
 #include "flat_key_map.h"
 
@@ -60,26 +61,25 @@ Eigen::Isometry3d Odometry::predict(double t) const {
   return prev_->second * step;
 }
 
-OdometryStep Odometry::track(const std::vector<PointXYZI>& points, double t, int64_t scan,
-                             const std::optional<Eigen::Isometry3d>& prior, Prior kind) {
+OdometryStep Odometry::track(const std::vector<PointXYZI>& points_in, double t, int64_t scan,
+                             const std::optional<Eigen::Isometry3d>& prior, Prior kind,
+                             const std::vector<float>* times) {
   auto t0 = Clock::now();
   OdometryStep step;
   // The points to align: within [min_range, max_range], one per voxel, in one pass over the
   // scan (the first point of each voxel, in scan order).
   const double r0 = p_.min_range * p_.min_range, r1 = p_.max_range * p_.max_range;
-  // De-skew: the sweep runs clockwise from the rear (azimuth +pi) through the front (time 0.5)
-  // to the rear again; a point seen at sweep time s in [0, 1] moved with the constant-velocity
-  // motion `sweep` (one sweep's relative pose) by (s - 0.5) of it, relative to the sweep's middle.
-  std::optional<Eigen::Matrix<double, 6, 1>> sweep;
-  if (p_.deskew && last_.size() == 2) {
-    const double dt_prev = last_[1].first - last_[0].first;
-    const Eigen::Isometry3d delta = last_[0].second.inverse() * last_[1].second;
-    const Eigen::AngleAxisd aa(delta.linear());
-    const double scale = dt_prev > 1e-6 ? 0.1 / dt_prev : 1.0;  // per 0.1 s sweep
-    Eigen::Matrix<double, 6, 1> v;
-    v << aa.axis() * aa.angle() * scale, delta.translation() * scale;
-    sweep = v;
+  // De-skew (DESIGN §2.0): each point moved to the frame of the scan's timestamp under the motion
+  // of the last two poses. Without given times (registration.deskew alone), a 0.1 s sweep
+  // clockwise from the rear, the timestamp's frame at its middle (azimuth 0).
+  std::vector<PointXYZI> deskewed;
+  if ((times || p_.deskew) && last_.size() == 2) {
+    const SweepMotion motion =
+        SweepMotion::between(last_[0].second, last_[0].first, last_[1].second, last_[1].first);
+    deskewed = points_in;
+    deskewPoints(deskewed, times ? *times : azimuthTimes(points_in, 0.1), motion);
   }
+  const std::vector<PointXYZI>& points = deskewed.empty() ? points_in : deskewed;
   CovCloud cloud;
   FlatKeyMap& voxels = scratch_->voxels;
   voxels.reset(points.size() / 8);
@@ -89,14 +89,6 @@ OdometryStep Odometry::track(const std::vector<PointXYZI>& points, double t, int
     Eigen::Vector3d q = points[i].xyz().cast<double>();
     const double d2 = q.squaredNorm();
     if (d2 < r0 || d2 > r1) continue;
-    if (sweep) {
-      const double s = 0.5 * (1.0 - std::atan2(q.y(), q.x()) / M_PI) - 0.5;  // -0.5 .. 0.5
-      const Eigen::Vector3d w = sweep->head<3>() * s;
-      const double a = w.norm();
-      const Eigen::Matrix3d R =
-          a > 0 ? Eigen::AngleAxisd(a, w / a).toRotationMatrix() : Eigen::Matrix3d::Identity();
-      q = R * q + sweep->tail<3>() * s;
-    }
     const uint64_t key = cellKeyOf(q.x(), q.y(), q.z(), inv);
     if (key == last) continue;  // the voxel of the point before: already taken
     last = key;

@@ -101,6 +101,7 @@ SimScan simulateScan(const Scenario& sc, int k, int threads) {
     Labels labels;
     std::vector<Surface> surf;
     std::vector<int> solid;
+    std::vector<float> time;
   };
   std::vector<Part> parts(kSlices);
   parallelFor(
@@ -115,6 +116,7 @@ SimScan simulateScan(const Scenario& sc, int k, int threads) {
         const std::optional<World> own = shared ? std::nullopt : std::optional<World>(World(sc, t));
         const World& w = shared ? *shared : *own;
         const Eigen::Isometry3d pose = shared ? out.pose : egoPose(sc, t);
+        const auto dt = static_cast<float>(t - t_k);  // the slice's capture time
         const std::vector<int> cand = cull(w, pose, az(c1 - 1) - 1e-3, az(c0) + 1e-3, 0.1);
         Part& p = parts[sl];
         p.pts.reserve(static_cast<std::size_t>((c1 - c0) * rings));
@@ -151,6 +153,7 @@ SimScan simulateScan(const Scenario& sc, int k, int threads) {
             p.labels.push_back(label);
             p.surf.push_back(hit.surface);
             p.solid.push_back(hit.object);
+            if (sc.sensor.sweep_motion) p.time.push_back(dt);
           }
         }
       },
@@ -160,6 +163,7 @@ SimScan simulateScan(const Scenario& sc, int k, int threads) {
     out.labels.insert(out.labels.end(), p.labels.begin(), p.labels.end());
     out.surface.insert(out.surface.end(), p.surf.begin(), p.surf.end());
     out.solid.insert(out.solid.end(), p.solid.begin(), p.solid.end());
+    out.point_time.insert(out.point_time.end(), p.time.begin(), p.time.end());
   }
   return out;
 }
@@ -253,6 +257,7 @@ Frame frameOf(SimScan&& s, int k) {
   f.stem = stem;
   f.scan.original_size = s.points.size();
   f.scan.points = std::move(s.points);
+  f.scan.point_time = std::move(s.point_time);
   f.scan.pose = s.reported_pose;
   f.scan.has_pose = true;
   f.scan.timestamp = s.time;

@@ -31,6 +31,13 @@ double moverArc(const MoverSpec& m, double t) {
 }
 
 Eigen::Vector3d alongPath(const std::vector<Eigen::Vector2d>& path, double s) {
+  // Before the start (the first sweep of a sensor moving during it, t < 0): on along the first
+  // segment, so that the motion is steady from the first instant.
+  if (s < 0 && path.size() >= 2 && (path[1] - path[0]).norm() > 0) {
+    const Eigen::Vector2d d = (path[1] - path[0]).normalized();
+    const Eigen::Vector2d p = path[0] + d * s;
+    return {p.x(), p.y(), std::atan2(d.y(), d.x())};
+  }
   s = std::max(0.0, s);
   for (std::size_t i = 1; i < path.size(); ++i) {
     const Eigen::Vector2d d = path[i] - path[i - 1];

@@ -29,6 +29,9 @@ constexpr int kMaxWindowK = 50;
 /// repeated stamp does not move their median).
 constexpr int kRateScans = 5;
 
+/// DESIGN §2.0: when a scan's points are moved into the frame of its timestamp.
+enum class DeskewMode { kAuto = 0, kOff = 1, kOn = 2 };
+
 /// DESIGN §2a: the lidar and its mounting (issue #15).
 struct SensorParams {
   /// m; the sensor origin's height above the ground under the vehicle: h_G = -height starts the
@@ -39,6 +42,11 @@ struct SensorParams {
   /// tuned on the HDL-64E (object.min_moving, DESIGN §2d). kAuto: measured in every scan where
   /// its rings stand apart (sparse sensors), else the HDL-64E's.
   SensorModel model = SensorModel::kAuto;
+  /// DESIGN §2.0: undo the motion during each sweep (registration and every later stage see the
+  /// de-skewed points). kAuto: where the input gives per-point times (a rawlog's Velodyne packets
+  /// or rotating scans), not where it gives none (KITTI's scans come de-skewed). kOn: also
+  /// there, the times from the azimuth (a sweep clockwise from the rear, as KITTI's HDL-64E).
+  DeskewMode deskew = DeskewMode::kAuto;
 };
 
 /// DESIGN §2a: ground removal by height propagation.
@@ -144,8 +152,9 @@ struct RegistrationParams {
   /// scan the same way, under the tolerance each step, strays from the odometry over the window
   /// the laser test compares scans in (DESIGN §2.1 step 4). 1 = the previous scan only.
   int odometry_window = 10;
-  /// Undo the motion during the sweep before aligning (constant velocity; a point's time from its
-  /// azimuth, the sweep running clockwise from the rear as on KITTI's HDL-64E). 0 = off.
+  /// Undo the motion during the sweep of the aligned points only (constant velocity; a point's time
+  /// from its azimuth over 0.1 s, the sweep running clockwise from the rear as on KITTI's
+  /// HDL-64E). 0 = off. SensorParams::deskew de-skews the points for every stage (DESIGN §2.0).
   bool deskew = false;
   /// With gicp / refine poses, the pose error between two scans is taken as relative_error times
   /// the path between them (odometry error grows with the distance travelled; #11's drift bar
@@ -281,6 +290,9 @@ void validate(const PipelineParams& params, const std::string& name);
 /// rate from the median interval between consecutive `stamps` (seconds; those of the run's first
 /// kRateScans scans) among those in (1 ms, 1 s], clamped to [1, kMaxWindowK]; kDefaultWindowK
 /// where no interval is usable (no timestamps, one scan). `rate_hz` gets the rate (0: none).
+/// The median interval (s) between consecutive timestamps among those in (1 ms, 1 s] (a lidar of
+/// 1 to 1000 Hz; repeats and gaps left out); 0 where there is none.
+double scanPeriod(const std::vector<double>& stamps);
 int windowScans(const DsParams& ds, const std::vector<double>& stamps, double* rate_hz = nullptr);
 /// The stride of a window of K scans: ds.window_stride, or auto max(1, K / kDefaultWindowK).
 int windowStride(const DsParams& ds, int k);

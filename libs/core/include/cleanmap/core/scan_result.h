@@ -32,6 +32,10 @@ struct ScanStats {
   std::size_t window_k = 0, window_stride = 0;
   double scan_rate_hz = 0;
   std::size_t map_far = 0;  ///< points beyond the crop within the map radius (DESIGN §2e)
+  /// DESIGN §2.0: 1 for a de-skewed scan (summed: de-skewed scans); the largest distance one of
+  /// its points moved (m; the run's largest in sums).
+  std::size_t deskewed = 0;
+  double deskew_max_shift = 0;
   std::size_t total_conflicts = 0, no_evidence = 0;
   /// The moving-point test's work (issue #16): (tested point, window scan) pairs looked up, beams
   /// evaluated in their cones, points decided before their last window scan.

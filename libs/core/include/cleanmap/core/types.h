@@ -28,6 +28,10 @@ struct Scan {
   std::vector<uint32_t> original_index;
   std::size_t original_size = 0;    ///< number of points in the input, invalid ones included
   std::size_t dropped_invalid = 0;  ///< NaN / infinite points removed on reading
+  /// DESIGN §2.0: each point's time in seconds after `timestamp`, where the input gives it (a
+  /// Velodyne's packets, a rotating scan's columns); empty where it does not. Kept beside
+  /// `points` (same order) until the points are de-skewed.
+  std::vector<float> point_time;
 
   std::size_t size() const { return points.size(); }
   bool empty() const { return points.empty(); }

@@ -66,6 +66,7 @@ class KittiSequence : public FrameSource {
   std::vector<std::string> scan_files_, stems_, image_files_, label_files_;
   std::vector<Eigen::Isometry3d> poses_;
   std::vector<double> times_;
+  std::vector<double> sweeps_;  // raw drives: each scan's sweep duration (s), DESIGN §2.0
   std::optional<PinholeCamera> camera_;
   std::size_t cursor_ = 0;
 };

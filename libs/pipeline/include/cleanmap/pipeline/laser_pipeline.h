@@ -90,6 +90,7 @@ class LaserPipeline {
     PoseInfo pose_info;
     double ms = 0;  // registration wall time
     std::exception_ptr error;
+    double deskew_shift = -1;  // DESIGN §2.0: the largest shift of its de-skew; -1: none
   };
   struct RegQueue;  // one registration at a time on a thread of its own (registerAhead)
   std::unique_ptr<Prepared> prepare(Registered&& r, bool registered_beside);
@@ -166,6 +167,17 @@ class LaserPipeline {
   std::deque<Drop> drops_;
   std::unique_ptr<RegQueue> reg_queue_;  // registerAhead: the frame registering now
   std::optional<Registered> held_;       // a clone's copy of its original's registered frame
+
+  // DESIGN §2.0: the de-skew. A pushed scan's point times (given, or from its azimuths, or none);
+  // a registered scan's points moved by the motion from the previous scan's pose to its own
+  // (the first scan's: to the second's, so it waits for it); then prepared and decided.
+  void sweepTimes(Frame& f);
+  void admit(Registered&& r, bool registered_beside);
+  void takeIn(Registered&& r, bool registered_beside);
+  std::vector<double> period_stamps_;  // the first kRateScans timestamps: the sweep's period
+  std::optional<std::pair<double, Eigen::Isometry3d>> deskew_prev_;  // last admitted (time, pose)
+  std::optional<Registered> deskew_first_;  // the first timed scan, until the second's pose
+  bool deskew_first_beside_ = false;
 };
 
 }  // namespace cleanmap

@@ -45,10 +45,12 @@ class Odometry {
   ~Odometry();
 
   /// The pose of a scan (sensor-frame points) taken at `timestamp` (s). `prior` replaces the
-  /// constant-velocity guess (--poses refine, rawlog odometry: `kind`).
+  /// constant-velocity guess (--poses refine, rawlog odometry: `kind`). With `times` (each
+  /// point's time after `timestamp`, DESIGN §2.0) the points are aligned de-skewed by the motion
+  /// of the last two poses; without, only where registration.deskew is on (azimuth times).
   OdometryStep track(const std::vector<PointXYZI>& points, double timestamp, int64_t scan,
                      const std::optional<Eigen::Isometry3d>& prior = std::nullopt,
-                     Prior kind = Prior::kGiven);
+                     Prior kind = Prior::kGiven, const std::vector<float>* times = nullptr);
   /// Takes the points of `scan` flagged in `drop` (indexed like the scan's points) out of the map.
   void dropPoints(int64_t scan, const std::vector<uint8_t>& drop) { map_.remove(scan, drop); }
 

@@ -21,9 +21,11 @@ struct SensorSpec {
   double range_noise = 0.01;       ///< m, Gaussian sigma
   double dropout = 0.01;           ///< probability that a ray returns nothing
   double min_range = 2.0, max_range = 120.0;
-  double height = 1.73;       ///< above the ground under the ego
-  bool sweep_motion = false;  ///< ego and movers move during the 0.1 s sweep (no de-skew)
-  bool camera = true;         ///< render image_2/ (KITTI size and calibration)
+  double height = 1.73;  ///< above the ground under the ego
+  /// Ego and movers move during the 0.1 s sweep; each point's time rides with the frame
+  /// (SimScan::point_time), not in the KITTI folder's files (DESIGN §2.0).
+  bool sweep_motion = false;
+  bool camera = true;  ///< render image_2/ (KITTI size and calibration)
   /// Lidar model (issue #15): `model` (a preset of cleanmap/core/sensor.h: its rings and
   /// azimuth step), or `rings` evenly spaced over `vertical_fov_deg`. Default: the HDL-64E.
   SensorModel model = SensorModel::kHdl64;

@@ -73,8 +73,9 @@ Eigen::Isometry3d reportedPose(const Scenario& sc, int k);
 /// The wheel odometry of frame k where the scenario has it (Scenario::ego_odometry; its own
 /// seeded walk, in the world frame: only its increments mean something), else nothing.
 std::optional<Eigen::Isometry3d> odometryPose(const Scenario& sc, int k);
-/// Position and heading along a polyline after arc length s (clamped to the ends).
-Eigen::Vector3d alongPath(const std::vector<Eigen::Vector2d>& path, double s);  // x, y, yaw
+/// Position and heading (x, y, yaw) along a polyline after arc length s (clamped to its end;
+/// before its start, on along the first segment).
+Eigen::Vector3d alongPath(const std::vector<Eigen::Vector2d>& path, double s);
 /// Arc length a mover has covered by time t (start delay and stop interval applied).
 double moverArc(const MoverSpec& m, double t);
 
@@ -90,6 +91,8 @@ struct SimScan {
   Labels labels;                  ///< ground truth: 9 static, 251 moving, 0 ignore (DESIGN §5)
   std::vector<Surface> surface;   ///< per point
   std::vector<int> solid;         ///< per point, index into the frame's World::solids(), -1 ground
+  /// Per point with sweep_motion (else empty): its capture time in s after `time` (DESIGN §2.0).
+  std::vector<float> point_time;
 };
 
 /// One lidar sweep of frame `k`. Deterministic for a given scenario (noise is a hash of the seed,
