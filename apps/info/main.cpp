@@ -34,7 +34,8 @@ int main(int argc, char** argv) {
     const auto* kitti = dynamic_cast<const cleanmap::io::KittiSequence*>(src.get());
     std::vector<std::size_t> sizes;
     std::size_t dropped = 0, posed = 0, images = 0, empty = 0, moving = 0, labelled = 0,
-                odometry = 0;
+                odometry = 0, timed = 0;
+    std::vector<double> spans;  // each timed scan's first to last point time (s)
     double length = 0, t0 = 0, t1 = 0;
     std::optional<Eigen::Vector3d> last;
     while (auto f = src->next()) {
@@ -46,6 +47,11 @@ int main(int argc, char** argv) {
       empty += s.empty();
       images += f->image.has_value();
       odometry += f->odometry.has_value();
+      if (!s.point_time.empty()) {
+        ++timed;
+        const auto [lo, hi] = std::minmax_element(s.point_time.begin(), s.point_time.end());
+        spans.push_back(double(*hi) - double(*lo));
+      }
       if (s.has_pose) {
         ++posed;
         if (last) length += (s.pose.translation() - *last).norm();
@@ -68,6 +74,14 @@ int main(int argc, char** argv) {
                 sizes.size(), t1 - t0, sorted.front(), sorted[sorted.size() / 2], sorted.back());
     std::printf("invalid: %zu NaN/inf points dropped, %zu empty scans\n", dropped, empty);
     std::printf("poses:   %zu of %zu scans; trajectory %.2f m\n", posed, sizes.size(), length);
+    // DESIGN §2.0: scans whose points carry their times are de-skewed (sensor.deskew auto)
+    if (timed) {
+      std::sort(spans.begin(), spans.end());
+      std::printf("point times: %zu of %zu scans, sweep %.1f ms (median): de-skewed by default\n",
+                  timed, sizes.size(), 1000.0 * spans[spans.size() / 2]);
+    } else {
+      std::printf("point times: none: not de-skewed unless sensor.deskew = 1\n");
+    }
     if (odometry)  // rawlog odometry: GICP's guess with --poses gicp (DESIGN §2.1)
       std::printf("odometry: %zu of %zu scans\n", odometry, sizes.size());
     if (const auto cam = src->camera())

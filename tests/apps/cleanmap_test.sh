@@ -148,6 +148,9 @@ vlp=/usr/share/mrpt/datasets/test_velodyne_VLP16.rawlog
 if [[ -f $vlp ]]; then
   "$bin/cleanmap" "$vlp" -o "$scratch/vlp" >/dev/null || fail "the one-scan VLP-16 rawlog did not run"
   [[ -f $scratch/vlp/labels/000000.label ]] || fail "no labels for the VLP-16 scan"
+  # Its packets time every firing (DESIGN §2.0): a sweep of about 0.1 s.
+  "$bin/cleanmap-info" "$vlp" | grep -qE "^point times: 1 of 1 scans, sweep (9[0-9]|10[0-9])\.[0-9] ms" ||
+    fail "cleanmap-info does not see the VLP-16 firing times: $("$bin/cleanmap-info" "$vlp" | grep 'point times')"
   # Its columns are 0.4 degrees apart (0.007 rad): the free-space walk's bins follow (DESIGN §2e).
   azbin=$(grep -A2 '"free_space_azimuth_bin_rad"' "$scratch/vlp/report.json" | grep -o '"min": [0-9.e-]*' | cut -d' ' -f2)
   awk -v b="$azbin" 'BEGIN { exit !(b > 0.0068 && b < 0.0085) }' || fail "VLP-16 free-space azimuth bin '$azbin', expected its 0.007 rad step"
