@@ -379,6 +379,7 @@ PoseInfo LaserPipeline::registerFrame(Frame& f) {
   info.status = step.status;
   info.reason = step.reason;
   info.map_restarts = step.map_restarts;
+  info.start_guesses = step.start_guesses;
   info.accepted = step.accepted;
   info.iterations = step.gicp.iterations;
   info.fitness = step.gicp.fitness;

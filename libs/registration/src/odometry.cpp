@@ -135,20 +135,48 @@ OdometryStep Odometry::track(const std::vector<PointXYZI>& points_in, double t, 
   } else {
     // DESIGN §2.1, "Traffic that moves with the sensor": the entries of the last map_lag accepted
     // scans are left out (until map_lag + 1 are accepted, only the first scan's are aligned to).
-    step.gicp = alignGicp(align, map_, guess, gicp_, threads_,
+    auto attempt = [&](const Eigen::Isometry3d& from, OdometryStep& st) {
+      st.gicp = alignGicp(align, map_, from, gicp_, threads_,
                           accepted_.empty() ? INT64_MAX : accepted_.front());
-    step.pose = step.gicp.T;
-    step.status = step.gicp.failure.empty() ? "ok" : step.gicp.failure;
-    step.reason = step.gicp.reason;
-    if (step.gicp.failure.empty() && !last_.empty()) {  // a jump beyond what the motion allows
-      const Eigen::Isometry3d rel = last_.back().second.inverse() * step.pose;
-      const double dt = std::max(t - last_.back().first, 0.1);
-      const double turn = Eigen::AngleAxisd(rel.linear()).angle();
-      if (rel.translation().norm() > p_.max_speed * dt + 0.5 ||
-          turn > p_.max_turn_rate * dt + 0.05) {
-        step.status = "jump of " + std::to_string(rel.translation().norm()) + " m / " +
+      st.pose = st.gicp.T;
+      st.status = st.gicp.failure.empty() ? "ok" : st.gicp.failure;
+      st.reason = st.gicp.reason;
+      if (st.gicp.failure.empty() && !last_.empty()) {  // a jump beyond what the motion allows
+        const Eigen::Isometry3d rel = last_.back().second.inverse() * st.pose;
+        const double dt = std::max(t - last_.back().first, 0.1);
+        const double turn = Eigen::AngleAxisd(rel.linear()).angle();
+        if (rel.translation().norm() > p_.max_speed * dt + 0.5 ||
+            turn > p_.max_turn_rate * dt + 0.05) {
+          st.status = "jump of " + std::to_string(rel.translation().norm()) + " m / " +
                       std::to_string(turn) + " rad in " + std::to_string(dt) + " s";
-        step.reason = "a jump beyond max_speed / max_turn_rate";
+          st.reason = "a jump beyond max_speed / max_turn_rate";
+        }
+      }
+    };
+    attempt(guess, step);
+    // DESIGN §2.1 "Starting at speed": no velocity yet (no two accepted scans) and no prior, the
+    // guess is a standstill, a scan period's travel off for a car already driving (1.4 m at
+    // 14 m/s, beyond the correspondences' reach: a street's corridor then holds it, degenerate).
+    // Refused, it is tried again from guesses along the sensor's forward axis, both ways, every
+    // half correspondence distance up to max_speed; the accepted one with the best fitness wins.
+    if (step.status != "ok" && !prior && last_.size() < 2 && prev_) {
+      const double reach = p_.max_speed * std::clamp(t - prev_->first, 0.0, 1.0);
+      const double pace = 0.5 * p_.max_correspondence;
+      std::optional<OdometryStep> best;
+      for (int i = 1; i * pace <= reach + 1e-9; ++i)
+        for (const double d : {i * pace, -i * pace}) {
+          Eigen::Isometry3d from = guess;
+          from.translation() += guess.linear() * Eigen::Vector3d(d, 0, 0);
+          OdometryStep st;
+          attempt(from, st);
+          ++step.start_guesses;
+          if (st.status == "ok" && (!best || st.gicp.fitness > best->gicp.fitness)) best = st;
+        }
+      if (best) {
+        step.gicp = best->gicp;
+        step.pose = best->pose;
+        step.status = best->status;
+        step.reason = best->reason;
       }
     }
     // DESIGN §2.1 step 4: GICP moved the pose farther from the input odometry than that
