@@ -142,6 +142,11 @@ MapScore cleanMapScore(const std::string& set) {
 // moving no longer takes along its low points with nothing of it above them (from a low mount, the
 // sidewalk beside a car that leaves); highway 40 points (recall 0.9044 -> 0.9043, IoU 0.8543),
 // residential 81 points, all outside the labelled area (label 0); city stayed.
+// Rule 2's raised parts (the same file) changed highway's and residential's on purpose: above the
+// foot only the parts of a component turned moving that hold a moving point of their own take
+// its motion (a walker joined by a sidewalk to a pole and a wall takes neither along); highway
+// 253 moving points of a truck's part (recall 0.9043 -> 0.9040, IoU 0.8539), residential 36
+// points, all label 0; city stayed.
 void expectDigest(const OutputDigest& d, uint64_t labels, uint64_t compact, uint64_t full,
                   uint64_t moving) {
   EXPECT_EQ(d.labels, labels) << "labels differ from the reference run";
@@ -161,10 +166,10 @@ TEST(Regression, OutputsByteIdenticalToTheReference) {
   runSet("kitti_residential", &residential);
   expectDigest(city, 0xe6503807ad3d06bcull, 0x7eb7ed012f3a1fc7ull, 0xb137387dc6583b49ull,
                0x0273601384a59ac0ull);
-  expectDigest(highway, 0x089116527e572e1cull, 0x1c9e0fd497e20796ull, 0x313c558d582f8aedull,
-               0x543aa68f9a88aab9ull);
-  expectDigest(residential, 0xf2cc10d0ebd1e4f5ull, 0x7d9ca198b67f4e41ull, 0xd8050921615df7b1ull,
-               0x6a49428e88496860ull);
+  expectDigest(highway, 0x581f100bd7181f4eull, 0x4f0ee01981140f7full, 0x9544ab51c4375b1eull,
+               0x6549a35e8ad14b42ull);
+  expectDigest(residential, 0x8315ff32c622d415ull, 0x10ff82b676082223ull, 0x75700aa21890e2b4ull,
+               0xe932b29af99ba875ull);
 }
 
 TEST(Regression, City) {

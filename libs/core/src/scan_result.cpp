@@ -49,6 +49,7 @@ ScanStats& ScanStats::operator+=(const ScanStats& o) {
   consensus_removed += o.consensus_removed;
   consensus_body_kept += o.consensus_body_kept;
   consensus_foot_left += o.consensus_foot_left;
+  consensus_still_part_left += o.consensus_still_part_left;
   objects_persisted += o.objects_persisted;
   empty += o.empty;
   image_scans += o.image_scans;

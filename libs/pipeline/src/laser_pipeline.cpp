@@ -912,6 +912,7 @@ void LaserPipeline::objectConsensus(Prepared& s, Work& w) const {
   s.stats.consensus_removed = oc.points_removed;
   s.stats.consensus_body_kept = oc.body_points_kept;
   s.stats.consensus_foot_left = oc.foot_points_left;
+  s.stats.consensus_still_part_left = oc.still_part_points_left;
   s.stats.ms.objects = msSince(t0);
 }
 

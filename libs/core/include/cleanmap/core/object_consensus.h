@@ -20,6 +20,9 @@ struct ObjectConsensusStats {
   std::size_t persisted = 0;         ///< of moving_objects, those kept moving by the hysteresis
   std::size_t body_points_kept = 0;  ///< moving points of a body a static component kept
   std::size_t foot_points_left = 0;  ///< points at a moving component's foot not turned moving
+  /// Points of a moving component's raised parts (joined to it only below the foot) with no
+  /// moving point of their own, not turned moving.
+  std::size_t still_part_points_left = 0;
 };
 
 /// Groups `points[i]` with `member[i]` (in crop, not ground) into 26-connected voxel components

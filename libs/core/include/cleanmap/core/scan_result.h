@@ -49,7 +49,9 @@ struct ScanStats {
   std::size_t objects_persisted = 0;    ///< of objects_moving, kept moving by the hysteresis
   std::size_t consensus_body_kept = 0;  ///< moving points of bodies a static component kept
   std::size_t consensus_foot_left = 0;  ///< points at a moving component's foot left static
-  std::size_t empty = 0;                ///< 1 for a scan without valid points (summed: empty scans)
+  /// points of a moving component's raised parts with no moving point of their own, left static
+  std::size_t consensus_still_part_left = 0;
+  std::size_t empty = 0;  ///< 1 for a scan without valid points (summed: empty scans)
   /// DESIGN §3, the camera check: scans that had an image; decision units (cells of moving
   /// points) tested, of which confirmed moving by the colour / depth test, relabelled static
   /// when every camera found them similar (by colour only / with the depth test), and unseen
