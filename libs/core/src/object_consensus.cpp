@@ -63,6 +63,8 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
       if (n) uf.unite(v, *n);
     });
   }
+  std::vector<uint32_t> root_of(voxels.size());  // each voxel's component, found once
+  for (uint32_t v = 0; v < voxels.size(); ++v) root_of[v] = uf.find(v);
   // The voxels that hold moving points (moving_in[v] > 0), joined with their 26-neighbours that
   // do: connected groups of moving points.
   const auto movingGroups = [&](const std::vector<uint32_t>& moving_in) {
@@ -85,7 +87,7 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
   std::vector<Comp> comps(voxels.size());
   for (std::size_t i = 0; i < points.size(); ++i) {
     if (point_voxel[i] == UINT32_MAX) continue;
-    Comp& c = comps[uf.find(point_voxel[i])];
+    Comp& c = comps[root_of[point_voxel[i]]];
     ++c.n;
     c.moving += moving[i] != 0;
     if (near_previous) c.near_prev += (*near_previous)[i] != 0;
@@ -171,7 +173,7 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
     std::vector<uint32_t> raised_in(voxels.size(), 0), raised_moving(voxels.size(), 0);
     for (std::size_t i = 0; i < points.size(); ++i) {
       if (point_voxel[i] == UINT32_MAX) continue;
-      const uint32_t root = uf.find(point_voxel[i]);
+      const uint32_t root = root_of[point_voxel[i]];
       if (turn[root] != 1 || low(i, root)) continue;
       ++raised_in[point_voxel[i]];
       raised_moving[point_voxel[i]] += moving[i] != 0;
@@ -190,7 +192,7 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
       if (part_n[v] > 0) spreads[v] = part_moving[v] > 0;
     for (std::size_t i = 0; i < points.size(); ++i) {
       if (point_voxel[i] == UINT32_MAX) continue;
-      const uint32_t root = uf.find(point_voxel[i]);
+      const uint32_t root = root_of[point_voxel[i]];
       if (turn[root] == 1 && !low(i, root) && spreads[part_of[point_voxel[i]]])
         raised.get(columnKey(point_voxel[i], 0, 0, root)) = 1;
     }
@@ -208,7 +210,7 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
   };
   for (std::size_t i = 0; i < points.size(); ++i) {
     if (point_voxel[i] == UINT32_MAX) continue;
-    const uint32_t root = uf.find(point_voxel[i]);
+    const uint32_t root = root_of[point_voxel[i]];
     const uint8_t t = turn[root];
     if (t == 1 && !moving[i]) {
       if (at_foot(i, root)) {
