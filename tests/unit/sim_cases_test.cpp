@@ -662,3 +662,47 @@ TEST(SimSensors, TiltedMountIsLevelledByItsSensorPose) {
       runCase(sc, PipelineParams{}, nullptr, nullptr, false, false, &mount).all.iou();
   EXPECT_GE(tilted, ref - 0.03) << "level: IoU " << ref;
 }
+
+// DESIGN §2.0 and §2f: with de-skewing, a chunk's first scan has no predecessor and takes the
+// motion to its second scan, the whole run's the motion from its predecessor (with drifting poses
+// the two differ). It is not owned, and the scans the chunk owns keep the whole run's labels: on a
+// curve at 14 m/s with sweep motion, chunks started 2K scans before their first owned epoch and
+// K + 1 scans before it.
+TEST(SimCases, ChunksWithDeskewReproduceTheWholeRun) {
+  auto sc = scenario("curved_path");
+  sc.frames = 30;
+  sc.ego_speed = 14;
+  sc.sensor.sweep_motion = true;
+  sc.sensor.camera = false;
+  sc.ego_pose_drift = 0.05;
+  PipelineParams p;
+  p.ds.window_k = 5;
+  p.epoch = 10;
+  std::vector<Frame> frames;
+  for (int k = 0; k < sc.frames; ++k)
+    frames.push_back(sim::frameOf(sim::simulateScan(sc, k, 2), k));
+  struct Run {
+    std::map<long, Labels> labels;
+    std::map<long, double> shift;
+  };
+  auto run = [&](int first) {
+    Run out;
+    LaserPipeline pl(p, [&](ScanResult&& r) {
+      out.labels[static_cast<long>(r.index)] = r.labels;
+      if (r.stats.deskewed) out.shift[static_cast<long>(r.index)] = r.stats.deskew_max_shift;
+    });
+    for (int k = first; k < sc.frames; ++k) pl.push(Frame(frames[static_cast<std::size_t>(k)]));
+    pl.finish();
+    return out;
+  };
+  const Run whole = run(0);
+  ASSERT_EQ(whole.shift.size(), 30u);
+  for (const int first : {10, 14}) {
+    const Run chunk = run(first);
+    ASSERT_EQ(chunk.shift.size(), static_cast<std::size_t>(sc.frames - first));
+    EXPECT_NE(chunk.shift.at(first), whole.shift.at(first)) << "start " << first;
+    EXPECT_EQ(chunk.shift.at(first + 1), whole.shift.at(first + 1)) << "start " << first;
+    for (long s = 20; s < sc.frames; ++s)
+      EXPECT_TRUE(chunk.labels.at(s) == whole.labels.at(s)) << "start " << first << ", scan " << s;
+  }
+}
