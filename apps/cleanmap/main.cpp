@@ -232,6 +232,7 @@ int main(int argc, char** argv) {
     cleanmap::mrpt::InputOptions in_opts;
     in_opts.allow_empty_scans = true;            // counted in the report
     in_opts.load_images = params.image.enabled;  // DESIGN §3
+    in_opts.point_times = params.sensor.deskew != cleanmap::DeskewMode::kOff;  // DESIGN §2.0
     auto src = cleanmap::mrpt::openInput(input, in_opts);
     const auto* kitti = dynamic_cast<const cleanmap::io::KittiSequence*>(src.get());
     const bool evaluate = kitti && kitti->hasLabels();

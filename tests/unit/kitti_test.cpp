@@ -233,6 +233,12 @@ TEST(KittiRaw, ScansCarryTheirTimesInTheSweep) {
     ASSERT_EQ(scan.point_time.size(), 2u);
     EXPECT_NEAR(scan.point_time[0], 0.0, 1e-7);
     EXPECT_NEAR(scan.point_time[1], -az / (2 * M_PI) * 0.1, 1e-6);
+    io::KittiReadOptions no_times;  // sensor.deskew = 0: not computed
+    no_times.point_times = false;
+    const auto plain = io::KittiSequence::open(drive.string(), no_times).loadScan(1);
+    EXPECT_TRUE(plain.point_time.empty());
+    ASSERT_EQ(plain.size(), 2u);
+    EXPECT_EQ(plain.points[1].xyz(), scan.points[1].xyz());
   }
   std::string start, end;
   for (int i = 0; i < 3; ++i) {

@@ -337,7 +337,8 @@ std::optional<std::string> KittiSequence::objectsPath() const {
 Scan KittiSequence::loadScan(std::size_t i) const {
   Scan s = readKittiBin(scan_files_.at(i), opts_.scan);
   s.timestamp = times_.at(i);
-  if (!sweeps_.empty()) s.point_time = azimuthTimes(s.points, sweeps_[i]);  // a raw drive
+  if (!sweeps_.empty() && opts_.point_times)  // a raw drive
+    s.point_time = azimuthTimes(s.points, sweeps_[i]);
   if (hasPoses()) {
     s.pose = poses_[i];
     s.has_pose = true;

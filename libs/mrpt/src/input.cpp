@@ -15,6 +15,7 @@ std::unique_ptr<FrameSource> openInput(const std::string& path, const InputOptio
     io::KittiReadOptions k;
     k.scan.allow_empty = opts.allow_empty_scans;
     k.load_images = opts.load_images;
+    k.point_times = opts.point_times;
     return std::make_unique<io::KittiSequence>(io::KittiSequence::open(path, k));
   }
   if (!std::filesystem::exists(path, ec))

@@ -15,6 +15,7 @@ enum class KittiLayout { kOdometry, kRaw };
 struct KittiReadOptions {
   ScanReadOptions scan;
   bool load_images = true;  ///< deliver images with frames (when the folder has them)
+  bool point_times = true;  ///< a raw drive's point times from the azimuth (DESIGN §2.0)
 };
 
 /// A KITTI sequence folder, opened once (file lists, poses, times, calibration are read and

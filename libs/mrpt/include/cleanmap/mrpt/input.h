@@ -11,6 +11,7 @@ namespace cleanmap::mrpt {
 struct InputOptions {
   bool allow_empty_scans = false;
   bool load_images = true;
+  bool point_times = true;  ///< KITTI raw drives: point times, for the de-skew (DESIGN §2.0)
 };
 
 /// A directory opens as a KITTI sequence (odometry or raw), a file as a rawlog.
