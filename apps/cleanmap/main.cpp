@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
+#include <map>
 #include <optional>
 #include <string>
 
@@ -25,6 +26,7 @@
 #include "cleanmap/maps/moving_objects_map.h"
 #include "cleanmap/mrpt/input.h"
 #include "cleanmap/mrpt/outputs.h"
+#include "cleanmap/mrpt/rawlog.h"
 
 namespace {
 
@@ -88,6 +90,10 @@ INPUT                a KITTI odometry/SemanticKITTI or raw folder, or an MRPT .r
                      relabel static what looks the same in all of them (DESIGN §3; an error if
                      INPUT has no images and calibration); off: laser only; auto (default): on
                      where the input has images (KITTI image_2/, rawlog CObservationImage)
+--lidar LABEL        rawlogs: read the scans of the lidar with this sensorLabel (default: the
+                     first lidar's); those of other lidars are skipped, counted in report.json
+                     (rawlog_sensors) and in one warning line
+--camera LABEL       rawlogs: the same for the camera images
 --save-overlays      write overlays/<stem>.png: each camera image with the scan's points, static
                      green, moving red, relabelled static by the camera yellow
 --no-mrpt-outputs    skip the .3Dscene, .simplemap and the two rawlogs
@@ -103,7 +109,7 @@ interrupted by SIGINT / SIGTERM (nothing written to DIR).
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::string input, outdir, config, map_section, poses = "auto", images = "auto";
+  std::string input, outdir, config, map_section, poses = "auto", images = "auto", lidar, camera;
   long threads = -1, first = 0, last = -1;
   long long seed = -1;
   bool quiet = false, progress_shown = false, force = false, mrpt_outputs = true, overlays = false;
@@ -134,6 +140,10 @@ int main(int argc, char** argv) {
       poses = args.value(a);
     else if (a == "--images")
       images = args.value(a);
+    else if (a == "--lidar")
+      lidar = args.value(a);
+    else if (a == "--camera")
+      camera = args.value(a);
     else if (a == "--save-overlays")
       overlays = true;
     else if (a == "--quiet")
@@ -233,8 +243,11 @@ int main(int argc, char** argv) {
     in_opts.allow_empty_scans = true;            // counted in the report
     in_opts.load_images = params.image.enabled;  // DESIGN §3
     in_opts.point_times = params.sensor.deskew != cleanmap::DeskewMode::kOff;  // DESIGN §2.0
+    in_opts.lidar_label = lidar;
+    in_opts.camera_label = camera;
     auto src = cleanmap::mrpt::openInput(input, in_opts);
     const auto* kitti = dynamic_cast<const cleanmap::io::KittiSequence*>(src.get());
+    const auto* rawlog = dynamic_cast<const cleanmap::mrpt::RawlogSource*>(src.get());
     const bool evaluate = kitti && kitti->hasLabels();
     if (params.image.enabled && kitti) {  // a rawlog's camera is known from its first image
       if (images == "on" && (!src->camera() || !kitti->hasImages()))
@@ -249,7 +262,9 @@ int main(int argc, char** argv) {
     moving->setRegisterAhead(true);  // with GICP and threads > 1 (issue #16)
     // The next frame is read and decoded while the pipeline decides this one (issue #16); the
     // KITTI reader's labels are still read here (its const loadLabels is safe beside that).
-    src = std::make_unique<cleanmap::io::PrefetchSource>(std::move(src));
+    auto prefetch = std::make_unique<cleanmap::io::PrefetchSource>(std::move(src));
+    auto* prefetching = prefetch.get();
+    src = std::move(prefetch);
 
     if (const auto n = src->sizeHint(); n && first >= static_cast<long>(*n))
       throw cleanmap::Error(input, "--first " + std::to_string(first) +
@@ -325,6 +340,10 @@ int main(int argc, char** argv) {
       moving->insertFrame(std::move(*f));
     }
     out.inputEnded();  // the last scans are decided without new ones coming in
+    const auto inner = prefetching->release();  // the reading thread has stopped
+    if (rawlog)
+      out.setSensors({rawlog->lidarLabel(), rawlog->cameraLabel(), rawlog->otherLidars(),
+                      rawlog->otherCameras()});
     moving->flush();
     checkSignal();
     if (images == "on" && moving->totals().image_scans == 0)
@@ -358,6 +377,27 @@ int main(int argc, char** argv) {
     }
     out.finish(wall, moving->freeSpace());
     if (progress_shown) std::fprintf(stderr, "\n");
+    // One lidar and one camera per run: the others' observations were skipped (counted).
+    if (rawlog) {
+      auto others = [](const std::map<std::string, std::size_t>& m) {
+        std::string s;
+        for (const auto& [label, n] : m)
+          s += (s.empty() ? "'" : ", '") + label + "' " + std::to_string(n);
+        return s;
+      };
+      if (!rawlog->otherLidars().empty() && lidar.empty())
+        std::fprintf(stderr,
+                     "cleanmap: warning: %s: scans of lidar '%s' used; those of other lidars "
+                     "skipped (%s): choose one with --lidar LABEL\n",
+                     input.c_str(), rawlog->lidarLabel().c_str(),
+                     others(rawlog->otherLidars()).c_str());
+      if (!rawlog->otherCameras().empty() && camera.empty() && params.image.enabled)
+        std::fprintf(stderr,
+                     "cleanmap: warning: %s: images of camera '%s' used; those of other cameras "
+                     "skipped (%s): choose one with --camera LABEL\n",
+                     input.c_str(), rawlog->cameraLabel().c_str(),
+                     others(rawlog->otherCameras()).c_str());
+    }
     if (empty)
       std::fprintf(stderr,
                    "cleanmap: warning: %zu empty scans (no valid point) kept, labelled 0 "

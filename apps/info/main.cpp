@@ -3,12 +3,14 @@
 #include <algorithm>
 #include <cstdio>
 #include <iostream>
+#include <map>
 #include <string>
 #include <vector>
 
 #include "cleanmap/core/error.h"
 #include "cleanmap/io/kitti.h"
 #include "cleanmap/mrpt/input.h"
+#include "cleanmap/mrpt/rawlog.h"
 
 namespace {
 
@@ -89,6 +91,27 @@ int main(int argc, char** argv) {
                   cam->width, cam->height, cam->focal());
     else
       std::printf("images:  %zu\n", images);
+    if (const auto* r = dynamic_cast<const cleanmap::mrpt::RawlogSource*>(src.get())) {
+      auto list = [](const std::map<std::string, std::size_t>& m) {
+        std::string s;
+        for (const auto& [label, n] : m)
+          s += (s.empty() ? "'" : ", '") + label + "' " + std::to_string(n);
+        return s;
+      };
+      std::printf("sensors: lidar '%s'%s", r->lidarLabel().c_str(),
+                  r->otherLidars().empty() ? ""
+                                           : ("; other lidars, skipped: " + list(r->otherLidars()) +
+                                              " (cleanmap --lidar LABEL)")
+                                                 .c_str());
+      if (!r->cameraLabel().empty())
+        std::printf("; camera '%s'%s", r->cameraLabel().c_str(),
+                    r->otherCameras().empty()
+                        ? ""
+                        : ("; other cameras, skipped: " + list(r->otherCameras()) +
+                           " (cleanmap --camera LABEL)")
+                              .c_str());
+      std::printf("\n");
+    }
     if (labelled)
       std::printf("labels:  %zu points, %zu moving (%.2f %%)\n", labelled, moving,
                   100.0 * static_cast<double>(moving) / static_cast<double>(labelled));

@@ -25,6 +25,8 @@ window_of() {
 "$bin/cleanmap" "$seq/sequence.rawlog" -o "$scratch/rawwin" --quiet --last 6 --no-mrpt-outputs >/dev/null ||
   fail "a rawlog run failed"
 [[ $(window_of "$scratch/rawwin/report.json") == "10 10.0 auto" ]] || fail "rawlog window: $(window_of "$scratch/rawwin/report.json")"
+sensors=$(python3 -c 'import json,sys; s=json.load(open(sys.argv[1]))["rawlog_sensors"]; print(s["lidar"], s["other_lidars"])' "$scratch/rawwin/report.json")
+[[ $sensors == "LIDAR {}" ]] || fail "rawlog sensors: $sensors"
 "$bin/cleanmap" "$seq" -o "$scratch/out" --quiet --last 4 >/dev/null || fail "second run failed"
 [[ $(ls "$scratch/out/labels" | wc -l) -eq 5 ]] || fail "stale label files survived the shorter run"
 [[ $(ls -A "$scratch" | grep -c cleanmap-staging) -eq 0 ]] || fail "a staging folder was left"
@@ -118,6 +120,9 @@ expect_error 1 "velodyne/000000.bin: has no pose" "$bin/cleanmap" "$scratch/nopo
 "$bin/cleanmap-kitti2rawlog" "$scratch/noposes" "$scratch/noposes.rawlog" >/dev/null || fail "conversion failed"
 expect_error 1 "noposes.rawlog entry 0: has no pose" "$bin/cleanmap" "$scratch/noposes.rawlog" -o "$scratch/x" --poses given
 expect_error 1 "has no pose to refine" "$bin/cleanmap" "$scratch/noposes.rawlog" -o "$scratch/x" --poses refine
+# One lidar per run (doc/MRPT.md): a label the rawlog lacks, or a label for a KITTI folder.
+expect_error 1 "noposes.rawlog: holds no scans of lidar 'FRONT'; its lidars: 'LIDAR' (24)" "$bin/cleanmap" "$scratch/noposes.rawlog" -o "$scratch/x" --lidar FRONT
+expect_error 1 "is a KITTI folder: a lidar or camera label selects the sensors of a rawlog" "$bin/cleanmap" "$seq" -o "$scratch/x" --lidar LIDAR
 [[ -e $scratch/x ]] && fail "a failed run created its output folder"
 expect_error 2 "--poses is given, gicp or refine" "$bin/cleanmap" "$seq" -o "$scratch/x" --poses odometry
 

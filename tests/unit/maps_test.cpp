@@ -415,6 +415,38 @@ TEST(MovingObjectsMap, CopiesAndSerializedMultiMapsAreEqual) {
   EXPECT_EQ(serialize(*deserialize<CMovingObjectsMap>(serialize(*moving))), serialize(*moving));
 }
 
+// A car logging two lidars ("ROOF" and "FRONT") into one multi-map: the layer takes one (its
+// windowed test compares scans of one sensor): the first inserted, or the one insertOpts
+// sensor_label names; the other's observations are not inserted. The choice survives
+// serialization.
+TEST(MovingObjectsMap, TakesTheObservationsOfOneLidar) {
+  CLEANMAP_REQUIRE_DATASET("kitti_city");
+  auto seq = io::KittiSequence::open(test::dataDir() + "/kitti_city");
+  auto run = [&](const std::string& label_line) {
+    std::string ini = kMinimal;
+    ini += "[map_cleanmap_moving_00_insertOpts]\n" + label_line;
+    auto mm = mapsFrom(ini);
+    auto moving = mm.mapByClass<CMovingObjectsMap>();
+    std::vector<std::string> inserted;
+    for (std::size_t i = 0; i < 4; ++i)
+      for (const char* label : {"ROOF", "FRONT"}) {
+        ::mrpt::poses::CPose3D robot;
+        const auto obs = observation(seq.frame(i), ::mrpt::poses::CPose3D(), robot);
+        obs->sensorLabel = label;
+        if (moving->insertObservation(*obs, robot)) inserted.push_back(label);
+      }
+    EXPECT_EQ(moving->pending() + moving->decided(), inserted.size());
+    const auto back = deserialize<CMovingObjectsMap>(serialize(*moving));
+    EXPECT_EQ(back->lidarLabel(), moving->lidarLabel());
+    EXPECT_EQ(back->insertionOptions.sensor_label, moving->insertionOptions.sensor_label);
+    return inserted;
+  };
+  const std::vector<std::string> roof(4, "ROOF"), front(4, "FRONT");
+  EXPECT_EQ(run(""), roof);
+  EXPECT_EQ(run("sensor_label = auto\n"), roof);
+  EXPECT_EQ(run("sensor_label = FRONT\n"), front);
+}
+
 // The ground model on a synthetic scene: a plane 1.73 m below the sensor and a box on it.
 TEST(GroundModelMap, FlatRoadHeightsAndMergeCommutes) {
   std::mt19937 rng(7);

@@ -89,3 +89,20 @@ TEST(PrefetchSource, ReadsAtMostDepthAheadAndStopsWhenDropped) {
 }
 
 }  // namespace
+
+// The app stops reading ahead to ask the source what it counted (a rawlog's skipped sensors):
+// release() waits for the read in progress and hands the source back, where it stopped (one frame
+// ahead of the consumer at most); the prefetching source then gives nothing more.
+TEST(PrefetchSource, ReleaseHandsTheSourceBackWhereItStopped) {
+  std::atomic<std::size_t> reads{0};
+  io::PrefetchSource src(std::make_unique<Counting>(50, 999, 999, &reads), 1);
+  for (std::size_t i = 0; i < 5; ++i) ASSERT_EQ(src.next()->index, i);
+  auto inner = src.release();
+  ASSERT_TRUE(inner);
+  EXPECT_GE(reads.load(), 5u);
+  EXPECT_LE(reads.load(), 7u);
+  EXPECT_FALSE(src.next());
+  const auto f = inner->next();  // the source goes on from where the reading stopped
+  ASSERT_TRUE(f);
+  EXPECT_EQ(f->index, reads.load() - 1);
+}

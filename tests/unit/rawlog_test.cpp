@@ -4,8 +4,13 @@
 #include <algorithm>
 #include <cstring>
 #include <fstream>
+#include <map>
+#include <tuple>
 
 #include <mrpt/io/CFileGZInputStream.h>
+#include <mrpt/io/CFileGZOutputStream.h>
+#include <mrpt/obs/CObservationImage.h>
+#include <mrpt/obs/CObservationPointCloud.h>
 #include <mrpt/obs/CObservationRotatingScan.h>
 #include <mrpt/obs/CObservationVelodyneScan.h>
 #include <mrpt/obs/CRawlog.h>
@@ -16,6 +21,7 @@
 #include "cleanmap/core/error.h"
 #include "cleanmap/io/kitti.h"
 #include "cleanmap/mrpt/convert.h"
+#include "cleanmap/mrpt/input.h"
 #include "cleanmap/mrpt/rawlog.h"
 #include "test_data.h"
 
@@ -327,4 +333,77 @@ TEST(RawlogSource, RotatingScanOfUnknownModelIsAClearError) {
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("OS1-64"), std::string::npos) << e.what();
   }
+}
+
+// One lidar and one camera per run: a car logging a roof Velodyne ("LIDAR") beside a front one
+// ("FRONT") and two cameras. By default the first lidar's and the first camera's observations are
+// read, the others skipped and counted per sensorLabel; a label chooses; a label the rawlog lacks
+// is an error naming the labels it has.
+TEST(RawlogSource, ReadsOneLidarAndOneCameraByLabel) {
+  const auto dir = test::scratchDir("rawlog_two_lidars");
+  const std::string path = (dir / "two.rawlog").string();
+  PinholeCamera cam;
+  cam.name = "cam";
+  cam.P << 500, 0, 32, 0, 0, 500, 24, 0, 0, 0, 1, 0;
+  cam.width = 64;
+  cam.height = 48;
+  {
+    ::mrpt::io::CFileGZOutputStream out(path);
+    auto ar = ::mrpt::serialization::archiveFrom(out);
+    for (int k = 0; k < 3; ++k) {
+      const double t = 10.0 + 0.1 * k;
+      for (const auto& [label, x] : {std::pair{"LIDAR", 5.0f}, std::pair{"FRONT", 9.0f}}) {
+        auto pc = ::mrpt::obs::CObservationPointCloud::Create();
+        pc->sensorLabel = label;
+        pc->timestamp = cleanmap::mrpt::toMrptTime(t);
+        pc->pointcloud = cleanmap::mrpt::toPointsMap(
+            {PointXYZI{x, 0, -1, 0}, PointXYZI{x, 1, -1, 0}, PointXYZI{x, 2, -1, float(k)}});
+        ar << *pc;
+      }
+      for (const auto& [label, grey] : {std::pair{"CAM_L", 50}, std::pair{"CAM_R", 200}}) {
+        auto img = ::mrpt::obs::CObservationImage::Create();
+        img->sensorLabel = label;
+        img->timestamp = cleanmap::mrpt::toMrptTime(t);
+        img->cameraParams = cleanmap::mrpt::toTCamera(cam, img->cameraPose);
+        img->image = ::mrpt::img::CImage(cv::Mat(48, 64, CV_8UC3, cv::Scalar::all(grey)),
+                                         ::mrpt::img::DEEP_COPY);
+        ar << *img;
+      }
+    }
+  }
+  auto read = [&](const std::string& lidar, const std::string& camera) {
+    cleanmap::mrpt::RawlogReadOptions o;
+    o.lidar_label = lidar;
+    o.camera_label = camera;
+    cleanmap::mrpt::RawlogSource src(path, o);
+    std::vector<float> x;
+    std::vector<int> grey;
+    while (auto f = src.next()) {
+      x.push_back(f->scan.points.at(0).x);
+      grey.push_back(f->image ? f->image->bgr.at<cv::Vec3b>(0, 0)[0] : -1);
+    }
+    return std::tuple{
+        x, grey, src.lidarLabel(), src.cameraLabel(), src.otherLidars(), src.otherCameras()};
+  };
+  {
+    const auto [x, grey, lidar, camera, other_lidars, other_cameras] = read("", "");
+    EXPECT_EQ(x, (std::vector<float>{5, 5, 5}));  // the roof lidar's scans, not six
+    EXPECT_EQ(grey, (std::vector<int>{50, 50, 50}));
+    EXPECT_EQ(lidar, "LIDAR");
+    EXPECT_EQ(camera, "CAM_L");
+    EXPECT_EQ(other_lidars, (std::map<std::string, std::size_t>{{"FRONT", 3}}));
+    EXPECT_EQ(other_cameras, (std::map<std::string, std::size_t>{{"CAM_R", 3}}));
+  }
+  {
+    const auto [x, grey, lidar, camera, other_lidars, other_cameras] = read("FRONT", "CAM_R");
+    EXPECT_EQ(x, (std::vector<float>{9, 9, 9}));
+    EXPECT_EQ(grey, (std::vector<int>{200, 200, 200}));
+    EXPECT_EQ(other_lidars, (std::map<std::string, std::size_t>{{"LIDAR", 3}}));
+  }
+  test::expectError([&] { read("VELODYNE", ""); }, "two.rawlog",
+                    "holds no scans of lidar 'VELODYNE'; its lidars: 'FRONT' (3), 'LIDAR' (3)");
+  cleanmap::mrpt::InputOptions kitti;
+  kitti.lidar_label = "LIDAR";
+  test::expectError([&] { cleanmap::mrpt::openInput(dir.string(), kitti); }, dir.string(),
+                    "is a KITTI folder: a lidar or camera label selects the sensors of a rawlog");
 }

@@ -463,6 +463,11 @@ void OutputWriter::finish(double wall_s, const FreeSpaceMap* free_space) {
                    {"height_used_m", range(used)},
                    {"scans_not_measured", ground_measured_.size() - measured.size()}};
   }
+  if (sensors_)
+    j["rawlog_sensors"] = {{"lidar", sensors_->lidar},
+                           {"camera", sensors_->camera},
+                           {"other_lidars", sensors_->other_lidars},
+                           {"other_cameras", sensors_->other_cameras}};
   j["wall_s"] = wall_s;
   if (!output_ms_.empty()) j["output_ms"] = output_ms_;
   j["threads"] = params_.threads;

@@ -19,7 +19,19 @@ PrefetchSource::~PrefetchSource() {
     stop_ = true;
   }
   cv_.notify_all();
-  worker_.join();  // a read in progress finishes first
+  if (worker_.joinable()) worker_.join();  // a read in progress finishes first
+}
+
+std::unique_ptr<FrameSource> PrefetchSource::release() {
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    stop_ = true;
+  }
+  cv_.notify_all();
+  if (worker_.joinable()) worker_.join();
+  ended_ = true;
+  queue_.clear();
+  return std::move(inner_);
 }
 
 void PrefetchSource::run() {

@@ -120,6 +120,7 @@ void CMovingObjectsMap::copyFrom(const CMovingObjectsMap& o) {
   register_ahead_ = o.register_ahead_;
   camera_ = o.camera_;
   next_index_ = o.next_index_;
+  lidar_label_ = o.lidar_label_;
   static_ = o.static_;
   static_scan_ = o.static_scan_;
   moving_ = o.moving_;
@@ -226,6 +227,7 @@ bool CMovingObjectsMap::isEmpty() const {
 void CMovingObjectsMap::internal_clear() {
   pipe_.reset();
   next_index_ = 0;
+  lidar_label_.clear();
   static_.clear();
   static_scan_.clear();
   moving_.clear();
@@ -239,6 +241,11 @@ bool CMovingObjectsMap::internal_insertObservation(
   auto posed = posedScanOf(obs, robotPose, insertionOptions.use_pose_observations, pose_obs_);
   if (posed.consumed) return true;
   if (!posed.scan) return false;  // not a lidar observation
+  // One lidar per layer (insertOpts sensor_label, else the first one inserted).
+  const std::string& want =
+      insertionOptions.sensor_label.empty() ? lidar_label_ : insertionOptions.sensor_label;
+  if (!want.empty() && obs.sensorLabel != want) return false;
+  lidar_label_ = obs.sensorLabel;
   cleanmap::Frame f;
   f.index = next_index_;
   char stem[32];
@@ -319,7 +326,7 @@ std::string CMovingObjectsMap::asString() const {
 // ---- serialization: the content as if flushed (see the header) ----
 
 uint8_t CMovingObjectsMap::serializeGetVersion() const {
-  return 0;
+  return 1;  // 1: the lidar's sensorLabel (insertOpts sensor_label and the one inserted)
 }
 
 void CMovingObjectsMap::serializeTo(mrpt::serialization::CArchive& out) const {
@@ -332,6 +339,7 @@ void CMovingObjectsMap::serializeTo(mrpt::serialization::CArchive& out) const {
   out << genericMapParams;
   out << cleanmap::io::toIni(params_) << map_voxel_ << store_points_
       << static_cast<uint64_t>(next_index_) << insertionOptions.use_pose_observations;
+  out << insertionOptions.sensor_label << lidar_label_;
   out << static_cast<uint64_t>(trajectory_.size());
   for (const auto& t : trajectory_) {
     out << static_cast<uint64_t>(t.index) << t.timestamp;
@@ -348,12 +356,14 @@ void CMovingObjectsMap::serializeTo(mrpt::serialization::CArchive& out) const {
 }
 
 void CMovingObjectsMap::serializeFrom(mrpt::serialization::CArchive& in, uint8_t version) {
-  if (version != 0) MRPT_THROW_UNKNOWN_SERIALIZATION_VERSION(version);
+  if (version > 1) MRPT_THROW_UNKNOWN_SERIALIZATION_VERSION(version);
   internal_clear();
   in >> genericMapParams;
   std::string ini;
   uint64_t next = 0, n = 0;
   in >> ini >> map_voxel_ >> store_points_ >> next >> insertionOptions.use_pose_observations;
+  insertionOptions.sensor_label.clear();
+  if (version >= 1) in >> insertionOptions.sensor_label >> lidar_label_;
   params_ = cleanmap::PipelineParams{};
   cleanmap::io::parseParams(ini, "serialized cleanmap_moving", params_);
   next_index_ = next;
@@ -392,6 +402,9 @@ void CMovingObjectsMap::TMapDefinition::loadFromConfigFile_map_specific(
   if (map_voxel < 0) throw cleanmap::Error("[" + creation + "]", "map_voxel must be >= 0");
   OptionTable insert;
   insert.flag("use_pose_observations", insertionOpts.use_pose_observations);
+  insert.custom("sensor_label", [this](const std::string& v, const std::string&) {
+    insertionOpts.sensor_label = v == "auto" ? "" : v;
+  });
   insert.load(source, prefix + "_insertOpts", /*generic=*/false);
   if (source.sectionExists(prefix + "_likelihoodOpts"))
     throw cleanmap::Error("[" + prefix + "_likelihoodOpts]",
@@ -400,7 +413,8 @@ void CMovingObjectsMap::TMapDefinition::loadFromConfigFile_map_specific(
 
 void CMovingObjectsMap::TMapDefinition::dumpToTextStream_map_specific(std::ostream& out) const {
   out << cleanmap::io::toIni(params) << "map_voxel = " << map_voxel
-      << "\nuse_pose_observations = " << insertionOpts.use_pose_observations << "\n";
+      << "\nuse_pose_observations = " << insertionOpts.use_pose_observations << "\nsensor_label = "
+      << (insertionOpts.sensor_label.empty() ? "auto" : insertionOpts.sensor_label) << "\n";
 }
 
 #if MRPT_VERSION >= 0x20b03

@@ -12,6 +12,10 @@ namespace cleanmap::mrpt {
 std::unique_ptr<FrameSource> openInput(const std::string& path, const InputOptions& opts) {
   std::error_code ec;
   if (std::filesystem::is_directory(path, ec)) {
+    if (!opts.lidar_label.empty() || !opts.camera_label.empty())
+      throw Error(path,
+                  "is a KITTI folder: a lidar or camera label selects the sensors of a rawlog "
+                  "(a KITTI folder has one lidar and one camera)");
     io::KittiReadOptions k;
     k.scan.allow_empty = opts.allow_empty_scans;
     k.load_images = opts.load_images;
@@ -22,6 +26,8 @@ std::unique_ptr<FrameSource> openInput(const std::string& path, const InputOptio
     throw Error(path, "does not exist (expected a KITTI folder or a .rawlog file)");
   RawlogReadOptions r;
   r.allow_empty_scans = opts.allow_empty_scans;
+  r.lidar_label = opts.lidar_label;
+  r.camera_label = opts.camera_label;
   return std::make_unique<RawlogSource>(path, r);
 }
 

@@ -81,6 +81,17 @@ struct RawlogSource::Impl {
   std::deque<Item> buf;
   std::optional<PinholeCamera> camera;
   std::optional<::mrpt::poses::CPose3D> odometry;  // robot odometry summed from actions
+  std::string lidar, cam;                          // the sensorLabels read
+  std::map<std::string, std::size_t> other_lidars, other_cameras;
+
+  // One lidar and one camera per run (opts.lidar_label / camera_label, else the first seen).
+  static bool ours(std::string& chosen, const std::string& wanted, const std::string& label,
+                   std::map<std::string, std::size_t>& others) {
+    if (chosen.empty()) chosen = wanted.empty() ? label : wanted;
+    if (label == chosen) return true;
+    ++others[label];
+    return false;
+  }
 
   // Odometry increments of an action collection (sensory-frame rawlogs): 3D if there is one,
   // else the best 2D estimate.
@@ -107,6 +118,7 @@ struct RawlogSource::Impl {
       throw Error(path, "entry " + std::to_string(entry - 1) + ": " + e.what());
     }
     if (scan) {
+      if (!ours(lidar, opts.lidar_label, obs->sensorLabel, other_lidars)) return;
       Item it;
       it.kind = Item::kScan;
       it.t = t;
@@ -130,6 +142,7 @@ struct RawlogSource::Impl {
       it.robot_pose = ::mrpt::poses::CPose3D(od->odometry);
       buf.push_back(std::move(it));
     } else if (auto im = std::dynamic_pointer_cast<CObservationImage>(obs)) {
+      if (!ours(cam, opts.camera_label, obs->sensorLabel, other_cameras)) return;
       Item it;
       it.kind = Item::kImage;
       it.t = t;
@@ -229,6 +242,12 @@ RawlogSource::RawlogSource(const std::string& path, const RawlogReadOptions& opt
   if (!impl_->in.open(path)) throw Error(path, "cannot open for reading");
   while (!impl_->findScan(0) && impl_->readEntry()) {
   }
+  if (!impl_->findScan(0) && !impl_->other_lidars.empty()) {
+    std::string labels;
+    for (const auto& [label, n] : impl_->other_lidars)
+      labels += (labels.empty() ? "'" : ", '") + label + "' (" + std::to_string(n) + ")";
+    throw Error(path, "holds no scans of lidar '" + impl_->lidar + "'; its lidars: " + labels);
+  }
   if (!impl_->findScan(0))
     throw Error(path,
                 "holds no point-cloud observations (CObservationPointCloud, "
@@ -293,6 +312,22 @@ std::optional<PinholeCamera> RawlogSource::camera() const {
 
 std::size_t RawlogSource::skippedObservations() const {
   return impl_->skipped;
+}
+
+const std::string& RawlogSource::lidarLabel() const {
+  return impl_->lidar;
+}
+
+const std::string& RawlogSource::cameraLabel() const {
+  return impl_->cam;
+}
+
+const std::map<std::string, std::size_t>& RawlogSource::otherLidars() const {
+  return impl_->other_lidars;
+}
+
+const std::map<std::string, std::size_t>& RawlogSource::otherCameras() const {
+  return impl_->other_cameras;
 }
 
 }  // namespace cleanmap::mrpt

@@ -74,6 +74,13 @@ class OutputWriter {
     relabelled_moving_ += truly_moving;
     has_relabel_truth_ = true;
   }
+  /// A rawlog's sensors (report.json `rawlog_sensors`): the sensorLabel of the lidar and camera
+  /// read, and per label the scans / images of the other lidars / cameras, skipped.
+  struct Sensors {
+    std::string lidar, camera;
+    std::map<std::string, std::size_t> other_lidars, other_cameras;
+  };
+  void setSensors(Sensors s) { sensors_ = std::move(s); }
   /// Cleans the maps with the sequence's free space (DESIGN §2e; null: no cleaning), writes
   /// static_map(_full).ply, map_removed.ply, map_labels/, poses and the report, and publishes the
   /// folder as OUTDIR. `wall_s`: whole run, seconds.
@@ -121,6 +128,7 @@ class OutputWriter {
   std::vector<PoseInfo> pose_info_;
   std::vector<double> ground_measured_, ground_z_, density_;  // per scan (DESIGN §2a, §2d)
   std::vector<MosCounts> scan_eval_;
+  std::optional<Sensors> sensors_;
   MosCounts eval_;
   bool has_eval_ = false;
   std::map<std::string, double> output_ms_;

@@ -29,6 +29,9 @@ class PrefetchSource : public FrameSource {
   PrefetchSource& operator=(const PrefetchSource&) = delete;
 
   std::optional<Frame> next() override;
+  /// Stops reading ahead (a read in progress finishes first) and hands the inner source back, for
+  /// what it counted; next() then returns nothing more.
+  std::unique_ptr<FrameSource> release();
   std::optional<std::size_t> sizeHint() const override { return size_; }
   std::optional<PinholeCamera> camera() const override { return camera_; }
 

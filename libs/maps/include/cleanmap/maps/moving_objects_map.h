@@ -50,6 +50,10 @@ class CMovingObjectsMap : public mrpt::maps::CMetricMap {
     /// RawLogViewer's "Map from odometry", which inserts every observation of a posed rawlog at
     /// 2D odometry. Off in SLAM, where the pose is the SLAM estimate.
     bool use_pose_observations = false;
+    /// The lidar whose observations this layer takes (sensorLabel; "" = the first lidar
+    /// observation's): the windowed test compares scans of one sensor, so a second lidar's
+    /// observations are not inserted (insertObservation returns false).
+    std::string sensor_label;
   };
 
   CMovingObjectsMap();
@@ -66,6 +70,8 @@ class CMovingObjectsMap : public mrpt::maps::CMetricMap {
   /// own points.
   const cleanmap::FreeSpaceMap* freeSpace() const;
   TInsertionOptions insertionOptions;
+  /// The sensorLabel of the lidar observations inserted so far ("" before the first).
+  const std::string& lidarLabel() const { return lidar_label_; }
   void setParams(const cleanmap::PipelineParams& params);
   double mapVoxel() const { return map_voxel_; }
 
@@ -143,6 +149,7 @@ class CMovingObjectsMap : public mrpt::maps::CMetricMap {
   std::optional<cleanmap::PinholeCamera> camera_;
   std::optional<std::pair<double, mrpt::poses::CPose3D>> pose_obs_;  // use_pose_observations
   std::size_t next_index_ = 0;  // index given to the next observation inserted through MRPT
+  std::string lidar_label_;     // the sensorLabel of the observations inserted (sensor_label)
   std::unordered_map<uint64_t, cleanmap::PointXYZI> static_, moving_;  // voxel key -> first point
   std::unordered_map<uint64_t, int64_t> static_scan_;  // non-ground static_ entries: their scan
   std::vector<cleanmap::PointXYZI> cleanedStatic(bool removed) const;

@@ -12,6 +12,9 @@ struct InputOptions {
   bool allow_empty_scans = false;
   bool load_images = true;
   bool point_times = true;  ///< KITTI raw drives: point times, for the de-skew (DESIGN §2.0)
+  /// Rawlogs: the sensorLabel of the lidar / camera to read ("" = the first in the file). A KITTI
+  /// folder has one of each: naming one there is an error.
+  std::string lidar_label, camera_label;
 };
 
 /// A directory opens as a KITTI sequence (odometry or raw), a file as a rawlog.

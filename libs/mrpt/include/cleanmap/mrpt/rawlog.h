@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: BSD-3-Clause
 // MRPT rawlog I/O (observation-only format). Public header free of MRPT includes.
 #pragma once
+#include <map>
 #include <memory>
 #include <optional>
 #include <string>
@@ -64,6 +65,10 @@ struct RawlogReadOptions {
   bool allow_empty_scans = false;      ///< an empty scan is an error unless allowed
   double pose_time_tolerance = 0.01;   ///< s; a robot pose this close to a scan is its pose
   double image_time_tolerance = 0.05;  ///< s; an image this close to a scan goes with it
+  /// One lidar and one camera per run: the observations with this sensorLabel ("" = the label of
+  /// the first lidar / image observation in the file); the others are skipped and counted.
+  std::string lidar_label;
+  std::string camera_label;
 };
 
 /// Reads a rawlog (either MRPT format) as a stream of frames. Scans come from
@@ -71,7 +76,8 @@ struct RawlogReadOptions {
 /// CObservationRotatingScan (range image, VLP-16 / HDL-32E / planar) and CObservation3DRangeScan
 /// (unprojected); CObservationRobotPose gives the robot pose (scan pose =
 /// robot pose + sensor pose) and CObservationImage the image, each matched to the scan with the
-/// nearest timestamp within tolerance. Other observations are counted and skipped.
+/// nearest timestamp within tolerance. Other observations are counted and skipped, and so are
+/// the scans and images of other sensors than the one lidar and camera read (by sensorLabel).
 class RawlogSource : public FrameSource {
  public:
   /// Throws cleanmap::Error if the file is missing or not a rawlog.
@@ -82,6 +88,12 @@ class RawlogSource : public FrameSource {
   std::optional<PinholeCamera> camera() const override;
 
   std::size_t skippedObservations() const;
+  /// The sensorLabel of the scans and images read ("" before the first / where there is none).
+  const std::string& lidarLabel() const;
+  const std::string& cameraLabel() const;
+  /// Per sensorLabel, the scans / images of other lidars / cameras skipped so far.
+  const std::map<std::string, std::size_t>& otherLidars() const;
+  const std::map<std::string, std::size_t>& otherCameras() const;
 
  private:
   struct Impl;
