@@ -16,6 +16,7 @@
 #include <mrpt/obs/CRawlog.h>
 #include <mrpt/serialization/CArchive.h>
 #include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
 #include <unordered_map>
 
 #include "cleanmap/core/error.h"
@@ -23,6 +24,7 @@
 #include "cleanmap/mrpt/convert.h"
 #include "cleanmap/mrpt/input.h"
 #include "cleanmap/mrpt/rawlog.h"
+#include "cleanmap/vision/rectify.h"
 #include "test_data.h"
 
 using namespace cleanmap;
@@ -406,4 +408,80 @@ TEST(RawlogSource, ReadsOneLidarAndOneCameraByLabel) {
   kitti.lidar_label = "LIDAR";
   test::expectError([&] { cleanmap::mrpt::openInput(dir.string(), kitti); }, dir.string(),
                     "is a KITTI folder: a lidar or camera label selects the sensors of a rawlog");
+}
+
+// DESIGN §3 "Lens distortion": a rawlog camera with lens distortion (MRPT's plumb_bob model) is
+// made pinhole: its images are rectified as they are read and the camera delivered is their
+// pinhole model, so a lidar point projects onto what the camera saw there (a dot drawn where the
+// distorted camera saw the point lands within half a pixel of its projection).
+TEST(RawlogSource, RectifiesACameraWithLensDistortion) {
+  const auto dir = test::scratchDir("rawlog_distorted_camera");
+  const std::string path = (dir / "cam.rawlog").string();
+  PinholeCamera cam;
+  cam.name = "cam";
+  cam.P << 600, 0, 322, 0, 0, 590, 238, 0, 0, 0, 1, 0;
+  cam.width = 640;
+  cam.height = 480;
+  Eigen::Matrix3d R;  // lidar (x forward, z up) to optical (x right, y down, z forward)
+  R << 0, -1, 0, 0, 0, -1, 1, 0, 0;
+  cam.T_cam_lidar.linear() = R;
+  cam.T_cam_lidar.translation() = Eigen::Vector3d(0.05, -0.1, 0.2);
+  const std::vector<Eigen::Vector3d> targets = {
+      {10, 0, 0}, {8, 4, 1}, {9, -4.5, -2}, {6, 3.5, 2.2}, {7, -1, 2.5}};
+  ::mrpt::poses::CPose3D cam_pose;
+  ::mrpt::img::TCamera tc = cleanmap::mrpt::toTCamera(cam, cam_pose);
+  tc.setDistortionPlumbBob(-0.3, 0.1, 0.002, -0.001, 0);
+  vision::Lens lens;
+  std::copy(tc.dist.begin(), tc.dist.end(), lens.k.begin());
+  cv::Mat img(480, 640, CV_8UC3, cv::Scalar::all(0));
+  for (const auto& p : targets) {
+    const Eigen::Vector3d c = cam.T_cam_lidar * p;
+    const Eigen::Vector2d d = vision::distortNormalised(lens, c.head<2>() / c.z());
+    cv::circle(img,
+               cv::Point(int(std::lround((600 * d.x() + 322) * 16)),
+                         int(std::lround((590 * d.y() + 238) * 16))),
+               40, cv::Scalar::all(255), cv::FILLED, cv::LINE_AA, 4);
+  }
+  {
+    ::mrpt::io::CFileGZOutputStream out(path);
+    auto ar = ::mrpt::serialization::archiveFrom(out);
+    auto pc = ::mrpt::obs::CObservationPointCloud::Create();
+    pc->sensorLabel = "LIDAR";
+    pc->timestamp = cleanmap::mrpt::toMrptTime(5.0);
+    std::vector<PointXYZI> pts;
+    for (const auto& p : targets)
+      pts.push_back(PointXYZI{float(p.x()), float(p.y()), float(p.z()), 0});
+    pc->pointcloud = cleanmap::mrpt::toPointsMap(pts);
+    ar << *pc;
+    auto im = ::mrpt::obs::CObservationImage::Create();
+    im->sensorLabel = "CAMERA";
+    im->timestamp = cleanmap::mrpt::toMrptTime(5.0);
+    im->cameraParams = tc;
+    im->cameraPose = cam_pose;
+    im->image = ::mrpt::img::CImage(img, ::mrpt::img::DEEP_COPY);
+    ar << *im;
+  }
+  cleanmap::mrpt::RawlogSource src(path);
+  const auto f = src.next();
+  ASSERT_TRUE(f && f->image);
+  ASSERT_TRUE(src.camera());
+  const PinholeCamera got = *src.camera();
+  EXPECT_EQ(got.width, 640);
+  EXPECT_LT(got.focal(), 600.0);  // a barrel lens: the rectified view is wider
+  cv::Mat grey;
+  cv::cvtColor(f->image->bgr, grey, cv::COLOR_BGR2GRAY);
+  for (const auto& p : targets) {
+    const auto uv = got.project(p);
+    ASSERT_TRUE(uv) << p.transpose();
+    double sum = 0, su = 0, sv = 0;
+    for (int dv = -6; dv <= 6; ++dv)
+      for (int du = -6; du <= 6; ++du) {
+        const int x = int(std::lround(uv->x())) + du, y = int(std::lround(uv->y())) + dv;
+        const double g = grey.at<uint8_t>(y, x);
+        sum += g, su += g * x, sv += g * y;
+      }
+    ASSERT_GT(sum, 1000) << "no dot where " << p.transpose() << " projects";
+    EXPECT_NEAR(su / sum, uv->x(), 0.5) << p.transpose();
+    EXPECT_NEAR(sv / sum, uv->y(), 0.5) << p.transpose();
+  }
 }

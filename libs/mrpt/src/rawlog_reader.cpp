@@ -1,4 +1,5 @@
 // SPDX-License-Identifier: BSD-3-Clause
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -22,6 +23,7 @@
 #include "cleanmap/core/error.h"
 #include "cleanmap/mrpt/convert.h"
 #include "cleanmap/mrpt/rawlog.h"
+#include "cleanmap/vision/rectify.h"
 
 namespace fs = std::filesystem;
 
@@ -80,6 +82,7 @@ struct RawlogSource::Impl {
   bool eof = false;
   std::deque<Item> buf;
   std::optional<PinholeCamera> camera;
+  std::optional<vision::Rectifier> rectifier;      // the camera has lens distortion (DESIGN §3)
   std::optional<::mrpt::poses::CPose3D> odometry;  // robot odometry summed from actions
   std::string lidar, cam;                          // the sensorLabels read
   std::map<std::string, std::size_t> other_lidars, other_cameras;
@@ -212,6 +215,35 @@ struct RawlogSource::Impl {
     return best;
   }
 
+  // The camera from the first image's TCamera. A distorted one (plumb_bob, or coefficients with
+  // no model named; kannala_brandt) is made pinhole: its images are rectified as they are read.
+  void learnCamera(const ::mrpt::obs::CObservationImage& img,
+                   const ::mrpt::poses::CPose3D& lidar_pose) {
+    using ::mrpt::img::DistortionModel;
+    ::mrpt::img::TCamera tc = img.cameraParams;
+    const auto& d = tc.dist;
+    const bool fisheye = tc.distortion == DistortionModel::kannala_brandt;
+    const bool distorted =
+        fisheye || std::any_of(d.begin(), d.end(), [](double x) { return x != 0; });
+    if (distorted) {
+      vision::Lens lens;
+      lens.model = fisheye ? vision::LensModel::kKannalaBrandt : vision::LensModel::kPlumbBob;
+      if (fisheye)
+        lens.k = {tc.k1(), tc.k2(), tc.k3(), tc.k4(), 0, 0, 0, 0};
+      else
+        std::copy(d.begin(), d.end(), lens.k.begin());
+      const std::string where = path + " camera '" + img.sensorLabel + "'";
+      rectifier.emplace(tc.intrinsicParams.asEigen(), lens, static_cast<int>(tc.ncols),
+                        static_cast<int>(tc.nrows), where);
+      const Eigen::Matrix3d& K = rectifier->K();
+      for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c) tc.intrinsicParams(r, c) = K(r, c);
+      tc.distortion = DistortionModel::none;
+      tc.dist.fill(0);
+    }
+    camera = fromTCamera(tc, img.cameraPose, lidar_pose, path);
+  }
+
   Image toImage(const Item& it) {
     cv::Mat m;
     try {
@@ -221,6 +253,13 @@ struct RawlogSource::Impl {
                             briefMessage(e));
     }
     if (m.empty()) throw Error(path, "empty image at t=" + std::to_string(it.t));
+    if (rectifier) {
+      if (camera && (m.cols != camera->width || m.rows != camera->height))
+        throw Error(path, "image at t=" + std::to_string(it.t) + " is " + std::to_string(m.cols) +
+                              "x" + std::to_string(m.rows) + " px, its camera's calibration " +
+                              std::to_string(camera->width) + "x" + std::to_string(camera->height));
+      m = rectifier->apply(m);
+    }
     Image img;
     if (m.channels() == 1)
       cv::cvtColor(m, img.bgr, cv::COLOR_GRAY2BGR);
@@ -298,9 +337,8 @@ std::optional<Frame> RawlogSource::next() {
       throw Error(f.source, "the odometry actions before this scan sum to a non-finite pose");
   }
   if (const Item* im = I.nearest(Item::kImage, cur.t, I.opts.image_time_tolerance, end)) {
+    if (!I.camera) I.learnCamera(*im->img, cur.sensor_pose);
     f.image = I.toImage(*im);
-    if (!I.camera)
-      I.camera = fromTCamera(im->img->cameraParams, im->img->cameraPose, cur.sensor_pose, I.path);
   }
   I.buf.erase(I.buf.begin(), I.buf.begin() + static_cast<std::ptrdiff_t>(*s) + 1);
   return f;
