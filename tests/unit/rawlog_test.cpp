@@ -9,6 +9,8 @@
 
 #include <mrpt/io/CFileGZInputStream.h>
 #include <mrpt/io/CFileGZOutputStream.h>
+#include <mrpt/obs/CObservation2DRangeScan.h>
+#include <mrpt/obs/CObservationGPS.h>
 #include <mrpt/obs/CObservationImage.h>
 #include <mrpt/obs/CObservationPointCloud.h>
 #include <mrpt/obs/CObservationRotatingScan.h>
@@ -484,4 +486,27 @@ TEST(RawlogSource, RectifiesACameraWithLensDistortion) {
     EXPECT_NEAR(su / sum, uv->x(), 0.5) << p.transpose();
     EXPECT_NEAR(sv / sum, uv->y(), 0.5) << p.transpose();
   }
+}
+
+// A rawlog of a 2D laser (or of anything but a 3D lidar) is refused with one line that says what
+// it holds instead.
+TEST(RawlogSource, ARawlogWithoutLidarSaysWhatItHolds) {
+  const auto dir = test::scratchDir("rawlog_2d");
+  const std::string path = (dir / "planar.rawlog").string();
+  {
+    ::mrpt::io::CFileGZOutputStream out(path);
+    auto ar = ::mrpt::serialization::archiveFrom(out);
+    for (int k = 0; k < 3; ++k) {
+      auto scan = ::mrpt::obs::CObservation2DRangeScan::Create();
+      scan->sensorLabel = "LASER";
+      scan->resizeScan(10);
+      ar << *scan;
+    }
+    ar << *::mrpt::obs::CObservationGPS::Create();
+  }
+  test::expectError([&] { cleanmap::mrpt::RawlogSource src(path); }, "planar.rawlog",
+                    "holds no point-cloud observations (CObservationPointCloud, "
+                    "CObservationVelodyneScan, CObservationRotatingScan or "
+                    "CObservation3DRangeScan); it holds mrpt::obs::CObservation2DRangeScan (3), "
+                    "mrpt::obs::CObservationGPS (1)");
 }

@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <mutex>
 #include <sstream>
+#include <vector>
 
 #include <opencv2/imgproc.hpp>
 
@@ -86,6 +87,7 @@ struct RawlogSource::Impl {
   std::optional<::mrpt::poses::CPose3D> odometry;  // robot odometry summed from actions
   std::string lidar, cam;                          // the sensorLabels read
   std::map<std::string, std::size_t> other_lidars, other_cameras;
+  std::map<std::string, std::size_t> skipped_classes;  // observations not read, by class
 
   // One lidar and one camera per run (opts.lidar_label / camera_label, else the first seen).
   static bool ours(std::string& chosen, const std::string& wanted, const std::string& label,
@@ -154,6 +156,7 @@ struct RawlogSource::Impl {
       buf.push_back(std::move(it));
     } else {
       ++skipped;
+      ++skipped_classes[obs->GetRuntimeClass()->className];
     }
   }
 
@@ -194,6 +197,7 @@ struct RawlogSource::Impl {
       addActions(*acts);
     } else {
       ++skipped;  // anything else
+      if (obj) ++skipped_classes[obj->GetRuntimeClass()->className];
     }
     return true;
   }
@@ -287,10 +291,18 @@ RawlogSource::RawlogSource(const std::string& path, const RawlogReadOptions& opt
       labels += (labels.empty() ? "'" : ", '") + label + "' (" + std::to_string(n) + ")";
     throw Error(path, "holds no scans of lidar '" + impl_->lidar + "'; its lidars: " + labels);
   }
-  if (!impl_->findScan(0))
+  if (!impl_->findScan(0)) {
+    std::string held;  // what it holds instead, most frequent first
+    std::vector<std::pair<std::size_t, std::string>> by_count;
+    for (const auto& [name, n] : impl_->skipped_classes) by_count.emplace_back(n, name);
+    std::sort(by_count.rbegin(), by_count.rend());
+    for (const auto& [n, name] : by_count)
+      held += (held.empty() ? "; it holds " : ", ") + name + " (" + std::to_string(n) + ")";
     throw Error(path,
                 "holds no point-cloud observations (CObservationPointCloud, "
-                "CObservationVelodyneScan, CObservationRotatingScan or CObservation3DRangeScan)");
+                "CObservationVelodyneScan, CObservationRotatingScan or CObservation3DRangeScan)" +
+                    held);
+  }
 }
 
 RawlogSource::~RawlogSource() = default;
