@@ -339,6 +339,20 @@ TEST(RawlogSource, RotatingScanOfUnknownModelIsAClearError) {
   }
 }
 
+namespace {
+
+// A pinhole camera (no distortion) of focal lengths fx, fy and principal point cx, cy.
+PinholeCamera pinhole(double fx, double fy, double cx, double cy, int width, int height) {
+  PinholeCamera cam;
+  cam.name = "cam";
+  cam.P << fx, 0, cx, 0, 0, fy, cy, 0, 0, 0, 1, 0;
+  cam.width = width;
+  cam.height = height;
+  return cam;
+}
+
+}  // namespace
+
 // One lidar and one camera per run: a car logging a roof Velodyne ("LIDAR") beside a front one
 // ("FRONT") and two cameras. By default the first lidar's and the first camera's observations are
 // read, the others skipped and counted per sensorLabel; a label chooses; a label the rawlog lacks
@@ -346,11 +360,7 @@ TEST(RawlogSource, RotatingScanOfUnknownModelIsAClearError) {
 TEST(RawlogSource, ReadsOneLidarAndOneCameraByLabel) {
   const auto dir = test::scratchDir("rawlog_two_lidars");
   const std::string path = (dir / "two.rawlog").string();
-  PinholeCamera cam;
-  cam.name = "cam";
-  cam.P << 500, 0, 32, 0, 0, 500, 24, 0, 0, 0, 1, 0;
-  cam.width = 64;
-  cam.height = 48;
+  const PinholeCamera cam = pinhole(500, 500, 32, 24, 64, 48);
   {
     ::mrpt::io::CFileGZOutputStream out(path);
     auto ar = ::mrpt::serialization::archiveFrom(out);
@@ -419,11 +429,7 @@ TEST(RawlogSource, ReadsOneLidarAndOneCameraByLabel) {
 TEST(RawlogSource, RectifiesACameraWithLensDistortion) {
   const auto dir = test::scratchDir("rawlog_distorted_camera");
   const std::string path = (dir / "cam.rawlog").string();
-  PinholeCamera cam;
-  cam.name = "cam";
-  cam.P << 600, 0, 322, 0, 0, 590, 238, 0, 0, 0, 1, 0;
-  cam.width = 640;
-  cam.height = 480;
+  PinholeCamera cam = pinhole(600, 590, 322, 238, 640, 480);
   Eigen::Matrix3d R;  // lidar (x forward, z up) to optical (x right, y down, z forward)
   R << 0, -1, 0, 0, 0, -1, 1, 0, 0;
   cam.T_cam_lidar.linear() = R;
