@@ -192,6 +192,26 @@ TEST(Gicp, DegenerateInputsFailClearly) {
   EXPECT_TRUE(far.no_overlap);
 }
 
+// DESIGN §2.1 "Starting at speed": the fit of the surfaces that face the forward axis (the boxes'
+// ends, the facades' recesses) tells a scan 1 m along the street from a standstill; the road alone
+// has no such surface.
+TEST(Gicp, FacingScoreTellsWhereAlongTheStreet) {
+  const VoxelMap target = mapOf(cloudOf(street(1), Eigen::Isometry3d::Identity()));
+  const Eigen::Isometry3d truth = pose(0.8, 0, 0, 0, 0, 0);
+  const CovCloud source = cloudOf(street(2), truth.inverse());
+  const Eigen::Vector3d forward = Eigen::Vector3d::UnitX();
+  GicpParams p;
+  const auto at_truth = facingScore(source, target, truth, forward, p, 2, 20);
+  const auto standing =
+      facingScore(source, target, Eigen::Isometry3d::Identity(), forward, p, 2, 20);
+  ASSERT_TRUE(at_truth && standing);
+  EXPECT_GT(*at_truth, 0.5);
+  EXPECT_GT(*at_truth, *standing + 0.3);
+  const VoxelMap road = mapOf(cloudOf(street(6, true), Eigen::Isometry3d::Identity()));
+  EXPECT_FALSE(facingScore(cloudOf(street(7, true), Eigen::Isometry3d::Identity()), road,
+                           Eigen::Isometry3d::Identity(), forward, p, 2, 20));
+}
+
 TEST(Odometry, TracksAConstantMotionAndRefusesJumps) {
   RegistrationParams rp;
   Odometry odo(rp, 2);

@@ -137,4 +137,37 @@ GicpResult alignGicp(const CovCloud& src, const VoxelMap& target, const Eigen::I
   return r;
 }
 
+std::optional<double> facingScore(const CovCloud& src, const VoxelMap& target,
+                                  const Eigen::Isometry3d& T, const Eigen::Vector3d& axis,
+                                  const GicpParams& p, int threads, std::size_t min_points,
+                                  int64_t newest_scan) {
+  // A plane covariance is I - (1 - eps) n n^T: (n . a)^2 = a^T (I - C) a / (1 - eps), and the
+  // squared distance along the target's n is d^T (I - C_t) d / (1 - eps); 3 - trace = 1 - eps.
+  std::vector<uint32_t> facing;
+  for (uint32_t i = 0; i < src.size(); ++i) {
+    const Eigen::Matrix3d& C = src.covs[i];
+    const double flat = 3.0 - C.trace();
+    if (flat < 0.5) continue;  // no plane (identity: too few neighbours)
+    if (axis.dot((Eigen::Matrix3d::Identity() - C) * axis) / flat > 0.5) facing.push_back(i);
+  }
+  if (facing.size() < min_points) return std::nullopt;
+  std::vector<double> loss(facing.size(), 1.0);
+  parallelFor(facing.size(), threads, [&](std::size_t k) {
+    const uint32_t i = facing[k];
+    const Eigen::Vector3d q = T * src.points[i];
+    const VoxelMap::Match m = target.nearest(q, p.max_correspondence, newest_scan);
+    if (!m) return;
+    const Eigen::Matrix3d& Ct = *m.cov;
+    const double flat = 3.0 - Ct.trace();
+    const Eigen::Vector3d d = *m.p - q;
+    const double e =
+        (flat < 0.5 ? d.squaredNorm() : d.dot((Eigen::Matrix3d::Identity() - Ct) * d) / flat) /
+        (0.05 * 0.05);
+    loss[k] = e / (e + 1.0);
+  });
+  double sum = 0;
+  for (const double l : loss) sum += l;
+  return 1.0 - sum / static_cast<double>(facing.size());
+}
+
 }  // namespace cleanmap::reg

@@ -157,12 +157,27 @@ OdometryStep Odometry::track(const std::vector<PointXYZI>& points_in, double t, 
     // DESIGN §2.1 "Starting at speed": no velocity yet (no two accepted scans) and no prior, the
     // guess is a standstill, a scan period's travel off for a car already driving (1.4 m at
     // 14 m/s, beyond the correspondences' reach: a street's corridor then holds it, degenerate).
-    // Refused, it is tried again from guesses along the sensor's forward axis, both ways, every
-    // half correspondence distance up to max_speed; the accepted one with the best fitness wins.
-    if (step.status != "ok" && !prior && last_.size() < 2 && prev_) {
+    // The alignment is tried again from guesses along the sensor's forward axis, both ways, every
+    // half correspondence distance up to max_speed, where the standstill's was refused or where
+    // the scan has surfaces facing that axis (kFacingPoints): those say where along it the sensor
+    // is, while a street's facades and road, sampled alike by the same beams at every step, fit a
+    // standstill best (its fitness and RMSE win at 10 m/s). The accepted guess that fits the
+    // facing surfaces best replaces an accepted standstill only if it fits them better by
+    // kFacingMargin; without facing surfaces, a refused standstill takes the best fitness.
+    constexpr std::size_t kFacingPoints = 20;
+    constexpr double kFacingMargin = 0.02;
+    const bool starting = !prior && last_.size() < 2 && prev_;
+    const int64_t newest = accepted_.empty() ? INT64_MAX : accepted_.front();
+    const Eigen::Vector3d forward = Eigen::Vector3d::UnitX();  // the sensor's, in its own frame
+    std::optional<double> still_facing;
+    if (starting)
+      still_facing =
+          facingScore(cloud, map_, step.pose, forward, gicp_, threads_, kFacingPoints, newest);
+    if (starting && (step.status != "ok" || still_facing)) {
       const double reach = p_.max_speed * std::clamp(t - prev_->first, 0.0, 1.0);
       const double pace = 0.5 * p_.max_correspondence;
       std::optional<OdometryStep> best;
+      double best_score = -1;
       for (int i = 1; i * pace <= reach + 1e-9; ++i)
         for (const double d : {i * pace, -i * pace}) {
           Eigen::Isometry3d from = guess;
@@ -170,8 +185,14 @@ OdometryStep Odometry::track(const std::vector<PointXYZI>& points_in, double t, 
           OdometryStep st;
           attempt(from, st);
           ++step.start_guesses;
-          if (st.status == "ok" && (!best || st.gicp.fitness > best->gicp.fitness)) best = st;
+          if (st.status != "ok") continue;
+          const double score = still_facing ? facingScore(cloud, map_, st.pose, forward, gicp_,
+                                                          threads_, kFacingPoints, newest)
+                                                  .value_or(-1.0)
+                                            : st.gicp.fitness;
+          if (!best || score > best_score) best = st, best_score = score;
         }
+      if (step.status == "ok" && best && best_score <= *still_facing + kFacingMargin) best.reset();
       if (best) {
         step.gicp = best->gicp;
         step.pose = best->pose;

@@ -5,6 +5,7 @@
 // T <- [exp(w) | v] T.
 #pragma once
 #include <Eigen/Geometry>
+#include <optional>
 #include <string>
 
 #include "cleanmap/registration/cov_cloud.h"
@@ -46,5 +47,17 @@ struct GicpResult {
 /// matching only the target's entries of scans up to `newest_scan`.
 GicpResult alignGicp(const CovCloud& source, const VoxelMap& target, const Eigen::Isometry3d& guess,
                      const GicpParams& p, int threads, int64_t newest_scan = INT64_MAX);
+
+/// DESIGN §2.1 "Starting at speed": how well `src` at `T` fits `target` where it says where the
+/// sensor is along `axis` (a unit vector in the source's frame): over the source points whose
+/// surface faces that axis (normal within 45 degrees of it), the mean of e / (e + 1) with e the
+/// squared distance along the target's normal over (5 cm)^2, 1 for a point without a match
+/// within max_correspondence; 1 minus that. Surfaces along the axis (a street's facades and road,
+/// sampled alike by the same beams at every step) leave it unchanged. nullopt with fewer than
+/// `min_points` such points.
+std::optional<double> facingScore(const CovCloud& src, const VoxelMap& target,
+                                  const Eigen::Isometry3d& T, const Eigen::Vector3d& axis,
+                                  const GicpParams& p, int threads, std::size_t min_points,
+                                  int64_t newest_scan = INT64_MAX);
 
 }  // namespace cleanmap::reg
