@@ -157,23 +157,23 @@ OdometryStep Odometry::track(const std::vector<PointXYZI>& points_in, double t, 
     // DESIGN §2.1 "Starting at speed": no velocity yet (no two accepted scans) and no prior, the
     // guess is a standstill, a scan period's travel off for a car already driving (1.4 m at
     // 14 m/s, beyond the correspondences' reach: a street's corridor then holds it, degenerate).
-    // The alignment is tried again from guesses along the sensor's forward axis, both ways, every
-    // half correspondence distance up to max_speed, where the standstill's was refused or where
-    // the scan has surfaces facing that axis (kFacingPoints): those say where along it the sensor
-    // is, while a street's facades and road, sampled alike by the same beams at every step, fit a
-    // standstill best (its fitness and RMSE win at 10 m/s). The accepted guess that fits the
-    // facing surfaces best replaces an accepted standstill only if it fits them better by
-    // kFacingMargin; without facing surfaces, a refused standstill takes the best fitness.
+    // Refused, it is tried again from guesses along the sensor's forward axis, both ways, every
+    // half correspondence distance up to max_speed; the accepted one with the best fitness wins.
+    // Accepted, it may still be a standstill that a street's facades and road hold (sampled alike
+    // by the same beams at every step, they fit it best: at 10 m/s its fitness and RMSE win). The
+    // surfaces that face the forward axis say where along the street the sensor is: where the
+    // scan has kFacingPoints of them and the standstill fits fewer than half of them
+    // (facingScore < 0.5), the guesses run, scored on those surfaces, and the best replaces the
+    // standstill if it fits most of them (> 0.5; a mover's face alone, a minority, does not).
     constexpr std::size_t kFacingPoints = 20;
-    constexpr double kFacingMargin = 0.02;
     const bool starting = !prior && last_.size() < 2 && prev_;
     const int64_t newest = accepted_.empty() ? INT64_MAX : accepted_.front();
     const Eigen::Vector3d forward = Eigen::Vector3d::UnitX();  // the sensor's, in its own frame
     std::optional<double> still_facing;
-    if (starting)
+    if (starting && step.status == "ok")
       still_facing =
           facingScore(cloud, map_, step.pose, forward, gicp_, threads_, kFacingPoints, newest);
-    if (starting && (step.status != "ok" || still_facing)) {
+    if (starting && (step.status != "ok" || (still_facing && *still_facing < 0.5))) {
       const double reach = p_.max_speed * std::clamp(t - prev_->first, 0.0, 1.0);
       const double pace = 0.5 * p_.max_correspondence;
       std::optional<OdometryStep> best;
@@ -192,7 +192,7 @@ OdometryStep Odometry::track(const std::vector<PointXYZI>& points_in, double t, 
                                             : st.gicp.fitness;
           if (!best || score > best_score) best = st, best_score = score;
         }
-      if (step.status == "ok" && best && best_score <= *still_facing + kFacingMargin) best.reset();
+      if (still_facing && best_score <= 0.5) best.reset();
       if (best) {
         step.gicp = best->gicp;
         step.pose = best->pose;
