@@ -18,6 +18,7 @@
 #include <mrpt/maps/CSimplePointsMap.h>
 #include <mrpt/obs/CObservation3DRangeScan.h>
 #include <mrpt/obs/CObservationPointCloud.h>
+#include <mrpt/obs/CObservationRotatingScan.h>
 #include <mrpt/obs/CRawlog.h>
 #include <mrpt/opengl/CPointCloud.h>
 #include <mrpt/opengl/CPointCloudColoured.h>
@@ -27,6 +28,7 @@
 
 #include "cleanmap/io/config.h"
 #include "cleanmap/io/files.h"
+
 #include "cleanmap/io/ini.h"
 #include "cleanmap/io/kitti.h"
 #include "cleanmap/maps/ground_model_map.h"
@@ -436,6 +438,14 @@ TEST(MovingObjectsMap, TakesTheObservationsOfOneLidar) {
         if (moving->insertObservation(*obs, robot)) inserted.push_back(label);
       }
     EXPECT_EQ(moving->pending() + moving->decided(), inserted.size());
+    ::mrpt::obs::CObservationRotatingScan rot;  // a third lidar, of a model cleanmap cannot decode:
+    rot.sensorLabel = "OUSTER";                 // not this layer's, so not decoded, no error
+    rot.lidarModel = "OS1-64";
+    rot.rowCount = 64;
+    rot.columnCount = 4;
+    rot.rangeImage.setZero(64, 4);
+    rot.rangeResolution = 0.01;
+    EXPECT_FALSE(moving->insertObservation(rot, ::mrpt::poses::CPose3D()));
     const auto back = deserialize<CMovingObjectsMap>(serialize(*moving));
     EXPECT_EQ(back->lidarLabel(), moving->lidarLabel());
     EXPECT_EQ(back->insertionOptions.sensor_label, moving->insertionOptions.sensor_label);

@@ -354,9 +354,9 @@ PinholeCamera pinhole(double fx, double fy, double cx, double cy, int width, int
 }  // namespace
 
 // One lidar and one camera per run: a car logging a roof Velodyne ("LIDAR") beside a front one
-// ("FRONT") and two cameras. By default the first lidar's and the first camera's observations are
-// read, the others skipped and counted per sensorLabel; a label chooses; a label the rawlog lacks
-// is an error naming the labels it has.
+// ("FRONT"), an Ouster cleanmap cannot decode, and two cameras. By default the first lidar's and
+// the first camera's observations are read, the others skipped (not decoded) and counted per
+// sensorLabel; a label chooses; a label the rawlog lacks is an error naming the labels it has.
 TEST(RawlogSource, ReadsOneLidarAndOneCameraByLabel) {
   const auto dir = test::scratchDir("rawlog_two_lidars");
   const std::string path = (dir / "two.rawlog").string();
@@ -374,6 +374,15 @@ TEST(RawlogSource, ReadsOneLidarAndOneCameraByLabel) {
             {PointXYZI{x, 0, -1, 0}, PointXYZI{x, 1, -1, 0}, PointXYZI{x, 2, -1, float(k)}});
         ar << *pc;
       }
+      ::mrpt::obs::CObservationRotatingScan rot;  // a third lidar that cleanmap cannot decode
+      rot.sensorLabel = "OUSTER";
+      rot.timestamp = cleanmap::mrpt::toMrptTime(t);
+      rot.lidarModel = "OS1-64";
+      rot.rowCount = 64;
+      rot.columnCount = 4;
+      rot.rangeImage.setZero(64, 4);
+      rot.rangeResolution = 0.01;
+      ar << rot;
       for (const auto& [label, grey] : {std::pair{"CAM_L", 50}, std::pair{"CAM_R", 200}}) {
         auto img = ::mrpt::obs::CObservationImage::Create();
         img->sensorLabel = label;
@@ -405,17 +414,19 @@ TEST(RawlogSource, ReadsOneLidarAndOneCameraByLabel) {
     EXPECT_EQ(grey, (std::vector<int>{50, 50, 50}));
     EXPECT_EQ(lidar, "LIDAR");
     EXPECT_EQ(camera, "CAM_L");
-    EXPECT_EQ(other_lidars, (std::map<std::string, std::size_t>{{"FRONT", 3}}));
+    // Not read, so the third lidar's scans (an unknown model: an error if decoded) are no error.
+    EXPECT_EQ(other_lidars, (std::map<std::string, std::size_t>{{"FRONT", 3}, {"OUSTER", 3}}));
     EXPECT_EQ(other_cameras, (std::map<std::string, std::size_t>{{"CAM_R", 3}}));
   }
   {
     const auto [x, grey, lidar, camera, other_lidars, other_cameras] = read("FRONT", "CAM_R");
     EXPECT_EQ(x, (std::vector<float>{9, 9, 9}));
     EXPECT_EQ(grey, (std::vector<int>{200, 200, 200}));
-    EXPECT_EQ(other_lidars, (std::map<std::string, std::size_t>{{"LIDAR", 3}}));
+    EXPECT_EQ(other_lidars, (std::map<std::string, std::size_t>{{"LIDAR", 3}, {"OUSTER", 3}}));
   }
   test::expectError([&] { read("VELODYNE", ""); }, "two.rawlog",
-                    "holds no scans of lidar 'VELODYNE'; its lidars: 'FRONT' (3), 'LIDAR' (3)");
+                    "holds no scans of lidar 'VELODYNE'; its lidars: 'FRONT' (3), 'LIDAR' (3), "
+                    "'OUSTER' (3)");
   cleanmap::mrpt::InputOptions kitti;
   kitti.lidar_label = "LIDAR";
   test::expectError([&] { cleanmap::mrpt::openInput(dir.string(), kitti); }, dir.string(),

@@ -238,13 +238,15 @@ void CMovingObjectsMap::internal_clear() {
 bool CMovingObjectsMap::internal_insertObservation(
     const mrpt::obs::CObservation& obs,
     const std::optional<const mrpt::poses::CPose3D>& robotPose) {
+  // One lidar per layer (insertOpts sensor_label, else the first one inserted); another lidar's
+  // observations are not decoded.
+  const std::string& want =
+      insertionOptions.sensor_label.empty() ? lidar_label_ : insertionOptions.sensor_label;
+  if (!want.empty() && obs.sensorLabel != want && cleanmap::mrpt::isLidarObservation(obs))
+    return false;
   auto posed = posedScanOf(obs, robotPose, insertionOptions.use_pose_observations, pose_obs_);
   if (posed.consumed) return true;
   if (!posed.scan) return false;  // not a lidar observation
-  // One lidar per layer (insertOpts sensor_label, else the first one inserted).
-  const std::string& want =
-      insertionOptions.sensor_label.empty() ? lidar_label_ : insertionOptions.sensor_label;
-  if (!want.empty() && obs.sensorLabel != want) return false;
   lidar_label_ = obs.sensorLabel;
   cleanmap::Frame f;
   f.index = next_index_;

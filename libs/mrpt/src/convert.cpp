@@ -208,6 +208,14 @@ Scan fromRotatingScan(const ::mrpt::obs::CObservationRotatingScan& o) {
 
 }  // namespace
 
+bool isLidarObservation(const ::mrpt::obs::CObservation& obs) {
+  using namespace ::mrpt::obs;
+  return dynamic_cast<const CObservationPointCloud*>(&obs) ||
+         dynamic_cast<const CObservationVelodyneScan*>(&obs) ||
+         dynamic_cast<const CObservationRotatingScan*>(&obs) ||
+         dynamic_cast<const CObservation3DRangeScan*>(&obs);
+}
+
 std::optional<Scan> scanFromObservation(const ::mrpt::obs::CObservation& obs) {
   using namespace ::mrpt::obs;
   std::optional<Scan> out;

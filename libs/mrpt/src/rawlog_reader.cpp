@@ -116,6 +116,9 @@ struct RawlogSource::Impl {
     using namespace ::mrpt::obs;
     if (!obs) return;
     const double t = ::mrpt::Clock::toDouble(obs->timestamp);
+    // Another lidar's scan is skipped before it is decoded (an error in it is not this run's).
+    if (isLidarObservation(*obs) && !ours(lidar, opts.lidar_label, obs->sensorLabel, other_lidars))
+      return;
     std::optional<Scan> scan;
     try {
       scan = scanFromObservation(*obs);
@@ -123,7 +126,6 @@ struct RawlogSource::Impl {
       throw Error(path, "entry " + std::to_string(entry - 1) + ": " + e.what());
     }
     if (scan) {
-      if (!ours(lidar, opts.lidar_label, obs->sensorLabel, other_lidars)) return;
       Item it;
       it.kind = Item::kScan;
       it.t = t;

@@ -58,5 +58,7 @@ PinholeCamera fromTCamera(const ::mrpt::img::TCamera& cam,
 /// nullopt for other types. Throws cleanmap::Error for a rotating scan of an unknown lidar model.
 /// Loads lazy (externally stored) data first.
 std::optional<Scan> scanFromObservation(const ::mrpt::obs::CObservation& obs);
+/// True for the observation types scanFromObservation reads (without decoding them).
+bool isLidarObservation(const ::mrpt::obs::CObservation& obs);
 
 }  // namespace cleanmap::mrpt
