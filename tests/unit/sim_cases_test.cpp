@@ -344,9 +344,10 @@ struct StartAtSpeed {
   std::vector<PoseInfo> info;
   std::vector<double> step_error;
   double dist = 0, end = 0;
+  double first_step = 0;  // the first step's error in the world frame (any mount)
 };
 
-StartAtSpeed startAtSpeed(sim::Scenario sc, double speed) {
+StartAtSpeed startAtSpeed(sim::Scenario sc, double speed, const Eigen::Matrix3d* mount = nullptr) {
   sc.frames = 30;
   sc.ego_speed = speed;
   sc.sensor.sweep_motion = true;
@@ -354,7 +355,7 @@ StartAtSpeed startAtSpeed(sim::Scenario sc, double speed) {
   p.poses = PoseSource::kGicp;
   std::vector<std::pair<Eigen::Isometry3d, Eigen::Isometry3d>> poses;
   StartAtSpeed r;
-  r.est = runCase(sc, p, &poses, &r.info);
+  r.est = runCase(sc, p, &poses, &r.info, false, false, mount);
   for (std::size_t k = 1; k < poses.size(); ++k) {
     const Eigen::Isometry3d rel_est = poses[k - 1].first.inverse() * poses[k].first;
     const Eigen::Isometry3d rel_true = poses[k - 1].second.inverse() * poses[k].second;
@@ -363,6 +364,10 @@ StartAtSpeed startAtSpeed(sim::Scenario sc, double speed) {
   }
   if (!poses.empty())
     r.end = (poses.back().second.inverse() * poses.back().first).translation().norm();
+  if (poses.size() > 1)
+    r.first_step = ((poses[1].first.translation() - poses[0].first.translation()) -
+                    (poses[1].second.translation() - poses[0].second.translation()))
+                       .norm();
   return r;
 }
 
@@ -383,6 +388,22 @@ TEST(SimCases, GicpLocksOnWhenTheRecordingStartsAtSpeed) {
               dt[dt.size() / 2], dt.back(), r.end, r.dist);
   EXPECT_LE(dt[dt.size() / 2], 0.02);
   EXPECT_LE(dt.back(), 0.1);
+  EXPECT_LE(r.end, 0.01 * r.dist);
+  EXPECT_GE(r.est.all.precision(), 0.97);
+}
+
+// DESIGN §2.1 "Starting at speed" with a lidar mounted facing left (yawed 90 degrees on the car,
+// a rawlog's sensorPose), at 10 m/s along flat facades: the search and the facing surfaces are
+// the car's forward axis, the lidar's -y, not its x (then the facades were the "facing" surfaces,
+// the standstill fitted them, and the run kept it: end error 28.96 m over 29 m).
+TEST(SimCases, GicpLocksOnAtSpeedWithALidarMountedSideways) {
+  const Eigen::Matrix3d mount = Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitZ()).matrix();
+  const StartAtSpeed r = startAtSpeed(scenario("occluded"), 10, &mount);
+  ASSERT_EQ(r.info.size(), 30u);
+  EXPECT_GT(r.info[1].start_guesses, 0);
+  std::printf("  sideways at 10 m/s: first step error %.3f m, end error %.3f m over %.1f m\n",
+              r.first_step, r.end, r.dist);
+  EXPECT_LE(r.first_step, 0.05);
   EXPECT_LE(r.end, 0.01 * r.dist);
   EXPECT_GE(r.est.all.precision(), 0.97);
 }

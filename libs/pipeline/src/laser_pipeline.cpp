@@ -368,6 +368,9 @@ PoseInfo LaserPipeline::registerFrame(Frame& f) {
     kind = reg::Prior::kOdometry;
     info.guess = "odometry";
   }
+  // DESIGN §2.1: the vehicle's forward axis in the lidar's frame, from its mount (a rawlog's
+  // sensorPose), for the start's search.
+  if (f.mount) odo_->setForwardAxis(f.mount->linear().transpose() * Eigen::Vector3d::UnitX());
   const reg::OdometryStep step =
       odo_->track(f.scan.points, f.scan.timestamp, static_cast<int64_t>(f.index), prior, kind,
                   f.scan.point_time.empty() ? nullptr : &f.scan.point_time);

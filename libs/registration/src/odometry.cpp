@@ -20,6 +20,7 @@ Odometry::Odometry(const Odometry& o)
     : p_(o.p_),
       gicp_(o.gicp_),
       threads_(o.threads_),
+      forward_(o.forward_),
       map_(o.map_),
       last_(o.last_),
       prev_(o.prev_),
@@ -157,8 +158,8 @@ OdometryStep Odometry::track(const std::vector<PointXYZI>& points_in, double t, 
     // DESIGN §2.1 "Starting at speed": no velocity yet (no two accepted scans) and no prior, the
     // guess is a standstill, a scan period's travel off for a car already driving (1.4 m at
     // 14 m/s, beyond the correspondences' reach: a street's corridor then holds it, degenerate).
-    // Refused, it is tried again from guesses along the sensor's forward axis, both ways, every
-    // half correspondence distance up to max_speed; the accepted one with the best fitness wins.
+    // Refused, it is tried again from guesses along the vehicle's forward axis (forward_), both
+    // ways, every half correspondence distance up to max_speed; the best accepted fitness wins.
     // Accepted, it may still be a standstill that a street's facades and road hold (sampled alike
     // by the same beams at every step, they fit it best: at 10 m/s its fitness and RMSE win). The
     // surfaces that face the forward axis say where along the street the sensor is: where the
@@ -168,7 +169,7 @@ OdometryStep Odometry::track(const std::vector<PointXYZI>& points_in, double t, 
     constexpr std::size_t kFacingPoints = 20;
     const bool starting = !prior && last_.size() < 2 && prev_;
     const int64_t newest = accepted_.empty() ? INT64_MAX : accepted_.front();
-    const Eigen::Vector3d forward = Eigen::Vector3d::UnitX();  // the sensor's, in its own frame
+    const Eigen::Vector3d& forward = forward_;  // the vehicle's, in the sensor's frame
     std::optional<double> still_facing;
     if (starting && step.status == "ok")
       still_facing =
@@ -181,7 +182,7 @@ OdometryStep Odometry::track(const std::vector<PointXYZI>& points_in, double t, 
       for (int i = 1; i * pace <= reach + 1e-9; ++i)
         for (const double d : {i * pace, -i * pace}) {
           Eigen::Isometry3d from = guess;
-          from.translation() += guess.linear() * Eigen::Vector3d(d, 0, 0);
+          from.translation() += guess.linear() * (d * forward);
           OdometryStep st;
           attempt(from, st);
           ++step.start_guesses;

@@ -52,6 +52,10 @@ class Odometry {
   OdometryStep track(const std::vector<PointXYZI>& points, double timestamp, int64_t scan,
                      const std::optional<Eigen::Isometry3d>& prior = std::nullopt,
                      Prior kind = Prior::kGiven, const std::vector<float>* times = nullptr);
+  /// The vehicle's forward axis in the sensor's frame (default x): the start's search along it
+  /// (DESIGN §2.1 "Starting at speed"). A lidar mounted yawed on the vehicle: its mount's inverse
+  /// rotation of the vehicle's x.
+  void setForwardAxis(const Eigen::Vector3d& axis) { forward_ = axis.normalized(); }
   /// Takes the points of `scan` flagged in `drop` (indexed like the scan's points) out of the map.
   void dropPoints(int64_t scan, const std::vector<uint8_t>& drop) { map_.remove(scan, drop); }
 
@@ -63,6 +67,7 @@ class Odometry {
   RegistrationParams p_;
   GicpParams gicp_;
   int threads_;
+  Eigen::Vector3d forward_ = Eigen::Vector3d::UnitX();
   VoxelMap map_;
   std::vector<std::pair<double, Eigen::Isometry3d>> last_;    // the last two accepted (time, pose)
   std::optional<std::pair<double, Eigen::Isometry3d>> prev_;  // the previous scan, even refused
