@@ -7,7 +7,6 @@
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
-#include <map>
 #include <optional>
 #include <string>
 
@@ -379,24 +378,18 @@ int main(int argc, char** argv) {
     if (progress_shown) std::fprintf(stderr, "\n");
     // One lidar and one camera per run: the others' observations were skipped (counted).
     if (rawlog) {
-      auto others = [](const std::map<std::string, std::size_t>& m) {
-        std::string s;
-        for (const auto& [label, n] : m)
-          s += (s.empty() ? "'" : ", '") + label + "' " + std::to_string(n);
-        return s;
-      };
       if (!rawlog->otherLidars().empty() && lidar.empty())
         std::fprintf(stderr,
                      "cleanmap: warning: %s: scans of lidar '%s' used; those of other lidars "
-                     "skipped (%s): choose one with --lidar LABEL\n",
+                     "skipped: %s; choose one with --lidar LABEL\n",
                      input.c_str(), rawlog->lidarLabel().c_str(),
-                     others(rawlog->otherLidars()).c_str());
+                     cleanmap::mrpt::labelCounts(rawlog->otherLidars()).c_str());
       if (!rawlog->otherCameras().empty() && camera.empty() && params.image.enabled)
         std::fprintf(stderr,
                      "cleanmap: warning: %s: images of camera '%s' used; those of other cameras "
-                     "skipped (%s): choose one with --camera LABEL\n",
+                     "skipped: %s; choose one with --camera LABEL\n",
                      input.c_str(), rawlog->cameraLabel().c_str(),
-                     others(rawlog->otherCameras()).c_str());
+                     cleanmap::mrpt::labelCounts(rawlog->otherCameras()).c_str());
     }
     if (empty)
       std::fprintf(stderr,

@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <cstdio>
 #include <iostream>
-#include <map>
 #include <string>
 #include <vector>
 
@@ -92,24 +91,21 @@ int main(int argc, char** argv) {
     else
       std::printf("images:  %zu\n", images);
     if (const auto* r = dynamic_cast<const cleanmap::mrpt::RawlogSource*>(src.get())) {
-      auto list = [](const std::map<std::string, std::size_t>& m) {
-        std::string s;
-        for (const auto& [label, n] : m)
-          s += (s.empty() ? "'" : ", '") + label + "' " + std::to_string(n);
-        return s;
-      };
-      std::printf("sensors: lidar '%s'%s", r->lidarLabel().c_str(),
-                  r->otherLidars().empty() ? ""
-                                           : ("; other lidars, skipped: " + list(r->otherLidars()) +
-                                              " (cleanmap --lidar LABEL)")
-                                                 .c_str());
+      std::printf(
+          "sensors: lidar '%s'%s", r->lidarLabel().c_str(),
+          r->otherLidars().empty()
+              ? ""
+              : ("; other lidars, skipped: " + cleanmap::mrpt::labelCounts(r->otherLidars()) +
+                 "; cleanmap --lidar LABEL chooses")
+                    .c_str());
       if (!r->cameraLabel().empty())
-        std::printf("; camera '%s'%s", r->cameraLabel().c_str(),
-                    r->otherCameras().empty()
-                        ? ""
-                        : ("; other cameras, skipped: " + list(r->otherCameras()) +
-                           " (cleanmap --camera LABEL)")
-                              .c_str());
+        std::printf(
+            "; camera '%s'%s", r->cameraLabel().c_str(),
+            r->otherCameras().empty()
+                ? ""
+                : ("; other cameras, skipped: " + cleanmap::mrpt::labelCounts(r->otherCameras()) +
+                   "; cleanmap --camera LABEL chooses")
+                      .c_str());
       std::printf("\n");
     }
     if (labelled)

@@ -287,12 +287,9 @@ RawlogSource::RawlogSource(const std::string& path, const RawlogReadOptions& opt
   if (!impl_->in.open(path)) throw Error(path, "cannot open for reading");
   while (!impl_->findScan(0) && impl_->readEntry()) {
   }
-  if (!impl_->findScan(0) && !impl_->other_lidars.empty()) {
-    std::string labels;
-    for (const auto& [label, n] : impl_->other_lidars)
-      labels += (labels.empty() ? "'" : ", '") + label + "' (" + std::to_string(n) + ")";
-    throw Error(path, "holds no scans of lidar '" + impl_->lidar + "'; its lidars: " + labels);
-  }
+  if (!impl_->findScan(0) && !impl_->other_lidars.empty())
+    throw Error(path, "holds no scans of lidar '" + impl_->lidar +
+                          "'; its lidars: " + labelCounts(impl_->other_lidars));
   if (!impl_->findScan(0)) {
     std::string held;  // what it holds instead, most frequent first
     std::vector<std::pair<std::size_t, std::string>> by_count;
@@ -380,6 +377,13 @@ const std::map<std::string, std::size_t>& RawlogSource::otherLidars() const {
 
 const std::map<std::string, std::size_t>& RawlogSource::otherCameras() const {
   return impl_->other_cameras;
+}
+
+std::string labelCounts(const std::map<std::string, std::size_t>& counts) {
+  std::string s;
+  for (const auto& [label, n] : counts)
+    s += (s.empty() ? "'" : ", '") + label + "' (" + std::to_string(n) + ")";
+  return s;
 }
 
 }  // namespace cleanmap::mrpt

@@ -136,9 +136,9 @@ OdometryStep Odometry::track(const std::vector<PointXYZI>& points_in, double t, 
   } else {
     // DESIGN §2.1, "Traffic that moves with the sensor": the entries of the last map_lag accepted
     // scans are left out (until map_lag + 1 are accepted, only the first scan's are aligned to).
+    const int64_t newest = accepted_.empty() ? INT64_MAX : accepted_.front();
     auto attempt = [&](const Eigen::Isometry3d& from, OdometryStep& st) {
-      st.gicp = alignGicp(align, map_, from, gicp_, threads_,
-                          accepted_.empty() ? INT64_MAX : accepted_.front());
+      st.gicp = alignGicp(align, map_, from, gicp_, threads_, newest);
       st.pose = st.gicp.T;
       st.status = st.gicp.failure.empty() ? "ok" : st.gicp.failure;
       st.reason = st.gicp.reason;
@@ -168,12 +168,10 @@ OdometryStep Odometry::track(const std::vector<PointXYZI>& points_in, double t, 
     // standstill if it fits most of them (> 0.5; a mover's face alone, a minority, does not).
     constexpr std::size_t kFacingPoints = 20;
     const bool starting = !prior && last_.size() < 2 && prev_;
-    const int64_t newest = accepted_.empty() ? INT64_MAX : accepted_.front();
-    const Eigen::Vector3d& forward = forward_;  // the vehicle's, in the sensor's frame
     std::optional<double> still_facing;
     if (starting && step.status == "ok")
       still_facing =
-          facingScore(cloud, map_, step.pose, forward, gicp_, threads_, kFacingPoints, newest);
+          facingScore(cloud, map_, step.pose, forward_, gicp_, threads_, kFacingPoints, newest);
     if (starting && (step.status != "ok" || (still_facing && *still_facing < 0.5))) {
       const double reach = p_.max_speed * std::clamp(t - prev_->first, 0.0, 1.0);
       const double pace = 0.5 * p_.max_correspondence;
@@ -182,12 +180,12 @@ OdometryStep Odometry::track(const std::vector<PointXYZI>& points_in, double t, 
       for (int i = 1; i * pace <= reach + 1e-9; ++i)
         for (const double d : {i * pace, -i * pace}) {
           Eigen::Isometry3d from = guess;
-          from.translation() += guess.linear() * (d * forward);
+          from.translation() += guess.linear() * (d * forward_);
           OdometryStep st;
           attempt(from, st);
           ++step.start_guesses;
           if (st.status != "ok") continue;
-          const double score = still_facing ? facingScore(cloud, map_, st.pose, forward, gicp_,
+          const double score = still_facing ? facingScore(cloud, map_, st.pose, forward_, gicp_,
                                                           threads_, kFacingPoints, newest)
                                                   .value_or(-1.0)
                                             : st.gicp.fitness;

@@ -100,4 +100,7 @@ class RawlogSource : public FrameSource {
   std::unique_ptr<Impl> impl_;
 };
 
+/// Per-sensorLabel counts as the messages give them: 'FRONT' (3), 'LIDAR' (24).
+std::string labelCounts(const std::map<std::string, std::size_t>& counts);
+
 }  // namespace cleanmap::mrpt
