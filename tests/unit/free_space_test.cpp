@@ -75,7 +75,9 @@ TEST(FreeSpace, ScansCountOnceAndPoliciesDecide) {
   p.min_free_scans = 10;
   EXPECT_FALSE(removedByPolicy(e, 5, p));  // not enough evidence
   p.min_free_scans = 2;
-  p.free_ratio = 10;  // 9 empty scans < 10 x 1 hit
+  p.free_ratio = 10;                      // 9 empty scans < 10 x 1 hit ...
+  EXPECT_TRUE(removedByPolicy(e, 5, p));  // ... but 5 saw it empty before its return (arrived)
+  p.arrived_scans = 6;
   EXPECT_FALSE(removedByPolicy(e, 5, p));
   p.clean = false;
   p.free_ratio = 0;
@@ -166,6 +168,47 @@ TEST(FreeSpace, SpaceOnlyEmptyAfterItsLastReturnWasVacated) {
   EXPECT_FALSE(removedByPolicy(t, 3, p));
   p.vacated_scans = 7;  // 6 scans of empty space are not enough
   EXPECT_FALSE(removedByPolicy(t, 3, p));
+}
+
+TEST(FreeSpace, SpaceEmptyBeforeItsFirstReturnWasArrivedInto) {
+  // A slow truck's front pushes into the lane: scans 0..5 see through x = 10 to the wall, scans
+  // 6..35 return from the truck's side there. Fewer empty scans than hits (6 < 0.5 x 30) and the
+  // truck is still there at the end, but 6 >= arrived_scans scans saw the place empty before its
+  // first return: something came. A wall first seen at scan 6 (nothing passed through it before)
+  // and foliage (seen through now and then, from the first scan on) stay. Cut into chunks inside
+  // the empty run, the merged evidence is the whole run's, in either order of merging.
+  MapParams p = params();
+  p.free_ratio = 0.5;
+  p.vacated_scans = 5;
+  p.arrived_scans = 5;
+  const PointXYZI side{10.05f, 0.f, 0.f, 0.f};
+  const auto truck = [&](int k) { return k < 6 ? ring(20.f) : ring(20.f, {side}); };
+  FreeSpaceMap whole(p), wall(p), foliage(p), a(p), b(p);
+  for (int k = 0; k < 36; ++k) {
+    whole.insertScan(truck(k), at(0), k);
+    (k < 3 ? a : b).insertScan(truck(k), at(0), k);
+    if (k >= 6) wall.insertScan(ring(20.f, {side}), at(0), k);
+    foliage.insertScan(k % 4 == 3 ? ring(20.f) : ring(20.f, {side}), at(0), k);
+  }
+  const FreeEvidence t = whole.evidence(side.xyz());
+  EXPECT_EQ(t.count, 6);
+  EXPECT_EQ(t.hits, 30);
+  EXPECT_EQ(t.lead, 6);
+  EXPECT_TRUE(removedByPolicy(t, 20, p));
+  EXPECT_FALSE(removedByPolicy(wall.evidence(side.xyz()), 20, p));
+  EXPECT_FALSE(removedByPolicy(foliage.evidence(side.xyz()), 20, p));
+  FreeSpaceMap ab(a), ba(b);
+  ab.merge(b);
+  ba.merge(a);
+  EXPECT_EQ(ab.evidence(side.xyz()), t);
+  EXPECT_EQ(ba.evidence(side.xyz()), t);
+  p.arrived_scans = 0;  // off: the hit ratio keeps the truck's side
+  EXPECT_FALSE(removedByPolicy(t, 20, p));
+  p.arrived_scans = 7;  // 6 scans of empty space are not enough
+  EXPECT_FALSE(removedByPolicy(t, 20, p));
+  p.arrived_scans = 5;
+  p.policy = MapPolicy::kMoving;  // it came and stayed: not "came and went"
+  EXPECT_FALSE(removedByPolicy(t, 20, p));
 }
 
 TEST(FreeSpace, SpaceEmptiedBetweenTwoReturnsWasVacated) {

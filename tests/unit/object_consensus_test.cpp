@@ -2,6 +2,7 @@
 // Object consensus (doc/OBJECTS.md) on hand-made point sets with a known answer.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include "cleanmap/core/object_consensus.h"
@@ -250,4 +251,117 @@ TEST(ObjectConsensus, HysteresisKeepsAPartlyMovingObjectThatMovedBefore) {
   off.persist_radius = 0;
   auto unchanged = moving;
   EXPECT_EQ(objectConsensus(pts, member, unchanged, off, &near_all).persisted, 0u);
+}
+
+// DESIGN §2e, "Objects": the map's decision per rigid object (MapObjectConsensus).
+namespace {
+
+// A truck's side (`length` x 3.5 m, sampled every 0.1 m) at y = 2, its front at `front`; the
+// points with x < front - length + rear or x > front - ahead are removed by the free space (its
+// ends, which came or left), the rest is the part that never left.
+struct Side {
+  std::vector<PointXYZI> pts;
+  std::vector<uint8_t> member, removed;
+};
+Side truckSide(float front, float rear, float ahead, float length = 12) {
+  Side s;
+  for (float z = 0.1f; z <= 3.5f; z += 0.1f)
+    for (float x = front - length; x <= front; x += 0.1f) {
+      s.pts.push_back({x, 2, z, 0});
+      s.removed.push_back(x < front - length + rear || x > front - ahead);
+    }
+  s.member.assign(s.pts.size(), 1);
+  return s;
+}
+// The side's points split as the map hands them over: the map points (none removed) first, then
+// the windowed test's moving points (those `removed` marks), removed; returns where they start.
+std::size_t asWindowedMoving(Side& s) {
+  Side out;
+  for (int moving = 0; moving < 2; ++moving)
+    for (std::size_t i = 0; i < s.pts.size(); ++i)
+      if (s.removed[i] == moving) {
+        out.pts.push_back(s.pts[i]);
+        out.removed.push_back(static_cast<uint8_t>(moving));
+      }
+  const std::size_t first =
+      static_cast<std::size_t>(std::count(out.removed.begin(), out.removed.end(), uint8_t{0}));
+  out.member.assign(out.pts.size(), 1);
+  s = std::move(out);
+  return first;
+}
+double removedShare(const std::vector<uint8_t>& r) {
+  std::size_t n = 0;
+  for (uint8_t v : r) n += v;
+  return double(n) / double(r.size());
+}
+
+}  // namespace
+
+TEST(MapObjects, ASlowTrucksSideGoesWithItsEnds) {
+  // A crawling truck: its rear 1.8 m left, its front 1.8 m came (30 %): the 8.4 m between, seen
+  // occupied in every scan, goes with them. One with 15 % removed stays as it is (between the
+  // shares); below 10 %, scattered (see-through windows, grazing beams), the object keeps every
+  // point. (A contiguous 4 % is a body, doc/OBJECTS.md rule 3, and stays removed.)
+  MapObjectConsensus mc(ObjectParams{}, 100);
+  Side s = truckSide(12, 1.8f, 1.8f);
+  ASSERT_NEAR(removedShare(s.removed), 0.3, 0.01);
+  auto st = mc.decide(0, 1.0, s.pts, s.member, s.removed, s.pts.size());
+  EXPECT_EQ(removedShare(s.removed), 1.0);
+  EXPECT_EQ(st.moving_objects, 1u);
+  EXPECT_GT(st.points_added, s.pts.size() / 2);
+
+  Side mid = truckSide(12, 0.9f, 0.9f);  // 15 %: undecided, and no memory in a fresh consensus
+  const auto before = mid.removed;
+  MapObjectConsensus fresh(ObjectParams{}, 100);
+  fresh.decide(0, 1.0, mid.pts, mid.member, mid.removed, mid.pts.size());
+  EXPECT_EQ(mid.removed, before);
+
+  Side few = truckSide(12, 0, 0);  // 4 %, scattered: a static object's stray removals are kept
+  for (std::size_t i = 0; i < few.removed.size(); ++i) few.removed[i] = i % 25 == 0;
+  ASSERT_GT(removedShare(few.removed), 0.03);
+  st = fresh.decide(1, 1.0, few.pts, few.member, few.removed, few.pts.size());
+  EXPECT_EQ(removedShare(few.removed), 0.0);
+  EXPECT_GT(st.points_removed, 0u);
+}
+
+TEST(MapObjects, AnObjectRemovedWholeStaysRemovedWhileItCrawls) {
+  // Rule 4 over the map: after a scan that removed the truck whole, the next scan's truck, 0.12 m
+  // further and only 15 % removed, goes whole too. An epoch's first scan (DESIGN §2f) forgets.
+  Side first = truckSide(12, 1.8f, 1.8f), next = truckSide(12.12f, 0.9f, 0.9f);
+  const auto next_before = next.removed;
+  MapObjectConsensus mc(ObjectParams{}, 10);
+  mc.decide(8, 1.0, first.pts, first.member, first.removed, first.pts.size());
+  Side again = next;
+  mc.decide(9, 1.0, again.pts, again.member, again.removed, again.pts.size());
+  EXPECT_EQ(removedShare(again.removed), 1.0);
+
+  MapObjectConsensus cut(ObjectParams{}, 10);
+  first = truckSide(12, 1.8f, 1.8f);
+  cut.decide(9, 1.0, first.pts, first.member, first.removed, first.pts.size());
+  again = next;
+  cut.decide(10, 1.0, again.pts, again.member, again.removed, again.pts.size());  // new epoch
+  EXPECT_EQ(again.removed, next_before);
+}
+
+TEST(MapObjects, TheWindowedTestsMovingPointsStayRemovedAndCount) {
+  // The scan's moving points (after fixed_from) belong to the objects: a truck whose ends the
+  // windowed test found goes whole though the free space removed none of its map points; in a
+  // parked car they stay removed however few they are, and structures are left alone.
+  Side s = truckSide(12, 1.8f, 1.8f);
+  std::size_t first = asWindowedMoving(s);
+  ASSERT_EQ(s.removed[0], 0);
+  MapObjectConsensus mc(ObjectParams{}, 100);
+  mc.decide(0, 1.0, s.pts, s.member, s.removed, first);
+  EXPECT_EQ(removedShare(s.removed), 1.0);
+
+  Side car = truckSide(12, 0.2f, 0, 4.5f);  // 4 % moving, all of them the windowed test's
+  first = asWindowedMoving(car);
+  ASSERT_LT(first, car.pts.size());
+  mc.decide(1, 1.0, car.pts, car.member, car.removed, first);
+  for (std::size_t i = 0; i < car.pts.size(); ++i) ASSERT_EQ(car.removed[i], i >= first) << i;
+
+  Side wall = truckSide(30, 3.0f, 3.0f, 30);  // 30 m long: a structure
+  const auto wall_before = wall.removed;
+  mc.decide(2, 1.0, wall.pts, wall.member, wall.removed, wall.pts.size());
+  EXPECT_EQ(wall.removed, wall_before);
 }

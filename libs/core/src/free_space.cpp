@@ -98,7 +98,8 @@ bool removedByPolicy(const FreeEvidence& e, int64_t scan, const MapParams& p) {
   // Or a run of between_scans scans saw it empty between two of its returns: a queue's cars, a
   // body that left and another that came (DESIGN §2e).
   const bool vacated = (p.vacated_scans > 0 && e.last - e.last_hit >= p.vacated_scans) ||
-                       (p.between_scans > 0 && e.emptied_between);
+                       (p.between_scans > 0 && e.emptied_between) ||
+                       (p.arrived_scans > 0 && e.hits > 0 && e.lead >= p.arrived_scans);
   if (!vacated && double(e.count) < p.free_ratio * double(e.hits)) return false;
   if (p.policy == MapPolicy::kTransient) return true;
   return e.first < scan && e.last > scan;  // kMoving: empty before and after (it came and went)
@@ -429,6 +430,7 @@ FreeEvidence evidenceOf(const Voxel* v) {
   e.first = v->first;
   e.last = v->last;
   e.last_hit = v->last_hit;
+  e.lead = static_cast<int>(v->lead);
   return e;
 }
 }  // namespace

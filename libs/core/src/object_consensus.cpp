@@ -30,8 +30,11 @@ struct UnionFind {
 ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
                                      const std::vector<uint8_t>& member,
                                      std::vector<uint8_t>& moving, const ObjectParams& p,
-                                     const std::vector<uint8_t>* near_previous) {
+                                     const std::vector<uint8_t>* near_previous,
+                                     std::vector<uint8_t>* in_moving_object,
+                                     const ConsensusRules& rules) {
   ObjectConsensusStats st;
+  if (in_moving_object) in_moving_object->assign(points.size(), 0);
   if (!p.enabled) return st;
   const float inv = static_cast<float>(1.0 / p.voxel);
   // Voxels of the member points.
@@ -95,6 +98,9 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
     c.hi = c.hi.cwiseMax(points[i].xyz());
   }
   std::vector<uint8_t> turn(voxels.size(), 0);  // 1: all moving, 2: all static
+  std::vector<uint8_t> whole;                   // vehicle-sized, moving in every point
+  if (in_moving_object) whole.assign(voxels.size(), 0);
+  const bool few_are_noise = rules.few_points_are_noise;
   bool body_check = false;  // a component turned static holds enough moving points for a body
   for (uint32_t v = 0; v < voxels.size(); ++v) {
     const Comp& c = comps[v];
@@ -102,6 +108,8 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
     ++st.objects;
     const Eigen::Vector3f ext = c.hi - c.lo;
     const bool vehicle_sized = ext.head<2>().norm() <= p.max_length && ext.z() <= p.max_height;
+    if (in_moving_object)
+      whole[v] = vehicle_sized && c.moving == c.n && static_cast<int>(c.n) >= p.min_moving;
     if (vehicle_sized && static_cast<int>(c.moving) >= p.min_moving &&
         static_cast<double>(c.moving) >= p.moving_fraction * static_cast<double>(c.n) &&
         c.moving < c.n) {
@@ -115,7 +123,7 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
       ++st.moving_objects;
       ++st.persisted;
     } else if (vehicle_sized && c.moving > 0 &&
-               (static_cast<int>(c.moving) < p.min_moving ||
+               ((few_are_noise && static_cast<int>(c.moving) < p.min_moving) ||
                 static_cast<double>(c.moving) < p.static_fraction * static_cast<double>(c.n))) {
       turn[v] = 2;
       body_check = body_check || static_cast<int64_t>(c.moving) >= 5 * int64_t(p.min_moving);
@@ -232,8 +240,15 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
       ++st.points_removed;
     }
   }
+  if (in_moving_object)
+    for (std::size_t i = 0; i < points.size(); ++i)
+      if (point_voxel[i] != UINT32_MAX) {
+        const uint32_t root = root_of[point_voxel[i]];
+        (*in_moving_object)[i] = turn[root] == 1 || whole[root];
+      }
   // Inside structures (too large for the rule above), moving points count only in groups: a
   // connected group of moving points smaller than min_moving is static.
+  if (!few_are_noise) return st;
   std::vector<uint32_t> moving_in(voxels.size(), 0);
   for (std::size_t i = 0; i < points.size(); ++i)
     if (point_voxel[i] != UINT32_MAX && moving[i]) ++moving_in[point_voxel[i]];
@@ -248,6 +263,56 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
       ++st.points_removed;
     }
   }
+  return st;
+}
+
+void persistCells(const std::vector<PointXYZI>& points, const std::vector<uint8_t>* mask,
+                  double radius, CellMap<uint8_t>& cells) {
+  cells.clear();
+  const double inv = 1.0 / radius;
+  CellMap<uint8_t> own;
+  for (std::size_t i = 0; i < points.size(); ++i)
+    if (!mask || (*mask)[i])
+      own.insert(cellKeyOf(double(points[i].x), double(points[i].y), double(points[i].z), inv));
+  own.forEach([&](uint64_t c, uint8_t) {
+    forEachNeighbour27([&](int dx, int dy, int dz) { cells.insert(cellKeyShift(c, dx, dy, dz)); });
+  });
+}
+
+ObjectConsensusStats MapObjectConsensus::decide(int64_t scan, double density,
+                                                const std::vector<PointXYZI>& points,
+                                                const std::vector<uint8_t>& member,
+                                                std::vector<uint8_t>& removed,
+                                                std::size_t fixed_from) {
+  if (!p_.enabled) return {};
+  const int64_t e = epoch_ > 0 ? scan / epoch_ : 0;
+  if (e != epoch_of_last_) prev_cells_.clear();  // DESIGN §2f: an epoch starts with no memory
+  epoch_of_last_ = e;
+  const bool persist = p_.persist_radius > 0 && !prev_cells_.empty();
+  if (persist) {
+    const double inv = 1.0 / p_.persist_radius;
+    near_.assign(points.size(), 0);
+    for (std::size_t i = 0; i < points.size(); ++i)
+      near_[i] =
+          member[i] && prev_cells_.contains(cellKeyOf(double(points[i].x), double(points[i].y),
+                                                      double(points[i].z), inv));
+  }
+  ObjectParams op = p_;  // min_moving is an HDL-64E count (§2d)
+  op.min_moving = std::max(1, static_cast<int>(std::lround(op.min_moving * density)));
+  decided_ = removed;
+  ConsensusRules rules;
+  rules.few_points_are_noise = false;  // a removal is a voxel the sequence saw empty, no alarm
+  ObjectConsensusStats st =
+      objectConsensus(points, member, decided_, op, persist ? &near_ : nullptr, &whole_, rules);
+  st.points_added = st.points_removed = 0;
+  for (std::size_t i = 0; i < std::min(fixed_from, removed.size()); ++i) {
+    st.points_added += decided_[i] && !removed[i];
+    st.points_removed += removed[i] && !decided_[i];
+    removed[i] = decided_[i];
+  }
+  // Rule 4's memory: the objects removed whole, not the free space's scattered removals (a
+  // parked car seen through its windows loses a few points in every scan).
+  if (p_.persist_radius > 0) persistCells(points, &whole_, p_.persist_radius, prev_cells_);
   return st;
 }
 

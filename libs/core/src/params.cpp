@@ -79,6 +79,8 @@ void validate(const PipelineParams& p, const std::string& name) {
   require(m.min_free_scans >= 1, "static_map.min_free_scans must be >= 1");
   require(m.vacated_scans >= 0 && m.vacated_scans <= 255,
           "static_map.vacated_scans must be in [0, 255] (0: off)");
+  require(m.arrived_scans >= 0 && m.arrived_scans <= 255,
+          "static_map.arrived_scans must be in [0, 255] (0: off)");
   require(m.between_scans >= 0 && m.between_scans <= 255,
           "static_map.between_scans must be in [0, 255] (0: off)");
   require(m.hit_inflate >= 0 && m.hit_inflate <= 1, "static_map.hit_inflate must be in [0, 1] m");

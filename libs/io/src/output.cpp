@@ -18,6 +18,7 @@
 
 #include "cleanmap/core/error.h"
 #include "cleanmap/core/median.h"
+#include "cleanmap/core/object_consensus.h"
 #include "cleanmap/io/config.h"
 #include "cleanmap/io/direct_file.h"
 #include "cleanmap/io/files.h"
@@ -179,11 +180,13 @@ void OutputWriter::write(const ScanResult& r, const std::optional<MosCounts>& ev
 }
 
 // The spool of the map points (DESIGN §2e): per scan a header, then its full-map points with their
-// original index and kind, then its moving points' original indices. Read back by writeMaps().
+// original index and kind, then its moving points with theirs (they belong to the map's objects).
+// Read back by writeMaps().
 namespace {
 struct SpoolHeader {
   int64_t index;
   double z;
+  double density;
   uint64_t points, full, moving;
 };
 struct SpoolPoint {
@@ -202,17 +205,20 @@ void OutputWriter::spoolScan(const ScanResult& r) {
   if (!indexed && !r.static_compact.empty())
     throw Error(staging_, "scan " + r.stem +
                               ": a compact map without static_full_kind (which points are in it)");
-  std::vector<uint32_t> moving_index = r.moving_index;
-  moving_index.resize(r.moving.size(), ~uint32_t(0));
-  const SpoolHeader h{static_cast<int64_t>(r.index), r.pose.translation().z(), r.labels.size(),
-                      r.static_full.size(), r.moving.size()};
+  const SpoolHeader h{
+      static_cast<int64_t>(r.index), r.pose.translation().z(), r.density, r.labels.size(),
+      r.static_full.size(),          r.moving.size()};
   spool_->write(&h, sizeof h);
   std::vector<SpoolPoint> pts(r.static_full.size());
   for (std::size_t i = 0; i < pts.size(); ++i)
     pts[i] = {r.static_full[i], indexed ? r.static_full_index[i] : ~uint32_t(0),
               indexed ? uint32_t{r.static_full_kind[i]} : uint32_t{kMapDuplicate}};
   spool_->write(pts.data(), pts.size() * sizeof(SpoolPoint));
-  spool_->write(moving_index.data(), moving_index.size() * sizeof(uint32_t));
+  const bool moving_indexed = r.moving_index.size() == r.moving.size();
+  pts.resize(r.moving.size());
+  for (std::size_t i = 0; i < pts.size(); ++i)
+    pts[i] = {r.moving[i], moving_indexed ? r.moving_index[i] : ~uint32_t(0), 0};
+  spool_->write(pts.data(), pts.size() * sizeof(SpoolPoint));
 }
 
 // DESIGN §2e: every spooled point is decided with the whole sequence's free space: the ground
@@ -224,9 +230,11 @@ void OutputWriter::writeMaps(const FreeSpaceMap* free_space, const MapScanSink& 
   const auto t0 = std::chrono::steady_clock::now();
   spool_->close();
   DirectReader spool(spool_path_);
-  std::vector<SpoolPoint> pts;
-  std::vector<uint32_t> moving;
-  std::vector<PointXYZI> full, compact, removed;
+  std::vector<SpoolPoint> pts, moving;
+  std::vector<PointXYZI> full, compact, removed, objects;
+  std::vector<uint8_t> member, gone;
+  const bool by_objects = free_space && params_.map.clean && params_.map.objects;
+  MapObjectConsensus consensus(params_.object, params_.epoch);
   std::optional<FreeSpaceMap::Lookup> lookup;
   if (free_space) lookup.emplace(*free_space);
   for (std::size_t s = 0; s < stems_.size(); ++s) {
@@ -235,18 +243,38 @@ void OutputWriter::writeMaps(const FreeSpaceMap* free_space, const MapScanSink& 
     pts.resize(h.full);
     moving.resize(h.moving);
     spool.read(pts.data(), pts.size() * sizeof(SpoolPoint));
-    spool.read(moving.data(), moving.size() * sizeof(uint32_t));
+    spool.read(moving.data(), moving.size() * sizeof(SpoolPoint));
     Labels map_labels(h.points, kUnclassified);
     full.clear();
     compact.clear();
     removed.clear();
+    // The free space's decision per point; then, with its objects (DESIGN §2e), the scan's map
+    // points and its moving points (in the objects too) after them.
+    objects.clear();
+    member.clear();
+    gone.clear();
     for (const auto& q : pts) {
+      const bool ground = isGroundKind(static_cast<uint8_t>(q.kind));
+      objects.push_back(q.p);
+      member.push_back(!ground);
+      gone.push_back(free_space && !ground &&
+                     removedByPolicy((*lookup)(q.p.xyz()), h.index, params_.map));
+    }
+    if (by_objects) {
+      for (const auto& q : moving) objects.push_back(q.p);
+      member.resize(objects.size(), 1);
+      gone.resize(objects.size(), 1);
+      const auto st = consensus.decide(h.index, h.density, objects, member, gone, pts.size());
+      map_object_points_ += st.points_added;
+      map_object_kept_ += st.points_removed;
+      map_objects_ += st.moving_objects;
+    }
+    for (std::size_t i = 0; i < pts.size(); ++i) {
+      const auto& q = pts[i];
       const auto kind = static_cast<uint8_t>(q.kind);
-      const bool gone = free_space && !isGroundKind(kind) &&
-                        removedByPolicy((*lookup)(q.p.xyz()), h.index, params_.map);
       if (q.orig < map_labels.size())
-        map_labels[q.orig] = gone ? kMoving : isGroundKind(kind) ? kGround : kStatic;
-      if (gone) {
+        map_labels[q.orig] = gone[i] ? kMoving : isGroundKind(kind) ? kGround : kStatic;
+      if (gone[i]) {
         removed.push_back(q.p);
         continue;
       }
@@ -254,8 +282,8 @@ void OutputWriter::writeMaps(const FreeSpaceMap* free_space, const MapScanSink& 
       if (kind == kMapStatic) compact.push_back(q.p);
       map_far_kept_ += kind == kMapFar || kind == kMapFarGround;
     }
-    for (const uint32_t o : moving)
-      if (o < map_labels.size()) map_labels[o] = kMoving;
+    for (const auto& q : moving)
+      if (q.orig < map_labels.size()) map_labels[q.orig] = kMoving;
     map_removed_ += removed.size();
     full_->append(full, h.z);
     compact_->append(compact, h.z);
@@ -354,6 +382,11 @@ void OutputWriter::finish(double wall_s, const FreeSpaceMap* free_space) {
                 {"clean", m.clean && free_space != nullptr},
                 {"policy", m.policy == MapPolicy::kMoving ? "moving" : "transient"},
                 {"removed_points", map_removed_},
+                // DESIGN §2e, "Objects": of those, the points removed with their objects
+                {"objects", m.clean && m.objects && free_space != nullptr},
+                {"object_points", map_object_points_},
+                {"object_points_kept", map_object_kept_},
+                {"objects_removed", map_objects_},
                 {"clean_ms", map_ms_},
                 {"free_space_mib", free_space ? double(free_space->bytes()) / (1 << 20) : 0.0},
                 // DESIGN §2e: the walk's azimuth bins, the lidar's own step where it is wider

@@ -1147,14 +1147,7 @@ void LaserPipeline::remember(const ScanResult& r, long index) {
   dup_.insert(inserted, index);
   prev_moving_cells_.clear();
   if (!p_.object.enabled || p_.object.persist_radius <= 0) return;
-  const double inv = 1.0 / p_.object.persist_radius;
-  CellMap<uint8_t> cells;
-  for (const auto& p : r.moving)
-    cells.insert(cellKeyOf(double(p.x), double(p.y), double(p.z), inv));
-  cells.forEach([&](uint64_t c, uint8_t) {
-    forEachNeighbour27(
-        [&](int dx, int dy, int dz) { prev_moving_cells_.insert(cellKeyShift(c, dx, dy, dz)); });
-  });
+  persistCells(r.moving, nullptr, p_.object.persist_radius, prev_moving_cells_);
 }
 
 }  // namespace cleanmap

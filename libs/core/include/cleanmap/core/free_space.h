@@ -28,13 +28,14 @@ struct FreeEvidence {
   int hits = 0;  ///< scans that returned from the voxel
   int64_t first = -1, last = -1;
   int64_t last_hit = -1;  ///< the last scan that returned from it
+  int lead = 0;           ///< scans that saw it empty before its first return (saturating at 255)
   /// A run of at least between_scans scans saw it empty between two of its returns.
   bool emptied_between = false;
 };
 
 inline bool operator==(const FreeEvidence& a, const FreeEvidence& b) {
   return a.count == b.count && a.hits == b.hits && a.first == b.first && a.last == b.last &&
-         a.last_hit == b.last_hit && a.emptied_between == b.emptied_between;
+         a.last_hit == b.last_hit && a.lead == b.lead && a.emptied_between == b.emptied_between;
 }
 
 /// Is a map point (non-ground) of scan `scan` removed, given its voxel's evidence?

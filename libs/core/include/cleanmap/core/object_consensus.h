@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "cleanmap/core/cell_map.h"
 #include "cleanmap/core/params.h"
 #include "cleanmap/core/types.h"
 
@@ -25,14 +26,61 @@ struct ObjectConsensusStats {
   std::size_t still_part_points_left = 0;
 };
 
+/// Whether few moving points are noise (doc/OBJECTS.md rules 2-3): the windowed test's scattered
+/// alarms are; the map's removals (DESIGN §2e), each in a voxel the sequence saw empty, are not.
+struct ConsensusRules {
+  /// Rule 2: a vehicle-sized object with fewer than min_moving moving points is static (as one
+  /// with less than static_fraction of its points moving always is); rule 3: so is a connected
+  /// group of fewer than min_moving moving points. false: only the share counts, groups stay.
+  bool few_points_are_noise = true;
+};
+
 /// Groups `points[i]` with `member[i]` (in crop, not ground) into 26-connected voxel components
 /// and sets `moving[i]` = 1 for every point of a component that passes the rule of `p`.
 /// `near_previous[i]` (optional): point i lies within p.persist_radius of a moving point of the
 /// previous scan (world frame); it lets a partly moving object stay moving (hysteresis).
+/// `in_moving_object` (optional, per point): set to 1 where the point's component is a
+/// vehicle-sized object that moves as a whole (turned moving, or moving in every point).
 /// Deterministic; O(points).
 ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
                                      const std::vector<uint8_t>& member,
                                      std::vector<uint8_t>& moving, const ObjectParams& p,
-                                     const std::vector<uint8_t>* near_previous = nullptr);
+                                     const std::vector<uint8_t>* near_previous = nullptr,
+                                     std::vector<uint8_t>* in_moving_object = nullptr,
+                                     const ConsensusRules& rules = {});
+
+/// Rule 4's memory (doc/OBJECTS.md): the cells of side `radius` holding a point of `points`
+/// (world frame; only those with `mask[i]` where a mask is given), dilated by one cell.
+void persistCells(const std::vector<PointXYZI>& points, const std::vector<uint8_t>* mask,
+                  double radius, CellMap<uint8_t>& cells);
+
+/// DESIGN §2e, "Objects": the map's decision made per rigid object. The free space removes a
+/// point whose voxel the sequence saw empty; a slow truck's side, occupied in every scan, keeps
+/// the part that never left while its ends came and went, and a parked car seen through its
+/// windows loses a few points. Scan by scan (in increasing order), the object consensus of the
+/// windowed test (doc/OBJECTS.md, rules 1-4) runs on the map's points with the removed ones as
+/// its moving points, counting shares only (ConsensusRules): a vehicle-sized object with at
+/// least moving_fraction of its points removed goes whole (so does one with static_fraction next
+/// to an object the last scan removed whole, rule 4); one with less than static_fraction keeps
+/// all its points. Epochs of `epoch` scans start with no memory, as the pipeline's do (§2f).
+class MapObjectConsensus {
+ public:
+  MapObjectConsensus(const ObjectParams& p, int epoch) : p_(p), epoch_(epoch) {}
+  /// `points`: a scan's map points (world frame), then from `fixed_from` on its moving points
+  /// (the windowed test's: part of the objects, and they stay removed); `member[i]`: not ground;
+  /// `removed[i]` on entry the free space's decision (1 for the moving points), on return the
+  /// objects'. `density`: the lidar's (min_moving, §2d). Stats: points_added / points_removed
+  /// count the map points the objects removed / kept against the free space.
+  ObjectConsensusStats decide(int64_t scan, double density, const std::vector<PointXYZI>& points,
+                              const std::vector<uint8_t>& member, std::vector<uint8_t>& removed,
+                              std::size_t fixed_from);
+
+ private:
+  ObjectParams p_;
+  int epoch_;
+  int64_t epoch_of_last_ = -1;
+  CellMap<uint8_t> prev_cells_;  // the last scan's removed cells, dilated
+  std::vector<uint8_t> near_, decided_, whole_;
+};
 
 }  // namespace cleanmap

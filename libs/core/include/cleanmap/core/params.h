@@ -191,12 +191,20 @@ struct MapParams {
   /// (0 = off): what stood there has left (a slow truck, a queue), whereas see-through space is
   /// hit again now and then (DESIGN §2e).
   int vacated_scans = 5;
+  /// ... or at least this many scans saw it empty before its first return (0 = off): something
+  /// came and stood (the space a slow truck's front pushes into, a queue car that arrives); a
+  /// static surface is not seen through before it is first seen (DESIGN §2e).
+  int arrived_scans = 5;
   /// ... or a run of at least this many scans saw it empty between two of its returns (0 = off):
   /// the gap between two cars of a queue passing a standing sensor. A gap of g metres at v m/s is
   /// seen empty for about (g - 2 hit_inflate - voxel) rate / v scans (hit_inflate and margin keep
   /// each car's neighbourhood): 1.9 m at 3 m/s, 3.5 scans; foliage, hit in most scans and
   /// inflated by its neighbours' returns, is not seen empty that long (DESIGN §2e).
   int between_scans = 3;
+  /// Spread the removals over rigid objects, scan by scan (the object consensus of
+  /// doc/OBJECTS.md with the [object] parameters; DESIGN §2e, "Objects"): a slow truck's side
+  /// that never left goes with its ends that came and went.
+  bool objects = true;
   /// m; a scan does not see empty the voxels within this distance (per axis) of its own static,
   /// non-ground returns (0: only the voxel of each return): a beam that passes a surface's edge
   /// crosses the edge's voxel beside that surface's returns. 2 sigma of the beam model, as margin.

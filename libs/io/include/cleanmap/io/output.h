@@ -118,6 +118,7 @@ class OutputWriter {
   std::unique_ptr<DirectFile> spool_;  // the map points of every scan until writeMaps()
   std::string spool_path_;
   std::size_t map_removed_ = 0, map_far_kept_ = 0;
+  std::size_t map_object_points_ = 0, map_object_kept_ = 0, map_objects_ = 0;  // §2e, "Objects"
   double map_ms_ = 0;
   std::vector<Eigen::Isometry3d> poses_;
   std::vector<std::chrono::steady_clock::time_point> written_at_;         // of each write()
