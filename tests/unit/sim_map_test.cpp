@@ -9,6 +9,8 @@
 
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <map>
 #include <optional>
 
@@ -195,4 +197,29 @@ TEST(SimMap, QueueSeenByLidarsSparserThanTheFreeSpaceBins) {
     EXPECT_GE(r.removed("queue_2"), 0.75) << lidar;
     EXPECT_GE(r.kept("world"), 0.995) << lidar;
   }
+}
+
+TEST(SimMap, TheMapsDecisionIsTheSameWithOneOrTwoThreads) {
+  // With two threads the map's final decision reads and looks up the next scan beside this one's
+  // objects (OutputWriter::writeMaps): the same files, byte for byte, as one thread writes.
+  sim::Scenario sc = scenario("truck_crawl");
+  sc.frames = 30;
+  std::map<int, std::map<std::string, std::string>> files;
+  for (const int threads : {1, 2}) {
+    PipelineParams params;
+    params.threads = threads;
+    sc.name = "truck_crawl_threads" + std::to_string(threads);
+    runMapCase(sc, params, "default");
+    const fs::path out = fs::path(CLEANMAP_TEST_SCRATCH_DIR) / (sc.name + "_default");
+    for (const auto& e : fs::recursive_directory_iterator(out)) {
+      const std::string rel = fs::relative(e.path(), out).string();
+      if (!e.is_regular_file() || rel.rfind("report", 0) == 0 || rel == "params.ini") continue;
+      std::ifstream in(e.path(), std::ios::binary);
+      files[threads][rel].assign(std::istreambuf_iterator<char>(in), {});
+    }
+  }
+  ASSERT_GT(files[1].count("static_map_full.ply"), 0u);
+  ASSERT_GT(files[1].count("map_labels/000029.label"), 0u);
+  EXPECT_EQ(files[1].size(), files[2].size());
+  for (const auto& [rel, bytes] : files[1]) EXPECT_TRUE(files[2][rel] == bytes) << rel;
 }

@@ -11,6 +11,7 @@
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
+#include <future>
 #include <map>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -230,41 +231,58 @@ void OutputWriter::writeMaps(const FreeSpaceMap* free_space, const MapScanSink& 
   const auto t0 = std::chrono::steady_clock::now();
   spool_->close();
   DirectReader spool(spool_path_);
-  std::vector<SpoolPoint> pts, moving;
-  std::vector<PointXYZI> full, compact, removed, objects;
-  std::vector<uint8_t> member, gone;
+  std::vector<PointXYZI> full, compact, removed;
   const bool by_objects = free_space && params_.map.clean && params_.map.objects;
   MapObjectConsensus consensus(params_.object, params_.epoch);
   std::optional<FreeSpaceMap::Lookup> lookup;
   if (free_space) lookup.emplace(*free_space);
-  for (std::size_t s = 0; s < stems_.size(); ++s) {
+  // One scan of the spool with the free space's decision per point, and for its objects (DESIGN
+  // §2e) the scan's map points, then its moving points (in the objects too).
+  struct Spooled {
     SpoolHeader h;
-    spool.read(&h, sizeof h);
-    pts.resize(h.full);
-    moving.resize(h.moving);
-    spool.read(pts.data(), pts.size() * sizeof(SpoolPoint));
-    spool.read(moving.data(), moving.size() * sizeof(SpoolPoint));
+    std::vector<SpoolPoint> pts, moving;
+    std::vector<PointXYZI> objects;
+    std::vector<uint8_t> member, gone;
+  };
+  const auto read = [&](Spooled& b) {
+    spool.read(&b.h, sizeof b.h);
+    b.pts.resize(b.h.full);
+    b.moving.resize(b.h.moving);
+    spool.read(b.pts.data(), b.pts.size() * sizeof(SpoolPoint));
+    spool.read(b.moving.data(), b.moving.size() * sizeof(SpoolPoint));
+    b.objects.clear();
+    b.member.clear();
+    b.gone.clear();
+    for (const auto& q : b.pts) {
+      const bool ground = isGroundKind(static_cast<uint8_t>(q.kind));
+      b.objects.push_back(q.p);
+      b.member.push_back(!ground);
+      b.gone.push_back(free_space && !ground &&
+                       removedByPolicy((*lookup)(q.p.xyz()), b.h.index, params_.map));
+    }
+    if (!by_objects) return;
+    for (const auto& q : b.moving) b.objects.push_back(q.p);
+    b.member.resize(b.objects.size(), 1);
+    b.gone.resize(b.objects.size(), 1);
+  };
+  Spooled cur, next;
+  if (!stems_.empty()) read(cur);
+  for (std::size_t s = 0; s < stems_.size(); ++s) {
+    // With two threads the next scan is read and looked up beside this one's objects (issue
+    // #16); the reader and the lookup are only ever used by one of them at a time.
+    std::future<void> ahead;
+    const bool more = s + 1 < stems_.size();
+    if (more && params_.threads > 1) ahead = std::async(std::launch::async, read, std::ref(next));
+    const SpoolHeader& h = cur.h;
+    const auto& pts = cur.pts;
+    auto& gone = cur.gone;
     Labels map_labels(h.points, kUnclassified);
     full.clear();
     compact.clear();
     removed.clear();
-    // The free space's decision per point; then, with its objects (DESIGN §2e), the scan's map
-    // points and its moving points (in the objects too) after them.
-    objects.clear();
-    member.clear();
-    gone.clear();
-    for (const auto& q : pts) {
-      const bool ground = isGroundKind(static_cast<uint8_t>(q.kind));
-      objects.push_back(q.p);
-      member.push_back(!ground);
-      gone.push_back(free_space && !ground &&
-                     removedByPolicy((*lookup)(q.p.xyz()), h.index, params_.map));
-    }
     if (by_objects) {
-      for (const auto& q : moving) objects.push_back(q.p);
-      member.resize(objects.size(), 1);
-      gone.resize(objects.size(), 1);
-      const auto st = consensus.decide(h.index, h.density, objects, member, gone, pts.size());
+      const auto st =
+          consensus.decide(h.index, h.density, cur.objects, cur.member, gone, pts.size());
       map_object_points_ += st.points_added;
       map_object_kept_ += st.points_removed;
       map_objects_ += st.moving_objects;
@@ -282,7 +300,7 @@ void OutputWriter::writeMaps(const FreeSpaceMap* free_space, const MapScanSink& 
       if (kind == kMapStatic) compact.push_back(q.p);
       map_far_kept_ += kind == kMapFar || kind == kMapFarGround;
     }
-    for (const auto& q : moving)
+    for (const auto& q : cur.moving)
       if (q.orig < map_labels.size()) map_labels[q.orig] = kMoving;
     map_removed_ += removed.size();
     full_->append(full, h.z);
@@ -290,6 +308,11 @@ void OutputWriter::writeMaps(const FreeSpaceMap* free_space, const MapScanSink& 
     removed_->append(removed, h.z);
     writeLabels(staging_ + "/map_labels/" + stems_[s] + ".label", map_labels);
     if (sink) sink(MapScan{h.index, stems_[s], map_labels, full, removed});
+    if (ahead.valid())
+      ahead.get();
+    else if (more)
+      read(next);
+    std::swap(cur, next);
   }
   spool_.reset();
   std::error_code ec;
