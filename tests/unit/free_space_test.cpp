@@ -209,6 +209,7 @@ TEST(FreeSpace, SpaceEmptyBeforeItsFirstReturnWasArrivedInto) {
   p.arrived_scans = 5;
   p.policy = MapPolicy::kMoving;  // it came and stayed: not "came and went"
   EXPECT_FALSE(removedByPolicy(t, 20, p));
+  EXPECT_FALSE(removedByPolicy(t, 3, p));  // nor for a point of a scan before the truck came
 }
 
 TEST(FreeSpace, SpaceEmptiedBetweenTwoReturnsWasVacated) {

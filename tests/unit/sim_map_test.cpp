@@ -144,6 +144,22 @@ TEST(SimMap, ParkedCarThatDrivesOff) {
   EXPECT_GE(m.kept("world"), 0.99);                 // measured 0.9999
 }
 
+TEST(SimMap, CarThatArrivesAndParks) {
+  // car_stops_5s's car stops after 2 s and stays: 6 s parked. `transient` removes what came and
+  // stood (arrived_scans, then its object) as it removes what stood and left; `moving` keeps
+  // it (with the arrival rule under `moving` too, about a third of the parked car went).
+  sim::Scenario sc = scenario("car_stops_5s");
+  sc.name = "car_arrives_parks";
+  for (auto& m : sc.movers) m.stop = std::pair{2.0, 100.0};
+  const auto t = runMapCase(sc, withPolicy(MapPolicy::kTransient), "transient");
+  EXPECT_GE(t.removed("stopping_car"), 0.90);        // measured 0.944
+  EXPECT_LE(t.kept("stopping_car/standing"), 0.25);  // measured 0.064: it came, then stood
+  EXPECT_GE(t.kept("world"), 0.995);                 // measured 0.9989
+  const auto m = runMapCase(sc, withPolicy(MapPolicy::kMoving), "moving");
+  EXPECT_GE(m.kept("stopping_car/standing"), 0.95);  // measured 0.9995
+  EXPECT_GE(m.kept("world"), 0.999);                 // measured 1.0000
+}
+
 TEST(SimMap, QueueThatStopsAndGoes) {
   // The next car of the queue fills the space the one before left, so the lane is seen empty in
   // about a third of the scans (the gaps): under free_ratio. But each gap is a run of empty

@@ -96,11 +96,13 @@ bool removedByPolicy(const FreeEvidence& e, int64_t scan, const MapParams& p) {
   // Unless only empty for vacated_scans after its last return: it stood there, then left (every
   // scan after the last hit saw it empty, by definition; see-through space is hit again).
   // Or a run of between_scans scans saw it empty between two of its returns: a queue's cars, a
-  // body that left and another that came. Or arrived_scans saw it empty before its first return:
-  // something came and stood (a static surface is not seen through before it is seen; DESIGN §2e).
+  // body that left and another that came. Or, under `transient`, arrived_scans saw it empty
+  // before its first return: something came and stood (a static surface is not seen through
+  // before it is seen; `moving` keeps what came and stayed; DESIGN §2e).
   const bool came_or_left = (p.vacated_scans > 0 && e.last - e.last_hit >= p.vacated_scans) ||
                             (p.between_scans > 0 && e.emptied_between) ||
-                            (p.arrived_scans > 0 && e.hits > 0 && e.lead >= p.arrived_scans);
+                            (p.policy == MapPolicy::kTransient && p.arrived_scans > 0 &&
+                             e.hits > 0 && e.lead >= p.arrived_scans);
   if (!came_or_left && double(e.count) < p.free_ratio * double(e.hits)) return false;
   if (p.policy == MapPolicy::kTransient) return true;
   return e.first < scan && e.last > scan;  // kMoving: empty before and after (it came and went)
