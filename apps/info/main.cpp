@@ -91,22 +91,19 @@ int main(int argc, char** argv) {
     else
       std::printf("images:  %zu\n", images);
     if (const auto* r = dynamic_cast<const cleanmap::mrpt::RawlogSource*>(src.get())) {
-      std::printf(
-          "sensors: lidar '%s'%s", r->lidarLabel().c_str(),
-          r->otherLidars().empty()
-              ? ""
-              : ("; other lidars, skipped: " + cleanmap::mrpt::labelCounts(r->otherLidars()) +
-                 "; cleanmap --lidar LABEL chooses")
-                    .c_str());
+      // "lidar 'X'" and the other sensors of that kind the reader skipped, with the option.
+      const auto sensor = [](const char* kind, const std::string& label, const auto& others) {
+        std::string line = std::string(kind) + " '" + label + "'";
+        if (!others.empty())
+          line += std::string("; other ") + kind +
+                  "s, skipped: " + cleanmap::mrpt::labelCounts(others) + "; cleanmap --" + kind +
+                  " LABEL chooses";
+        return line;
+      };
+      std::string line = "sensors: " + sensor("lidar", r->lidarLabel(), r->otherLidars());
       if (!r->cameraLabel().empty())
-        std::printf(
-            "; camera '%s'%s", r->cameraLabel().c_str(),
-            r->otherCameras().empty()
-                ? ""
-                : ("; other cameras, skipped: " + cleanmap::mrpt::labelCounts(r->otherCameras()) +
-                   "; cleanmap --camera LABEL chooses")
-                      .c_str());
-      std::printf("\n");
+        line += "; " + sensor("camera", r->cameraLabel(), r->otherCameras());
+      std::printf("%s\n", line.c_str());
     }
     if (labelled)
       std::printf("labels:  %zu points, %zu moving (%.2f %%)\n", labelled, moving,
