@@ -25,6 +25,55 @@ struct UnionFind {
   }
 };
 
+// The 26-connected components of the member points' voxels (side `voxel`).
+struct Components {
+  CellMap<uint32_t> voxel_of;
+  std::vector<Eigen::Vector3i> voxels;
+  std::vector<uint32_t> point_voxel;  // per point; UINT32_MAX: not a member
+  std::vector<uint32_t> root_of;      // per voxel: its component's root, its smallest voxel
+};
+
+Components components(const std::vector<PointXYZI>& points, const std::vector<uint8_t>& member,
+                      double voxel) {
+  Components cc;
+  const float inv = static_cast<float>(1.0 / voxel);
+  cc.voxel_of.reserve(static_cast<std::size_t>(
+      std::count_if(member.begin(), member.end(), [](uint8_t m) { return m != 0; })));
+  cc.point_voxel.assign(points.size(), UINT32_MAX);
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    if (!member[i]) continue;
+    const Eigen::Vector3i c(static_cast<int>(floorToCell(points[i].x, inv)),
+                            static_cast<int>(floorToCell(points[i].y, inv)),
+                            static_cast<int>(floorToCell(points[i].z, inv)));
+    bool fresh = false;
+    uint32_t& v = cc.voxel_of.get(cellKey(c.x(), c.y(), c.z()), &fresh);
+    if (fresh) {
+      v = static_cast<uint32_t>(cc.voxels.size());
+      cc.voxels.push_back(c);
+    }
+    cc.point_voxel[i] = v;
+  }
+  // Each pair of neighbours met once (the root is the smallest voxel whatever the order of the
+  // unions).
+  UnionFind uf(cc.voxels.size());
+  for (uint32_t v = 0; v < cc.voxels.size(); ++v) {
+    const Eigen::Vector3i& c = cc.voxels[v];
+    forEachNeighbour13([&](int dx, int dy, int dz) {
+      const uint32_t* n = cc.voxel_of.find(cellKey(c.x() + dx, c.y() + dy, c.z() + dz));
+      if (n) uf.unite(v, *n);
+    });
+  }
+  cc.root_of.resize(cc.voxels.size());  // each voxel's component, found once
+  for (uint32_t v = 0; v < cc.voxels.size(); ++v) cc.root_of[v] = uf.find(v);
+  return cc;
+}
+
+// Rules 1-2 apply to an object of at most this extent; a larger one is a structure.
+bool vehicleSized(const Eigen::Vector3f& lo, const Eigen::Vector3f& hi, const ObjectParams& p) {
+  const Eigen::Vector3f ext = hi - lo;
+  return ext.head<2>().norm() <= p.max_length && ext.z() <= p.max_height;
+}
+
 }  // namespace
 
 ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
@@ -36,38 +85,12 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
   ObjectConsensusStats st;
   if (in_moving_object) in_moving_object->assign(points.size(), 0);
   if (!p.enabled) return st;
-  const float inv = static_cast<float>(1.0 / p.voxel);
-  // Voxels of the member points.
-  CellMap<uint32_t> voxel_of;
-  voxel_of.reserve(static_cast<std::size_t>(
-      std::count_if(member.begin(), member.end(), [](uint8_t m) { return m != 0; })));
-  std::vector<Eigen::Vector3i> voxels;
-  std::vector<uint32_t> point_voxel(points.size(), UINT32_MAX);
-  for (std::size_t i = 0; i < points.size(); ++i) {
-    if (!member[i]) continue;
-    const Eigen::Vector3i c(static_cast<int>(floorToCell(points[i].x, inv)),
-                            static_cast<int>(floorToCell(points[i].y, inv)),
-                            static_cast<int>(floorToCell(points[i].z, inv)));
-    bool fresh = false;
-    uint32_t& v = voxel_of.get(cellKey(c.x(), c.y(), c.z()), &fresh);
-    if (fresh) {
-      v = static_cast<uint32_t>(voxels.size());
-      voxels.push_back(c);
-    }
-    point_voxel[i] = v;
-  }
-  // 26-connected components of the voxels: each pair of neighbours met once (a component's root
-  // is its smallest voxel whatever the order of the unions).
-  UnionFind uf(voxels.size());
-  for (uint32_t v = 0; v < voxels.size(); ++v) {
-    const Eigen::Vector3i& c = voxels[v];
-    forEachNeighbour13([&](int dx, int dy, int dz) {
-      const uint32_t* n = voxel_of.find(cellKey(c.x() + dx, c.y() + dy, c.z() + dz));
-      if (n) uf.unite(v, *n);
-    });
-  }
-  std::vector<uint32_t> root_of(voxels.size());  // each voxel's component, found once
-  for (uint32_t v = 0; v < voxels.size(); ++v) root_of[v] = uf.find(v);
+  // Voxels of the member points and their 26-connected components.
+  const Components cc = components(points, member, p.voxel);
+  const CellMap<uint32_t>& voxel_of = cc.voxel_of;
+  const std::vector<Eigen::Vector3i>& voxels = cc.voxels;
+  const std::vector<uint32_t>& point_voxel = cc.point_voxel;
+  const std::vector<uint32_t>& root_of = cc.root_of;
   // The voxels that hold moving points (moving_in[v] > 0), joined with their 26-neighbours that
   // do: connected groups of moving points.
   const auto movingGroups = [&](const std::vector<uint32_t>& moving_in) {
@@ -106,8 +129,7 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
     const Comp& c = comps[v];
     if (c.n == 0) continue;
     ++st.objects;
-    const Eigen::Vector3f ext = c.hi - c.lo;
-    const bool vehicle_sized = ext.head<2>().norm() <= p.max_length && ext.z() <= p.max_height;
+    const bool vehicle_sized = vehicleSized(c.lo, c.hi, p);
     if (in_moving_object)
       whole[v] = vehicle_sized && c.moving == c.n && static_cast<int>(c.n) >= p.min_moving;
     if (vehicle_sized && static_cast<int>(c.moving) >= p.min_moving &&
@@ -264,6 +286,28 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
     }
   }
   return st;
+}
+
+std::vector<uint8_t> inVehicleSizedObject(const std::vector<PointXYZI>& points,
+                                          const std::vector<uint8_t>& member,
+                                          const ObjectParams& p) {
+  std::vector<uint8_t> in(points.size(), 0);
+  if (!p.enabled) return in;
+  const Components cc = components(points, member, p.voxel);
+  std::vector<Eigen::Vector3f> lo(cc.voxels.size(), Eigen::Vector3f::Constant(1e30f)),
+      hi(cc.voxels.size(), Eigen::Vector3f::Constant(-1e30f));
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    if (cc.point_voxel[i] == UINT32_MAX) continue;
+    const uint32_t root = cc.root_of[cc.point_voxel[i]];
+    lo[root] = lo[root].cwiseMin(points[i].xyz());
+    hi[root] = hi[root].cwiseMax(points[i].xyz());
+  }
+  for (std::size_t i = 0; i < points.size(); ++i)
+    if (cc.point_voxel[i] != UINT32_MAX) {
+      const uint32_t root = cc.root_of[cc.point_voxel[i]];
+      in[i] = vehicleSized(lo[root], hi[root], p);
+    }
+  return in;
 }
 
 void persistCells(const std::vector<PointXYZI>& points, const std::vector<uint8_t>* mask,

@@ -11,10 +11,13 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <mutex>
 #include <sstream>
 
 #include "cleanmap/core/cell_key.h"
 #include "cleanmap/core/error.h"
+#include "cleanmap/core/free_space.h"
+#include "cleanmap/core/object_consensus.h"
 #include "cleanmap/io/config.h"
 #include "cleanmap/io/files.h"
 #include "cleanmap/io/ply.h"
@@ -123,6 +126,8 @@ void CMovingObjectsMap::copyFrom(const CMovingObjectsMap& o) {
   lidar_label_ = o.lidar_label_;
   static_ = o.static_;
   static_scan_ = o.static_scan_;
+  object_scans_ = o.object_scans_;
+  ++version_;  // the decisions cached are the other map's
   moving_ = o.moving_;
   trajectory_ = o.trajectory_;
   totals_ = o.totals_;
@@ -133,6 +138,7 @@ void CMovingObjectsMap::setParams(const cleanmap::PipelineParams& params) {
     throw cleanmap::Error("cleanmap_moving", "parameters cannot change while scans are pending");
   cleanmap::validate(params, "cleanmap_moving");
   params_ = params;
+  ++version_;
   pipe_.reset();
 }
 
@@ -172,6 +178,7 @@ void CMovingObjectsMap::ensurePipeline() {
 
 void CMovingObjectsMap::insertFrame(cleanmap::Frame&& frame) {
   ensurePipeline();
+  ++version_;  // the free space may take the frame now
   next_index_ = std::max(next_index_, frame.index + 1);
   pipe_->push(std::move(frame));
 }
@@ -184,28 +191,107 @@ void CMovingObjectsMap::flush() {
   if (pipe_) pipe_->finish();
 }
 
+bool CMovingObjectsMap::byObjects() const {
+  return params_.map.clean && params_.map.objects && params_.object.enabled;
+}
+
 void CMovingObjectsMap::onDecided(cleanmap::ScanResult&& r) {
+  ++version_;
   trajectory_.push_back({r.index, r.timestamp, r.pose});
   totals_ += r.stats;
   if (store_points_) {
     // Non-ground points remember their scan: the free space may remove them (DESIGN §2e).
     const bool kinds = r.static_full_kind.size() == r.static_full.size();
+    // With map_voxel 0 every point is its own entry, keyed by arrival: the objects keep the keys.
+    std::vector<uint64_t> entry(map_voxel_ == 0 && byObjects() && kinds ? r.static_full.size() : 0);
     addPoints(static_, r.static_full, map_voxel_, [&](uint64_t key, std::size_t i) {
+      if (!entry.empty()) entry[i] = key;
       if (kinds && !cleanmap::isGroundKind(r.static_full_kind[i]))
         static_scan_[key] = static_cast<int64_t>(r.index);
     });
     addPoints(moving_, r.moving, map_voxel_);
+    if (byObjects() && kinds) {
+      // The scan's map points, then its moving points, as the app's objects take them (§2e);
+      // only the vehicle-sized objects' are kept.
+      std::vector<cleanmap::PointXYZI> pts = r.static_full;
+      pts.insert(pts.end(), r.moving.begin(), r.moving.end());
+      std::vector<uint8_t> member(pts.size(), 1);
+      for (std::size_t i = 0; i < r.static_full.size(); ++i)
+        member[i] = !cleanmap::isGroundKind(r.static_full_kind[i]);
+      const std::vector<uint8_t> in = cleanmap::inVehicleSizedObject(pts, member, params_.object);
+      ObjectScan os;
+      os.index = static_cast<int64_t>(r.index);
+      os.density = r.density;
+      os.points.reserve(static_cast<std::size_t>(std::count(in.begin(), in.end(), uint8_t{1})));
+      for (std::size_t i = 0; i < pts.size(); ++i) {
+        if (!in[i]) continue;
+        if (i < r.static_full.size()) {
+          os.fixed_from = os.points.size() + 1;
+          if (!entry.empty()) os.keys.push_back(entry[i]);
+        }
+        os.points.push_back(pts[i].xyz());
+      }
+      if (!os.points.empty()) object_scans_.push_back(std::move(os));
+    }
   }
   if (sink_) sink_(std::move(r));
 }
 
+std::size_t CMovingObjectsMap::objectPoints() const {
+  std::size_t n = 0;
+  for (const auto& os : object_scans_) n += os.points.size();
+  return n;
+}
+
+std::shared_ptr<const std::unordered_map<uint64_t, uint8_t>> CMovingObjectsMap::objectDecisions()
+    const {
+  const cleanmap::FreeSpaceMap* fs = freeSpace();
+  if (!fs || !byObjects()) return nullptr;
+  std::lock_guard<std::mutex> lock(objects_mutex_);
+  if (by_object_ && by_object_version_ == version_) return by_object_;
+  // DESIGN §2e "Objects": the scans' objects decided in order, as the app decides its maps. A
+  // voxel holding their points is removed if all of them are (the app's map is the union of the
+  // points kept).
+  auto by_object = std::make_shared<std::unordered_map<uint64_t, uint8_t>>();
+  cleanmap::MapObjectConsensus consensus(params_.object, params_.epoch);
+  std::vector<cleanmap::PointXYZI> pts;
+  std::vector<uint8_t> member, gone;
+  for (const auto& os : object_scans_) {
+    pts.resize(os.points.size());
+    for (std::size_t i = 0; i < pts.size(); ++i)
+      pts[i] = {os.points[i].x(), os.points[i].y(), os.points[i].z(), 0.f};
+    member.assign(pts.size(), 1);
+    gone.assign(pts.size(), 1);
+    for (std::size_t i = 0; i < os.fixed_from; ++i)
+      gone[i] = cleanmap::removedByPolicy(fs->evidence(os.points[i]), os.index, params_.map);
+    consensus.decide(os.index, os.density, pts, member, gone, os.fixed_from);
+    const float inv = map_voxel_ > 0 ? static_cast<float>(1.0 / map_voxel_) : 0.f;
+    for (std::size_t i = 0; i < os.fixed_from; ++i) {
+      const Eigen::Vector3f& p = os.points[i];
+      const uint64_t key =
+          map_voxel_ > 0 ? cleanmap::cellKeyOf(p.x(), p.y(), p.z(), inv) : os.keys[i];
+      by_object->try_emplace(key, uint8_t{1}).first->second &= gone[i];
+    }
+  }
+  by_object_ = by_object;
+  by_object_version_ = version_;
+  return by_object;
+}
+
 std::vector<cleanmap::PointXYZI> CMovingObjectsMap::cleanedStatic(bool removed) const {
   const cleanmap::FreeSpaceMap* fs = freeSpace();
+  const auto by_object = objectDecisions();
   std::unordered_map<uint64_t, cleanmap::PointXYZI> out;
   for (const auto& [key, p] : static_) {
-    const auto it = static_scan_.find(key);
-    const bool gone = fs && it != static_scan_.end() &&
-                      cleanmap::removedByPolicy(fs->evidence(p.xyz()), it->second, params_.map);
+    const auto it = static_scan_.find(key);  // a non-ground first point
+    bool gone = false;
+    if (fs && it != static_scan_.end()) {
+      const uint8_t* ob = nullptr;
+      if (by_object)
+        if (const auto f = by_object->find(key); f != by_object->end()) ob = &f->second;
+      gone =
+          ob ? *ob != 0 : cleanmap::removedByPolicy(fs->evidence(p.xyz()), it->second, params_.map);
+    }
     if (gone == removed) out.emplace(key, p);
   }
   return sortedPoints(out);
@@ -225,11 +311,13 @@ bool CMovingObjectsMap::isEmpty() const {
 }
 
 void CMovingObjectsMap::internal_clear() {
+  ++version_;
   pipe_.reset();
   next_index_ = 0;
   lidar_label_.clear();
   static_.clear();
   static_scan_.clear();
+  object_scans_.clear();
   moving_.clear();
   trajectory_.clear();
   totals_ = {};
@@ -322,6 +410,7 @@ std::string CMovingObjectsMap::asString() const {
                                    : std::string("auto"))
      << "); " << static_.size() << " static and " << moving_.size() << " moving points (voxel "
      << map_voxel_ << " m)";
+  if (!object_scans_.empty()) os << "; " << objectPoints() << " points of objects kept";
   return os.str();
 }
 

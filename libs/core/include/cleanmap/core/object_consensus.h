@@ -49,6 +49,14 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
                                      std::vector<uint8_t>* in_moving_object = nullptr,
                                      const ConsensusRules& rules = {});
 
+/// Per point: a member of a vehicle-sized component (as objectConsensus groups them). Under
+/// ConsensusRules{few_points_are_noise = false} no other point's decision can change, and
+/// objectConsensus on these points alone decides each of them as on the whole set (same
+/// components, extents and counts): DESIGN §4b keeps only these. Deterministic; O(points).
+std::vector<uint8_t> inVehicleSizedObject(const std::vector<PointXYZI>& points,
+                                          const std::vector<uint8_t>& member,
+                                          const ObjectParams& p);
+
 /// Rule 4's memory (doc/OBJECTS.md): the cells of side `radius` holding a point of `points`
 /// (world frame; only those with `mask[i]` where a mask is given), dilated by one cell.
 void persistCells(const std::vector<PointXYZI>& points, const std::vector<uint8_t>* mask,

@@ -17,6 +17,7 @@
 
 #include <functional>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <string>
 #include <unordered_map>
@@ -102,7 +103,10 @@ class CMovingObjectsMap : public mrpt::maps::CMetricMap {
   /// One point per voxel: the static map (ground included) and the moving points, sorted by voxel.
   /// The static map is cleaned with the free space seen so far (DESIGN §2e, static_map.policy):
   /// a non-ground point whose space the scans decided so far saw empty is left out (and kept in
-  /// the layer: later scans do not bring it back, a merge or an ini change may).
+  /// the layer: later scans do not bring it back, a merge or an ini change may). With
+  /// static_map.objects a voxel holding points of the scans' rigid objects is decided with them,
+  /// as the app's maps are (DESIGN §2e "Objects", §4b): removed if every one of them is. The
+  /// layer keeps each decided scan's vehicle-sized objects for it.
   std::vector<cleanmap::PointXYZI> staticPoints() const;
   /// The static points staticPoints() leaves out, sorted by voxel.
   std::vector<cleanmap::PointXYZI> removedPoints() const;
@@ -110,6 +114,9 @@ class CMovingObjectsMap : public mrpt::maps::CMetricMap {
   const std::vector<TrajectoryPoint>& trajectory() const { return trajectory_; }
   /// Counts summed over the decided scans.
   const cleanmap::ScanStats& totals() const { return totals_; }
+  /// Points of the decided scans' vehicle-sized objects kept for static_map.objects (12 bytes
+  /// each; DESIGN §4b): memory that grows with the scans.
+  std::size_t objectPoints() const;
 
   // CMetricMap. saveMetricMapRepresentationToFile writes <prefix>_static.ply, _moving.ply (RGB)
   // and _trajectory.txt of the map as if flushed; getVisualizationInto shows the decided scans.
@@ -152,6 +159,25 @@ class CMovingObjectsMap : public mrpt::maps::CMetricMap {
   std::string lidar_label_;     // the sensorLabel of the observations inserted (sensor_label)
   std::unordered_map<uint64_t, cleanmap::PointXYZI> static_, moving_;  // voxel key -> first point
   std::unordered_map<uint64_t, int64_t> static_scan_;  // non-ground static_ entries: their scan
+  // DESIGN §4b, static_map.objects: per decided scan, the points of its vehicle-sized objects
+  // (the only ones the map's object rules decide): its map points, then from `fixed_from` on its
+  // moving points.
+  struct ObjectScan {
+    int64_t index = 0;
+    double density = 1;
+    std::vector<Eigen::Vector3f> points;
+    std::size_t fixed_from = 0;
+    std::vector<uint64_t> keys;  // with map_voxel 0: the map points' static_ keys
+  };
+  std::vector<ObjectScan> object_scans_;
+  bool byObjects() const;
+  // The objects' decision per voxel key (null: per voxel only), computed once per state of the
+  // map (version_ counts the insertions, decisions and changes).
+  std::shared_ptr<const std::unordered_map<uint64_t, uint8_t>> objectDecisions() const;
+  uint64_t version_ = 0;
+  mutable std::mutex objects_mutex_;
+  mutable std::shared_ptr<const std::unordered_map<uint64_t, uint8_t>> by_object_;
+  mutable uint64_t by_object_version_ = 0;
   std::vector<cleanmap::PointXYZI> cleanedStatic(bool removed) const;
   std::vector<TrajectoryPoint> trajectory_;
   cleanmap::ScanStats totals_;
