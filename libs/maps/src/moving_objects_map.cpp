@@ -254,6 +254,7 @@ std::shared_ptr<const std::unordered_map<uint64_t, uint8_t>> CMovingObjectsMap::
   // points kept).
   auto by_object = std::make_shared<std::unordered_map<uint64_t, uint8_t>>();
   cleanmap::MapObjectConsensus consensus(params_.object, params_.epoch);
+  const float inv = map_voxel_ > 0 ? static_cast<float>(1.0 / map_voxel_) : 0.f;
   std::vector<cleanmap::PointXYZI> pts;
   std::vector<uint8_t> member, gone;
   for (const auto& os : object_scans_) {
@@ -265,7 +266,6 @@ std::shared_ptr<const std::unordered_map<uint64_t, uint8_t>> CMovingObjectsMap::
     for (std::size_t i = 0; i < os.fixed_from; ++i)
       gone[i] = cleanmap::removedByPolicy(fs->evidence(os.points[i]), os.index, params_.map);
     consensus.decide(os.index, os.density, pts, member, gone, os.fixed_from);
-    const float inv = map_voxel_ > 0 ? static_cast<float>(1.0 / map_voxel_) : 0.f;
     for (std::size_t i = 0; i < os.fixed_from; ++i) {
       const Eigen::Vector3f& p = os.points[i];
       const uint64_t key =

@@ -64,7 +64,8 @@ class CMovingObjectsMap : public mrpt::maps::CMetricMap {
   ~CMovingObjectsMap() override;
 
   /// The classifier's parameters (creationOpts). Changing them is allowed only while the map has
-  /// no scan in its window; throws cleanmap::Error otherwise.
+  /// no scan in its window; throws cleanmap::Error otherwise. The scans decided before keep the
+  /// objects found with the parameters of their time (static_map.objects).
   const cleanmap::PipelineParams& params() const { return params_; }
   /// DESIGN §2e: the free space of every scan decided (null before the first, or with
   /// static_map.clean off). The app cleans its map files with it, and staticPoints() this layer's
