@@ -365,3 +365,53 @@ TEST(MapObjects, TheWindowedTestsMovingPointsStayRemovedAndCount) {
   mc.decide(2, 1.0, wall.pts, wall.member, wall.removed, wall.pts.size());
   EXPECT_EQ(wall.removed, wall_before);
 }
+
+TEST(MapObjects, RuleFourRunsBackwardsFromTheFirstScanThatTookTheObjectWhole) {
+  // DESIGN §2e: the map is decided with the whole sequence. A crawling truck with 15 % of its
+  // points removed in scans 6-8 (under moving_fraction) and 30 % in scan 9 goes whole in 9
+  // (rule 1), in 10 forwards (rule 4), and with backward() in 8, 7 and 6 too, one scan after
+  // the other. An epoch's start (scan 5 | 6 with epochs of 6) stops it, as it stops the memory
+  // forwards; a static object with 15 % removed and no whole object beside it stays as it is.
+  const auto run = [](int epoch) {
+    MapObjectConsensus mc(ObjectParams{}, epoch);
+    mc.record(true);
+    std::vector<Side> sides;
+    std::vector<std::vector<uint8_t>> before;
+    for (int k = 5; k <= 10; ++k) {
+      const float x = 12 + 0.12f * static_cast<float>(k - 5);
+      sides.push_back(k == 9 ? truckSide(x, 1.8f, 1.8f) : truckSide(x, 0.9f, 0.9f));
+      Side& s = sides.back();
+      before.push_back(s.removed);
+      mc.decide(k, 1.0, s.pts, s.member, s.removed, s.pts.size());
+    }
+    const auto added = mc.backward();
+    EXPECT_EQ(added.size(), sides.size());
+    std::vector<double> shares;
+    for (std::size_t i = 0; i < sides.size(); ++i) {
+      for (const uint32_t j : added[i]) {
+        EXPECT_EQ(sides[i].removed[j], 0) << "scan " << i + 5 << " point " << j;
+        sides[i].removed[j] = 1;
+      }
+      shares.push_back(removedShare(sides[i].removed));
+    }
+    return std::pair(shares, removedShare(before[0]));
+  };
+  const auto [all, at_first] = run(100);
+  ASSERT_NEAR(at_first, 0.15, 0.01);
+  for (std::size_t i = 0; i < all.size(); ++i) EXPECT_EQ(all[i], 1.0) << "scan " << i + 5;
+  const auto [cut, unused] = run(6);  // scans 6-10 form one epoch, scan 5 the one before
+  EXPECT_NEAR(cut[0], 0.15, 0.01);    // scan 5: the next epoch's objects do not reach it
+  for (std::size_t i = 1; i < cut.size(); ++i) EXPECT_EQ(cut[i], 1.0) << "scan " << i + 5;
+
+  MapObjectConsensus alone(ObjectParams{}, 100);
+  alone.record(true);
+  Side s = truckSide(12, 0.9f, 0.9f);
+  const auto kept = s.removed;
+  alone.decide(0, 1.0, s.pts, s.member, s.removed, s.pts.size());
+  Side t = truckSide(12.12f, 0.9f, 0.9f);
+  alone.decide(1, 1.0, t.pts, t.member, t.removed, t.pts.size());
+  const auto none = alone.backward();
+  EXPECT_TRUE(none[0].empty());
+  EXPECT_TRUE(none[1].empty());
+  EXPECT_EQ(s.removed, kept);
+}

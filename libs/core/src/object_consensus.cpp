@@ -81,9 +81,11 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
                                      std::vector<uint8_t>& moving, const ObjectParams& p,
                                      const std::vector<uint8_t>* near_previous,
                                      std::vector<uint8_t>* in_moving_object,
-                                     const ConsensusRules& rules) {
+                                     const ConsensusRules& rules,
+                                     std::vector<uint8_t>* could_persist) {
   ObjectConsensusStats st;
   if (in_moving_object) in_moving_object->assign(points.size(), 0);
+  if (could_persist) could_persist->assign(points.size(), 0);
   if (!p.enabled) return st;
   // Voxels of the member points and their 26-connected components.
   const Components cc = components(points, member, p.voxel);
@@ -120,7 +122,7 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
     c.lo = c.lo.cwiseMin(points[i].xyz());
     c.hi = c.hi.cwiseMax(points[i].xyz());
   }
-  std::vector<uint8_t> turn(voxels.size(), 0);  // 1: all moving, 2: all static
+  std::vector<uint8_t> turn(voxels.size(), 0);  // 1: all moving, 2: all static, 3: rule 4 could
   std::vector<uint8_t> whole;                   // vehicle-sized, moving in every point
   if (in_moving_object) whole.assign(voxels.size(), 0);
   const bool few_are_noise = rules.few_points_are_noise;
@@ -144,6 +146,10 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
       turn[v] = 1;  // hysteresis: it moved in the previous scan and is still partly moving
       ++st.moving_objects;
       ++st.persisted;
+    } else if (could_persist && vehicle_sized && static_cast<int>(c.moving) >= p.min_moving &&
+               static_cast<double>(c.moving) >= p.static_fraction * static_cast<double>(c.n) &&
+               c.moving < c.n) {
+      turn[v] = 3;  // left as it is; next to an object moving as a whole, rule 4 would take it
     } else if (vehicle_sized && c.moving > 0 &&
                ((few_are_noise && static_cast<int>(c.moving) < p.min_moving) ||
                 static_cast<double>(c.moving) < p.static_fraction * static_cast<double>(c.n))) {
@@ -268,6 +274,9 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
         const uint32_t root = root_of[point_voxel[i]];
         (*in_moving_object)[i] = turn[root] == 1 || whole[root];
       }
+  if (could_persist)
+    for (std::size_t i = 0; i < points.size(); ++i)
+      (*could_persist)[i] = point_voxel[i] != UINT32_MAX && turn[root_of[point_voxel[i]]] == 3;
   // Inside structures (too large for the rule above), moving points count only in groups: a
   // connected group of moving points smaller than min_moving is static.
   if (!few_are_noise) return st;
@@ -329,7 +338,7 @@ ObjectConsensusStats MapObjectConsensus::decide(int64_t scan, double density,
                                                 std::vector<uint8_t>& removed,
                                                 std::size_t fixed_from) {
   if (!p_.enabled) return {};
-  const int64_t e = epoch_ > 0 ? scan / epoch_ : 0;
+  const int64_t e = epochOf(scan);
   if (e != epoch_of_last_) prev_cells_.clear();  // DESIGN §2f: an epoch starts with no memory
   epoch_of_last_ = e;
   const bool persist = p_.persist_radius > 0 && !prev_cells_.empty();
@@ -347,7 +356,8 @@ ObjectConsensusStats MapObjectConsensus::decide(int64_t scan, double density,
   ConsensusRules rules;
   rules.few_points_are_noise = false;  // a removal is a voxel the sequence saw empty, no alarm
   ObjectConsensusStats st =
-      objectConsensus(points, member, decided_, op, persist ? &near_ : nullptr, &whole_, rules);
+      objectConsensus(points, member, decided_, op, persist ? &near_ : nullptr, &whole_, rules,
+                      record_ ? &could_ : nullptr);
   st.points_added = st.points_removed = 0;
   for (std::size_t i = 0; i < std::min(fixed_from, removed.size()); ++i) {
     st.points_added += decided_[i] && !removed[i];
@@ -357,7 +367,70 @@ ObjectConsensusStats MapObjectConsensus::decide(int64_t scan, double density,
   // Rule 4's memory: the objects removed whole, not the free space's scattered removals (a
   // parked car seen through its windows loses a few points in every scan).
   if (p_.persist_radius > 0) persistCells(points, &whole_, p_.persist_radius, prev_cells_);
+  if (record_) {
+    Recorded r;
+    r.scan = scan;
+    r.min_moving = op.min_moving;
+    prev_cells_.forEach([&](uint64_t c, uint8_t) { r.whole_cells.push_back(c); });
+    for (std::size_t i = 0; i < std::min(fixed_from, points.size()); ++i)
+      if (could_[i]) {
+        r.points.push_back(points[i]);
+        r.removed.push_back(removed[i]);
+        r.index.push_back(static_cast<uint32_t>(i));
+      }
+    // The moving points of those objects (from fixed_from on) count, and stay removed.
+    for (std::size_t i = fixed_from; i < points.size(); ++i)
+      if (could_[i]) {
+        r.points.push_back(points[i]);
+        r.removed.push_back(1);
+        r.index.push_back(UINT32_MAX);
+      }
+    recorded_.push_back(std::move(r));
+  }
   return st;
+}
+
+std::vector<std::vector<uint32_t>> MapObjectConsensus::backward(ObjectConsensusStats* stats) {
+  std::vector<std::vector<uint32_t>> added(recorded_.size());
+  if (stats) *stats = {};
+  if (p_.persist_radius <= 0) return added;
+  const double inv = 1.0 / p_.persist_radius;
+  ConsensusRules rules;
+  rules.few_points_are_noise = false;
+  CellMap<uint8_t> next, turned;  // the next scan's whole objects' cells (dilated)
+  std::vector<uint8_t> near, member, removed, whole;
+  for (std::size_t k = recorded_.size(); k-- > 0;) {
+    const Recorded& r = recorded_[k];
+    // DESIGN §2f: the memory does not cross an epoch's start, either way.
+    const bool memory = k + 1 < recorded_.size() && !next.empty() &&
+                        epochOf(recorded_[k + 1].scan) == epochOf(r.scan);
+    turned.clear();
+    if (memory && !r.points.empty()) {
+      near.assign(r.points.size(), 0);
+      for (std::size_t i = 0; i < r.points.size(); ++i)
+        near[i] = next.contains(
+            cellKeyOf(double(r.points[i].x), double(r.points[i].y), double(r.points[i].z), inv));
+      member.assign(r.points.size(), 1);
+      removed = r.removed;
+      ObjectParams op = p_;
+      op.min_moving = r.min_moving;
+      const ObjectConsensusStats st =
+          objectConsensus(r.points, member, removed, op, &near, &whole, rules);
+      for (std::size_t i = 0; i < r.points.size(); ++i)
+        if (removed[i] && !r.removed[i] && r.index[i] != UINT32_MAX) added[k].push_back(r.index[i]);
+      if (stats) {
+        stats->points_added += added[k].size();
+        stats->moving_objects += st.moving_objects;
+        stats->persisted += st.persisted;
+      }
+      if (st.moving_objects > 0) persistCells(r.points, &whole, p_.persist_radius, turned);
+    }
+    next.clear();
+    for (const uint64_t c : r.whole_cells) next.insert(c);
+    turned.forEach([&](uint64_t c, uint8_t) { next.insert(c); });
+  }
+  recorded_.clear();
+  return added;
 }
 
 }  // namespace cleanmap

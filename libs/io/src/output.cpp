@@ -11,6 +11,7 @@
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
+#include <functional>
 #include <future>
 #include <map>
 #include <nlohmann/json.hpp>
@@ -230,10 +231,8 @@ void OutputWriter::writeMaps(const FreeSpaceMap* free_space, const MapScanSink& 
   maps_written_ = true;
   const auto t0 = std::chrono::steady_clock::now();
   spool_->close();
-  DirectReader spool(spool_path_);
   std::vector<PointXYZI> full, compact, removed;
   const bool by_objects = free_space && params_.map.clean && params_.map.objects;
-  MapObjectConsensus consensus(params_.object, params_.epoch);
   std::optional<FreeSpaceMap::Lookup> lookup;
   if (free_space) lookup.emplace(*free_space);
   // One scan of the spool with the free space's decision per point, and for its objects (DESIGN
@@ -244,7 +243,7 @@ void OutputWriter::writeMaps(const FreeSpaceMap* free_space, const MapScanSink& 
     std::vector<PointXYZI> objects;
     std::vector<uint8_t> member, gone;
   };
-  const auto read = [&](Spooled& b) {
+  const auto read = [&](DirectReader& spool, Spooled& b) {
     spool.read(&b.h, sizeof b.h);
     b.pts.resize(b.h.full);
     b.moving.resize(b.h.moving);
@@ -265,14 +264,40 @@ void OutputWriter::writeMaps(const FreeSpaceMap* free_space, const MapScanSink& 
     b.member.resize(b.objects.size(), 1);
     b.gone.resize(b.objects.size(), 1);
   };
-  Spooled cur, next;
-  if (!stems_.empty()) read(cur);
-  for (std::size_t s = 0; s < stems_.size(); ++s) {
-    // With two threads the next scan is read and looked up beside this one's objects (issue
-    // #16); the reader and the lookup are only ever used by one of them at a time.
-    std::future<void> ahead;
-    const bool more = s + 1 < stems_.size();
-    if (more && params_.threads > 1) ahead = std::async(std::launch::async, read, std::ref(next));
+  // The spool's scans in order. With two threads the next scan is read and looked up beside this
+  // one's work (issue #16); the reader and the lookup are only ever used by one of them at a time.
+  const auto forEachScan = [&](const std::function<void(std::size_t, Spooled&)>& work) {
+    DirectReader spool(spool_path_);
+    Spooled cur, next;
+    if (!stems_.empty()) read(spool, cur);
+    for (std::size_t s = 0; s < stems_.size(); ++s) {
+      std::future<void> ahead;
+      const bool more = s + 1 < stems_.size();
+      if (more && params_.threads > 1)
+        ahead = std::async(std::launch::async, read, std::ref(spool), std::ref(next));
+      work(s, cur);
+      if (ahead.valid())
+        ahead.get();
+      else if (more)
+        read(spool, next);
+      std::swap(cur, next);
+    }
+  };
+  // Rule 4 both ways (DESIGN §2e "Objects"): a first pass records the objects rule 4 could take,
+  // then runs it from the last scan to the first; the second pass decides again and adds those.
+  MapObjectConsensus consensus(params_.object, params_.epoch);
+  std::vector<std::vector<uint32_t>> backward;
+  if (by_objects && params_.object.persist_radius > 0) {
+    MapObjectConsensus first(params_.object, params_.epoch);
+    first.record(true);
+    forEachScan([&](std::size_t, Spooled& b) {
+      first.decide(b.h.index, b.h.density, b.objects, b.member, b.gone, b.pts.size());
+    });
+    ObjectConsensusStats st;
+    backward = first.backward(&st);
+    map_objects_ += st.moving_objects;
+  }
+  forEachScan([&](std::size_t s, Spooled& cur) {
     const SpoolHeader& h = cur.h;
     const auto& pts = cur.pts;
     auto& gone = cur.gone;
@@ -286,6 +311,11 @@ void OutputWriter::writeMaps(const FreeSpaceMap* free_space, const MapScanSink& 
       map_object_points_ += st.points_added;
       map_object_kept_ += st.points_removed;
       map_objects_ += st.moving_objects;
+      if (s < backward.size())
+        for (const uint32_t i : backward[s]) {
+          map_object_points_ += !gone[i];
+          gone[i] = 1;
+        }
     }
     for (std::size_t i = 0; i < pts.size(); ++i) {
       const auto& q = pts[i];
@@ -308,12 +338,7 @@ void OutputWriter::writeMaps(const FreeSpaceMap* free_space, const MapScanSink& 
     removed_->append(removed, h.z);
     writeLabels(staging_ + "/map_labels/" + stems_[s] + ".label", map_labels);
     if (sink) sink(MapScan{h.index, stems_[s], map_labels, full, removed});
-    if (ahead.valid())
-      ahead.get();
-    else if (more)
-      read(next);
-    std::swap(cur, next);
-  }
+  });
   spool_.reset();
   std::error_code ec;
   fs::remove(spool_path_, ec);

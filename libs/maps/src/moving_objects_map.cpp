@@ -231,7 +231,7 @@ void CMovingObjectsMap::onDecided(cleanmap::ScanResult&& r) {
         }
         os.points.push_back(pts[i].xyz());
       }
-      if (!os.points.empty()) object_scans_.push_back(std::move(os));
+      object_scans_.push_back(std::move(os));  // also with no object: rule 4 forgets then
     }
   }
   if (sink_) sink_(std::move(r));
@@ -254,23 +254,32 @@ std::shared_ptr<const std::unordered_map<uint64_t, uint8_t>> CMovingObjectsMap::
   // points kept).
   auto by_object = std::make_shared<std::unordered_map<uint64_t, uint8_t>>();
   cleanmap::MapObjectConsensus consensus(params_.object, params_.epoch);
+  consensus.record(true);  // rule 4 both ways, as the app's maps
   const float inv = map_voxel_ > 0 ? static_cast<float>(1.0 / map_voxel_) : 0.f;
+  std::vector<std::vector<uint8_t>> gone(object_scans_.size());
   std::vector<cleanmap::PointXYZI> pts;
-  std::vector<uint8_t> member, gone;
-  for (const auto& os : object_scans_) {
+  std::vector<uint8_t> member;
+  for (std::size_t k = 0; k < object_scans_.size(); ++k) {
+    const ObjectScan& os = object_scans_[k];
     pts.resize(os.points.size());
     for (std::size_t i = 0; i < pts.size(); ++i)
       pts[i] = {os.points[i].x(), os.points[i].y(), os.points[i].z(), 0.f};
     member.assign(pts.size(), 1);
-    gone.assign(pts.size(), 1);
+    gone[k].assign(pts.size(), 1);
     for (std::size_t i = 0; i < os.fixed_from; ++i)
-      gone[i] = cleanmap::removedByPolicy(fs->evidence(os.points[i]), os.index, params_.map);
-    consensus.decide(os.index, os.density, pts, member, gone, os.fixed_from);
+      gone[k][i] = cleanmap::removedByPolicy(fs->evidence(os.points[i]), os.index, params_.map);
+    consensus.decide(os.index, os.density, pts, member, gone[k], os.fixed_from);
+  }
+  const auto backward = consensus.backward();
+  for (std::size_t k = 0; k < object_scans_.size(); ++k) {
+    const ObjectScan& os = object_scans_[k];
+    if (k < backward.size())
+      for (const uint32_t i : backward[k]) gone[k][i] = 1;
     for (std::size_t i = 0; i < os.fixed_from; ++i) {
       const Eigen::Vector3f& p = os.points[i];
       const uint64_t key =
           map_voxel_ > 0 ? cleanmap::cellKeyOf(p.x(), p.y(), p.z(), inv) : os.keys[i];
-      by_object->try_emplace(key, uint8_t{1}).first->second &= gone[i];
+      by_object->try_emplace(key, uint8_t{1}).first->second &= gone[k][i];
     }
   }
   by_object_ = by_object;

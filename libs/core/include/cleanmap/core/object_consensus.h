@@ -41,13 +41,16 @@ struct ConsensusRules {
 /// previous scan (world frame); it lets a partly moving object stay moving (hysteresis).
 /// `in_moving_object` (optional, per point): set to 1 where the point's component is a
 /// vehicle-sized object that moves as a whole (turned moving, or moving in every point).
-/// Deterministic; O(points).
+/// `could_persist` (optional, per point): set to 1 where the point's component was left as it is
+/// but rule 4 would take it next to a moving object (vehicle-sized, at least min_moving and
+/// static_fraction of its points moving, not all). Deterministic; O(points).
 ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
                                      const std::vector<uint8_t>& member,
                                      std::vector<uint8_t>& moving, const ObjectParams& p,
                                      const std::vector<uint8_t>* near_previous = nullptr,
                                      std::vector<uint8_t>* in_moving_object = nullptr,
-                                     const ConsensusRules& rules = {});
+                                     const ConsensusRules& rules = {},
+                                     std::vector<uint8_t>* could_persist = nullptr);
 
 /// Per point: a member of a vehicle-sized component (as objectConsensus groups them). Under
 /// ConsensusRules{few_points_are_noise = false} no other point's decision can change, and
@@ -71,9 +74,16 @@ void persistCells(const std::vector<PointXYZI>& points, const std::vector<uint8_
 /// least moving_fraction of its points removed goes whole (so does one with static_fraction next
 /// to an object the last scan removed whole, rule 4); one with less than static_fraction keeps
 /// all its points. Epochs of `epoch` scans start with no memory, as the pipeline's do (§2f).
+///
+/// Rule 4 both ways: the map is decided with the whole sequence, so an object with
+/// static_fraction of its points removed next to an object the *next* scan removed whole goes
+/// too (a slow mover whose removed share reaches moving_fraction only after some scans). With
+/// record(true) decide() keeps each scan's objects that rule 4 could take and its whole objects'
+/// cells; backward() then runs rule 4 from the last scan to the first over them.
 class MapObjectConsensus {
  public:
   MapObjectConsensus(const ObjectParams& p, int epoch) : p_(p), epoch_(epoch) {}
+  void record(bool on) { record_ = on; }
   /// `points`: a scan's map points (world frame), then from `fixed_from` on its moving points
   /// (the windowed test's: part of the objects, and they stay removed); `member[i]`: not ground;
   /// `removed[i]` on entry the free space's decision (1 for the moving points), on return the
@@ -82,13 +92,30 @@ class MapObjectConsensus {
   ObjectConsensusStats decide(int64_t scan, double density, const std::vector<PointXYZI>& points,
                               const std::vector<uint8_t>& member, std::vector<uint8_t>& removed,
                               std::size_t fixed_from);
+  /// After the recorded decide() calls, in their order: per call, the indices (into its `points`,
+  /// below fixed_from) of the points rule 4 backwards removes in addition to decide()'s. Stats:
+  /// points_added, moving_objects, persisted (the same objects).
+  std::vector<std::vector<uint32_t>> backward(ObjectConsensusStats* stats = nullptr);
 
  private:
+  // One recorded scan: its whole objects' cells (dilated) and the points of the objects rule 4
+  // could take, with their decision and index.
+  struct Recorded {
+    int64_t scan = 0;
+    int min_moving = 1;
+    std::vector<uint64_t> whole_cells;
+    std::vector<PointXYZI> points;
+    std::vector<uint8_t> removed;
+    std::vector<uint32_t> index;
+  };
+  int64_t epochOf(int64_t scan) const { return epoch_ > 0 ? scan / epoch_ : 0; }
   ObjectParams p_;
   int epoch_;
   int64_t epoch_of_last_ = -1;
   CellMap<uint8_t> prev_cells_;  // the last scan's removed cells, dilated
-  std::vector<uint8_t> near_, decided_, whole_;
+  std::vector<uint8_t> near_, decided_, whole_, could_;
+  bool record_ = false;
+  std::vector<Recorded> recorded_;
 };
 
 }  // namespace cleanmap
