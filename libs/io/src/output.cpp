@@ -243,12 +243,18 @@ void OutputWriter::writeMaps(const FreeSpaceMap* free_space, const MapScanSink& 
     std::vector<PointXYZI> objects;
     std::vector<uint8_t> member, gone;
   };
+  // Rule 4 both ways (DESIGN §2e "Objects"): a first pass decides the objects, recording those
+  // rule 4 could take and its decisions per point (.map_decisions, a byte each); rule 4 then runs
+  // from the last scan to the first, and the second pass reads the points and their decisions.
+  const bool two_passes = by_objects && params_.object.enabled && params_.object.persist_radius > 0;
+  bool decide = true;  // the pass reading looks the free space up (the first, or the only one)
   const auto read = [&](DirectReader& spool, Spooled& b) {
     spool.read(&b.h, sizeof b.h);
     b.pts.resize(b.h.full);
     b.moving.resize(b.h.moving);
     spool.read(b.pts.data(), b.pts.size() * sizeof(SpoolPoint));
     spool.read(b.moving.data(), b.moving.size() * sizeof(SpoolPoint));
+    if (!decide) return;
     b.objects.clear();
     b.member.clear();
     b.gone.clear();
@@ -283,20 +289,31 @@ void OutputWriter::writeMaps(const FreeSpaceMap* free_space, const MapScanSink& 
       std::swap(cur, next);
     }
   };
-  // Rule 4 both ways (DESIGN §2e "Objects"): a first pass records the objects rule 4 could take,
-  // then runs it from the last scan to the first; the second pass decides again and adds those.
   MapObjectConsensus consensus(params_.object, params_.epoch);
-  std::vector<std::vector<uint32_t>> backward;
-  if (by_objects && params_.object.persist_radius > 0) {
-    MapObjectConsensus first(params_.object, params_.epoch);
-    first.record(true);
-    forEachScan([&](std::size_t, Spooled& b) {
-      first.decide(b.h.index, b.h.density, b.objects, b.member, b.gone, b.pts.size());
-    });
-    ObjectConsensusStats st;
-    backward = first.backward(&st);
+  consensus.record(two_passes);
+  const auto decideObjects = [&](Spooled& b) {
+    const auto st =
+        consensus.decide(b.h.index, b.h.density, b.objects, b.member, b.gone, b.pts.size());
+    map_object_points_ += st.points_added;
+    map_object_kept_ += st.points_removed;
     map_objects_ += st.moving_objects;
+  };
+  std::vector<std::vector<uint32_t>> backward;
+  const std::string decisions_path = staging_ + "/.map_decisions";
+  if (two_passes) {
+    DirectFile decisions(decisions_path, std::size_t(1) << 20);
+    forEachScan([&](std::size_t, Spooled& b) {
+      decideObjects(b);
+      decisions.write(b.gone.data(), b.pts.size());
+    });
+    decisions.close();
+    ObjectConsensusStats st;
+    backward = consensus.backward(&st);
+    map_objects_ += st.moving_objects;
+    decide = false;
   }
+  std::optional<DirectReader> decisions;
+  if (two_passes) decisions.emplace(decisions_path);
   forEachScan([&](std::size_t s, Spooled& cur) {
     const SpoolHeader& h = cur.h;
     const auto& pts = cur.pts;
@@ -305,17 +322,16 @@ void OutputWriter::writeMaps(const FreeSpaceMap* free_space, const MapScanSink& 
     full.clear();
     compact.clear();
     removed.clear();
-    if (by_objects) {
-      const auto st =
-          consensus.decide(h.index, h.density, cur.objects, cur.member, gone, pts.size());
-      map_object_points_ += st.points_added;
-      map_object_kept_ += st.points_removed;
-      map_objects_ += st.moving_objects;
+    if (two_passes) {
+      gone.resize(pts.size());
+      decisions->read(gone.data(), gone.size());
       if (s < backward.size())
         for (const uint32_t i : backward[s]) {
           map_object_points_ += !gone[i];
           gone[i] = 1;
         }
+    } else if (by_objects) {
+      decideObjects(cur);
     }
     for (std::size_t i = 0; i < pts.size(); ++i) {
       const auto& q = pts[i];
@@ -340,8 +356,10 @@ void OutputWriter::writeMaps(const FreeSpaceMap* free_space, const MapScanSink& 
     if (sink) sink(MapScan{h.index, stems_[s], map_labels, full, removed});
   });
   spool_.reset();
+  decisions.reset();
   std::error_code ec;
   fs::remove(spool_path_, ec);
+  if (two_passes) fs::remove(decisions_path, ec);
   map_ms_ =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 }
