@@ -104,7 +104,7 @@ TEST(MapConfig, DefaultIniCreatesBothMapsWithTheDefaults) {
     if (e.section == "MappingApplication_cleanmap_moving_00_creationOpts") in_file.insert(e.key);
   };
   io::parseIni(text, path, on);
-  std::set<std::string> keys{"map_voxel"};
+  std::set<std::string> keys{"map_voxel", "map_object_scans"};
   for (const auto& k : io::paramKeys()) keys.insert(k);
   EXPECT_EQ(in_file, keys);
   // The generated text is equivalent.

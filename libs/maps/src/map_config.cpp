@@ -220,7 +220,8 @@ std::string mapConfigText(const cleanmap::PipelineParams& params, const std::str
   os << "[" << section << "]\ncleanmap_moving_count = 1\ncleanmap_ground_count = 1\n\n";
   os << "[" << section << "_cleanmap_moving_00_creationOpts]\n";
   for (const auto& [k, v] : cleanmap::io::paramValues(params)) os << k << " = " << v << "\n";
-  os << "map_voxel = " << cleanmap::io::shortestDouble(map_voxel) << "\n\n";
+  os << "map_voxel = " << cleanmap::io::shortestDouble(map_voxel) << "\n";
+  os << "map_object_scans = " << CMovingObjectsMap::kDefaultObjectScans << "\n\n";
   os << "[" << section
      << "_cleanmap_moving_00_insertOpts]\nuse_pose_observations = 0\nsensor_label = auto\n\n";
   os << "[" << section << "_cleanmap_ground_00_creationOpts]\ncell = "

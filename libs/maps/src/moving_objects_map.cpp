@@ -75,13 +75,15 @@ std::vector<cleanmap::PointXYZI> readPoints(mrpt::serialization::CArchive& in) {
 }
 
 // The creationOpts table: every key of cleanmap's parameter table ("section.key") + map_voxel.
-OptionTable creationOptions(cleanmap::PipelineParams& params, double& map_voxel) {
+OptionTable creationOptions(cleanmap::PipelineParams& params, double& map_voxel,
+                            int& map_object_scans) {
   OptionTable t;
   for (const auto& key : cleanmap::io::paramKeys())
     t.custom(key, [&params, key](const std::string& v, const std::string& where) {
       cleanmap::io::setParam(params, key, v, where);
     });
   t.real("map_voxel", map_voxel);
+  t.integer("map_object_scans", map_object_scans);
   return t;
 }
 
@@ -127,6 +129,9 @@ void CMovingObjectsMap::copyFrom(const CMovingObjectsMap& o) {
   static_ = o.static_;
   static_scan_ = o.static_scan_;
   object_scans_ = o.object_scans_;
+  object_scans_max_ = o.object_scans_max_;
+  frozen_ = o.frozen_;
+  frozen_consensus_ = o.frozen_consensus_;
   ++version_;  // the decisions cached are the other map's
   moving_ = o.moving_;
   trajectory_ = o.trajectory_;
@@ -232,6 +237,7 @@ void CMovingObjectsMap::onDecided(cleanmap::ScanResult&& r) {
         os.points.push_back(pts[i].xyz());
       }
       object_scans_.push_back(std::move(os));  // also with no object: rule 4 forgets then
+      while (object_scans_max_ > 0 && object_scans_.size() > object_scans_max_) freezeOldest();
     }
   }
   if (sink_) sink_(std::move(r));
@@ -243,6 +249,49 @@ std::size_t CMovingObjectsMap::objectPoints() const {
   return n;
 }
 
+void CMovingObjectsMap::decideScan(cleanmap::MapObjectConsensus& consensus,
+                                   const cleanmap::FreeSpaceMap& fs, const ObjectScan& os,
+                                   std::vector<uint8_t>& gone) const {
+  std::vector<cleanmap::PointXYZI> pts(os.points.size());
+  for (std::size_t i = 0; i < pts.size(); ++i)
+    pts[i] = {os.points[i].x(), os.points[i].y(), os.points[i].z(), 0.f};
+  const std::vector<uint8_t> member(pts.size(), 1);
+  gone.assign(pts.size(), 1);
+  for (std::size_t i = 0; i < os.fixed_from; ++i)
+    gone[i] = cleanmap::removedByPolicy(fs.evidence(os.points[i]), os.index, params_.map);
+  consensus.decide(os.index, os.density, pts, member, gone, os.fixed_from);
+}
+
+void CMovingObjectsMap::addDecisions(const ObjectScan& os, const std::vector<uint8_t>& gone,
+                                     std::unordered_map<uint64_t, uint8_t>& by_object) const {
+  const float inv = map_voxel_ > 0 ? static_cast<float>(1.0 / map_voxel_) : 0.f;
+  for (std::size_t i = 0; i < os.fixed_from; ++i) {
+    const Eigen::Vector3f& p = os.points[i];
+    const uint64_t key =
+        map_voxel_ > 0 ? cleanmap::cellKeyOf(p.x(), p.y(), p.z(), inv) : os.keys[i];
+    const auto [it, fresh] = by_object.try_emplace(key, gone[i]);
+    if (!fresh && !gone[i]) it->second = kObjectKept;
+  }
+}
+
+void CMovingObjectsMap::setObjectScans(std::size_t n) {
+  object_scans_max_ = n;
+  ++version_;
+  while (object_scans_max_ > 0 && object_scans_.size() > object_scans_max_) freezeOldest();
+}
+
+// The oldest kept scan leaves: decided now, with rule 4's memory of the scans frozen before it.
+void CMovingObjectsMap::freezeOldest() {
+  const cleanmap::FreeSpaceMap* fs = freeSpace();
+  if (fs) {
+    if (!frozen_consensus_) frozen_consensus_.emplace(params_.object, params_.epoch);
+    std::vector<uint8_t> gone;
+    decideScan(*frozen_consensus_, *fs, object_scans_.front(), gone);
+    addDecisions(object_scans_.front(), gone, frozen_);
+  }
+  object_scans_.pop_front();
+}
+
 std::shared_ptr<const std::unordered_map<uint64_t, uint8_t>> CMovingObjectsMap::objectDecisions()
     const {
   const cleanmap::FreeSpaceMap* fs = freeSpace();
@@ -252,35 +301,23 @@ std::shared_ptr<const std::unordered_map<uint64_t, uint8_t>> CMovingObjectsMap::
   // DESIGN §2e "Objects": the scans' objects decided in order, as the app decides its maps. A
   // voxel holding their points is removed if all of them are (the app's map is the union of the
   // points kept).
+  // A voxel a frozen scan's object kept is left to the free space (later scans may have seen it
+  // empty: a car parked for minutes that left); one the frozen scans removed whole stays so.
   auto by_object = std::make_shared<std::unordered_map<uint64_t, uint8_t>>();
-  cleanmap::MapObjectConsensus consensus(params_.object, params_.epoch);
+  by_object->reserve(frozen_.size());
+  for (const auto& [key, gone] : frozen_) by_object->emplace(key, gone ? kObjectGone : kFreeSpace);
+  cleanmap::MapObjectConsensus consensus =
+      frozen_consensus_ ? *frozen_consensus_
+                        : cleanmap::MapObjectConsensus(params_.object, params_.epoch);
   consensus.record(true);  // rule 4 both ways, as the app's maps
-  const float inv = map_voxel_ > 0 ? static_cast<float>(1.0 / map_voxel_) : 0.f;
   std::vector<std::vector<uint8_t>> gone(object_scans_.size());
-  std::vector<cleanmap::PointXYZI> pts;
-  std::vector<uint8_t> member;
-  for (std::size_t k = 0; k < object_scans_.size(); ++k) {
-    const ObjectScan& os = object_scans_[k];
-    pts.resize(os.points.size());
-    for (std::size_t i = 0; i < pts.size(); ++i)
-      pts[i] = {os.points[i].x(), os.points[i].y(), os.points[i].z(), 0.f};
-    member.assign(pts.size(), 1);
-    gone[k].assign(pts.size(), 1);
-    for (std::size_t i = 0; i < os.fixed_from; ++i)
-      gone[k][i] = cleanmap::removedByPolicy(fs->evidence(os.points[i]), os.index, params_.map);
-    consensus.decide(os.index, os.density, pts, member, gone[k], os.fixed_from);
-  }
+  for (std::size_t k = 0; k < object_scans_.size(); ++k)
+    decideScan(consensus, *fs, object_scans_[k], gone[k]);
   const auto backward = consensus.backward();
   for (std::size_t k = 0; k < object_scans_.size(); ++k) {
-    const ObjectScan& os = object_scans_[k];
     if (k < backward.size())
       for (const uint32_t i : backward[k]) gone[k][i] = 1;
-    for (std::size_t i = 0; i < os.fixed_from; ++i) {
-      const Eigen::Vector3f& p = os.points[i];
-      const uint64_t key =
-          map_voxel_ > 0 ? cleanmap::cellKeyOf(p.x(), p.y(), p.z(), inv) : os.keys[i];
-      by_object->try_emplace(key, uint8_t{1}).first->second &= gone[k][i];
-    }
+    addDecisions(object_scans_[k], gone[k], *by_object);
   }
   by_object_ = by_object;
   by_object_version_ = version_;
@@ -295,11 +332,12 @@ std::vector<cleanmap::PointXYZI> CMovingObjectsMap::cleanedStatic(bool removed) 
     const auto it = static_scan_.find(key);  // a non-ground first point
     bool gone = false;
     if (fs && it != static_scan_.end()) {
-      const uint8_t* ob = nullptr;
+      uint8_t ob = kFreeSpace;
       if (by_object)
-        if (const auto f = by_object->find(key); f != by_object->end()) ob = &f->second;
-      gone =
-          ob ? *ob != 0 : cleanmap::removedByPolicy(fs->evidence(p.xyz()), it->second, params_.map);
+        if (const auto f = by_object->find(key); f != by_object->end()) ob = f->second;
+      gone = ob == kFreeSpace
+                 ? cleanmap::removedByPolicy(fs->evidence(p.xyz()), it->second, params_.map)
+                 : ob == kObjectGone;
     }
     if (gone == removed) out.emplace(key, p);
   }
@@ -327,6 +365,8 @@ void CMovingObjectsMap::internal_clear() {
   static_.clear();
   static_scan_.clear();
   object_scans_.clear();
+  frozen_.clear();
+  frozen_consensus_.reset();
   moving_.clear();
   trajectory_.clear();
   totals_ = {};
@@ -497,9 +537,11 @@ CMovingObjectsMap::TMapDefinition::TMapDefinition() = default;
 void CMovingObjectsMap::TMapDefinition::loadFromConfigFile_map_specific(
     const mrpt::config::CConfigFileBase& source, const std::string& prefix) {
   const std::string creation = prefix + "_creationOpts";
-  creationOptions(params, map_voxel).load(source, creation, /*generic=*/true);
+  creationOptions(params, map_voxel, map_object_scans).load(source, creation, /*generic=*/true);
   cleanmap::validate(params, "[" + creation + "]");
   if (map_voxel < 0) throw cleanmap::Error("[" + creation + "]", "map_voxel must be >= 0");
+  if (map_object_scans < 0)
+    throw cleanmap::Error("[" + creation + "]", "map_object_scans must be >= 0 (0: all)");
   OptionTable insert;
   insert.flag("use_pose_observations", insertionOpts.use_pose_observations);
   insert.custom("sensor_label", [this](const std::string& v, const std::string&) {
@@ -513,6 +555,7 @@ void CMovingObjectsMap::TMapDefinition::loadFromConfigFile_map_specific(
 
 void CMovingObjectsMap::TMapDefinition::dumpToTextStream_map_specific(std::ostream& out) const {
   out << cleanmap::io::toIni(params) << "map_voxel = " << map_voxel
+      << "\nmap_object_scans = " << map_object_scans
       << "\nuse_pose_observations = " << insertionOpts.use_pose_observations << "\nsensor_label = "
       << (insertionOpts.sensor_label.empty() ? "auto" : insertionOpts.sensor_label) << "\n";
 }
@@ -530,6 +573,7 @@ CMovingObjectsMap::internal_CreateFromMapDefinition(const mrpt::maps::TMetricMap
   auto* m = new CMovingObjectsMap(def.params, def.map_voxel);
 #endif
   m->insertionOptions = def.insertionOpts;
+  m->setObjectScans(static_cast<std::size_t>(def.map_object_scans));
   return m;
 }
 

@@ -15,6 +15,7 @@
 #include <mrpt/maps/TMetricMapInitializer.h>
 #include <mrpt/poses/CPose3D.h>
 
+#include <deque>
 #include <functional>
 #include <memory>
 #include <mutex>
@@ -25,6 +26,7 @@
 #include <vector>
 
 #include "cleanmap/core/frame.h"
+#include "cleanmap/core/object_consensus.h"
 #include "cleanmap/core/params.h"
 #include "cleanmap/core/scan_result.h"
 
@@ -76,6 +78,12 @@ class CMovingObjectsMap : public mrpt::maps::CMetricMap {
   const std::string& lidarLabel() const { return lidar_label_; }
   void setParams(const cleanmap::PipelineParams& params);
   double mapVoxel() const { return map_voxel_; }
+  /// static_map.objects (DESIGN §4b): the layer keeps the objects of the last `n` decided scans
+  /// (0: all); an older scan's objects are decided when it leaves them, with the free space seen
+  /// then and rule 4 forwards, and only their voxels' decisions are kept. Bounds the memory.
+  void setObjectScans(std::size_t n);
+  static constexpr int kDefaultObjectScans = 300;
+  std::size_t objectScans() const { return object_scans_max_; }
 
   /// Native insertion of a posed scan (`frame.scan.pose`, or estimated with PipelineParams::poses).
   void insertFrame(cleanmap::Frame&& frame);
@@ -116,7 +124,7 @@ class CMovingObjectsMap : public mrpt::maps::CMetricMap {
   /// Counts summed over the decided scans.
   const cleanmap::ScanStats& totals() const { return totals_; }
   /// Points of the decided scans' vehicle-sized objects kept for static_map.objects (12 bytes
-  /// each; DESIGN §4b): memory that grows with the scans.
+  /// each; DESIGN §4b), at most map_object_scans scans' worth.
   std::size_t objectPoints() const;
 
   // CMetricMap. saveMetricMapRepresentationToFile writes <prefix>_static.ply, _moving.ply (RGB)
@@ -127,8 +135,9 @@ class CMovingObjectsMap : public mrpt::maps::CMetricMap {
   std::string asString() const override;
 
   MAP_DEFINITION_START(CMovingObjectsMap)
-  cleanmap::PipelineParams params;  ///< creationOpts: every key of the parameter table
-  double map_voxel = 0.1;           ///< creationOpts: m; 0 keeps every point
+  cleanmap::PipelineParams params;             ///< creationOpts: every key of the parameter table
+  double map_voxel = 0.1;                      ///< creationOpts: m; 0 keeps every point
+  int map_object_scans = kDefaultObjectScans;  ///< creationOpts: setObjectScans() (0: all)
   CMovingObjectsMap::TInsertionOptions insertionOpts;  ///< insertOpts
   MAP_DEFINITION_END(CMovingObjectsMap)
 
@@ -170,7 +179,21 @@ class CMovingObjectsMap : public mrpt::maps::CMetricMap {
     std::size_t fixed_from = 0;
     std::vector<uint64_t> keys;  // with map_voxel 0: the map points' static_ keys
   };
-  std::vector<ObjectScan> object_scans_;
+  std::deque<ObjectScan> object_scans_;
+  std::size_t object_scans_max_ = kDefaultObjectScans;
+  // The scans that left object_scans_: their voxels' decisions (removed if every one of their
+  // objects' points was) and rule 4's memory after the last of them.
+  std::unordered_map<uint64_t, uint8_t> frozen_;
+  std::optional<cleanmap::MapObjectConsensus> frozen_consensus_;
+  void freezeOldest();
+  void decideScan(cleanmap::MapObjectConsensus& consensus, const cleanmap::FreeSpaceMap& fs,
+                  const ObjectScan& os, std::vector<uint8_t>& gone) const;
+  // A voxel's decision by the objects: kept (a point of them kept), removed (all of them
+  // removed), or left to the free space's rule.
+  static constexpr uint8_t kObjectKept = 0, kObjectGone = 1, kFreeSpace = 2;
+  // Adds scan `os`'s decisions `gone` (its map points') to `by_object`: kept if one is kept.
+  void addDecisions(const ObjectScan& os, const std::vector<uint8_t>& gone,
+                    std::unordered_map<uint64_t, uint8_t>& by_object) const;
   bool byObjects() const;
   // The objects' decision per voxel key (null: per voxel only), computed once per state of the
   // map (version_ counts the insertions, decisions and changes).
