@@ -298,11 +298,10 @@ std::shared_ptr<const std::unordered_map<uint64_t, uint8_t>> CMovingObjectsMap::
   if (!fs || !byObjects()) return nullptr;
   std::lock_guard<std::mutex> lock(objects_mutex_);
   if (by_object_ && by_object_version_ == version_) return by_object_;
-  // DESIGN §2e "Objects": the scans' objects decided in order, as the app decides its maps. A
-  // voxel holding their points is removed if all of them are (the app's map is the union of the
-  // points kept).
-  // A voxel a frozen scan's object kept is left to the free space (later scans may have seen it
-  // empty: a car parked for minutes that left); one the frozen scans removed whole stays so.
+  // DESIGN §2e "Objects": the kept scans' objects decided in order, as the app decides its maps;
+  // a voxel holding their points is removed if all of them are (the app's map is the union of
+  // the points kept). A voxel a frozen scan's objects kept is left to the free space (later
+  // scans may have seen it empty: a car parked for minutes that left); one they removed stays so.
   auto by_object = std::make_shared<std::unordered_map<uint64_t, uint8_t>>();
   by_object->reserve(frozen_.size());
   for (const auto& [key, gone] : frozen_) by_object->emplace(key, gone ? kObjectGone : kFreeSpace);

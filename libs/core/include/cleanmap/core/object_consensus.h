@@ -83,6 +83,7 @@ void persistCells(const std::vector<PointXYZI>& points, const std::vector<uint8_
 class MapObjectConsensus {
  public:
   MapObjectConsensus(const ObjectParams& p, int epoch) : p_(p), epoch_(epoch) {}
+  /// Keep what backward() needs from each decide() call (off by default).
   void record(bool on) { record_ = on; }
   /// `points`: a scan's map points (world frame), then from `fixed_from` on its moving points
   /// (the windowed test's: part of the objects, and they stay removed); `member[i]`: not ground;
