@@ -82,7 +82,7 @@ class CMovingObjectsMap : public mrpt::maps::CMetricMap {
   /// (0: all); an older scan's objects are decided when it leaves them, with the free space seen
   /// then and rule 4 forwards, and only their voxels' decisions are kept. Bounds the memory.
   void setObjectScans(std::size_t n);
-  static constexpr int kDefaultObjectScans = 300;
+  static constexpr int kDefaultObjectScans = 100;
   std::size_t objectScans() const { return object_scans_max_; }
 
   /// Native insertion of a posed scan (`frame.scan.pose`, or estimated with PipelineParams::poses).
