@@ -134,21 +134,19 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
     const bool vehicle_sized = vehicleSized(c.lo, c.hi, p);
     if (in_moving_object)
       whole[v] = vehicle_sized && c.moving == c.n && static_cast<int>(c.n) >= p.min_moving;
-    if (vehicle_sized && static_cast<int>(c.moving) >= p.min_moving &&
-        static_cast<double>(c.moving) >= p.moving_fraction * static_cast<double>(c.n) &&
-        c.moving < c.n) {
+    // Partly moving with at least min_moving points and `share` of them.
+    const auto partly = [&](double share) {
+      return vehicle_sized && static_cast<int>(c.moving) >= p.min_moving &&
+             static_cast<double>(c.moving) >= share * static_cast<double>(c.n) && c.moving < c.n;
+    };
+    if (partly(p.moving_fraction)) {
       turn[v] = 1;
       ++st.moving_objects;
-    } else if (p.persist_radius > 0 && vehicle_sized &&
-               static_cast<int>(c.moving) >= p.min_moving &&
-               static_cast<double>(c.moving) >= p.static_fraction * static_cast<double>(c.n) &&
-               c.moving < c.n && 2 * c.near_prev >= c.n) {
+    } else if (p.persist_radius > 0 && partly(p.static_fraction) && 2 * c.near_prev >= c.n) {
       turn[v] = 1;  // hysteresis: it moved in the previous scan and is still partly moving
       ++st.moving_objects;
       ++st.persisted;
-    } else if (could_persist && vehicle_sized && static_cast<int>(c.moving) >= p.min_moving &&
-               static_cast<double>(c.moving) >= p.static_fraction * static_cast<double>(c.n) &&
-               c.moving < c.n) {
+    } else if (could_persist && partly(p.static_fraction)) {
       turn[v] = 3;  // left as it is; next to an object moving as a whole, rule 4 would take it
     } else if (vehicle_sized && c.moving > 0 &&
                ((few_are_noise && static_cast<int>(c.moving) < p.min_moving) ||

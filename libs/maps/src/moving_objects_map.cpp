@@ -228,14 +228,14 @@ void CMovingObjectsMap::onDecided(cleanmap::ScanResult&& r) {
       os.index = static_cast<int64_t>(r.index);
       os.density = r.density;
       os.points.reserve(static_cast<std::size_t>(std::count(in.begin(), in.end(), uint8_t{1})));
-      for (std::size_t i = 0; i < pts.size(); ++i) {
-        if (!in[i]) continue;
-        if (i < r.static_full.size()) {
-          os.fixed_from = os.points.size() + 1;
+      for (std::size_t i = 0; i < r.static_full.size(); ++i)
+        if (in[i]) {
+          os.points.push_back(pts[i].xyz());
           if (!entry.empty()) os.keys.push_back(entry[i]);
         }
-        os.points.push_back(pts[i].xyz());
-      }
+      os.fixed_from = os.points.size();
+      for (std::size_t i = r.static_full.size(); i < pts.size(); ++i)
+        if (in[i]) os.points.push_back(pts[i].xyz());
       object_scans_.push_back(std::move(os));  // also with no object: rule 4 forgets then
       while (object_scans_max_ > 0 && object_scans_.size() > object_scans_max_) freezeOldest();
     }
