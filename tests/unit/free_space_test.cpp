@@ -355,3 +355,55 @@ TEST(FreeSpace, ASparseLidarSeesEmptyTheSpaceNearItAsEveryBeamWould) {
   EXPECT_LT(thinned.voxelsMarked(), every.voxelsMarked());  // it still walks less
   EXPECT_GT(thinned.azimuthBinMin(), 2 * M_PI / 1024);
 }
+
+namespace {
+// A box 8-12 m ahead (top 0.19 m under the sensor, 2 m wide) before a wall at 20 m, seen by rings
+// at `elev` degrees over +-3 degrees of azimuth (0.1 degree steps): each beam's first hit.
+std::vector<PointXYZI> roofScene() {
+  const std::vector<double> elev{2, 1, 0.5, 0, -0.5, -0.85, -1.0, -1.2, -1.4, -1.7, -2.0, -2.5, -3};
+  std::vector<PointXYZI> pts;
+  for (double e : elev)
+    for (int c = -30; c <= 30; ++c) {
+      const double a = c * 0.1 * M_PI / 180, el = e * M_PI / 180;
+      const Eigen::Vector3d d(std::cos(el) * std::cos(a), std::cos(el) * std::sin(a), std::sin(el));
+      double t = 20 / d.x();  // the wall
+      if (d.z() < 0) {
+        const double top = -0.19 / d.z(), front = 8 / d.x();
+        if (d.x() * top >= 8 && d.x() * top <= 12)
+          t = top;  // the roof
+        else if (d.z() * front <= -0.19)
+          t = front;  // its front
+      }
+      const Eigen::Vector3d p = t * d;
+      pts.push_back({float(p.x()), float(p.y()), float(p.z()), 0.f});
+    }
+  return pts;
+}
+}  // namespace
+
+TEST(FreeSpace, BeamsGrazingAFlatSurfaceDoNotSeeItEmpty) {
+  // DESIGN §2e, grazing beams: a roof 0.19 m under the sensor, between the rings' returns on it
+  // (x 9.07 and 10.88), holds surface in the lower part of its voxel (z -0.2..0), through which
+  // the rings just above pass on to the wall: they would see the roof's points empty. They run
+  // within `margin` of the roof's plane there, and mark nothing; the space a ring well above
+  // crosses (z 0..0.2) is still seen empty, as is the space before the box. Without graze_reach
+  // the rings passing over the roof mark it; without flat_slope every ring does.
+  const Eigen::Vector3f roof(10.5f, 0.f, -0.19f), above(10.5f, 0.f, 0.1f), before(5.f, 0.f, -0.1f);
+  MapParams p = params();
+  p.hit_inflate = 0;  // the roof's voxel at x 10.5 holds no return of its own
+  const auto count = [&](const MapParams& q, const Eigen::Vector3f& at_point) {
+    FreeSpaceMap fs(q);
+    fs.insertScan(roofScene(), at(0), 0);
+    return fs.evidence(at_point).count;
+  };
+  EXPECT_EQ(count(p, roof), 0);
+  EXPECT_EQ(count(p, above), 1);
+  EXPECT_EQ(count(p, before), 1);
+  MapParams no_reach = p;
+  no_reach.graze_reach = 0;
+  EXPECT_EQ(count(no_reach, roof), 1);
+  MapParams off = p;
+  off.flat_slope = 0;
+  EXPECT_EQ(count(off, roof), 1);
+  EXPECT_EQ(count(off, above), 1);
+}

@@ -74,6 +74,46 @@ bool vehicleSized(const Eigen::Vector3f& lo, const Eigen::Vector3f& hi, const Ob
   return ext.head<2>().norm() <= p.max_length && ext.z() <= p.max_height;
 }
 
+// Rule 5's objects: the components of the points of `mask`, each voxel -> its object, and their
+// extents.
+void anchorsOf(const std::vector<PointXYZI>& points, const std::vector<uint8_t>& mask, double side,
+               CellMap<uint32_t>& voxel_anchor, std::vector<Eigen::Vector3f>& extent) {
+  voxel_anchor.clear();
+  extent.clear();
+  const Components cc = components(points, mask, side);
+  std::vector<uint32_t> id(cc.voxels.size(), UINT32_MAX);
+  std::vector<Eigen::Vector3f> lo, hi;
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    if (cc.point_voxel[i] == UINT32_MAX) continue;
+    const uint32_t root = cc.root_of[cc.point_voxel[i]];
+    if (id[root] == UINT32_MAX) {
+      id[root] = static_cast<uint32_t>(lo.size());
+      lo.push_back(points[i].xyz());
+      hi.push_back(points[i].xyz());
+    }
+    lo[id[root]] = lo[id[root]].cwiseMin(points[i].xyz());
+    hi[id[root]] = hi[id[root]].cwiseMax(points[i].xyz());
+  }
+  for (std::size_t a = 0; a < lo.size(); ++a) extent.push_back(hi[a] - lo[a]);
+  for (uint32_t v = 0; v < cc.voxels.size(); ++v) {
+    const Eigen::Vector3i& c = cc.voxels[v];
+    voxel_anchor.get(cellKey(c.x(), c.y(), c.z())) = id[cc.root_of[v]];
+  }
+}
+
+// Per point: the object of `anchors` whose voxel it lies in (UINT32_MAX: none).
+void anchorOfPoints(const std::vector<PointXYZI>& points, const std::vector<uint8_t>& member,
+                    double side, const CellMap<uint32_t>& anchors, std::vector<uint32_t>& out) {
+  const float inv = static_cast<float>(1.0 / side);
+  out.assign(points.size(), UINT32_MAX);
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    if (!member[i]) continue;
+    const uint32_t* a =
+        anchors.find(cellKey(floorToCell(points[i].x, inv), floorToCell(points[i].y, inv),
+                             floorToCell(points[i].z, inv)));
+    if (a) out[i] = *a;
+  }
+}
 }  // namespace
 
 ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
@@ -81,11 +121,9 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
                                      std::vector<uint8_t>& moving, const ObjectParams& p,
                                      const std::vector<uint8_t>* near_previous,
                                      std::vector<uint8_t>* in_moving_object,
-                                     const ConsensusRules& rules,
-                                     std::vector<uint8_t>* could_persist) {
+                                     const ConsensusRules& rules) {
   ObjectConsensusStats st;
   if (in_moving_object) in_moving_object->assign(points.size(), 0);
-  if (could_persist) could_persist->assign(points.size(), 0);
   if (!p.enabled) return st;
   // Voxels of the member points and their 26-connected components.
   const Components cc = components(points, member, p.voxel);
@@ -109,7 +147,8 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
   };
   // Per component: point counts and extent.
   struct Comp {
-    std::size_t n = 0, moving = 0, near_prev = 0;
+    std::size_t n = 0, moving = 0, near_prev = 0, overlap = 0;
+    uint32_t anchor = UINT32_MAX;
     Eigen::Vector3f lo = Eigen::Vector3f::Constant(1e30f), hi = Eigen::Vector3f::Constant(-1e30f);
   };
   std::vector<Comp> comps(voxels.size());
@@ -122,7 +161,30 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
     c.lo = c.lo.cwiseMin(points[i].xyz());
     c.hi = c.hi.cwiseMax(points[i].xyz());
   }
-  std::vector<uint8_t> turn(voxels.size(), 0);  // 1: all moving, 2: all static, 3: rule 4 could
+  // Rule 5: per component, the adjacent scan's whole object holding most of its points.
+  std::vector<uint8_t> all_parts;  // per root: turned by rule 5, every part goes
+  if (rules.anchor) {
+    all_parts.assign(voxels.size(), 0);
+    CellMap<uint32_t> count;
+    for (std::size_t i = 0; i < points.size(); ++i) {
+      const uint32_t a = (*rules.anchor)[i];
+      if (point_voxel[i] == UINT32_MAX || a == UINT32_MAX) continue;
+      ++count.get((uint64_t{root_of[point_voxel[i]]} << 32) | a);
+    }
+    count.forEach([&](uint64_t key, uint32_t n) {
+      Comp& c = comps[static_cast<uint32_t>(key >> 32)];
+      if (n > c.overlap) c.overlap = n, c.anchor = static_cast<uint32_t>(key);
+    });
+  }
+  const auto similar = [&](const Comp& c) {
+    if (c.anchor == UINT32_MAX) return false;
+    const Eigen::Vector3f e = c.hi - c.lo, a = (*rules.anchor_extent)[c.anchor];
+    const auto close = [&](float x, float y) {
+      return std::abs(x - y) <= rules.extent_tolerance * std::max(x, y);
+    };
+    return close(e.head<2>().norm(), a.head<2>().norm()) && close(e.z(), a.z());
+  };
+  std::vector<uint8_t> turn(voxels.size(), 0);  // 1: all moving, 2: all static
   std::vector<uint8_t> whole;                   // vehicle-sized, moving in every point
   if (in_moving_object) whole.assign(voxels.size(), 0);
   const bool few_are_noise = rules.few_points_are_noise;
@@ -146,8 +208,15 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
       turn[v] = 1;  // hysteresis: it moved in the previous scan and is still partly moving
       ++st.moving_objects;
       ++st.persisted;
-    } else if (could_persist && partly(p.static_fraction)) {
-      turn[v] = 3;  // left as it is; next to an object moving as a whole, rule 4 would take it
+    } else if (rules.anchor && vehicle_sized && c.moving < c.n &&
+               static_cast<int>(c.n) >= p.min_moving &&
+               static_cast<double>(c.overlap) >=
+                   rules.overlap_fraction * static_cast<double>(c.n) &&
+               similar(c)) {  // rule 5: where a whole object of its size stood a scan away
+      turn[v] = 1;
+      all_parts[v] = 1;
+      ++st.moving_objects;
+      ++st.persisted;
     } else if (vehicle_sized && c.moving > 0 &&
                ((few_are_noise && static_cast<int>(c.moving) < p.min_moving) ||
                 static_cast<double>(c.moving) < p.static_fraction * static_cast<double>(c.n))) {
@@ -223,7 +292,8 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
       }
     spreads.assign(voxels.size(), 0);
     for (uint32_t v = 0; v < voxels.size(); ++v)
-      if (part_n[v] > 0) spreads[v] = part_moving[v] > 0;
+      if (part_n[v] > 0)
+        spreads[v] = part_moving[v] > 0 || (!all_parts.empty() && all_parts[root_of[v]]);
     for (std::size_t i = 0; i < points.size(); ++i) {
       if (point_voxel[i] == UINT32_MAX) continue;
       const uint32_t root = root_of[point_voxel[i]];
@@ -272,9 +342,6 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
         const uint32_t root = root_of[point_voxel[i]];
         (*in_moving_object)[i] = turn[root] == 1 || whole[root];
       }
-  if (could_persist)
-    for (std::size_t i = 0; i < points.size(); ++i)
-      (*could_persist)[i] = point_voxel[i] != UINT32_MAX && turn[root_of[point_voxel[i]]] == 3;
   // Inside structures (too large for the rule above), moving points count only in groups: a
   // connected group of moving points smaller than min_moving is static.
   if (!few_are_noise) return st;
@@ -335,100 +402,61 @@ ObjectConsensusStats MapObjectConsensus::decide(int64_t scan, double density,
                                                 const std::vector<uint8_t>& member,
                                                 std::vector<uint8_t>& removed,
                                                 std::size_t fixed_from) {
+  return run(forward_, false, scan, density, points, member, removed, fixed_from);
+}
+
+ObjectConsensusStats MapObjectConsensus::decideBackward(int64_t scan, double density,
+                                                        const std::vector<PointXYZI>& points,
+                                                        const std::vector<uint8_t>& member,
+                                                        std::vector<uint8_t>& removed,
+                                                        std::size_t fixed_from) {
+  return run(backward_, true, scan, density, points, member, removed, fixed_from);
+}
+
+// One scan with the memory of the scan decided before it in this direction (the previous one
+// forwards, the next one backwards).
+ObjectConsensusStats MapObjectConsensus::run(Memory& m, bool backward, int64_t scan, double density,
+                                             const std::vector<PointXYZI>& points,
+                                             const std::vector<uint8_t>& member,
+                                             std::vector<uint8_t>& removed,
+                                             std::size_t fixed_from) {
   if (!p_.enabled) return {};
   const int64_t e = epochOf(scan);
-  if (e != epoch_of_last_) prev_cells_.clear();  // DESIGN §2f: an epoch starts with no memory
-  epoch_of_last_ = e;
-  const bool persist = p_.persist_radius > 0 && !prev_cells_.empty();
+  if (e != m.epoch) m = Memory{};  // DESIGN §2f: no memory crosses an epoch's start, either way
+  m.epoch = e;
+  ConsensusRules rules;
+  rules.few_points_are_noise = false;  // a removal is a voxel the sequence saw empty, no alarm
+  const bool persist = p_.persist_radius > 0 && !m.cells.empty();
   if (persist) {
     const double inv = 1.0 / p_.persist_radius;
     near_.assign(points.size(), 0);
     for (std::size_t i = 0; i < points.size(); ++i)
-      near_[i] =
-          member[i] && prev_cells_.contains(cellKeyOf(double(points[i].x), double(points[i].y),
-                                                      double(points[i].z), inv));
+      near_[i] = member[i] && m.cells.contains(cellKeyOf(double(points[i].x), double(points[i].y),
+                                                         double(points[i].z), inv));
+  }
+  if (overlap_ > 0 && !m.extent.empty()) {
+    anchorOfPoints(points, member, p_.voxel, m.anchor, anchor_);
+    rules.anchor = &anchor_;
+    rules.anchor_extent = &m.extent;
+    rules.overlap_fraction = overlap_;
   }
   ObjectParams op = p_;  // min_moving is an HDL-64E count (§2d)
   op.min_moving = std::max(1, static_cast<int>(std::lround(op.min_moving * density)));
   decided_ = removed;
-  ConsensusRules rules;
-  rules.few_points_are_noise = false;  // a removal is a voxel the sequence saw empty, no alarm
   ObjectConsensusStats st =
-      objectConsensus(points, member, decided_, op, persist ? &near_ : nullptr, &whole_, rules,
-                      record_ ? &could_ : nullptr);
+      objectConsensus(points, member, decided_, op, persist ? &near_ : nullptr, &whole_, rules);
   st.points_added = st.points_removed = 0;
   for (std::size_t i = 0; i < std::min(fixed_from, removed.size()); ++i) {
+    if (backward && !decided_[i]) continue;  // backwards only adds (decide() kept the rest)
     st.points_added += decided_[i] && !removed[i];
     st.points_removed += removed[i] && !decided_[i];
     removed[i] = decided_[i];
   }
-  // Rule 4's memory: the objects removed whole, not the free space's scattered removals (a
-  // parked car seen through its windows loses a few points in every scan).
-  if (p_.persist_radius > 0) persistCells(points, &whole_, p_.persist_radius, prev_cells_);
-  if (record_) {
-    Recorded r;
-    r.scan = scan;
-    r.min_moving = op.min_moving;
-    prev_cells_.forEach([&](uint64_t c, uint8_t) { r.whole_cells.push_back(c); });
-    for (std::size_t i = 0; i < std::min(fixed_from, points.size()); ++i)
-      if (could_[i]) {
-        r.points.push_back(points[i]);
-        r.removed.push_back(removed[i]);
-        r.index.push_back(static_cast<uint32_t>(i));
-      }
-    // The moving points of those objects (from fixed_from on) count, and stay removed.
-    for (std::size_t i = fixed_from; i < points.size(); ++i)
-      if (could_[i]) {
-        r.points.push_back(points[i]);
-        r.removed.push_back(1);
-        r.index.push_back(UINT32_MAX);
-      }
-    recorded_.push_back(std::move(r));
-  }
+  // The memory: the objects removed whole, not the free space's scattered removals (a parked car
+  // seen through its windows loses a few points in every scan).
+  if (p_.persist_radius > 0) persistCells(points, &whole_, p_.persist_radius, m.cells);
+  if (overlap_ > 0) anchorsOf(points, whole_, p_.voxel, m.anchor, m.extent);
   return st;
-}
-
-std::vector<std::vector<uint32_t>> MapObjectConsensus::backward(ObjectConsensusStats* stats) {
-  std::vector<std::vector<uint32_t>> added(recorded_.size());
-  if (stats) *stats = {};
-  if (p_.persist_radius <= 0) return added;
-  const double inv = 1.0 / p_.persist_radius;
-  ConsensusRules rules;
-  rules.few_points_are_noise = false;
-  CellMap<uint8_t> next, turned;  // the next scan's whole objects' cells (dilated)
-  std::vector<uint8_t> near, member, removed, whole;
-  for (std::size_t k = recorded_.size(); k-- > 0;) {
-    const Recorded& r = recorded_[k];
-    // DESIGN §2f: the memory does not cross an epoch's start, either way.
-    const bool memory = k + 1 < recorded_.size() && !next.empty() &&
-                        epochOf(recorded_[k + 1].scan) == epochOf(r.scan);
-    turned.clear();
-    if (memory && !r.points.empty()) {
-      near.assign(r.points.size(), 0);
-      for (std::size_t i = 0; i < r.points.size(); ++i)
-        near[i] = next.contains(
-            cellKeyOf(double(r.points[i].x), double(r.points[i].y), double(r.points[i].z), inv));
-      member.assign(r.points.size(), 1);
-      removed = r.removed;
-      ObjectParams op = p_;
-      op.min_moving = r.min_moving;
-      const ObjectConsensusStats st =
-          objectConsensus(r.points, member, removed, op, &near, &whole, rules);
-      for (std::size_t i = 0; i < r.points.size(); ++i)
-        if (removed[i] && !r.removed[i] && r.index[i] != UINT32_MAX) added[k].push_back(r.index[i]);
-      if (stats) {
-        stats->points_added += added[k].size();
-        stats->moving_objects += st.moving_objects;
-        stats->persisted += st.persisted;
-      }
-      if (st.moving_objects > 0) persistCells(r.points, &whole, p_.persist_radius, turned);
-    }
-    next.clear();
-    for (const uint64_t c : r.whole_cells) next.insert(c);
-    turned.forEach([&](uint64_t c, uint8_t) { next.insert(c); });
-  }
-  recorded_.clear();
-  return added;
 }
 
 }  // namespace cleanmap

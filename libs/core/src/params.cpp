@@ -84,6 +84,11 @@ void validate(const PipelineParams& p, const std::string& name) {
   require(m.between_scans >= 0 && m.between_scans <= 255,
           "static_map.between_scans must be in [0, 255] (0: off)");
   require(m.hit_inflate >= 0 && m.hit_inflate <= 1, "static_map.hit_inflate must be in [0, 1] m");
+  require(m.object_overlap >= 0 && m.object_overlap <= 1,
+          "static_map.object_overlap must be in [0, 1] (0: off)");
+  require(m.flat_slope >= 0 && m.flat_slope <= 1,
+          "static_map.flat_slope must be in [0, 1] (0: off)");
+  require(m.graze_reach >= 0 && m.graze_reach <= 20, "static_map.graze_reach must be in [0, 20] m");
   require(m.margin >= 0 && m.min_range >= 0 && m.beam_spacing >= 0,
           "static_map.margin, static_map.min_range and static_map.beam_spacing must be >= 0");
   require(m.policy == MapPolicy::kMoving || m.policy == MapPolicy::kTransient,

@@ -305,6 +305,41 @@ void DirectReader::read(void* data, std::size_t n) {
   }
 }
 
+PositionalFile::PositionalFile(std::string path, bool writable) : path_(std::move(path)) {
+  fd_ = ::open(path_.c_str(), (writable ? O_RDWR : O_RDONLY) | O_CLOEXEC);
+  if (fd_ < 0) throw Error(path_, "cannot open: " + std::string(std::strerror(errno)));
+}
+
+PositionalFile::~PositionalFile() {
+  if (fd_ >= 0) ::close(fd_);
+}
+
+void PositionalFile::readAt(std::uint64_t offset, void* data, std::size_t n) {
+  auto* p = static_cast<unsigned char*>(data);
+  while (n > 0) {
+    const ssize_t r = ::pread(fd_, p, n, static_cast<off_t>(offset));
+    if (r < 0 && errno == EINTR) continue;
+    if (r < 0) throw Error(path_, "read failed: " + std::string(std::strerror(errno)));
+    if (r == 0) throw Error(path_, "truncated (the file ends early)");
+    p += r;
+    n -= static_cast<std::size_t>(r);
+    offset += static_cast<std::uint64_t>(r);
+  }
+}
+
+void PositionalFile::writeAt(std::uint64_t offset, const void* data, std::size_t n) {
+  const auto* p = static_cast<const unsigned char*>(data);
+  while (n > 0) {
+    const ssize_t r = ::pwrite(fd_, p, n, static_cast<off_t>(offset));
+    if (r < 0 && errno == EINTR) continue;
+    if (r <= 0)
+      throw Error(path_, "write failed (disk full?): " + std::string(std::strerror(errno)));
+    p += r;
+    n -= static_cast<std::size_t>(r);
+    offset += static_cast<std::uint64_t>(r);
+  }
+}
+
 void writeBytesAtomic(const std::string& path, const void* data, std::size_t n) {
   namespace fs = std::filesystem;
   const fs::path target(path);

@@ -210,6 +210,7 @@ void OutputWriter::spoolScan(const ScanResult& r) {
   const SpoolHeader h{
       static_cast<int64_t>(r.index), r.pose.translation().z(), r.density, r.labels.size(),
       r.static_full.size(),          r.moving.size()};
+  spool_offsets_.push_back(spool_->size());
   spool_->write(&h, sizeof h);
   std::vector<SpoolPoint> pts(r.static_full.size());
   for (std::size_t i = 0; i < pts.size(); ++i)
@@ -243,11 +244,25 @@ void OutputWriter::writeMaps(const FreeSpaceMap* free_space, const MapScanSink& 
     std::vector<PointXYZI> objects;
     std::vector<uint8_t> member, gone;
   };
-  // Rule 4 both ways (DESIGN §2e "Objects"): a first pass decides the objects, recording those
-  // rule 4 could take and its decisions per point (.map_decisions, a byte each); rule 4 then runs
-  // from the last scan to the first, and the second pass reads the points and their decisions.
-  const bool two_passes = by_objects && params_.object.enabled && params_.object.persist_radius > 0;
+  // Rules 4 and 5 both ways (DESIGN §2e "Objects"): a first pass decides the objects and keeps
+  // its decisions per point (.map_decisions, a byte each); a second goes from the last scan to
+  // the first, reading the scans whose objects the backward rules can reach and adding their
+  // removals to the decisions; the third reads the points and their decisions and writes.
+  const bool two_passes = by_objects && params_.object.enabled &&
+                          (params_.object.persist_radius > 0 || params_.map.object_overlap > 0);
   bool decide = true;  // the pass reading looks the free space up (the first, or the only one)
+  // The objects' input: the map points (ground not a member), then the moving points, removed.
+  const auto assemble = [](Spooled& b) {
+    b.objects.clear();
+    b.member.clear();
+    for (const auto& q : b.pts) {
+      b.objects.push_back(q.p);
+      b.member.push_back(!isGroundKind(static_cast<uint8_t>(q.kind)));
+    }
+    for (const auto& q : b.moving) b.objects.push_back(q.p);
+    b.member.resize(b.objects.size(), 1);
+    b.gone.resize(b.objects.size(), 1);
+  };
   const auto read = [&](DirectReader& spool, Spooled& b) {
     spool.read(&b.h, sizeof b.h);
     b.pts.resize(b.h.full);
@@ -260,15 +275,10 @@ void OutputWriter::writeMaps(const FreeSpaceMap* free_space, const MapScanSink& 
     b.gone.clear();
     for (const auto& q : b.pts) {
       const bool ground = isGroundKind(static_cast<uint8_t>(q.kind));
-      b.objects.push_back(q.p);
-      b.member.push_back(!ground);
       b.gone.push_back(free_space && !ground &&
                        removedByPolicy((*lookup)(q.p.xyz()), b.h.index, params_.map));
     }
-    if (!by_objects) return;
-    for (const auto& q : b.moving) b.objects.push_back(q.p);
-    b.member.resize(b.objects.size(), 1);
-    b.gone.resize(b.objects.size(), 1);
+    if (by_objects) assemble(b);
   };
   // The spool's scans in order. With two threads the next scan is read and looked up beside this
   // one's work (issue #16); the reader and the lookup are only ever used by one of them at a time.
@@ -289,8 +299,7 @@ void OutputWriter::writeMaps(const FreeSpaceMap* free_space, const MapScanSink& 
       std::swap(cur, next);
     }
   };
-  MapObjectConsensus consensus(params_.object, params_.epoch);
-  consensus.record(two_passes);
+  MapObjectConsensus consensus(params_.object, params_.epoch, params_.map.object_overlap);
   const auto decideObjects = [&](Spooled& b) {
     const auto st =
         consensus.decide(b.h.index, b.h.density, b.objects, b.member, b.gone, b.pts.size());
@@ -298,18 +307,47 @@ void OutputWriter::writeMaps(const FreeSpaceMap* free_space, const MapScanSink& 
     map_object_kept_ += st.points_removed;
     map_objects_ += st.moving_objects;
   };
-  std::vector<std::vector<uint32_t>> backward;
   const std::string decisions_path = staging_ + "/.map_decisions";
   if (two_passes) {
-    DirectFile decisions(decisions_path, std::size_t(1) << 20);
-    forEachScan([&](std::size_t, Spooled& b) {
-      decideObjects(b);
-      decisions.write(b.gone.data(), b.pts.size());
-    });
-    decisions.close();
-    ObjectConsensusStats st;
-    backward = consensus.backward(&st);
-    map_objects_ += st.moving_objects;
+    std::vector<uint8_t> had_whole(stems_.size(), 0);
+    std::vector<std::uint64_t> decided_at(stems_.size() + 1, 0);  // offsets in .map_decisions
+    std::vector<int64_t> scan_index(stems_.size(), 0);
+    {
+      DirectFile decisions(decisions_path, std::size_t(1) << 20);
+      forEachScan([&](std::size_t s, Spooled& b) {
+        decideObjects(b);
+        decisions.write(b.gone.data(), b.pts.size());
+        had_whole[s] = consensus.hadWholeObjects();
+        decided_at[s + 1] = decided_at[s] + b.pts.size();
+        scan_index[s] = b.h.index;
+      });
+      decisions.close();
+    }
+    // From the last scan to the first: a scan without whole objects, after one without either,
+    // has nothing the backward rules could change or pass on.
+    PositionalFile spool(spool_path_, false), decisions_rw(decisions_path, true);
+    Spooled b;
+    for (std::size_t s = stems_.size(); s-- > 0;) {
+      if (!had_whole[s] && !consensus.backwardMemory()) {
+        consensus.skipBackward(scan_index[s]);
+        continue;
+      }
+      spool.readAt(spool_offsets_[s], &b.h, sizeof b.h);
+      b.pts.resize(b.h.full);
+      b.moving.resize(b.h.moving);
+      const std::uint64_t at = spool_offsets_[s] + sizeof b.h;
+      spool.readAt(at, b.pts.data(), b.pts.size() * sizeof(SpoolPoint));
+      spool.readAt(at + b.pts.size() * sizeof(SpoolPoint), b.moving.data(),
+                   b.moving.size() * sizeof(SpoolPoint));
+      b.gone.resize(b.pts.size());
+      decisions_rw.readAt(decided_at[s], b.gone.data(), b.gone.size());
+      assemble(b);
+      const auto st = consensus.decideBackward(b.h.index, b.h.density, b.objects, b.member, b.gone,
+                                               b.pts.size());
+      map_object_points_ += st.points_added;
+      map_objects_ += st.moving_objects;
+      if (st.points_added > 0) decisions_rw.writeAt(decided_at[s], b.gone.data(), b.pts.size());
+    }
     decide = false;
   }
   std::optional<DirectReader> decisions;
@@ -325,11 +363,6 @@ void OutputWriter::writeMaps(const FreeSpaceMap* free_space, const MapScanSink& 
     if (two_passes) {
       gone.resize(pts.size());
       decisions->read(gone.data(), gone.size());
-      if (s < backward.size())
-        for (const uint32_t i : backward[s]) {
-          map_object_points_ += !gone[i];
-          gone[i] = 1;
-        }
     } else if (by_objects) {
       decideObjects(cur);
     }

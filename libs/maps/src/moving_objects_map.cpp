@@ -249,12 +249,19 @@ std::size_t CMovingObjectsMap::objectPoints() const {
   return n;
 }
 
+namespace {
+std::vector<cleanmap::PointXYZI> asPoints(const std::vector<Eigen::Vector3f>& points) {
+  std::vector<cleanmap::PointXYZI> pts(points.size());
+  for (std::size_t i = 0; i < pts.size(); ++i)
+    pts[i] = {points[i].x(), points[i].y(), points[i].z(), 0.f};
+  return pts;
+}
+}  // namespace
+
 void CMovingObjectsMap::decideScan(cleanmap::MapObjectConsensus& consensus,
                                    const cleanmap::FreeSpaceMap& fs, const ObjectScan& os,
                                    std::vector<uint8_t>& gone) const {
-  std::vector<cleanmap::PointXYZI> pts(os.points.size());
-  for (std::size_t i = 0; i < pts.size(); ++i)
-    pts[i] = {os.points[i].x(), os.points[i].y(), os.points[i].z(), 0.f};
+  const std::vector<cleanmap::PointXYZI> pts = asPoints(os.points);
   const std::vector<uint8_t> member(pts.size(), 1);
   gone.assign(pts.size(), 1);
   for (std::size_t i = 0; i < os.fixed_from; ++i)
@@ -284,7 +291,8 @@ void CMovingObjectsMap::setObjectScans(std::size_t n) {
 void CMovingObjectsMap::freezeOldest() {
   const cleanmap::FreeSpaceMap* fs = freeSpace();
   if (fs) {
-    if (!frozen_consensus_) frozen_consensus_.emplace(params_.object, params_.epoch);
+    if (!frozen_consensus_)
+      frozen_consensus_.emplace(params_.object, params_.epoch, params_.map.object_overlap);
     std::vector<uint8_t> gone;
     decideScan(*frozen_consensus_, *fs, object_scans_.front(), gone);
     addDecisions(object_scans_.front(), gone, frozen_);
@@ -306,18 +314,21 @@ std::shared_ptr<const std::unordered_map<uint64_t, uint8_t>> CMovingObjectsMap::
   by_object->reserve(frozen_.size());
   for (const auto& [key, gone] : frozen_) by_object->emplace(key, gone ? kObjectGone : kFreeSpace);
   cleanmap::MapObjectConsensus consensus =
-      frozen_consensus_ ? *frozen_consensus_
-                        : cleanmap::MapObjectConsensus(params_.object, params_.epoch);
-  consensus.record(true);  // rule 4 both ways, as the app's maps
+      frozen_consensus_
+          ? *frozen_consensus_
+          : cleanmap::MapObjectConsensus(params_.object, params_.epoch, params_.map.object_overlap);
   std::vector<std::vector<uint8_t>> gone(object_scans_.size());
   for (std::size_t k = 0; k < object_scans_.size(); ++k)
     decideScan(consensus, *fs, object_scans_[k], gone[k]);
-  const auto backward = consensus.backward();
-  for (std::size_t k = 0; k < object_scans_.size(); ++k) {
-    if (k < backward.size())
-      for (const uint32_t i : backward[k]) gone[k][i] = 1;
-    addDecisions(object_scans_[k], gone[k], *by_object);
+  // Rules 4 and 5 both ways, as the app's maps: the kept scans from the last to the first.
+  for (std::size_t k = object_scans_.size(); k-- > 0;) {
+    const ObjectScan& os = object_scans_[k];
+    const std::vector<uint8_t> member(os.points.size(), 1);
+    consensus.decideBackward(os.index, os.density, asPoints(os.points), member, gone[k],
+                             os.fixed_from);
   }
+  for (std::size_t k = 0; k < object_scans_.size(); ++k)
+    addDecisions(object_scans_[k], gone[k], *by_object);
   by_object_ = by_object;
   by_object_version_ = version_;
   return by_object;

@@ -123,6 +123,14 @@ class FreeSpaceMap {
   std::array<Recent, 1024> recent_{};
   Block& recentBlock(uint64_t key, int64_t scan);
   std::size_t marked_ = 0;
+  // Grazing beams (grazing(), per scan): the returns' cells of azimuth x elevation, each return's
+  // cell, lower neighbour, rise to it where flat, horizontal range and height from the sensor
+  // (world frame), and the stretch of its beam that marks nothing.
+  void grazing(const std::vector<PointXYZI>& points, const Eigen::Isometry3d& pose);
+  std::vector<uint32_t> grid_;
+  std::vector<int> cell_;
+  std::vector<uint32_t> lower_;
+  std::vector<float> slope_, rho_, zw_, skip_a_, skip_b_;
   double bin_min_ = std::numeric_limits<double>::infinity(), bin_max_ = 0;
   // The sub-blocks, in chunks that never move (blocks point into them); freed with the map.
   std::vector<std::unique_ptr<SubBlock[]>> pool_;

@@ -33,6 +33,17 @@ struct ConsensusRules {
   /// with less than static_fraction of its points moving always is); rule 3: so is a connected
   /// group of fewer than min_moving moving points. false: only the share counts, groups stay.
   bool few_points_are_noise = true;
+  /// Rule 5 (the map's, DESIGN §2e "Objects"): per point, the object of the adjacent scan
+  /// removed whole whose voxels (ObjectParams::voxel) it lies in (UINT32_MAX: none), and per such
+  /// object its extent (hi - lo). A vehicle-sized object with at least min_moving points and at
+  /// least `overlap_fraction` of them in one such object, its extents (horizontal diagonal,
+  /// height) within `extent_tolerance` of that object's, is that object a scan earlier or later
+  /// and goes whole (two solids do not share their space; the size keeps one that touched
+  /// another, and was removed with it, from taking that other's place).
+  const std::vector<uint32_t>* anchor = nullptr;
+  const std::vector<Eigen::Vector3f>* anchor_extent = nullptr;
+  double overlap_fraction = 0.5;
+  double extent_tolerance = 0.3;
 };
 
 /// Groups `points[i]` with `member[i]` (in crop, not ground) into 26-connected voxel components
@@ -41,16 +52,13 @@ struct ConsensusRules {
 /// previous scan (world frame); it lets a partly moving object stay moving (hysteresis).
 /// `in_moving_object` (optional, per point): set to 1 where the point's component is a
 /// vehicle-sized object that moves as a whole (turned moving, or moving in every point).
-/// `could_persist` (optional, per point): set to 1 where the point's component was left as it is
-/// but rule 4 would take it next to a moving object (vehicle-sized, at least min_moving and
-/// static_fraction of its points moving, not all). Deterministic; O(points).
+/// Deterministic; O(points).
 ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
                                      const std::vector<uint8_t>& member,
                                      std::vector<uint8_t>& moving, const ObjectParams& p,
                                      const std::vector<uint8_t>* near_previous = nullptr,
                                      std::vector<uint8_t>* in_moving_object = nullptr,
-                                     const ConsensusRules& rules = {},
-                                     std::vector<uint8_t>* could_persist = nullptr);
+                                     const ConsensusRules& rules = {});
 
 /// Per point: a member of a vehicle-sized component (as objectConsensus groups them). Under
 /// ConsensusRules{few_points_are_noise = false} no other point's decision can change, and
@@ -65,26 +73,25 @@ std::vector<uint8_t> inVehicleSizedObject(const std::vector<PointXYZI>& points,
 void persistCells(const std::vector<PointXYZI>& points, const std::vector<uint8_t>* mask,
                   double radius, CellMap<uint8_t>& cells);
 
-/// DESIGN §2e, "Objects": the map's decision made per rigid object. The free space removes a
-/// point whose voxel the sequence saw empty; a slow truck's side, occupied in every scan, keeps
-/// the part that never left while its ends came and went, and a parked car seen through its
-/// windows loses a few points. Scan by scan (in increasing order), the object consensus of the
-/// windowed test (doc/OBJECTS.md, rules 1-4) runs on the map's points with the removed ones as
-/// its moving points, counting shares only (ConsensusRules): a vehicle-sized object with at
-/// least moving_fraction of its points removed goes whole (so does one with static_fraction next
-/// to an object the last scan removed whole, rule 4); one with less than static_fraction keeps
-/// all its points. Epochs of `epoch` scans start with no memory, as the pipeline's do (§2f).
+/// DESIGN §2e, "Objects": the map's decision per rigid object. The free space removes a point
+/// whose voxel the sequence saw empty; a slow truck's side, occupied in every scan, keeps the
+/// part that never left while its ends came and went, and a parked car seen through its windows
+/// loses a few points. Scan by scan (in increasing order), the object consensus of the windowed
+/// test (doc/OBJECTS.md, rules 1-4) runs on the map's points with the removed ones as its moving
+/// points, counting shares only (ConsensusRules): a vehicle-sized object with at least
+/// moving_fraction of its points removed goes whole (so does one with static_fraction next to an
+/// object the last scan removed whole, rule 4, and one that stands where an object of its size
+/// that the last scan removed whole stood, rule 5); one with less than static_fraction keeps all
+/// its points. Epochs of `epoch` scans start with no memory, as the pipeline's do (§2f).
 ///
-/// Rule 4 both ways: the map is decided with the whole sequence, so an object with
-/// static_fraction of its points removed next to an object the *next* scan removed whole goes
-/// too (a slow mover whose removed share reaches moving_fraction only after some scans). With
-/// record(true) decide() keeps each scan's objects that rule 4 could take and its whole objects'
-/// cells; backward() then runs rule 4 from the last scan to the first over them.
+/// Both ways in time: the map is decided with the whole sequence, so rules 4 and 5 also look at
+/// the *next* scan's whole objects (a slow mover whose removed share reaches moving_fraction only
+/// after some scans): decideBackward() over the scans in decreasing order, after decide().
 class MapObjectConsensus {
  public:
-  MapObjectConsensus(const ObjectParams& p, int epoch) : p_(p), epoch_(epoch) {}
-  /// Keep what backward() needs from each decide() call (off by default).
-  void record(bool on) { record_ = on; }
+  /// `overlap`: rule 5's share (static_map.object_overlap; 0: off).
+  MapObjectConsensus(const ObjectParams& p, int epoch, double overlap = 0)
+      : p_(p), epoch_(epoch), overlap_(overlap) {}
   /// `points`: a scan's map points (world frame), then from `fixed_from` on its moving points
   /// (the windowed test's: part of the objects, and they stay removed); `member[i]`: not ground;
   /// `removed[i]` on entry the free space's decision (1 for the moving points), on return the
@@ -93,30 +100,40 @@ class MapObjectConsensus {
   ObjectConsensusStats decide(int64_t scan, double density, const std::vector<PointXYZI>& points,
                               const std::vector<uint8_t>& member, std::vector<uint8_t>& removed,
                               std::size_t fixed_from);
-  /// After the recorded decide() calls, in their order: per call, the indices (into its `points`,
-  /// below fixed_from) of the points rule 4 backwards removes in addition to decide()'s. Stats:
-  /// points_added, moving_objects, persisted (the same objects).
-  std::vector<std::vector<uint32_t>> backward(ObjectConsensusStats* stats = nullptr);
+  /// Rules 4 and 5 with the next scan's whole objects: after decide() of every scan, the same
+  /// scans in decreasing order, each with the points decide() had and the `removed` it returned;
+  /// adds removals, never takes one back. Stats: points_added (map points), moving_objects,
+  /// persisted.
+  ObjectConsensusStats decideBackward(int64_t scan, double density,
+                                      const std::vector<PointXYZI>& points,
+                                      const std::vector<uint8_t>& member,
+                                      std::vector<uint8_t>& removed, std::size_t fixed_from);
+  /// Whether decide()'s last scan had whole objects. decideBackward() of a scan without them,
+  /// while backwardMemory() is false, changes nothing: skipBackward() stands for it.
+  bool hadWholeObjects() const { return has(forward_); }
+  bool backwardMemory() const { return has(backward_); }
+  void skipBackward(int64_t scan) { backward_.epoch = epochOf(scan); }
 
  private:
-  // One recorded scan: its whole objects' cells (dilated) and the points of the objects rule 4
-  // could take, with their decision and index.
-  struct Recorded {
-    int64_t scan = 0;
-    int min_moving = 1;
-    std::vector<uint64_t> whole_cells;
-    std::vector<PointXYZI> points;
-    std::vector<uint8_t> removed;
-    std::vector<uint32_t> index;
+  // Rule 4's cells (side persist_radius, dilated) and rule 5's objects (voxel -> object, their
+  // extents) of the last scan decided in one direction.
+  struct Memory {
+    int64_t epoch = -1;
+    CellMap<uint8_t> cells;
+    CellMap<uint32_t> anchor;
+    std::vector<Eigen::Vector3f> extent;
   };
+  static bool has(const Memory& m) { return !m.cells.empty() || !m.extent.empty(); }
+  ObjectConsensusStats run(Memory& m, bool backward, int64_t scan, double density,
+                           const std::vector<PointXYZI>& points, const std::vector<uint8_t>& member,
+                           std::vector<uint8_t>& removed, std::size_t fixed_from);
   int64_t epochOf(int64_t scan) const { return epoch_ > 0 ? scan / epoch_ : 0; }
   ObjectParams p_;
   int epoch_;
-  int64_t epoch_of_last_ = -1;
-  CellMap<uint8_t> prev_cells_;  // the last scan's removed cells, dilated
-  std::vector<uint8_t> near_, decided_, whole_, could_;
-  bool record_ = false;
-  std::vector<Recorded> recorded_;
+  double overlap_;
+  Memory forward_, backward_;
+  std::vector<uint8_t> near_, decided_, whole_;
+  std::vector<uint32_t> anchor_;
 };
 
 }  // namespace cleanmap

@@ -206,6 +206,11 @@ struct MapParams {
   /// doc/OBJECTS.md with the [object] parameters; DESIGN §2e, "Objects"): a slow truck's side
   /// that never left goes with its ends that came and went.
   bool objects = true;
+  /// Rule 5 of the objects (DESIGN §2e, "Objects"; 0 = off): a vehicle-sized object with at least
+  /// this share of its points in the voxels of an object of its size that the previous or the next
+  /// scan removed whole stood where that object stood: the same object, a crawling truck whose
+  /// removed share is still small (two solids do not share their space).
+  double object_overlap = 0.5;
   /// m; a scan does not see empty the voxels within this distance (per axis) of its own static,
   /// non-ground returns (0: only the voxel of each return): a beam that passes a surface's edge
   /// crosses the edge's voxel beside that surface's returns. 2 sigma of the beam model, as margin.
@@ -213,6 +218,16 @@ struct MapParams {
   /// m; a beam marks space empty up to this distance short of its return, beyond the voxel's
   /// half diagonal: 2 sigma of the beam model (sqrt(sigma_m^2 + sigma_r^2) = 0.16 m).
   double margin = 0.32;
+  /// Grazing beams (DESIGN §2e; 0 = off): a return whose rise to its lower neighbour in its
+  /// azimuth column is at most this slope (17 degrees) lies on a flat surface (a road, a
+  /// sidewalk, a roof). A beam that meets a flat surface at a grazing angle, or passes over one,
+  /// runs within `margin` of it (measured across it) for margin / (its slope against the
+  /// surface's) of horizontal distance, through the voxels that hold the surface: it marks none
+  /// of them empty there, instead of stopping `margin` along itself short of its return.
+  double flat_slope = 0.3;
+  /// m; how far beyond its last return a flat surface a beam passes over is taken to go on (the
+  /// depth of a car's roof seen from afar): the beam marks nothing within `margin` of it that far.
+  double graze_reach = 2.5;
   double min_range = 1.0;  ///< m; the first metre of every beam is not marked (the car itself)
   /// rad; azimuth step between the beams of a ring (HDL-64E: 0.0031; 0 = cast every beam whole).
   /// Near the sensor only every 2^L-th beam is cast, as far out as those alone are less than a

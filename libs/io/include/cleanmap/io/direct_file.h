@@ -90,6 +90,25 @@ class DirectReader {
   bool eof_ = false;
 };
 
+/// A file read, and patched, at given offsets (pread / pwrite, through the page cache): the
+/// map's pass over its spool from the last scan to the first (DESIGN §2e, "Objects").
+class PositionalFile {
+ public:
+  /// Opens `path` (for reading, and writing where `writable`); throws cleanmap::Error naming it.
+  PositionalFile(std::string path, bool writable);
+  ~PositionalFile();
+  PositionalFile(const PositionalFile&) = delete;
+  PositionalFile& operator=(const PositionalFile&) = delete;
+  /// Reads exactly n bytes at `offset`; throws cleanmap::Error(path, "truncated") past the end.
+  void readAt(std::uint64_t offset, void* data, std::size_t n);
+  /// Writes n bytes at `offset`; throws cleanmap::Error on failure.
+  void writeAt(std::uint64_t offset, const void* data, std::size_t n);
+
+ private:
+  std::string path_;
+  int fd_ = -1;
+};
+
 /// Writes `path` with these bytes through a temporary sibling and a rename (as writeFileAtomic),
 /// past the page cache where allowed: the per-scan label files.
 void writeBytesAtomic(const std::string& path, const void* data, std::size_t n);

@@ -125,6 +125,7 @@ class OutputWriter {
   std::size_t input_ended_at_ = std::numeric_limits<std::size_t>::max();  // writes before
   std::vector<ScanStats> stats_;
   std::vector<std::string> stems_;
+  std::vector<std::uint64_t> spool_offsets_;  // where each scan's spool starts
   std::vector<double> times_;
   std::vector<PoseInfo> pose_info_;
   std::vector<double> ground_measured_, ground_z_, density_;  // per scan (DESIGN §2a, §2d)
