@@ -420,8 +420,10 @@ TEST(MapObjects, RuleFiveTakesAnObjectStandingWhereAWholeOneOfItsSizeStood) {
   // 2.5 % in scans 0-7 and 9 (its rear, seen at a grazing angle) and 30 % in scan 8 goes whole in
   // scan 8 (rule 1), in 0-7 backwards and in 9 forwards: each stands in the voxels of the whole
   // truck a scan away. Without it they stay as they are (under static_fraction, rule 4 cannot
-  // take them). A car in the voxels of a whole object 2.7x its size (one it touched
-  // in that scan and went with), or a truck of the same size 1 m beside it, is left as it is.
+  // take them). A car in the voxels of a whole object 2.7x its size (one it touched in that scan
+  // and went with) is left as it is; a truck of its size 1 m beside it is that truck moved 1 m
+  // (its points, moved by the centroids' difference, fill the whole truck's voxels), unless a
+  // whole object of its own scan is that truck (parked cars in a row beside a passing one).
   const auto scans = [](double overlap) {
     MapObjectConsensus mc(ObjectParams{}, 100, overlap);
     std::vector<Side> sides;
@@ -451,9 +453,26 @@ TEST(MapObjects, RuleFiveTakesAnObjectStandingWhereAWholeOneOfItsSizeStood) {
   Side beside = truckSide(12, 0, 0);
   for (auto& p : beside.pts) p.y += 1.0f;  // 1 m away: other voxels
   const auto in_before = inside.removed, beside_before = beside.removed;
-  MapObjectConsensus two = mc;
+  MapObjectConsensus two = mc, three = mc;
   mc.decide(1, 1.0, inside.pts, inside.member, inside.removed, inside.pts.size());
   EXPECT_EQ(inside.removed, in_before);
   two.decide(1, 1.0, beside.pts, beside.member, beside.removed, beside.pts.size());
-  EXPECT_EQ(beside.removed, beside_before);
+  EXPECT_EQ(removedShare(beside.removed), 1.0);  // the truck, moved 1 m
+  // The truck itself, 0.12 m on and whole, in the same scan as a same-sized one 2 m beside it:
+  // it claims the truck of the scan before; its neighbour stays.
+  Side moved = truckSide(12.12f, 1.8f, 1.8f), row = truckSide(12, 0, 0);
+  for (auto& p : row.pts) p.y += 2.0f;
+  Side both;
+  for (const Side* part : {&moved, &row}) {
+    both.pts.insert(both.pts.end(), part->pts.begin(), part->pts.end());
+    both.removed.insert(both.removed.end(), part->removed.begin(), part->removed.end());
+  }
+  both.member.assign(both.pts.size(), 1);
+  three.decide(1, 1.0, both.pts, both.member, both.removed, both.pts.size());
+  const std::vector<uint8_t> row_after(both.removed.begin() + long(moved.pts.size()),
+                                       both.removed.end());
+  EXPECT_EQ(row_after, beside_before);  // none removed
+  EXPECT_EQ(removedShare(std::vector<uint8_t>(both.removed.begin(),
+                                              both.removed.begin() + long(moved.pts.size()))),
+            1.0);
 }

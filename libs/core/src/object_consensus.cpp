@@ -74,14 +74,14 @@ bool vehicleSized(const Eigen::Vector3f& lo, const Eigen::Vector3f& hi, const Ob
   return ext.head<2>().norm() <= p.max_length && ext.z() <= p.max_height;
 }
 
-// Rule 5's objects: the components of the points of `mask`, each voxel -> its object, and their
-// extents.
-void anchorsOf(const std::vector<PointXYZI>& points, const std::vector<uint8_t>& mask, double side,
-               CellMap<uint32_t>& voxel_anchor, std::vector<Eigen::Vector3f>& extent) {
-  voxel_anchor.clear();
-  extent.clear();
+// Rule 5's objects: the components of the points of `mask`.
+void wholeObjectsOf(const std::vector<PointXYZI>& points, const std::vector<uint8_t>& mask,
+                    double side, WholeObjects& out) {
+  out.voxel.clear();
+  out.extent.clear();
+  out.centroid.clear();
   const Components cc = components(points, mask, side);
-  std::vector<uint32_t> id(cc.voxels.size(), UINT32_MAX);
+  std::vector<uint32_t> id(cc.voxels.size(), UINT32_MAX), n;
   std::vector<Eigen::Vector3f> lo, hi;
   for (std::size_t i = 0; i < points.size(); ++i) {
     if (cc.point_voxel[i] == UINT32_MAX) continue;
@@ -90,28 +90,22 @@ void anchorsOf(const std::vector<PointXYZI>& points, const std::vector<uint8_t>&
       id[root] = static_cast<uint32_t>(lo.size());
       lo.push_back(points[i].xyz());
       hi.push_back(points[i].xyz());
+      out.centroid.push_back(Eigen::Vector3f::Zero());
+      n.push_back(0);
     }
-    lo[id[root]] = lo[id[root]].cwiseMin(points[i].xyz());
-    hi[id[root]] = hi[id[root]].cwiseMax(points[i].xyz());
+    const uint32_t a = id[root];
+    lo[a] = lo[a].cwiseMin(points[i].xyz());
+    hi[a] = hi[a].cwiseMax(points[i].xyz());
+    out.centroid[a] += points[i].xyz();
+    ++n[a];
   }
-  for (std::size_t a = 0; a < lo.size(); ++a) extent.push_back(hi[a] - lo[a]);
+  for (std::size_t a = 0; a < lo.size(); ++a) {
+    out.extent.push_back(hi[a] - lo[a]);
+    out.centroid[a] /= static_cast<float>(n[a]);
+  }
   for (uint32_t v = 0; v < cc.voxels.size(); ++v) {
     const Eigen::Vector3i& c = cc.voxels[v];
-    voxel_anchor.get(cellKey(c.x(), c.y(), c.z())) = id[cc.root_of[v]];
-  }
-}
-
-// Per point: the object of `anchors` whose voxel it lies in (UINT32_MAX: none).
-void anchorOfPoints(const std::vector<PointXYZI>& points, const std::vector<uint8_t>& member,
-                    double side, const CellMap<uint32_t>& anchors, std::vector<uint32_t>& out) {
-  const float inv = static_cast<float>(1.0 / side);
-  out.assign(points.size(), UINT32_MAX);
-  for (std::size_t i = 0; i < points.size(); ++i) {
-    if (!member[i]) continue;
-    const uint32_t* a =
-        anchors.find(cellKey(floorToCell(points[i].x, inv), floorToCell(points[i].y, inv),
-                             floorToCell(points[i].z, inv)));
-    if (a) out[i] = *a;
+    out.voxel.get(cellKey(c.x(), c.y(), c.z())) = id[cc.root_of[v]];
   }
 }
 }  // namespace
@@ -147,9 +141,9 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
   };
   // Per component: point counts and extent.
   struct Comp {
-    std::size_t n = 0, moving = 0, near_prev = 0, overlap = 0;
-    uint32_t anchor = UINT32_MAX;
+    std::size_t n = 0, moving = 0, near_prev = 0;
     Eigen::Vector3f lo = Eigen::Vector3f::Constant(1e30f), hi = Eigen::Vector3f::Constant(-1e30f);
+    Eigen::Vector3f sum = Eigen::Vector3f::Zero();
   };
   std::vector<Comp> comps(voxels.size());
   for (std::size_t i = 0; i < points.size(); ++i) {
@@ -160,30 +154,51 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
     if (near_previous) c.near_prev += (*near_previous)[i] != 0;
     c.lo = c.lo.cwiseMin(points[i].xyz());
     c.hi = c.hi.cwiseMax(points[i].xyz());
+    c.sum += points[i].xyz();
   }
-  // Rule 5: per component, the adjacent scan's whole object holding most of its points.
-  std::vector<uint8_t> all_parts;  // per root: turned by rule 5, every part goes
-  if (rules.anchor) {
-    all_parts.assign(voxels.size(), 0);
-    CellMap<uint32_t> count;
-    for (std::size_t i = 0; i < points.size(); ++i) {
-      const uint32_t a = (*rules.anchor)[i];
-      if (point_voxel[i] == UINT32_MAX || a == UINT32_MAX) continue;
-      ++count.get((uint64_t{root_of[point_voxel[i]]} << 32) | a);
-    }
-    count.forEach([&](uint64_t key, uint32_t n) {
-      Comp& c = comps[static_cast<uint32_t>(key >> 32)];
-      if (n > c.overlap) c.overlap = n, c.anchor = static_cast<uint32_t>(key);
-    });
-  }
-  const auto similar = [&](const Comp& c) {
-    if (c.anchor == UINT32_MAX) return false;
-    const Eigen::Vector3f e = c.hi - c.lo, a = (*rules.anchor_extent)[c.anchor];
+  // Rule 5: the share of a component's points in the voxels of a whole object of the adjacent
+  // scan, as they are and moved by the two centroids' difference (0 where the sizes differ or
+  // the centroids lie more than max_shift apart).
+  const WholeObjects* wo = rules.whole_objects;
+  std::vector<uint8_t> all_parts;           // per root: turned by rule 5, every part goes
+  std::vector<uint32_t> member_of, starts;  // the members grouped by component (built once)
+  const float inv_voxel = static_cast<float>(1.0 / p.voxel);
+  const auto shares = [&](uint32_t root, const Comp& c, uint32_t a) {
     const auto close = [&](float x, float y) {
       return std::abs(x - y) <= rules.extent_tolerance * std::max(x, y);
     };
-    return close(e.head<2>().norm(), a.head<2>().norm()) && close(e.z(), a.z());
+    const Eigen::Vector3f e = c.hi - c.lo, x = wo->extent[a];
+    const Eigen::Vector3f shift = wo->centroid[a] - c.sum / static_cast<float>(c.n);
+    if (!close(e.head<2>().norm(), x.head<2>().norm()) || !close(e.z(), x.z()) ||
+        shift.norm() > rules.max_shift)
+      return std::pair(0.0, 0.0);
+    if (starts.empty()) {  // counting sort of the members by component
+      starts.assign(voxels.size() + 1, 0);
+      for (std::size_t i = 0; i < points.size(); ++i)
+        if (point_voxel[i] != UINT32_MAX) ++starts[root_of[point_voxel[i]] + 1];
+      for (std::size_t v = 0; v < voxels.size(); ++v) starts[v + 1] += starts[v];
+      member_of.resize(starts.back());
+      std::vector<uint32_t> fill(starts.begin(), starts.end() - 1);
+      for (std::size_t i = 0; i < points.size(); ++i)
+        if (point_voxel[i] != UINT32_MAX)
+          member_of[fill[root_of[point_voxel[i]]]++] = static_cast<uint32_t>(i);
+    }
+    const auto in = [&](const Eigen::Vector3f& q) {
+      const uint32_t* o =
+          wo->voxel.find(cellKey(floorToCell(q.x(), inv_voxel), floorToCell(q.y(), inv_voxel),
+                                 floorToCell(q.z(), inv_voxel)));
+      return o && *o == a;
+    };
+    std::size_t as_is = 0, moved = 0;
+    for (uint32_t k = starts[root]; k < starts[root + 1]; ++k) {
+      const Eigen::Vector3f q = points[member_of[k]].xyz();
+      as_is += in(q);
+      moved += in(q + shift);
+    }
+    const double n = static_cast<double>(c.n);
+    return std::pair(static_cast<double>(as_is) / n, static_cast<double>(moved) / n);
   };
+  if (wo && !wo->empty()) all_parts.assign(voxels.size(), 0);
   std::vector<uint8_t> turn(voxels.size(), 0);  // 1: all moving, 2: all static
   std::vector<uint8_t> whole;                   // vehicle-sized, moving in every point
   if (in_moving_object) whole.assign(voxels.size(), 0);
@@ -208,21 +223,57 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
       turn[v] = 1;  // hysteresis: it moved in the previous scan and is still partly moving
       ++st.moving_objects;
       ++st.persisted;
-    } else if (rules.anchor && vehicle_sized && c.moving < c.n &&
-               static_cast<int>(c.n) >= p.min_moving &&
-               static_cast<double>(c.overlap) >=
-                   rules.overlap_fraction * static_cast<double>(c.n) &&
-               similar(c)) {  // rule 5: where a whole object of its size stood a scan away
-      turn[v] = 1;
-      all_parts[v] = 1;
-      ++st.moving_objects;
-      ++st.persisted;
     } else if (vehicle_sized && c.moving > 0 &&
                ((few_are_noise && static_cast<int>(c.moving) < p.min_moving) ||
                 static_cast<double>(c.moving) < p.static_fraction * static_cast<double>(c.n))) {
       turn[v] = 2;
       body_check = body_check || static_cast<int64_t>(c.moving) >= 5 * int64_t(p.min_moving);
     }
+  }
+  // Rule 5. A component that shares its voxels with a whole object of its size is that object:
+  // two solids do not share their space. One that would, moved by the centroids' difference, may
+  // be that object moved (a car keeping its distance to the sensor shows the same faces), or its
+  // neighbour of the same size (parked cars in a row): a whole object of this scan that matches
+  // the other scan's object claims it, and an unclaimed one takes the best of its candidates.
+  if (!all_parts.empty()) {
+    const auto candidate = [&](uint32_t v) {
+      const Comp& c = comps[v];
+      return c.n > 0 && turn[v] != 1 && c.moving < c.n && static_cast<int>(c.n) >= p.min_moving &&
+             vehicleSized(c.lo, c.hi, p);
+    };
+    const auto isWhole = [&](uint32_t v) {
+      const Comp& c = comps[v];
+      return c.n > 0 && vehicleSized(c.lo, c.hi, p) &&
+             (turn[v] == 1 || (c.moving == c.n && static_cast<int>(c.n) >= p.min_moving));
+    };
+    const std::size_t na = wo->extent.size();
+    std::vector<uint8_t> claimed(na, 0);
+    std::vector<double> best(na, 0.0);
+    std::vector<uint32_t> best_of(na, UINT32_MAX);
+    const double need = rules.overlap_fraction;
+    for (uint32_t v = 0; v < voxels.size(); ++v) {
+      if (!isWhole(v) && !candidate(v)) continue;
+      const bool whole_now = isWhole(v);
+      for (uint32_t a = 0; a < na; ++a) {
+        const auto [as_is, moved] = shares(v, comps[v], a);
+        if (whole_now) {
+          claimed[a] = claimed[a] || std::max(as_is, moved) >= need;
+        } else if (as_is >= need) {
+          all_parts[v] = 1;  // in the same voxels: the same object
+        } else if (moved >= need && moved > best[a]) {
+          best[a] = moved;
+          best_of[a] = v;
+        }
+      }
+    }
+    for (uint32_t a = 0; a < na; ++a)
+      if (!claimed[a] && best_of[a] != UINT32_MAX) all_parts[best_of[a]] = 1;
+    for (uint32_t v = 0; v < voxels.size(); ++v)
+      if (all_parts[v]) {
+        turn[v] = 1;
+        ++st.moving_objects;
+        ++st.persisted;
+      }
   }
   // Bodies (doc/OBJECTS.md, rule 2's exception): connected groups of voxels holding moving points,
   // with at least 5 min_moving moving points that are at least half of their voxels' points. A
@@ -397,22 +448,6 @@ void persistCells(const std::vector<PointXYZI>& points, const std::vector<uint8_
   });
 }
 
-ObjectConsensusStats MapObjectConsensus::decide(int64_t scan, double density,
-                                                const std::vector<PointXYZI>& points,
-                                                const std::vector<uint8_t>& member,
-                                                std::vector<uint8_t>& removed,
-                                                std::size_t fixed_from) {
-  return run(forward_, false, scan, density, points, member, removed, fixed_from);
-}
-
-ObjectConsensusStats MapObjectConsensus::decideBackward(int64_t scan, double density,
-                                                        const std::vector<PointXYZI>& points,
-                                                        const std::vector<uint8_t>& member,
-                                                        std::vector<uint8_t>& removed,
-                                                        std::size_t fixed_from) {
-  return run(backward_, true, scan, density, points, member, removed, fixed_from);
-}
-
 // One scan with the memory of the scan decided before it in this direction (the previous one
 // forwards, the next one backwards).
 ObjectConsensusStats MapObjectConsensus::run(Memory& m, bool backward, int64_t scan, double density,
@@ -434,10 +469,8 @@ ObjectConsensusStats MapObjectConsensus::run(Memory& m, bool backward, int64_t s
       near_[i] = member[i] && m.cells.contains(cellKeyOf(double(points[i].x), double(points[i].y),
                                                          double(points[i].z), inv));
   }
-  if (overlap_ > 0 && !m.extent.empty()) {
-    anchorOfPoints(points, member, p_.voxel, m.anchor, anchor_);
-    rules.anchor = &anchor_;
-    rules.anchor_extent = &m.extent;
+  if (overlap_ > 0 && !m.objects.empty()) {
+    rules.whole_objects = &m.objects;
     rules.overlap_fraction = overlap_;
   }
   ObjectParams op = p_;  // min_moving is an HDL-64E count (§2d)
@@ -455,7 +488,7 @@ ObjectConsensusStats MapObjectConsensus::run(Memory& m, bool backward, int64_t s
   // The memory: the objects removed whole, not the free space's scattered removals (a parked car
   // seen through its windows loses a few points in every scan).
   if (p_.persist_radius > 0) persistCells(points, &whole_, p_.persist_radius, m.cells);
-  if (overlap_ > 0) anchorsOf(points, whole_, p_.voxel, m.anchor, m.extent);
+  if (overlap_ > 0) wholeObjectsOf(points, whole_, p_.voxel, m.objects);
   return st;
 }
 

@@ -249,7 +249,7 @@ void OutputWriter::writeMaps(const FreeSpaceMap* free_space, const MapScanSink& 
   // the first, reading the scans whose objects the backward rules can reach and adding their
   // removals to the decisions; the third reads the points and their decisions and writes.
   const bool two_passes = by_objects && params_.object.enabled &&
-                          (params_.object.persist_radius > 0 || params_.map.object_overlap > 0);
+                          (params_.object.persist_radius > 0 || mapObjectOverlap(params_.map) > 0);
   bool decide = true;  // the pass reading looks the free space up (the first, or the only one)
   // The objects' input: the map points (ground not a member), then the moving points, removed.
   const auto assemble = [](Spooled& b) {
@@ -299,7 +299,7 @@ void OutputWriter::writeMaps(const FreeSpaceMap* free_space, const MapScanSink& 
       std::swap(cur, next);
     }
   };
-  MapObjectConsensus consensus(params_.object, params_.epoch, params_.map.object_overlap);
+  MapObjectConsensus consensus(params_.object, params_.epoch, mapObjectOverlap(params_.map));
   const auto decideObjects = [&](Spooled& b) {
     const auto st =
         consensus.decide(b.h.index, b.h.density, b.objects, b.member, b.gone, b.pts.size());

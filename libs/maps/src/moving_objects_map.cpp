@@ -292,7 +292,8 @@ void CMovingObjectsMap::freezeOldest() {
   const cleanmap::FreeSpaceMap* fs = freeSpace();
   if (fs) {
     if (!frozen_consensus_)
-      frozen_consensus_.emplace(params_.object, params_.epoch, params_.map.object_overlap);
+      frozen_consensus_.emplace(params_.object, params_.epoch,
+                                cleanmap::mapObjectOverlap(params_.map));
     std::vector<uint8_t> gone;
     decideScan(*frozen_consensus_, *fs, object_scans_.front(), gone);
     addDecisions(object_scans_.front(), gone, frozen_);
@@ -314,9 +315,9 @@ std::shared_ptr<const std::unordered_map<uint64_t, uint8_t>> CMovingObjectsMap::
   by_object->reserve(frozen_.size());
   for (const auto& [key, gone] : frozen_) by_object->emplace(key, gone ? kObjectGone : kFreeSpace);
   cleanmap::MapObjectConsensus consensus =
-      frozen_consensus_
-          ? *frozen_consensus_
-          : cleanmap::MapObjectConsensus(params_.object, params_.epoch, params_.map.object_overlap);
+      frozen_consensus_ ? *frozen_consensus_
+                        : cleanmap::MapObjectConsensus(params_.object, params_.epoch,
+                                                       cleanmap::mapObjectOverlap(params_.map));
   std::vector<std::vector<uint8_t>> gone(object_scans_.size());
   for (std::size_t k = 0; k < object_scans_.size(); ++k)
     decideScan(consensus, *fs, object_scans_[k], gone[k]);

@@ -26,6 +26,14 @@ struct ObjectConsensusStats {
   std::size_t still_part_points_left = 0;
 };
 
+/// Rule 5's objects of one scan (ConsensusRules::whole_objects): each voxel (ObjectParams::voxel)
+/// of an object removed whole -> the object, and per object its extent (hi - lo) and centroid.
+struct WholeObjects {
+  CellMap<uint32_t> voxel;
+  std::vector<Eigen::Vector3f> extent, centroid;
+  bool empty() const { return extent.empty(); }
+};
+
 /// Whether few moving points are noise (doc/OBJECTS.md rules 2-3): the windowed test's scattered
 /// alarms are; the map's removals (DESIGN §2e), each in a voxel the sequence saw empty, are not.
 struct ConsensusRules {
@@ -33,17 +41,18 @@ struct ConsensusRules {
   /// with less than static_fraction of its points moving always is); rule 3: so is a connected
   /// group of fewer than min_moving moving points. false: only the share counts, groups stay.
   bool few_points_are_noise = true;
-  /// Rule 5 (the map's, DESIGN §2e "Objects"): per point, the object of the adjacent scan
-  /// removed whole whose voxels (ObjectParams::voxel) it lies in (UINT32_MAX: none), and per such
-  /// object its extent (hi - lo). A vehicle-sized object with at least min_moving points and at
-  /// least `overlap_fraction` of them in one such object, its extents (horizontal diagonal,
-  /// height) within `extent_tolerance` of that object's, is that object a scan earlier or later
-  /// and goes whole (two solids do not share their space; the size keeps one that touched
-  /// another, and was removed with it, from taking that other's place).
-  const std::vector<uint32_t>* anchor = nullptr;
-  const std::vector<Eigen::Vector3f>* anchor_extent = nullptr;
+  /// Rule 5 (the map's, DESIGN §2e "Objects"): the objects the adjacent scan removed whole. A
+  /// vehicle-sized object with at least min_moving points and at least `overlap_fraction` of
+  /// them in the voxels of one of them, as they are or moved by the difference of the two's
+  /// centroids (at most `max_shift`: a car that kept its distance to the sensor moved that far
+  /// and shows the same faces), its extents (horizontal diagonal, height) within
+  /// `extent_tolerance` of that one's, is that object a scan earlier or later and goes whole (two
+  /// solids do not share their space; the size keeps one that touched another, and was removed
+  /// with it, from taking that other's place).
+  const WholeObjects* whole_objects = nullptr;
   double overlap_fraction = 0.5;
   double extent_tolerance = 0.3;
+  double max_shift = 3.0;  ///< m: 30 m/s between two scans at 10 Hz
 };
 
 /// Groups `points[i]` with `member[i]` (in crop, not ground) into 26-connected voxel components
@@ -87,6 +96,13 @@ void persistCells(const std::vector<PointXYZI>& points, const std::vector<uint8_
 /// Both ways in time: the map is decided with the whole sequence, so rules 4 and 5 also look at
 /// the *next* scan's whole objects (a slow mover whose removed share reaches moving_fraction only
 /// after some scans): decideBackward() over the scans in decreasing order, after decide().
+/// Rule 5's share as the map applies it (static_map.object_overlap): under the `moving` policy a
+/// car that stops stays where it stood when it was last removed whole, and rule 5 would take it
+/// through every scan it stands in; only `transient` removes what stood, so only it applies rule 5.
+inline double mapObjectOverlap(const MapParams& m) {
+  return m.policy == MapPolicy::kTransient ? m.object_overlap : 0.0;
+}
+
 class MapObjectConsensus {
  public:
   /// `overlap`: rule 5's share (static_map.object_overlap; 0: off).
@@ -99,7 +115,9 @@ class MapObjectConsensus {
   /// count the map points the objects removed / kept against the free space.
   ObjectConsensusStats decide(int64_t scan, double density, const std::vector<PointXYZI>& points,
                               const std::vector<uint8_t>& member, std::vector<uint8_t>& removed,
-                              std::size_t fixed_from);
+                              std::size_t fixed_from) {
+    return run(forward_, false, scan, density, points, member, removed, fixed_from);
+  }
   /// Rules 4 and 5 with the next scan's whole objects: after decide() of every scan, the same
   /// scans in decreasing order, each with the points decide() had and the `removed` it returned;
   /// adds removals, never takes one back. Stats: points_added (map points), moving_objects,
@@ -107,7 +125,9 @@ class MapObjectConsensus {
   ObjectConsensusStats decideBackward(int64_t scan, double density,
                                       const std::vector<PointXYZI>& points,
                                       const std::vector<uint8_t>& member,
-                                      std::vector<uint8_t>& removed, std::size_t fixed_from);
+                                      std::vector<uint8_t>& removed, std::size_t fixed_from) {
+    return run(backward_, true, scan, density, points, member, removed, fixed_from);
+  }
   /// Whether decide()'s last scan had whole objects. decideBackward() of a scan without them,
   /// while backwardMemory() is false, changes nothing: skipBackward() stands for it.
   bool hadWholeObjects() const { return has(forward_); }
@@ -115,15 +135,14 @@ class MapObjectConsensus {
   void skipBackward(int64_t scan) { backward_.epoch = epochOf(scan); }
 
  private:
-  // Rule 4's cells (side persist_radius, dilated) and rule 5's objects (voxel -> object, their
-  // extents) of the last scan decided in one direction.
+  // Rule 4's cells (side persist_radius, dilated) and rule 5's objects of the last scan decided
+  // in one direction.
   struct Memory {
     int64_t epoch = -1;
     CellMap<uint8_t> cells;
-    CellMap<uint32_t> anchor;
-    std::vector<Eigen::Vector3f> extent;
+    WholeObjects objects;
   };
-  static bool has(const Memory& m) { return !m.cells.empty() || !m.extent.empty(); }
+  static bool has(const Memory& m) { return !m.cells.empty() || !m.objects.empty(); }
   ObjectConsensusStats run(Memory& m, bool backward, int64_t scan, double density,
                            const std::vector<PointXYZI>& points, const std::vector<uint8_t>& member,
                            std::vector<uint8_t>& removed, std::size_t fixed_from);
@@ -133,7 +152,6 @@ class MapObjectConsensus {
   double overlap_;
   Memory forward_, backward_;
   std::vector<uint8_t> near_, decided_, whole_;
-  std::vector<uint32_t> anchor_;
 };
 
 }  // namespace cleanmap
