@@ -232,9 +232,9 @@ void FreeSpaceMap::markNear(const std::array<int64_t, 6>& box, int64_t scan) {
       }
 }
 
-// DESIGN §2e, grazing beams. The returns of a scan in columns of azimuth (0.69 degrees) and
-// bands of elevation (0.1 degrees, a ring or less); a return's lower neighbour is the nearest
-// below it in its column. A return lies on a flat surface where its rise from its lower
+// DESIGN §2e, grazing beams. The returns of a scan in columns of azimuth (0.69 degrees; `azimuth`
+// per return) and bands of elevation (0.1 degree, a ring or less); a return's lower neighbour is
+// the nearest below it in its column. A return lies on a flat surface where its rise from its lower
 // neighbour, over their horizontal distance (world frame), is at most flat_slope: the road, a
 // sidewalk, a roof. A beam that meets such a surface at a grazing angle runs within `margin` of
 // it (across it) for margin / k of horizontal distance, k its slope against the surface's, and
@@ -244,27 +244,28 @@ void FreeSpaceMap::markNear(const std::array<int64_t, 6>& box, int64_t scan) {
 // first return) to its end; for one passing within margin over the nearest flat return below it
 // in its column, the stretch within margin of that surface's plane, from the return's lower
 // neighbour to graze_reach beyond the return (how far the surface goes on is not seen).
-void FreeSpaceMap::grazing(const std::vector<PointXYZI>& points, const Eigen::Isometry3d& pose) {
-  constexpr float kAzBin = 0.012f, kElBand = 0.0017f;  // rad
-  constexpr int kElBands = 600, kMaxDown = 45;         // -45 to +15 degrees; 4.5 degrees down
-  constexpr float kElLow = -0.785398f;
+void FreeSpaceMap::grazing(const std::vector<PointXYZI>& points, const Eigen::Isometry3d& pose,
+                           const std::vector<float>& azimuth) {
+  constexpr float kAzBin = 0.012f;    // rad
+  constexpr float kElBand = 0.0017f;  // of the elevation's tangent: 0.1 degree near the horizon
+  constexpr float kElLow = -1.f;      // tangents -1 to +0.27: -45 to +15 degrees
+  constexpr int kElBands = 747, kMaxDown = 45;  // 4.4 degrees down near the horizon
   const int naz = static_cast<int>(std::ceil(2 * M_PI / kAzBin));
   const std::size_t np = points.size();
   grid_.assign(static_cast<std::size_t>(naz) * kElBands, UINT32_MAX);
   cell_.assign(np, -1);
   rho_.resize(np);
   zw_.resize(np);
-  const Eigen::Vector3d o = pose.translation();
+  const Eigen::Matrix3f R = pose.linear().cast<float>();
   for (std::size_t n = 0; n < np; ++n) {
     const auto& q = points[n];
     const float rh = std::sqrt(q.x * q.x + q.y * q.y);
-    const Eigen::Vector3d w = pose * q.xyz().cast<double>() - o;
-    rho_[n] = static_cast<float>(w.head<2>().norm());
-    zw_[n] = static_cast<float>(w.z());
+    const Eigen::Vector3f w = R * q.xyz();  // from the sensor, world axes
+    rho_[n] = w.head<2>().norm();
+    zw_[n] = w.z();
     if (!(rh > 0)) continue;
-    const int az =
-        std::clamp(static_cast<int>((fast::atan2(q.y, q.x) + float(M_PI)) / kAzBin), 0, naz - 1);
-    const int el = static_cast<int>(std::floor((fast::atan2(q.z, rh) - kElLow) / kElBand));
+    const int az = std::clamp(static_cast<int>((azimuth[n] + float(M_PI)) / kAzBin), 0, naz - 1);
+    const int el = static_cast<int>(std::floor((q.z / rh - kElLow) / kElBand));
     if (el < 0 || el >= kElBands) continue;
     cell_[n] = az * kElBands + el;
     grid_[static_cast<std::size_t>(cell_[n])] = static_cast<uint32_t>(n);
@@ -281,6 +282,16 @@ void FreeSpaceMap::grazing(const std::vector<PointXYZI>& points, const Eigen::Is
     if (l == UINT32_MAX || !(rho_[n] > rho_[l] + 1e-3f)) continue;
     const float rise = (zw_[n] - zw_[l]) / (rho_[n] - rho_[l]);
     if (std::abs(rise) <= p_.flat_slope) slope_[n] = rise;
+  }
+  // Per cell: the nearest cell at or below it in its column holding a flat return (-1: none).
+  flat_below_.resize(grid_.size());
+  for (int col = 0; col < naz; ++col) {
+    int last = -1;
+    for (int el = 0; el < kElBands; ++el) {
+      const int c = col * kElBands + el;
+      if (flat(grid_[static_cast<std::size_t>(c)])) last = c;
+      flat_below_[static_cast<std::size_t>(c)] = last;
+    }
   }
   skip_a_.assign(np, 0.f);
   skip_b_.assign(np, -1.f);
@@ -299,14 +310,16 @@ void FreeSpaceMap::grazing(const std::vector<PointXYZI>& points, const Eigen::Is
       continue;
     }
     if (reach <= 0) continue;
-    const int el = cell_[n] % kElBands;
-    for (int e = el - 1; e >= std::max(0, el - kMaxDown); --e) {
-      const uint32_t f = grid_[static_cast<std::size_t>(cell_[n] - (el - e))];
-      if (!flat(f) || !(rho_[f] < rho_[n])) continue;
+    // The flat returns below it in its column, nearest first (by the flat-cell links).
+    const int el = cell_[n] % kElBands, base = cell_[n] - el;
+    const int stop = base + std::max(0, el - kMaxDown);
+    for (int c = el > 0 ? flat_below_[static_cast<std::size_t>(cell_[n] - 1)] : -1; c >= stop;
+         c = c > base ? flat_below_[static_cast<std::size_t>(c - 1)] : -1) {
+      const uint32_t f = grid_[static_cast<std::size_t>(c)];
+      if (!(rho_[f] < rho_[n])) continue;
       const float h = tan_beam * rho_[f] - zw_[f];  // the beam's height over the return
-      if (h < 0 || h > m) continue;
       const float k = slope_[f] - tan_beam;
-      if (!(k > 1e-4f)) continue;
+      if (h < 0 || h > m || !(k > 1e-4f)) continue;
       skip_a_[n] = std::max(rho_[lower_[f]], rho_[f] + (h - m) / k) * along;
       skip_b_[n] = std::min(rho_[f] + reach, rho_[f] + (h + m) / k) * along;
       break;
@@ -359,7 +372,7 @@ void FreeSpaceMap::insertScan(const std::vector<PointXYZI>& points, const Eigen:
   // beam_spacing, or the lidar's own wider azimuth step (a VLP-16, an Ouster at 1024 columns),
   // measured in the scan (freeSpaceAzimuthBin).
   azimuth_.resize(points.size());
-  if (p_.beam_spacing > 0)
+  if (p_.beam_spacing > 0 || p_.flat_slope > 0)
     for (std::size_t n = 0; n < points.size(); ++n)
       azimuth_[n] = fast::atan2(points[n].y, points[n].x);
   const double spacing = azimuthBin(points, azimuth_, p_.beam_spacing, nullptr, bin_bits_);
@@ -376,7 +389,7 @@ void FreeSpaceMap::insertScan(const std::vector<PointXYZI>& points, const Eigen:
                          : std::max(p_.min_range, p_.voxel / (std::ldexp(2.0, L) * spacing));
   const double inv_spacing = spacing > 0 ? 1.0 / spacing : 0.0;
   const Eigen::Matrix3d R = pose.linear();
-  if (p_.flat_slope > 0) grazing(points, pose);
+  if (p_.flat_slope > 0) grazing(points, pose, azimuth_);
   uint64_t cached = ~uint64_t(0);
   Block* b = nullptr;
   for (std::size_t n = 0; n < points.size(); ++n) {

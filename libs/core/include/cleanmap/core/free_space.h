@@ -126,9 +126,10 @@ class FreeSpaceMap {
   // Grazing beams (grazing(), per scan): the returns' cells of azimuth x elevation, each return's
   // cell, lower neighbour, rise to it where flat, horizontal range and height from the sensor
   // (world frame), and the stretch of its beam that marks nothing.
-  void grazing(const std::vector<PointXYZI>& points, const Eigen::Isometry3d& pose);
+  void grazing(const std::vector<PointXYZI>& points, const Eigen::Isometry3d& pose,
+               const std::vector<float>& azimuth);
   std::vector<uint32_t> grid_;
-  std::vector<int> cell_;
+  std::vector<int> cell_, flat_below_;
   std::vector<uint32_t> lower_;
   std::vector<float> slope_, rho_, zw_, skip_a_, skip_b_;
   double bin_min_ = std::numeric_limits<double>::infinity(), bin_max_ = 0;

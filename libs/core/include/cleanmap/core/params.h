@@ -206,10 +206,11 @@ struct MapParams {
   /// doc/OBJECTS.md with the [object] parameters; DESIGN §2e, "Objects"): a slow truck's side
   /// that never left goes with its ends that came and went.
   bool objects = true;
-  /// Rule 5 of the objects (DESIGN §2e, "Objects"; 0 = off): a vehicle-sized object with at least
-  /// this share of its points in the voxels of an object of its size that the previous or the next
-  /// scan removed whole stood where that object stood: the same object, a crawling truck whose
-  /// removed share is still small (two solids do not share their space).
+  /// Rule 5 of the objects (DESIGN §2e, "Objects"; 0 = off; policy transient only): a
+  /// vehicle-sized object with at least this share of its points in the voxels of an object of
+  /// its size that the previous or the next scan removed whole (as they are, or moved by the
+  /// centroids' difference) is that object: a crawling truck whose removed share is still small,
+  /// a car following the sensor (two solids do not share their space).
   double object_overlap = 0.5;
   /// m; a scan does not see empty the voxels within this distance (per axis) of its own static,
   /// non-ground returns (0: only the voxel of each return): a beam that passes a surface's edge
