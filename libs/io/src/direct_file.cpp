@@ -305,23 +305,53 @@ void DirectReader::read(void* data, std::size_t n) {
   }
 }
 
-PositionalFile::PositionalFile(std::string path, bool writable) : path_(std::move(path)) {
-  fd_ = ::open(path_.c_str(), (writable ? O_RDWR : O_RDONLY) | O_CLOEXEC);
+PositionalFile::PositionalFile(std::string path, bool writable)
+    : path_(std::move(path)), direct_(!writable) {
+  fd_ = openMaybeDirect(path_, writable ? O_RDWR : O_RDONLY, direct_);
   if (fd_ < 0) throw Error(path_, "cannot open: " + std::string(std::strerror(errno)));
 }
 
 PositionalFile::~PositionalFile() {
   if (fd_ >= 0) ::close(fd_);
+  std::free(buf_);
 }
 
+// With O_DIRECT (a read-only spool written past the page cache) the aligned blocks around the
+// range are read into an aligned buffer: no page of the cache is filled for them (issue #16).
 void PositionalFile::readAt(std::uint64_t offset, void* data, std::size_t n) {
-  auto* p = static_cast<unsigned char*>(data);
+  auto* out = static_cast<unsigned char*>(data);
+  if (direct_) {
+    const std::uint64_t first = offset / kAlign * kAlign;
+    const std::size_t span = roundUp(static_cast<std::size_t>(offset - first) + n);
+    if (span > cap_) {
+      std::free(buf_);
+      buf_ = nullptr;
+      cap_ = 0;
+      buf_ = alignedBuffer(span, path_);
+      cap_ = span;
+    }
+    std::size_t got = 0;
+    while (got < span) {
+      const ssize_t r = ::pread(fd_, buf_ + got, span - got, static_cast<off_t>(first + got));
+      if (r < 0 && errno == EINTR) continue;
+      if (r < 0 && dropDirect(fd_, direct_)) break;  // plainly, below
+      if (r < 0) throw Error(path_, "read failed: " + std::string(std::strerror(errno)));
+      if (r == 0) break;  // the file's end: the rest of the last block
+      got += static_cast<std::size_t>(r);
+    }
+    if (direct_) {
+      if (got < static_cast<std::size_t>(offset - first) + n)
+        throw Error(path_, "truncated (the file ends early)");
+      std::memcpy(out, buf_ + (offset - first), n);
+      return;
+    }
+  }
   while (n > 0) {
-    const ssize_t r = ::pread(fd_, p, n, static_cast<off_t>(offset));
+    const ssize_t r = ::pread(fd_, out, n, static_cast<off_t>(offset));
     if (r < 0 && errno == EINTR) continue;
     if (r < 0) throw Error(path_, "read failed: " + std::string(std::strerror(errno)));
     if (r == 0) throw Error(path_, "truncated (the file ends early)");
-    p += r;
+    out += r;
     n -= static_cast<std::size_t>(r);
     offset += static_cast<std::uint64_t>(r);
   }

@@ -90,8 +90,9 @@ class DirectReader {
   bool eof_ = false;
 };
 
-/// A file read, and patched, at given offsets (pread / pwrite, through the page cache): the
-/// map's pass over its spool from the last scan to the first (DESIGN §2e, "Objects").
+/// A file read, and patched, at given offsets (pread / pwrite): the map's pass over its spool
+/// from the last scan to the first (DESIGN §2e, "Objects"). Read-only, past the page cache where
+/// allowed (as DirectReader); writable, through it.
 class PositionalFile {
  public:
   /// Opens `path` (for reading, and writing where `writable`); throws cleanmap::Error naming it.
@@ -107,6 +108,9 @@ class PositionalFile {
  private:
   std::string path_;
   int fd_ = -1;
+  bool direct_ = false;
+  unsigned char* buf_ = nullptr;  // aligned, for O_DIRECT reads
+  std::size_t cap_ = 0;
 };
 
 /// Writes `path` with these bytes through a temporary sibling and a rename (as writeFileAtomic),
