@@ -240,10 +240,11 @@ void FreeSpaceMap::markNear(const std::array<int64_t, 6>& box, int64_t scan) {
 // it (across it) for margin / k of horizontal distance, k its slope against the surface's, and
 // crosses the voxels that hold the surface there; so does a beam that passes just over one.
 // skip_a_ / skip_b_ (metres along the beam) bound the stretch where it marks nothing: for a beam
-// ending on a flat surface, from where it comes within margin of it (not before the surface's
-// first return) to its end; for one passing within margin over the nearest flat return below it
-// in its column, the stretch within margin of that surface's plane, from the return's lower
-// neighbour to graze_reach beyond the return (how far the surface goes on is not seen).
+// ending on a flat surface, from where it comes within margin of it (not before its lower
+// neighbour, or that one's where those two are flat too) to its end; for one passing within
+// margin over a flat return below it in its column (the nearest it passes so), the stretch within
+// margin of that surface's plane, from the return's lower neighbour to graze_reach beyond the
+// return (how far the surface goes on is not seen).
 void FreeSpaceMap::grazing(const std::vector<PointXYZI>& points, const Eigen::Isometry3d& pose,
                            const std::vector<float>& azimuth) {
   constexpr float kAzBin = 0.012f;    // rad
