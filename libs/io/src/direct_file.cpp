@@ -319,6 +319,7 @@ PositionalFile::~PositionalFile() {
 // With O_DIRECT (a read-only spool written past the page cache) the aligned blocks around the
 // range are read into an aligned buffer: no page of the cache is filled for them (issue #16).
 void PositionalFile::readAt(std::uint64_t offset, void* data, std::size_t n) {
+  if (n == 0) return;  // (an empty vector's data() may be null)
   auto* out = static_cast<unsigned char*>(data);
   if (direct_) {
     const std::uint64_t first = offset / kAlign * kAlign;
