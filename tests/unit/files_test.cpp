@@ -199,3 +199,35 @@ TEST(DirectFile, ErrorsNameTheFile) {
   const std::string under_file = (dir / "a.label" / "x.label").string();  // a file as a folder
   test::expectError([&] { io::writeLabels(under_file, labels); }, "a.label", "cannot");
 }
+
+TEST(PositionalFile, ReadsAndPatchesAtOffsets) {
+  // The map's backward pass (DESIGN §2e): a spool written front to back is read at each scan's
+  // offset, past the page cache where allowed (ranges that straddle 4 KiB blocks, the file's
+  // last partial block), and its decisions are patched in place.
+  const auto dir = test::scratchDir("positional_file");
+  const std::string path = (dir / "spool").string();
+  std::vector<unsigned char> bytes(3 * 4096 + 123);
+  for (std::size_t i = 0; i < bytes.size(); ++i) bytes[i] = static_cast<unsigned char>(i * 7 + 3);
+  io::DirectFile f(path);
+  f.write(bytes.data(), bytes.size());
+  f.close();
+  io::PositionalFile r(path, false), w(path, true);
+  for (const auto& [at, n] : std::vector<std::pair<std::size_t, std::size_t>>{
+           {0, 10}, {4090, 20}, {5000, 7000}, {bytes.size() - 5, 5}, {100, 0}}) {
+    std::vector<unsigned char> got(n), back(n);
+    r.readAt(at, n ? got.data() : nullptr, n);
+    w.readAt(at, n ? back.data() : nullptr, n);
+    EXPECT_TRUE(std::equal(got.begin(), got.end(), bytes.begin() + long(at))) << at;
+    EXPECT_EQ(back, got) << at;
+  }
+  unsigned char past[8];
+  test::expectError([&] { r.readAt(bytes.size() - 4, past, 8); }, path, "truncated");
+  const unsigned char patch[3] = {1, 2, 3};
+  w.writeAt(4095, patch, 3);
+  unsigned char now[3];
+  io::PositionalFile again(path, false);
+  again.readAt(4095, now, 3);
+  EXPECT_TRUE(std::equal(now, now + 3, patch));
+  test::expectError([&] { io::PositionalFile missing((dir / "none").string(), false); }, "none",
+                    "cannot open");
+}
