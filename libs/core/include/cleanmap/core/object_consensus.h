@@ -82,6 +82,13 @@ std::vector<uint8_t> inVehicleSizedObject(const std::vector<PointXYZI>& points,
 void persistCells(const std::vector<PointXYZI>& points, const std::vector<uint8_t>* mask,
                   double radius, CellMap<uint8_t>& cells);
 
+/// Rule 5's share as the map applies it (static_map.object_overlap): under the `moving` policy a
+/// car that stops stays where it stood when it was last removed whole, and rule 5 would take it
+/// through every scan it stands in; only `transient` removes what stood, so only it applies rule 5.
+inline double mapObjectOverlap(const MapParams& m) {
+  return m.policy == MapPolicy::kTransient ? m.object_overlap : 0.0;
+}
+
 /// DESIGN §2e, "Objects": the map's decision per rigid object. The free space removes a point
 /// whose voxel the sequence saw empty; a slow truck's side, occupied in every scan, keeps the
 /// part that never left while its ends came and went, and a parked car seen through its windows
@@ -96,13 +103,6 @@ void persistCells(const std::vector<PointXYZI>& points, const std::vector<uint8_
 /// Both ways in time: the map is decided with the whole sequence, so rules 4 and 5 also look at
 /// the *next* scan's whole objects (a slow mover whose removed share reaches moving_fraction only
 /// after some scans): decideBackward() over the scans in decreasing order, after decide().
-/// Rule 5's share as the map applies it (static_map.object_overlap): under the `moving` policy a
-/// car that stops stays where it stood when it was last removed whole, and rule 5 would take it
-/// through every scan it stands in; only `transient` removes what stood, so only it applies rule 5.
-inline double mapObjectOverlap(const MapParams& m) {
-  return m.policy == MapPolicy::kTransient ? m.object_overlap : 0.0;
-}
-
 class MapObjectConsensus {
  public:
   /// `overlap`: rule 5's share (static_map.object_overlap; 0: off).
