@@ -248,8 +248,8 @@ void OutputWriter::writeMaps(const FreeSpaceMap* free_space, const MapScanSink& 
   // its decisions per point (.map_decisions, a byte each); a second goes from the last scan to
   // the first, reading the scans whose objects the backward rules can reach and adding their
   // removals to the decisions; the third reads the points and their decisions and writes.
-  const bool two_passes = by_objects && params_.object.enabled &&
-                          (params_.object.persist_radius > 0 || mapObjectOverlap(params_.map) > 0);
+  const bool both_ways = by_objects && params_.object.enabled &&
+                         (params_.object.persist_radius > 0 || mapObjectOverlap(params_.map) > 0);
   bool decide = true;  // the pass reading looks the free space up (the first, or the only one)
   // The objects' input: the map points (ground not a member), then the moving points, removed.
   const auto assemble = [](Spooled& b) {
@@ -308,7 +308,7 @@ void OutputWriter::writeMaps(const FreeSpaceMap* free_space, const MapScanSink& 
     map_objects_ += st.moving_objects;
   };
   const std::string decisions_path = staging_ + "/.map_decisions";
-  if (two_passes) {
+  if (both_ways) {
     std::vector<uint8_t> had_whole(stems_.size(), 0);
     std::vector<std::uint64_t> decided_at(stems_.size() + 1, 0);  // offsets in .map_decisions
     std::vector<int64_t> scan_index(stems_.size(), 0);
@@ -351,7 +351,7 @@ void OutputWriter::writeMaps(const FreeSpaceMap* free_space, const MapScanSink& 
     decide = false;
   }
   std::optional<DirectReader> decisions;
-  if (two_passes) decisions.emplace(decisions_path);
+  if (both_ways) decisions.emplace(decisions_path);
   forEachScan([&](std::size_t s, Spooled& cur) {
     const SpoolHeader& h = cur.h;
     const auto& pts = cur.pts;
@@ -360,7 +360,7 @@ void OutputWriter::writeMaps(const FreeSpaceMap* free_space, const MapScanSink& 
     full.clear();
     compact.clear();
     removed.clear();
-    if (two_passes) {
+    if (both_ways) {
       gone.resize(pts.size());
       decisions->read(gone.data(), gone.size());
     } else if (by_objects) {
@@ -392,7 +392,7 @@ void OutputWriter::writeMaps(const FreeSpaceMap* free_space, const MapScanSink& 
   decisions.reset();
   std::error_code ec;
   fs::remove(spool_path_, ec);
-  if (two_passes) fs::remove(decisions_path, ec);
+  if (both_ways) fs::remove(decisions_path, ec);
   map_ms_ =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 }
