@@ -178,3 +178,36 @@ TEST(Ground, HeightNotMeasuredWithoutEnoughOfTheSurroundingsSeen) {
   std::vector<PointXYZI> nan(1000, {5.f, 5.f, std::numeric_limits<float>::quiet_NaN(), 0.f});
   EXPECT_FALSE(estimateGroundHeight(nan));
 }
+
+// A car beyond a gap between the rings (DESIGN §2a, the ground's ceiling). Road rings 4.5 m
+// apart (11 empty cells: the gap's allowance reaches s x 10 = 0.9 m), then a car 34 m ahead: two
+// rings on its front at 0.3 and 0.6 m, one ring on its hood at 0.85 m, 0.3-1.5 m further on. The
+// hood's ring alone in its cells is flat and under the allowance; the front's returns before it
+// cap the ground there at 0.3 m, plus s a cell (0.66 m four cells on). The road stays ground.
+TEST(Ground, AHoodSeenByOneRingBeyondAGapIsNotGround) {
+  std::vector<PointXYZI> pts;
+  std::vector<uint8_t> road;
+  const auto add = [&](double x, double y, double z, bool g) {
+    pts.push_back({float(x), float(y), float(z), 0.f});
+    road.push_back(g);
+  };
+  for (const double r : {6.0, 10.5, 15.0, 19.5, 24.0, 28.5})
+    for (double a = -0.5; a <= 0.5; a += 0.003) add(r * std::cos(a), r * std::sin(a), kH, true);
+  for (double y = -0.9; y <= 0.9; y += 0.05) {
+    add(34.1, y, kH + 0.3, false);
+    add(34.1, y, kH + 0.6, false);
+    for (double x = 34.4; x <= 35.6; x += 0.2) add(x, y, kH + 0.85, false);
+  }
+  const auto g = segmentGround(pts, kParams, 40.0, kH);
+  std::size_t hood = 0, ring = 0, rings = 0;
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    if (road[i]) {
+      ++rings;
+      ring += g[i];
+    } else {
+      hood += g[i];
+    }
+  }
+  EXPECT_EQ(hood, 0u) << "car points labelled ground";
+  EXPECT_EQ(ring, rings) << "road rings lost";
+}

@@ -35,26 +35,35 @@ std::vector<uint8_t> segmentGround(const std::vector<PointXYZI>& points, const G
   std::vector<float> hG(static_cast<std::size_t>(side * side), 0.0f);
   std::vector<int> gap(static_cast<std::size_t>(side * side), 0);  // empty cells crossed
   std::vector<uint8_t> ground_cell(static_cast<std::size_t>(side * side), 0);
-  auto visit = [&](int i, int j, float hat_h, int hat_gap) {
+  // The highest the ground can lie in a cell: nothing lies below the ground, and it rises by at
+  // most s a cell, so a return bounds it there and s a cell further on.
+  std::vector<float> ceiling(static_cast<std::size_t>(side * side), kInf);
+  auto visit = [&](int i, int j, float hat_h, int hat_gap, float ceiling_in) {
     const auto c = static_cast<std::size_t>((i + n) * side + (j + n));
     const bool has_points = H[c] > -kInf;
     // Eq. (1); across empty cells (the blind zone, shadows) the slope bound s per cell holds for
     // every cell crossed, up to max_gap_cells (our addition: a car on a slope has its blind zone
-    // on the slope too).
+    // on the slope too). Where only that allowance would lift the cell, its top must also lie
+    // within s (its own spread) of the ceiling the returns on the way set: the single ring on a
+    // car's hood, a truck's side beside the blind zone or a far walker, beyond the lower returns
+    // of the same object, is no road (DESIGN §2a).
     const double rise = p.step * std::min(1 + hat_gap, std::max(1, p.max_gap_cells));
-    const bool ground = has_points && H[c] - h[c] < p.step && H[c] < hat_h + rise;
+    const float carried = ceiling_in + static_cast<float>(p.step);  // the ceiling here
+    const bool ground = has_points && H[c] - h[c] < p.step && H[c] < hat_h + rise &&
+                        (H[c] < hat_h + p.step || H[c] < carried + p.step);
+    ceiling[c] = std::min(h[c], carried);
     ground_cell[c] = ground;
     hG[c] = ground ? H[c] : hat_h;
     gap[c] = ground ? 0 : hat_gap + (has_points ? 0 : 1);
   };
-  visit(0, 0, static_cast<float>(ground_z), 0);
+  visit(0, 0, static_cast<float>(ground_z), 0, kInf);
   for (int ring = 1; ring <= n; ++ring) {
     // The ring's cells only (each reads the inner ring alone, so their order does not matter).
     for (int i = -ring; i <= ring; ++i) {
       const int j_step = std::abs(i) == ring ? 1 : 2 * ring;
       for (int j = -ring; j <= ring; j += j_step) {
         // Neighbours in the inner ring (Chebyshev distance ring-1) propagate to this cell.
-        float hat_h = -kInf;
+        float hat_h = -kInf, ceiling_in = kInf;
         int hat_gap = 0;
         for (int di = -1; di <= 1; ++di)
           for (int dj = -1; dj <= 1; ++dj) {
@@ -62,8 +71,9 @@ std::vector<uint8_t> segmentGround(const std::vector<PointXYZI>& points, const G
             if (std::max(std::abs(a), std::abs(b)) != ring - 1) continue;
             const auto nb = static_cast<std::size_t>((a + n) * side + (b + n));
             if (hG[nb] > hat_h) hat_h = hG[nb], hat_gap = gap[nb];
+            ceiling_in = std::min(ceiling_in, ceiling[nb]);
           }
-        visit(i, j, hat_h, hat_gap);
+        visit(i, j, hat_h, hat_gap, ceiling_in);
       }
     }
   }
