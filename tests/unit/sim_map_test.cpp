@@ -269,7 +269,8 @@ TEST(SimMap, QueueSeenByLidarsSparserThanTheFreeSpaceBins) {
 
 TEST(SimMap, TheMapsDecisionIsTheSameWithOneOrTwoThreads) {
   // With two threads the map's final decision reads and looks up the next scan beside this one's
-  // objects (OutputWriter::writeMaps): the same files, byte for byte, as one thread writes.
+  // objects (OutputWriter::writeMaps), and its backward pass reads the scan before: the same
+  // files, byte for byte, as one thread writes.
   sim::Scenario sc = scenario("truck_crawl");
   sc.frames = 30;
   std::map<int, std::map<std::string, std::string>> files;

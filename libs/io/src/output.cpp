@@ -324,14 +324,11 @@ void OutputWriter::writeMaps(const FreeSpaceMap* free_space, const MapScanSink& 
       decisions.close();
     }
     // From the last scan to the first: a scan without whole objects, after one without either,
-    // has nothing the backward rules could change or pass on.
+    // has nothing the backward rules could change or pass on. With two threads the scan before
+    // is read beside this one's decision (issue #16), and dropped if it turns out not needed;
+    // the files are only ever used by one thread at a time.
     PositionalFile spool(spool_path_, false), decisions_rw(decisions_path, true);
-    Spooled b;
-    for (std::size_t s = stems_.size(); s-- > 0;) {
-      if (!had_whole[s] && !consensus.backwardMemory()) {
-        consensus.skipBackward(scan_index[s]);
-        continue;
-      }
+    const auto load = [&](std::size_t s, Spooled& b) {
       spool.readAt(spool_offsets_[s], &b.h, sizeof b.h);
       b.pts.resize(b.h.full);
       b.moving.resize(b.h.moving);
@@ -342,11 +339,27 @@ void OutputWriter::writeMaps(const FreeSpaceMap* free_space, const MapScanSink& 
       b.gone.resize(b.pts.size());
       decisions_rw.readAt(decided_at[s], b.gone.data(), b.gone.size());
       assemble(b);
-      const auto st = consensus.decideBackward(b.h.index, b.h.density, b.objects, b.member, b.gone,
-                                               b.pts.size());
+    };
+    Spooled cur, next;
+    bool loaded = false;  // cur holds scan s
+    for (std::size_t s = stems_.size(); s-- > 0;) {
+      if (!had_whole[s] && !consensus.backwardMemory()) {
+        consensus.skipBackward(scan_index[s]);
+        loaded = false;
+        continue;
+      }
+      if (!loaded) load(s, cur);
+      const bool read_ahead = s > 0 && params_.threads > 1;
+      std::future<void> ahead;
+      if (read_ahead) ahead = std::async(std::launch::async, load, s - 1, std::ref(next));
+      const auto st = consensus.decideBackward(cur.h.index, cur.h.density, cur.objects, cur.member,
+                                               cur.gone, cur.pts.size());
+      if (read_ahead) ahead.get();
       map_object_points_ += st.points_added;
       map_objects_ += st.moving_objects;
-      if (st.points_added > 0) decisions_rw.writeAt(decided_at[s], b.gone.data(), b.pts.size());
+      if (st.points_added > 0) decisions_rw.writeAt(decided_at[s], cur.gone.data(), cur.pts.size());
+      loaded = read_ahead;
+      if (loaded) std::swap(cur, next);
     }
     decide = false;
   }
