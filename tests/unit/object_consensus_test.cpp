@@ -253,6 +253,59 @@ TEST(ObjectConsensus, HysteresisKeepsAPartlyMovingObjectThatMovedBefore) {
   EXPECT_EQ(objectConsensus(pts, member, unchanged, off, &near_all).persisted, 0u);
 }
 
+TEST(ObjectConsensus, BelowStaticFractionAnObjectThatLeftItsPlaceStaysMoving) {
+  // Rule 4 under static_fraction: kitti_highway's tanker drives on with 3-10 % of its points
+  // tested moving (its ends out of view). The object the previous scan moved whole stays moving
+  // where the scans after it see it leave (ConsensusRules::has_left); a car that stopped was only
+  // seen arriving and is static, as is an object near no earlier mover.
+  std::vector<PointXYZI> pts;
+  addBox(pts, 0, 16, 2, 4.5f, 3.5f);
+  std::vector<uint8_t> member(pts.size(), 1), moving(pts.size(), 0);
+  std::size_t tested = 0;  // 5 %, scattered (a group of them would be a body, rule 3)
+  for (std::size_t i = 0; i < pts.size(); i += 20) moving[i] = 1, ++tested;
+  ASSERT_LT(double(tested) / double(pts.size()), 0.1);
+  ASSERT_GE(tested, 20u);
+  std::vector<uint8_t> near_all(pts.size(), 1), near_none(pts.size(), 0);
+  std::size_t asked = 0, given = 0;
+  const auto rulesWith = [&](bool left) {
+    ConsensusRules r;
+    r.has_left = [&, left](const std::vector<uint32_t>& idx) {
+      ++asked;
+      given = idx.size();
+      return left;
+    };
+    return r;
+  };
+  auto held = moving;
+  auto st = objectConsensus(pts, member, held, ObjectParams{}, &near_all, nullptr, rulesWith(true));
+  EXPECT_EQ(asked, 1u);
+  EXPECT_EQ(given, pts.size());  // it is given the whole object
+  EXPECT_EQ(st.persisted, 1u);
+  EXPECT_EQ(st.left_place, 1u);
+  for (uint8_t m : held) ASSERT_EQ(m, 1);
+
+  auto stopped = moving;
+  st = objectConsensus(pts, member, stopped, ObjectParams{}, &near_all, nullptr, rulesWith(false));
+  EXPECT_EQ(st.persisted, 0u);
+  for (uint8_t m : stopped) ASSERT_EQ(m, 0);
+
+  asked = 0;  // near no moving point of the previous scan: not asked, static
+  auto alone = moving;
+  objectConsensus(pts, member, alone, ObjectParams{}, &near_none, nullptr, rulesWith(true));
+  EXPECT_EQ(asked, 0u);
+  for (uint8_t m : alone) ASSERT_EQ(m, 0);
+  ObjectParams off;  // persist_radius = 0 turns rule 4 off, this part too
+  off.persist_radius = 0;
+  auto unchanged = moving;
+  objectConsensus(pts, member, unchanged, off, &near_all, nullptr, rulesWith(true));
+  EXPECT_EQ(asked, 0u);
+  // With no moving point at all there is nothing that could have left.
+  std::vector<uint8_t> none(pts.size(), 0);
+  objectConsensus(pts, member, none, ObjectParams{}, &near_all, nullptr, rulesWith(true));
+  EXPECT_EQ(asked, 0u);
+  for (uint8_t m : none) ASSERT_EQ(m, 0);
+}
+
 // DESIGN §2e, "Objects": the map's decision per rigid object (MapObjectConsensus).
 namespace {
 

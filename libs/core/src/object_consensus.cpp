@@ -74,6 +74,8 @@ bool vehicleSized(const Eigen::Vector3f& lo, const Eigen::Vector3f& hi, const Ob
   return ext.head<2>().norm() <= p.max_length && ext.z() <= p.max_height;
 }
 
+}  // namespace
+
 // Rule 5's objects: the components of the points of `mask`.
 void wholeObjectsOf(const std::vector<PointXYZI>& points, const std::vector<uint8_t>& mask,
                     double side, WholeObjects& out) {
@@ -108,7 +110,6 @@ void wholeObjectsOf(const std::vector<PointXYZI>& points, const std::vector<uint
     out.voxel.get(cellKey(c.x(), c.y(), c.z())) = id[cc.root_of[v]];
   }
 }
-}  // namespace
 
 ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
                                      const std::vector<uint8_t>& member,
@@ -162,6 +163,18 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
   const WholeObjects* wo = rules.whole_objects;
   std::vector<uint8_t> all_parts;           // per root: turned by rule 5, every part goes
   std::vector<uint32_t> member_of, starts;  // the members grouped by component (built once)
+  const auto groupMembers = [&] {
+    if (!starts.empty()) return;  // counting sort of the members by component
+    starts.assign(voxels.size() + 1, 0);
+    for (std::size_t i = 0; i < points.size(); ++i)
+      if (point_voxel[i] != UINT32_MAX) ++starts[root_of[point_voxel[i]] + 1];
+    for (std::size_t v = 0; v < voxels.size(); ++v) starts[v + 1] += starts[v];
+    member_of.resize(starts.back());
+    std::vector<uint32_t> fill(starts.begin(), starts.end() - 1);
+    for (std::size_t i = 0; i < points.size(); ++i)
+      if (point_voxel[i] != UINT32_MAX)
+        member_of[fill[root_of[point_voxel[i]]]++] = static_cast<uint32_t>(i);
+  };
   const float inv_voxel = static_cast<float>(1.0 / p.voxel);
   const auto shares = [&](uint32_t root, const Comp& c, uint32_t a) {
     const auto close = [&](float x, float y) {
@@ -172,17 +185,7 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
     if (!close(e.head<2>().norm(), x.head<2>().norm()) || !close(e.z(), x.z()) ||
         shift.norm() > rules.max_shift)
       return std::pair(0.0, 0.0);
-    if (starts.empty()) {  // counting sort of the members by component
-      starts.assign(voxels.size() + 1, 0);
-      for (std::size_t i = 0; i < points.size(); ++i)
-        if (point_voxel[i] != UINT32_MAX) ++starts[root_of[point_voxel[i]] + 1];
-      for (std::size_t v = 0; v < voxels.size(); ++v) starts[v + 1] += starts[v];
-      member_of.resize(starts.back());
-      std::vector<uint32_t> fill(starts.begin(), starts.end() - 1);
-      for (std::size_t i = 0; i < points.size(); ++i)
-        if (point_voxel[i] != UINT32_MAX)
-          member_of[fill[root_of[point_voxel[i]]]++] = static_cast<uint32_t>(i);
-    }
+    groupMembers();
     const auto in = [&](const Eigen::Vector3f& q) {
       const uint32_t* o =
           wo->voxel.find(cellKey(floorToCell(q.x(), inv_voxel), floorToCell(q.y(), inv_voxel),
@@ -202,6 +205,12 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
   std::vector<uint8_t> turn(voxels.size(), 0);  // 1: all moving, 2: all static
   std::vector<uint8_t> whole;                   // vehicle-sized, moving in every point
   if (in_moving_object) whole.assign(voxels.size(), 0);
+  // Component v's points, for rules.has_left.
+  const auto leftItsPlace = [&](uint32_t v) {
+    groupMembers();
+    return rules.has_left(
+        std::vector<uint32_t>(member_of.begin() + starts[v], member_of.begin() + starts[v + 1]));
+  };
   const bool few_are_noise = rules.few_points_are_noise;
   bool body_check = false;  // a component turned static holds enough moving points for a body
   for (uint32_t v = 0; v < voxels.size(); ++v) {
@@ -223,6 +232,13 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
       turn[v] = 1;  // hysteresis: it moved in the previous scan and is still partly moving
       ++st.moving_objects;
       ++st.persisted;
+    } else if (rules.has_left && p.persist_radius > 0 && vehicle_sized &&
+               static_cast<int>(c.moving) >= p.min_moving && c.moving < c.n &&
+               2 * c.near_prev >= c.n && leftItsPlace(v)) {
+      turn[v] = 1;  // rule 4 under static_fraction: it moved before and has left where it is now
+      ++st.moving_objects;
+      ++st.persisted;
+      ++st.left_place;
     } else if (vehicle_sized && c.moving > 0 &&
                ((few_are_noise && static_cast<int>(c.moving) < p.min_moving) ||
                 static_cast<double>(c.moving) < p.static_fraction * static_cast<double>(c.n))) {

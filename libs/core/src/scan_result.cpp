@@ -51,6 +51,7 @@ ScanStats& ScanStats::operator+=(const ScanStats& o) {
   consensus_foot_left += o.consensus_foot_left;
   consensus_still_part_left += o.consensus_still_part_left;
   objects_persisted += o.objects_persisted;
+  objects_left_place += o.objects_left_place;
   empty += o.empty;
   image_scans += o.image_scans;
   image_units += o.image_units;

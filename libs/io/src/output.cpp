@@ -472,6 +472,7 @@ void OutputWriter::finish(double wall_s, const FreeSpaceMap* free_space) {
                  {"ring_votes", total.ring_votes},
                  {"objects_turned_moving", total.objects_moving},
                  {"objects_kept_moving_by_hysteresis", total.objects_persisted},
+                 {"objects_kept_moving_leaving", total.objects_left_place},
                  {"consensus_points_added", total.consensus_points},
                  {"consensus_points_removed", total.consensus_removed},
                  {"consensus_body_points_kept", total.consensus_body_kept},

@@ -66,6 +66,7 @@ struct LaserPipeline::Work {
     leaf_moving.clear();
     moving.clear();
     relabelled.clear();
+    whole.clear();
   }
   std::vector<Eigen::Vector3d> world;  // candidates' world coordinates (others left zero)
   std::vector<uint8_t> duplicate;      // DESIGN §2.3
@@ -77,6 +78,7 @@ struct LaserPipeline::Work {
   std::vector<uint8_t> leaf_moving;            // per leaf, the decision (DESIGN §2c)
   std::vector<uint8_t> moving;                 // per scan point, the final decision
   std::vector<uint8_t> relabelled;  // per scan point: moving, relabelled static by the camera
+  std::vector<uint8_t> whole;       // per scan point: in a vehicle-sized object moving as a whole
 };
 
 LaserPipeline::LaserPipeline(const PipelineParams& params, Sink sink)
@@ -301,6 +303,8 @@ std::unique_ptr<LaserPipeline> LaserPipeline::clone(Sink sink) const {
   c->camera_ = camera_;
   c->prev_index_ = prev_index_;
   c->prev_moving_cells_ = prev_moving_cells_;
+  c->prev_moving_ = prev_moving_;
+  c->prev_pose_inverse_ = prev_pose_inverse_;
   c->epoch_ = epoch_;
   c->map_first_ = map_first_;
   c->map_last_ = map_last_;
@@ -758,10 +762,10 @@ void LaserPipeline::decide(std::size_t pos) {
   sampleLeaves(s, w);                      // §2c
   classify(window, s, w);                  // §2b
   decideLeaves(s, w);                      // §2c
-  objectConsensus(s, w);                   // doc/OBJECTS.md
+  objectConsensus(pos, s, w);              // doc/OBJECTS.md
   validateImages(pos, s, w);               // §3
   ScanResult r = collect(s, w);            // §2.7: labels, static map, dynamic layer
-  remember(r, static_cast<long>(s.index));
+  remember(r, static_cast<long>(s.index), s, w);
   if (source_ == PoseSource::kGicp || source_ == PoseSource::kRefine)  // movers leave GICP's map
     drops_.push_back({s.seq, static_cast<int64_t>(s.index), w.moving});
   r.stats.ms.free_space = insertFreeSpace(s, w);  // DESIGN §2e, beside the next scan's work
@@ -774,7 +778,7 @@ void LaserPipeline::decide(std::size_t pos) {
 }
 
 // W_k: the other buffered scans that have beams.
-std::vector<WindowScan> LaserPipeline::windowAround(std::size_t pos) const {
+std::vector<WindowScan> LaserPipeline::windowAround(std::size_t pos, bool after) const {
   std::vector<WindowScan> window;
   // Issue #11: estimated poses are off relative to each other by about relative_error times the
   // path between the two scans (odometry error grows with the distance travelled; our GICP
@@ -783,7 +787,7 @@ std::vector<WindowScan> LaserPipeline::windowAround(std::size_t pos) const {
   const double e = p_.registration.relative_error;
   const auto corrected = posesAround(pos);  // DESIGN §3 "Camera poses"
   for (std::size_t j = 0; j < buf_.size(); ++j)
-    if (inWindow(j, pos) && !buf_[j]->beams.empty()) {
+    if (inWindow(j, pos) && !buf_[j]->beams.empty() && (!after || j > pos)) {
       double path = 0;  // summed between the two scans, so a chunk gets the same bits
       if (estimated && e > 0)
         for (std::size_t a = std::min(j, pos); a < std::max(j, pos); ++a)
@@ -892,7 +896,7 @@ void LaserPipeline::decideLeaves(const Prepared& s, Work& w) const {
 
 // doc/OBJECTS.md: connected objects move as a whole; duplicates take part, they belong to the
 // same objects. Rule 4 (hysteresis) looks at the previous scan's moving cells.
-void LaserPipeline::objectConsensus(Prepared& s, Work& w) const {
+void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const {
   const auto t0 = Clock::now();
   std::vector<uint8_t> near_prev;
   if (!prev_moving_cells_.empty()) {
@@ -907,9 +911,60 @@ void LaserPipeline::objectConsensus(Prepared& s, Work& w) const {
   // HDL-64E count.
   ObjectParams op = p_.object;
   op.min_moving = std::max(1, static_cast<int>(std::lround(op.min_moving * s.density)));
-  const auto oc = cleanmap::objectConsensus(s.scan.points, s.candidate, w.moving, op,
-                                            near_prev.empty() ? nullptr : &near_prev);
+  // Rule 4 under static_fraction (doc/OBJECTS.md): the object the previous scan moved whole,
+  // still moving.
+  ConsensusRules rules;
+  WholeObjects prev;  // the previous scan's objects moved whole, built on the first call
+  bool prev_built = false;
+  std::vector<uint32_t> in_prev;
+  if (!near_prev.empty()) {
+    rules.has_left = [&](const std::vector<uint32_t>& idx) {
+      // That object: half of its points in the voxels of one object the previous scan moved
+      // whole (in that scan's sensor frame, where its consensus found it), of a size within
+      // extent_tolerance (two solids do not share their space; the map's rule 5).
+      if (!prev_built) {
+        wholeObjectsOf(prev_moving_, std::vector<uint8_t>(prev_moving_.size(), 1), op.voxel, prev);
+        prev_built = true;
+      }
+      in_prev.assign(prev.extent.size(), 0);
+      const float inv = static_cast<float>(1.0 / op.voxel);
+      Eigen::Vector3f lo = Eigen::Vector3f::Constant(1e30f), hi = -lo;
+      for (uint32_t i : idx) {
+        lo = lo.cwiseMin(s.scan.points[i].xyz());
+        hi = hi.cwiseMax(s.scan.points[i].xyz());
+        const Eigen::Vector3f q = (prev_pose_inverse_ * w.world[i]).cast<float>();
+        if (const uint32_t* a = prev.voxel.find(
+                cellKey(floorToCell(q.x(), inv), floorToCell(q.y(), inv), floorToCell(q.z(), inv))))
+          ++in_prev[*a];
+      }
+      const auto best = std::max_element(in_prev.begin(), in_prev.end());
+      if (best == in_prev.end() || 2 * std::size_t(*best) < idx.size()) return false;
+      const Eigen::Vector3f e = hi - lo, x = prev.extent[std::size_t(best - in_prev.begin())];
+      const auto close = [&](float u, float v) {  // not smaller (it may have joined its other part)
+        return u >= (1.0 - rules.extent_tolerance) * v;
+      };
+      if (!close(e.head<2>().norm(), x.head<2>().norm()) || !close(e.z(), x.z())) return false;
+      // It left its place: the scans after it alone see at least min_moving of its moving points
+      // empty (a vehicle that stopped was only seen arriving, by the scans before it).
+      const std::vector<WindowScan> after = windowAround(pos, true);
+      WindowScan own;
+      own.beams = s.beams.empty() ? nullptr : &s.beams;
+      own.ring_gap = s.ring_gap;
+      int left = 0;
+      for (uint32_t i : idx) {
+        if (!w.moving[i]) continue;
+        const uint8_t edges = test_.edgesOf(s.scan.points[i].xyz(), own);
+        left += test_.isMoving(w.world[i], after, nullptr, edges);
+        if (left >= op.min_moving) return true;
+      }
+      return false;
+    };
+  }
+  const auto oc =
+      cleanmap::objectConsensus(s.scan.points, s.candidate, w.moving, op,
+                                near_prev.empty() ? nullptr : &near_prev, &w.whole, rules);
   s.stats.objects_persisted = oc.persisted;
+  s.stats.objects_left_place = oc.left_place;
   s.stats.objects_moving = oc.moving_objects;
   s.stats.consensus_points = oc.points_added;
   s.stats.consensus_removed = oc.points_removed;
@@ -1138,16 +1193,24 @@ void LaserPipeline::startEpoch(long index) {
   epoch_ = e;
   dup_ = DuplicateFilter(p_.filter);
   prev_moving_cells_.clear();
+  prev_moving_.clear();
 }
 
-void LaserPipeline::remember(const ScanResult& r, long index) {
+void LaserPipeline::remember(const ScanResult& r, long index, const Prepared& s, const Work& w) {
   std::vector<Eigen::Vector3f> inserted;
   inserted.reserve(r.static_compact.size());
   for (const auto& p : r.static_compact) inserted.push_back(p.xyz());
   dup_.insert(inserted, index);
   prev_moving_cells_.clear();
+  prev_moving_.clear();
   if (!p_.object.enabled || p_.object.persist_radius <= 0) return;
   persistCells(r.moving, nullptr, p_.object.persist_radius, prev_moving_cells_);
+  // The objects moved whole (all their points, foot included), unless the camera relabelled them,
+  // in the sensor frame (where the consensus found them) with the pose.
+  for (std::size_t i = 0; i < w.whole.size(); ++i)
+    if (w.whole[i] && (w.relabelled.empty() || !w.relabelled[i]))
+      prev_moving_.push_back(s.scan.points[i]);
+  prev_pose_inverse_ = s.world_to_sensor;
 }
 
 }  // namespace cleanmap

@@ -5,6 +5,7 @@
 // vehicle-sized group of non-ground points is moving, all of it is.
 #pragma once
 #include <cstdint>
+#include <functional>
 #include <vector>
 
 #include "cleanmap/core/cell_map.h"
@@ -24,6 +25,9 @@ struct ObjectConsensusStats {
   /// Points of a moving component's raised parts (joined to it only below the foot) with no
   /// moving point of their own, not turned moving.
   std::size_t still_part_points_left = 0;
+  /// Of persisted, objects under static_fraction kept because they left their place
+  /// (ConsensusRules::has_left).
+  std::size_t left_place = 0;
 };
 
 /// Rule 5's objects of one scan (ConsensusRules::whole_objects): each voxel (ObjectParams::voxel)
@@ -53,6 +57,11 @@ struct ConsensusRules {
   double overlap_fraction = 0.5;
   double extent_tolerance = 0.3;
   double max_shift = 3.0;  ///< m: 30 m/s between two scans at 10 Hz
+  /// Rule 4 under static_fraction (doc/OBJECTS.md): a vehicle-sized object with some but fewer
+  /// than static_fraction of its points moving, at least half of them near the previous scan's
+  /// moving points, moves as a whole if has_left(its points' indices) says it is the object the
+  /// previous scan moved and the scans after it see it leave. Empty: such an object is static.
+  std::function<bool(const std::vector<uint32_t>&)> has_left;
 };
 
 /// Groups `points[i]` with `member[i]` (in crop, not ground) into 26-connected voxel components
@@ -68,6 +77,11 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
                                      const std::vector<uint8_t>* near_previous = nullptr,
                                      std::vector<uint8_t>* in_moving_object = nullptr,
                                      const ConsensusRules& rules = {});
+
+/// Rule 5's objects (ConsensusRules::whole_objects): the 26-connected components of the points
+/// with `mask[i]`, in voxels of side `side`, with their extents and centroids.
+void wholeObjectsOf(const std::vector<PointXYZI>& points, const std::vector<uint8_t>& mask,
+                    double side, WholeObjects& out);
 
 /// Per point: a member of a vehicle-sized component (as objectConsensus groups them). Under
 /// ConsensusRules{few_points_are_noise = false} no other point's decision can change, and

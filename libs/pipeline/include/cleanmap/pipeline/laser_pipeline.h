@@ -104,7 +104,8 @@ class LaserPipeline {
   void decide(std::size_t pos);
 
   // The stages of decide(), in order.
-  std::vector<WindowScan> windowAround(std::size_t pos) const;
+  // `after`: only the scans after pos (rule 4 under static_fraction, doc/OBJECTS.md).
+  std::vector<WindowScan> windowAround(std::size_t pos, bool after = false) const;
   // DESIGN §3 "Camera poses": each buffered scan's pose as the scan at `pos` sees it, through the
   // corrected relative poses between neighbours; nullopt where no correction lies between them.
   std::vector<std::optional<Eigen::Isometry3d>> posesAround(std::size_t pos) const;
@@ -112,11 +113,11 @@ class LaserPipeline {
   void sampleLeaves(Prepared& s, Work& w) const;
   void classify(const std::vector<WindowScan>& window, Prepared& s, Work& w) const;
   void decideLeaves(const Prepared& s, Work& w) const;
-  void objectConsensus(Prepared& s, Work& w) const;
+  void objectConsensus(std::size_t pos, Prepared& s, Work& w) const;
   void validateImages(std::size_t pos, Prepared& s, Work& w) const;
   void linkToPrevious(const Prepared& prev, Prepared& s, const PinholeCamera& camera) const;
   ScanResult collect(Prepared& s, const Work& w) const;
-  void remember(const ScanResult& r, long index);
+  void remember(const ScanResult& r, long index, const Prepared& s, const Work& w);
   void startEpoch(long index);
 
   void resolveWindow();  // DESIGN §2b: k_ from the pushed scans' timestamps (auto K)
@@ -145,6 +146,9 @@ class LaserPipeline {
   long epoch_ = -1;  // DESIGN §2f: the epoch of the last decided scan
   long map_first_ = std::numeric_limits<long>::min(), map_last_ = std::numeric_limits<long>::max();
   CellMap<uint8_t> prev_moving_cells_;  // last decided scan's moving cells, dilated
+  // The last decided scan's objects moved whole (its sensor frame) and its world-to-sensor pose.
+  std::vector<PointXYZI> prev_moving_;
+  Eigen::Isometry3d prev_pose_inverse_ = Eigen::Isometry3d::Identity();
   std::unique_ptr<Work> work_;
   std::unique_ptr<FreeSpaceMap> free_;  // DESIGN §2e, whole sequence
   // The decided scans' free-space insertions run in scan order on one thread of their own,
