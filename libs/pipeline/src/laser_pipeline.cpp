@@ -303,7 +303,7 @@ std::unique_ptr<LaserPipeline> LaserPipeline::clone(Sink sink) const {
   c->camera_ = camera_;
   c->prev_index_ = prev_index_;
   c->prev_moving_cells_ = prev_moving_cells_;
-  c->prev_moving_ = prev_moving_;
+  c->prev_whole_ = prev_whole_;
   c->prev_pose_inverse_ = prev_pose_inverse_;
   c->epoch_ = epoch_;
   c->map_first_ = map_first_;
@@ -920,10 +920,10 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
   if (!near_prev.empty()) {
     rules.has_left = [&](const std::vector<uint32_t>& idx) {
       // That object: half of its points in the voxels of one object the previous scan moved
-      // whole (in that scan's sensor frame, where its consensus found it), of a size within
-      // extent_tolerance (two solids do not share their space; the map's rule 5).
+      // whole (in that scan's sensor frame, where its consensus found it), and not smaller than
+      // 1 - extent_tolerance of it (two solids do not share their space; the map's rule 5).
       if (!prev_built) {
-        wholeObjectsOf(prev_moving_, std::vector<uint8_t>(prev_moving_.size(), 1), op.voxel, prev);
+        wholeObjectsOf(prev_whole_, std::vector<uint8_t>(prev_whole_.size(), 1), op.voxel, prev);
         prev_built = true;
       }
       in_prev.assign(prev.extent.size(), 0);
@@ -947,6 +947,7 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
       // It left its place: the scans after it alone see at least min_moving of its moving points
       // empty (a vehicle that stopped was only seen arriving, by the scans before it).
       const std::vector<WindowScan> after = windowAround(pos, true);
+      if (after.empty()) return true;  // no scan after it (the sequence's last): as it was
       WindowScan own;
       own.beams = s.beams.empty() ? nullptr : &s.beams;
       own.ring_gap = s.ring_gap;
@@ -1193,7 +1194,7 @@ void LaserPipeline::startEpoch(long index) {
   epoch_ = e;
   dup_ = DuplicateFilter(p_.filter);
   prev_moving_cells_.clear();
-  prev_moving_.clear();
+  prev_whole_.clear();
 }
 
 void LaserPipeline::remember(const ScanResult& r, long index, const Prepared& s, const Work& w) {
@@ -1202,14 +1203,14 @@ void LaserPipeline::remember(const ScanResult& r, long index, const Prepared& s,
   for (const auto& p : r.static_compact) inserted.push_back(p.xyz());
   dup_.insert(inserted, index);
   prev_moving_cells_.clear();
-  prev_moving_.clear();
+  prev_whole_.clear();
   if (!p_.object.enabled || p_.object.persist_radius <= 0) return;
   persistCells(r.moving, nullptr, p_.object.persist_radius, prev_moving_cells_);
   // The objects moved whole (all their points, foot included), unless the camera relabelled them,
   // in the sensor frame (where the consensus found them) with the pose.
   for (std::size_t i = 0; i < w.whole.size(); ++i)
     if (w.whole[i] && (w.relabelled.empty() || !w.relabelled[i]))
-      prev_moving_.push_back(s.scan.points[i]);
+      prev_whole_.push_back(s.scan.points[i]);
   prev_pose_inverse_ = s.world_to_sensor;
 }
 

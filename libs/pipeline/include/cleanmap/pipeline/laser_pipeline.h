@@ -147,7 +147,7 @@ class LaserPipeline {
   long map_first_ = std::numeric_limits<long>::min(), map_last_ = std::numeric_limits<long>::max();
   CellMap<uint8_t> prev_moving_cells_;  // last decided scan's moving cells, dilated
   // The last decided scan's objects moved whole (its sensor frame) and its world-to-sensor pose.
-  std::vector<PointXYZI> prev_moving_;
+  std::vector<PointXYZI> prev_whole_;
   Eigen::Isometry3d prev_pose_inverse_ = Eigen::Isometry3d::Identity();
   std::unique_ptr<Work> work_;
   std::unique_ptr<FreeSpaceMap> free_;  // DESIGN §2e, whole sequence
