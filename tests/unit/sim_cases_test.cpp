@@ -118,8 +118,9 @@ TEST(SimCases, ACarDrawingAwaySlowlyStaysMovingWhileItLeavesItsPlace) {
   // The same car at 3 m/s, the ego following at 2: as it draws away after its stop only its rear
   // shows, under 10 % of it tests moving, and rule 4 held it only down to 10 % (recall 0.377).
   // The object the previous scan moved whole stays moving where the scans after it see it leave
-  // (doc/OBJECTS.md): scans 12-13 (slowing down) and 30-34 (drawing away); the scans it stands
-  // in stay static.
+  // (doc/OBJECTS.md): scans 30-34 (drawing away), and 12-13, just after it stopped (moving by
+  // the labels' +-0.5 s; 36 of its ~40 moving points there are empty for the later scans, seen
+  // from the ego closing in); the scans it stands in after those stay static.
   auto sc = scenario("stop_and_go");
   for (auto& m : sc.movers) m.speed *= 0.5;
   const auto r = runCase(sc);
