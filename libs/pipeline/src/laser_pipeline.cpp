@@ -50,6 +50,13 @@ struct LaserPipeline::Prepared {
   // one (its relative pose is T_prev^-1 T D), where the images aligned.
   std::optional<Eigen::Isometry3d> link;
   bool points_released = false;  // decided, and its points freed (releasePoints)
+  // This scan as the window scan of its own points' edges (MovingTest::edgesOf, issue #15).
+  WindowScan own() const {
+    WindowScan o;
+    o.beams = beams.empty() ? nullptr : &beams;
+    o.ring_gap = ring_gap;
+    return o;
+  }
 };
 
 /// The scan being decided, computed once and passed down the stages. One instance lives as long
@@ -855,9 +862,7 @@ void LaserPipeline::classify(const std::vector<WindowScan>& window, Prepared& s,
     }
   const std::vector<uint32_t> order = test_.testOrder(w.tested_sensor);
   // P's own scan, for the edges of a sparse lidar's surfaces (MovingTest::edgesOf, issue #15).
-  WindowScan own;
-  own.beams = s.beams.empty() ? nullptr : &s.beams;
-  own.ring_gap = s.ring_gap;
+  const WindowScan own = s.own();
   const auto workers = static_cast<std::size_t>(std::max(p_.threads, 1));
   std::vector<MovingTestStats> acc(workers);
   parallelFor(
@@ -948,9 +953,7 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
       // empty (a vehicle that stopped was only seen arriving, by the scans before it).
       const std::vector<WindowScan> after = windowAround(pos, true);
       if (after.empty()) return true;  // no scan after it (the sequence's last): as it was
-      WindowScan own;
-      own.beams = s.beams.empty() ? nullptr : &s.beams;
-      own.ring_gap = s.ring_gap;
+      const WindowScan own = s.own();
       int left = 0;
       for (uint32_t i : idx) {
         if (!w.moving[i]) continue;
