@@ -161,7 +161,7 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
   // scan, as they are and moved by the two centroids' difference (0 where the sizes differ or
   // the centroids lie more than max_shift apart).
   const WholeObjects* wo = rules.whole_objects;
-  std::vector<uint8_t> all_parts;           // per root: turned by rule 5, every part goes
+  std::vector<uint8_t> all_parts;  // per root: another scan's object (rules 4, 5): all parts go
   std::vector<uint32_t> member_of, starts;  // the members grouped by component (built once)
   const auto groupMembers = [&] {
     if (!starts.empty()) return;  // counting sort of the members by component
@@ -232,10 +232,14 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
       turn[v] = 1;  // hysteresis: it moved in the previous scan and is still partly moving
       ++st.moving_objects;
       ++st.persisted;
-    } else if (rules.has_left && p.persist_radius > 0 && vehicle_sized &&
-               static_cast<int>(c.moving) >= p.min_moving && c.moving < c.n &&
+    } else if (rules.has_left && p.persist_radius > 0 && vehicle_sized && c.moving < c.n &&
                2 * c.near_prev >= c.n && leftItsPlace(v)) {
-      turn[v] = 1;  // rule 4 under static_fraction: it moved before and has left where it is now
+      // Rule 4 under static_fraction: it moved before and has left where it is now (or the
+      // scans after it are too few to tell); has_left asks for min_moving points seen leaving.
+      // It is the previous scan's object: every part goes, as under rule 5.
+      turn[v] = 1;
+      if (all_parts.empty()) all_parts.assign(voxels.size(), 0);
+      all_parts[v] = 1;
       ++st.moving_objects;
       ++st.persisted;
       ++st.left_place;
@@ -251,7 +255,7 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
   // be that object moved (a car keeping its distance to the sensor shows the same faces), or its
   // neighbour of the same size (parked cars in a row): a whole object of this scan that matches
   // the other scan's object claims it, and an unclaimed one takes the best of its candidates.
-  if (!all_parts.empty()) {
+  if (wo && !wo->empty()) {
     const auto candidate = [&](uint32_t v) {
       const Comp& c = comps[v];
       return c.n > 0 && turn[v] != 1 && c.moving < c.n && static_cast<int>(c.n) >= p.min_moving &&
@@ -285,7 +289,7 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
     for (uint32_t a = 0; a < na; ++a)
       if (!claimed[a] && best_of[a] != UINT32_MAX) all_parts[best_of[a]] = 1;
     for (uint32_t v = 0; v < voxels.size(); ++v)
-      if (all_parts[v]) {
+      if (all_parts[v] && turn[v] != 1) {
         turn[v] = 1;
         ++st.moving_objects;
         ++st.persisted;

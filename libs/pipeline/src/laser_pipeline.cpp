@@ -950,9 +950,12 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
       };
       if (!close(e.head<2>().norm(), x.head<2>().norm()) || !close(e.z(), x.z())) return false;
       // It left its place: the scans after it alone see at least min_moving of its moving points
-      // empty (a vehicle that stopped was only seen arriving, by the scans before it).
+      // empty (a vehicle that stopped was only seen arriving, by the scans before it). Fewer
+      // than half of the window's later scans (the sequence's last ones, a dropout) cannot show
+      // that: a vehicle in stop-and-go traffic (0.5-1 m/s) moves less than a voxel and the beam
+      // model's margin in half a window (0.5 s). It stays as the previous scan had it.
       const std::vector<WindowScan> after = windowAround(pos, true);
-      if (after.empty()) return true;  // no scan after it (the sequence's last): as it was
+      if (2 * after.size() < k_ / stride_) return true;
       const WindowScan own = s.own();
       int left = 0;
       for (uint32_t i : idx) {
