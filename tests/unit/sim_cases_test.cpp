@@ -120,11 +120,13 @@ TEST(SimCases, ACarDrawingAwaySlowlyStaysMovingWhileItLeavesItsPlace) {
   // The object the previous scan moved whole stays moving where the scans after it see it leave
   // (doc/OBJECTS.md): scans 30-34 (drawing away), and 12-13, just after it stopped (moving by
   // the labels' +-0.5 s; 36 of its ~40 moving points there are empty for the later scans, seen
-  // from the ego closing in); the scans it stands in after those stay static.
+  // from the ego closing in); the scans it stands in after those stay static. Through the last
+  // K / 2 scans (35-39) too few scans follow to see it leave and it stays as it was: 7-11 % of
+  // it held there before, 96 % now (recall 0.617 before).
   auto sc = scenario("stop_and_go");
   for (auto& m : sc.movers) m.speed *= 0.5;
   const auto r = runCase(sc);
-  EXPECT_GE(r.per_mover.at("stop_go_car").recall(), 0.55);  // measured 0.617
+  EXPECT_GE(r.per_mover.at("stop_go_car").recall(), 0.70);  // measured 0.765
   EXPECT_GE(r.all.precision(), 0.97);                       // measured 1.000
 }
 
