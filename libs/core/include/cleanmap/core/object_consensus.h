@@ -57,12 +57,12 @@ struct ConsensusRules {
   double overlap_fraction = 0.5;
   double extent_tolerance = 0.3;
   double max_shift = 3.0;  ///< m: 30 m/s between two scans at 10 Hz
-  /// Rule 4 under static_fraction (doc/OBJECTS.md): a vehicle-sized object, partly moving with
-  /// fewer than static_fraction of its points (or with none), at least half of its points near
-  /// the previous scan's moving points, moves as a whole if has_left(its points' indices) says it
-  /// is the object the previous scan moved whole and the scans after it see it leave (at least
-  /// min_moving of its moving points) or are too few to see that. Empty: such an object is
-  /// static.
+  /// Rule 4 under static_fraction (doc/OBJECTS.md): a vehicle-sized object not all moving that
+  /// the rules above leave static (under static_fraction or min_moving of its points moving, or
+  /// none), at least half of its points near the previous scan's moving points, moves as a whole,
+  /// all of its parts, if has_left(its points' indices) says it is the object the previous scan
+  /// moved whole and the scans after it see it leave (at least min_moving of its moving points)
+  /// or are too few to see that. Empty: such an object is static.
   std::function<bool(const std::vector<uint32_t>&)> has_left;
 };
 
