@@ -419,9 +419,11 @@ TEST(ImageValidation, DepthErrorIsTheSmallestShiftErrorAndStopsBelowAThreshold) 
   EXPECT_GT(none, 0);
 }
 
-// The colour test's NCC written out for small patches agrees with OpenCV's masked matchTemplate
-// (TM_CCOEFF_NORMED, flat windows -1) on random textures, with and without a mask, at every
-// size the pipeline uses; with stop_at, the same verdict.
+// The colour test's NCC written out for small patches, and through shared DFTs for larger masked
+// ones (side 11 and up here), agrees with OpenCV's masked matchTemplate (TM_CCOEFF_NORMED, flat
+// windows -1) on random textures, with and without a mask, at every size the pipeline uses; with
+// stop_at, the same verdict. OpenCV's call leaves the mask 0 / 1 (it thresholds it in place), so
+// colourError is also given such masks here.
 TEST(ImageValidation, ColourErrorAgreesWithOpenCvsMatchTemplate) {
   std::mt19937 rng(11);
   std::uniform_real_distribution<float> u(0.f, 1.f);

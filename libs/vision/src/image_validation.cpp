@@ -203,6 +203,50 @@ double maxNccDirect(const cv::Mat& r, const cv::Mat& t, const cv::Mat& mask) {
   return best;
 }
 
+// The DFT of `a` (CV_32F) zero-padded to `ds` (CCS packed).
+cv::Mat paddedSpectrum(const cv::Mat& a, const cv::Size& ds) {
+  cv::Mat padded = cv::Mat::zeros(ds, CV_32F), f;
+  a.copyTo(padded(cv::Rect(0, 0, a.cols, a.rows)));
+  cv::dft(padded, f, 0, a.rows);
+  return f;
+}
+
+// The same through three correlations computed with DFTs (issue #16): OpenCV's masked
+// matchTemplate does more of them, one forward transform per correlation. `m` is the mask as
+// 0 / 1 floats (n of them set), `mspec` its spectrum at size `ds`. The template is centred on its
+// masked mean (the numerator is then one correlation, without cancellation) and the region on
+// its own mean (the NCC does not change; the sums' rounding shrinks). A window whose variance is
+// below the transforms' rounding (1e-6 of the region's energy) is flat: -1, as OpenCV's NaN.
+double maxNccSpectral(const cv::Mat& r, const cv::Mat& t, const cv::Mat& m, const cv::Mat& mspec,
+                      double n, const cv::Size& ds) {
+  const int w = r.cols - t.cols + 1, h = r.rows - t.rows + 1;
+  const double tmean = cv::sum(t.mul(m))[0] / n;
+  const cv::Mat tc = (t - tmean).mul(m);
+  const double tvar = cv::sum(tc.mul(tc))[0];
+  if (n < 2 || !(tvar > 0)) return -1.0;
+  const cv::Mat rc = r - cv::mean(r)[0];
+  const cv::Mat rc2 = rc.mul(rc);
+  const double floor = 1e-6 * cv::sum(rc2)[0];
+  const auto correlate = [&](const cv::Mat& a, const cv::Mat& b) {
+    cv::Mat prod, out;
+    cv::mulSpectrums(a, b, prod, 0, true);
+    cv::dft(prod, out, cv::DFT_INVERSE | cv::DFT_SCALE | cv::DFT_REAL_OUTPUT, h);
+    return out;
+  };
+  const cv::Mat rs = paddedSpectrum(rc, ds), r2s = paddedSpectrum(rc2, ds);
+  const cv::Mat num = correlate(rs, paddedSpectrum(tc, ds)), sr = correlate(rs, mspec),
+                srr = correlate(r2s, mspec);
+  double best = -1.0;
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      const double s1 = sr.at<float>(y, x), s2 = srr.at<float>(y, x);
+      const double rvar = s2 - s1 * s1 / n;
+      if (!(rvar > floor) || !(rvar > 1e-12 * n)) continue;  // flat window
+      best = std::max(best, num.at<float>(y, x) / std::sqrt(tvar * rvar));
+    }
+  return best;
+}
+
 }  // namespace
 
 double colourError(const cv::Mat& tmpl, const cv::Mat& region, const cv::Mat& mask,
@@ -214,11 +258,22 @@ double colourError(const cv::Mat& tmpl, const cv::Mat& region, const cv::Mat& ma
   constexpr double kDirectWork = 60000;
   const double shifts = double(region.rows - tmpl.rows + 1) * (region.cols - tmpl.cols + 1);
   const bool direct = shifts * tmpl.rows * tmpl.cols <= kDirectWork;
+  cv::Mat m, mspec;  // the mask's spectrum, shared by the channels (maxNccSpectral)
+  double n = 0;
+  cv::Size ds;
+  if (!direct && !mask.empty()) {
+    cv::Mat(mask != 0).convertTo(m, CV_32F, 1.0 / 255);  // any value set (OpenCV's 0 / 1 too)
+    n = cv::countNonZero(mask);
+    ds = cv::Size(cv::getOptimalDFTSize(region.cols), cv::getOptimalDFTSize(region.rows));
+    mspec = paddedSpectrum(m, ds);
+  }
   double worst = 0;
   for (int c = 0; c < tmpl.channels(); ++c) {
     double hi = -1.0;
     if (direct) {
       hi = maxNccDirect(r[c], t[c], mask);
+    } else if (!mask.empty()) {
+      hi = maxNccSpectral(r[c], t[c], m, mspec, n, ds);
     } else {
       cv::matchTemplate(r[c], t[c], res, cv::TM_CCOEFF_NORMED, mask);
       cv::patchNaNs(res, -1.0);  // a flat window of the region: no correlation
