@@ -922,6 +922,8 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
   WholeObjects prev;  // the previous scan's objects moved whole, built on the first call
   bool prev_built = false;
   std::vector<uint32_t> in_prev;
+  std::optional<std::vector<WindowScan>> after;  // the scans after it, built on first use
+  const WindowScan own = s.own();
   if (!near_prev.empty()) {
     rules.has_left = [&](const std::vector<uint32_t>& idx) {
       // That object: half of its points in the voxels of one object the previous scan moved
@@ -954,14 +956,13 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
       // than half of the window's later scans (the sequence's last ones, a dropout) cannot show
       // that: a vehicle in stop-and-go traffic (0.5-1 m/s) moves less than a voxel and the beam
       // model's margin in half a window (0.5 s). It stays as the previous scan had it.
-      const std::vector<WindowScan> after = windowAround(pos, true);
-      if (2 * after.size() < k_ / stride_) return true;
-      const WindowScan own = s.own();
+      if (!after) after = windowAround(pos, true);
+      if (2 * after->size() < k_ / stride_) return true;
       int left = 0;
       for (uint32_t i : idx) {
         if (!w.moving[i]) continue;
         const uint8_t edges = test_.edgesOf(s.scan.points[i].xyz(), own);
-        left += test_.isMoving(w.world[i], after, nullptr, edges);
+        left += test_.isMoving(w.world[i], *after, nullptr, edges);
         if (left >= op.min_moving) return true;
       }
       return false;
