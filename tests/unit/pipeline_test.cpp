@@ -9,6 +9,7 @@
 
 #include "cleanmap/core/duplicate_filter.h"
 #include "cleanmap/core/error.h"
+#include "cleanmap/core/grazing.h"
 #include "cleanmap/core/moving_test.h"
 #include "cleanmap/core/octree_sampling.h"
 #include "cleanmap/pipeline/laser_pipeline.h"
@@ -643,6 +644,92 @@ TEST(MovingTest, BeamsPassingOverAnEdgeDoNotVote) {
   const WindowScan vacated{&idx_gone, Eigen::Isometry3d::Identity(), 0.0, 2.0 * kDeg};
   EXPECT_TRUE(t.isMoving(P, {vacated}, nullptr, kTopEdge));
   EXPECT_FALSE(t.isMoving(P, {vacated}, nullptr, kTopEdge | kBottomEdge));  // no beam left
+}
+
+namespace {
+
+// A dense lidar at the origin (rings 0.2 degrees apart from -3 to +2 degrees, columns every 0.1
+// degree within +-4 degrees) before a wall at x = 20; with `roof`, a car's roof 0.25 m under the
+// sensor (x 8 .. 12, |y| <= 0.9) and its front face at x = 8 below it.
+std::vector<PointXYZI> roofAhead(bool roof) {
+  std::vector<PointXYZI> pts;
+  for (int ie = -15; ie <= 10; ++ie)
+    for (int ia = -40; ia <= 40; ++ia) {
+      const double el = ie * 0.2 * M_PI / 180, az = ia * 0.1 * M_PI / 180;
+      const Eigen::Vector3d d(std::cos(el) * std::cos(az), std::cos(el) * std::sin(az),
+                              std::sin(el));
+      double t = 20 / d.x();
+      if (roof && d.z() < 0) {
+        const double top = -0.25 / d.z(), front = 8 / d.x();
+        const Eigen::Vector3d q = top * d;
+        if (q.x() >= 8 && q.x() <= 12 && std::abs(q.y()) <= 0.9)
+          t = top;
+        else if (d.z() * front <= -0.25 && std::abs(front * d.y()) <= 0.9)
+          t = front;
+      }
+      const Eigen::Vector3d q = t * d;
+      pts.push_back({float(q.x()), float(q.y()), float(q.z()), 0.f});
+    }
+  return pts;
+}
+
+}  // namespace
+
+TEST(MovingTest, BeamsGrazingAFlatSurfaceDoNotVoteEmpty) {
+  // DESIGN §2b, grazing beams. P lies on a parked car's roof 0.25 m under the sensor (a point
+  // another scan returned from, on a flat surface there: kFlatSurface). This scan's rings just
+  // above P pass within centimetres over the roof to the wall, or meet the roof 0.4 m beyond P:
+  // empty votes at P, though the roof is there (the next rings down return from it before P).
+  // Those beams run within static_map.margin of a flat surface of their own scan
+  // (GrazingStretches, the stretches the clean map's free space skips): with them the scan votes
+  // nothing. With the roof gone (the car left) no surface is returned there and the scan still
+  // votes empty; a point not on a flat surface of its own scan (a car's side) keeps every vote.
+  const DsParams p;
+  const MovingTest t(p);
+  const MapParams m;
+  const Eigen::Vector3d P(11.5, 0.1, -0.25);
+  const auto index = [&](const std::vector<PointXYZI>& pts, bool graze) {
+    std::vector<float> azimuth(pts.size());
+    for (std::size_t n = 0; n < pts.size(); ++n) azimuth[n] = std::atan2(pts[n].y, pts[n].x);
+    GrazingStretches g;
+    g.compute(pts, Eigen::Matrix3f::Identity(), azimuth, m.flat_slope, m.margin, m.graze_reach);
+    return BeamIndex(pts, t.searchRadius(), BeamIndex::Binning::kFast, graze ? &g : nullptr);
+  };
+  const auto parked = roofAhead(true), left = roofAhead(false);
+  const BeamIndex plain = index(parked, false), grazed = index(parked, true);
+  ASSERT_EQ(grazed.grazing().size(), grazed.size());
+  EXPECT_TRUE(plain.grazing().empty());
+  const auto vote = [&](const MovingTest& test, const BeamIndex& idx, uint8_t edges) {
+    double d = 0;
+    return test.scanMass(P, {&idx, Eigen::Isometry3d::Identity()}, &d, nullptr, edges).e;
+  };
+  const std::vector<WindowScan> w_grazed = {{&grazed, Eigen::Isometry3d::Identity()}};
+  EXPECT_GT(vote(t, plain, kFlatSurface), 0.5);  // the false alarm without the stretches
+  EXPECT_GT(vote(t, grazed, 0), 0.5);            // ... or with P not on a flat surface
+  EXPECT_LT(vote(t, grazed, kFlatSurface), 0.05);
+  EXPECT_TRUE(t.isMoving(P, w_grazed, nullptr));
+  EXPECT_FALSE(t.isMoving(P, w_grazed, nullptr, kFlatSurface));
+  // The car gone: every ring passes P to the wall; the stretches change nothing.
+  const BeamIndex gone = index(left, true);
+  EXPECT_GT(vote(t, gone, kFlatSurface), 0.5);
+  EXPECT_TRUE(t.isMoving(P, {{&gone, Eigen::Isometry3d::Identity()}}, nullptr, kFlatSurface));
+  // The reference beam math applies the stretches too.
+  const MovingTest ref(p, BeamMath::kReference);
+  EXPECT_LT(vote(ref, grazed, kFlatSurface), 0.05);
+  EXPECT_GT(vote(ref, plain, kFlatSurface), 0.5);
+  // The roof's own returns lie on a flat surface, the wall's beyond it do not all.
+  GrazingStretches g;
+  std::vector<float> azimuth(parked.size());
+  for (std::size_t n = 0; n < parked.size(); ++n) azimuth[n] = std::atan2(parked[n].y, parked[n].x);
+  g.compute(parked, Eigen::Matrix3f::Identity(), azimuth, m.flat_slope, m.margin, m.graze_reach);
+  std::size_t roof_flat = 0, roof = 0;
+  for (std::size_t n = 0; n < parked.size(); ++n)
+    if (std::abs(parked[n].z + 0.25f) < 1e-3f && parked[n].x > 8.5f) {
+      ++roof;
+      roof_flat += g.flat(n);
+    }
+  EXPECT_GT(roof, 100u);
+  EXPECT_EQ(roof_flat, roof);
 }
 
 namespace {

@@ -13,14 +13,19 @@ int BeamIndex::azBin(double az) const {
   return std::clamp(a, 0, n_az_ - 1);
 }
 
-BeamIndex::BeamIndex(const std::vector<PointXYZI>& points, double bin, Binning binning)
+BeamIndex::BeamIndex(const std::vector<PointXYZI>& points, double bin, Binning binning,
+                     const GrazingStretches* grazing)
     : bin_(bin) {
   n_az_ = std::max(1, static_cast<int>(std::ceil(2.0 * M_PI / bin_)));
   bin_ = 2.0 * M_PI / n_az_;  // an integral number of azimuth bins
   // The returns' unit directions (the bins are theirs), then the beams packed (PackedBeam).
   std::vector<float> dx, dy, dz, ranges;  // one array per axis (vector loads)
   for (auto* v : {&dx, &dy, &dz, &ranges}) v->reserve(points.size());
-  for (const auto& p : points) {
+  const bool graze = grazing && grazing->from().size() == points.size();
+  std::vector<uint32_t> graze_of;  // per beam, its stretch packed (grazing())
+  if (graze) graze_of.reserve(points.size());
+  for (std::size_t k = 0; k < points.size(); ++k) {
+    const auto& p = points[k];
     const Eigen::Vector3f v(p.x, p.y, p.z);
     const float r = v.norm();
     if (!(r > 1e-3f) || !std::isfinite(r)) continue;  // no direction
@@ -30,8 +35,22 @@ BeamIndex::BeamIndex(const std::vector<PointXYZI>& points, double bin, Binning b
     dz.push_back(u.z());
     ranges.push_back(r);
     farthest_ = std::max(farthest_, r);
+    if (graze) graze_of.push_back(k);  // the point, packed below once the unit is known
   }
   while (farthest_ / range_unit_ > 65535.0f) range_unit_ *= 2.0f;
+  if (graze) {
+    // The stretch widened outwards to whole range units (from floored, to ceiled); none: 0xFFFF, 0.
+    const float inv_unit = 1.0f / range_unit_;
+    for (uint32_t& g : graze_of) {
+      const float a = grazing->from()[g], b = grazing->to()[g];
+      uint32_t lo = 0xFFFFu, hi = 0u;
+      if (b >= a && b > 0.0f) {
+        lo = static_cast<uint32_t>(std::clamp(std::floor(a * inv_unit), 0.0f, 65535.0f));
+        hi = static_cast<uint32_t>(std::clamp(std::ceil(b * inv_unit), 0.0f, 65535.0f));
+      }
+      g = lo | hi << 16;
+    }
+  }
   std::vector<PackedBeam> beams(ranges.size());
   {
     // Round to nearest (the magnitudes are below 2^16, where adding and subtracting 1.5 * 2^23
@@ -98,7 +117,12 @@ BeamIndex::BeamIndex(const std::vector<PointXYZI>& points, double bin, Binning b
   for (std::size_t b = 0; b < nbins; ++b) offsets_[b + 1] += offsets_[b];
   beams_.resize(n);
   std::vector<uint32_t> fill(offsets_.begin(), offsets_.end() - 1);
-  for (std::size_t i = 0; i < n; ++i) beams_[fill[bin_of[i]]++] = beams[i];
+  if (graze) graze_.resize(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const uint32_t at = fill[bin_of[i]]++;
+    beams_[at] = beams[i];
+    if (graze) graze_[at] = graze_of[i];
+  }
 }
 
 }  // namespace cleanmap

@@ -51,12 +51,12 @@ std::vector<uint32_t> MovingTest::testOrder(const std::vector<Eigen::Vector3f>& 
 }
 
 ds::Mass MovingTest::scanMass(const Eigen::Vector3d& p_world, const WindowScan& s, double* range_p,
-                              MovingTestStats* stats) const {
+                              MovingTestStats* stats, uint8_t edges) const {
   const Eigen::Vector3d pl = s.world_to_sensor * p_world;
   const double d = pl.norm();
   if (range_p) *range_p = d;
   if (d < 1e-3 || !s.beams) return ds::Mass{};
-  return scanMassAt(pl, d, s, stats);
+  return scanMassAt(pl, d, s, stats, edges);
 }
 
 namespace {
@@ -165,6 +165,8 @@ ds::Mass MovingTest::scanMassAt(const Eigen::Vector3d& pl, double d, const Windo
   // Issue #15: on an edge's open side (edgesOf) a beam passing P may pass over the edge; such
   // beams are left out.
   Eigen::Vector3f east_e, up_e;
+  const bool on_flat = (edges & kFlatSurface) != 0;
+  edges &= kTopEdge | kBottomEdge;
   if (edges && !acrossAxes(dir, east_e, up_e)) edges = 0;
   const bool drop_above = (edges & kTopEdge) != 0, drop_below = (edges & kBottomEdge) != 0;
   auto open_side = [&](const Eigen::Vector3f& q_dir) {
@@ -203,6 +205,19 @@ ds::Mass MovingTest::scanMassAt(const Eigen::Vector3d& pl, double d, const Windo
     beams += static_cast<std::size_t>(n);
     n = 0;
   };
+  // DESIGN §2b, grazing beams: where P lies on a flat surface of its own scan (kFlatSurface), a
+  // beam that passes P (r < -band) within the stretch where it runs within margin of a flat
+  // surface of its own scan (GrazingStretches) votes nothing: it may pass over or meet, at a
+  // grazing angle, the surface P lies on, as the clean map's free space (§2e) has it.
+  const BeamIndex& index = *s.beams;
+  const uint32_t* graze = on_flat && !index.grazing().empty() ? index.grazing().data() : nullptr;
+  const float inv_unit = 1.0f / index.rangeUnit();
+  auto grazes = [&](const BeamIndex::PackedBeam* q, float r) {
+    if (!graze || !(r < -band)) return false;
+    const uint32_t g = graze[q - index.beams().data()];
+    const float t = r * inv_unit + static_cast<float>(q->range);  // |OP'|, in range units
+    return t >= static_cast<float>(g & 0xFFFFu) && t <= static_cast<float>(g >> 16);
+  };
   // A beam's angle to P (theta^2) and r = |OP'| - |OQ| (the scalar expressions; filterBeams has
   // the same bits). Small angles: theta = |a x b| to float precision (a dot product would lose
   // it); theta2 <= 1, so the root is real for every beam.
@@ -210,14 +225,14 @@ ds::Mass MovingTest::scanMassAt(const Eigen::Vector3d& pl, double d, const Windo
     theta2 = dir.cross(q.dir).squaredNorm();
     r = df * std::sqrt(1.0f - theta2) - q.range;
   };
-  auto filter = [&](const BeamIndex::Beam& q) {
+  auto filter = [&](const BeamIndex::Beam& q, const BeamIndex::PackedBeam* packed) {
     float theta2, r;
     geometry(q, theta2, r);
     // In the cone, in front of the sensor, and not far behind the hit (there a beam is unknown,
     // the identity of Dempster's rule). About half the beams of the bins pass, unpredictably:
     // each is written and kept by a count, not a branch.
-    const bool keep =
-        (theta2 <= r2max) & (dir.dot(q.dir) > 0.0f) & (r <= r_far) & !(edges && open_side(q.dir));
+    const bool keep = (theta2 <= r2max) & (dir.dot(q.dir) > 0.0f) & (r <= r_far) &
+                      !(edges && open_side(q.dir)) & !grazes(packed, r);
     r_b[n] = r;
     t2_b[n] = theta2;
     n += keep;
@@ -229,7 +244,6 @@ ds::Mass MovingTest::scanMassAt(const Eigen::Vector3d& pl, double d, const Windo
     constexpr int kRun = 32;
     alignas(64) float r_run[kRun], t2_run[kRun];
     alignas(64) int32_t keep_run[kRun];
-    const BeamIndex& index = *s.beams;
     index.forEachRunNear(
         dir, radius, [&](const BeamIndex::PackedBeam* q, const BeamIndex::PackedBeam* last) {
           while (q < last) {
@@ -239,6 +253,8 @@ ds::Mass MovingTest::scanMassAt(const Eigen::Vector3d& pl, double d, const Windo
             if (edges)
               for (int k = 0; k < run; ++k)
                 keep_run[k] &= open_side(index.decode(q[k]).dir) ? 0 : 1;
+            if (graze)
+              for (int k = 0; k < run; ++k) keep_run[k] &= grazes(q + k, r_run[k]) ? 0 : 1;
             for (int k = 0; k < run; ++k) {
               r_b[n] = r_run[k];
               t2_b[n] = t2_run[k];
@@ -249,7 +265,11 @@ ds::Mass MovingTest::scanMassAt(const Eigen::Vector3d& pl, double d, const Windo
           }
         });
   } else {
-    s.beams->forEachNear(dir, radius, filter);
+    const BeamIndex& index = *s.beams;
+    index.forEachRunNear(dir, radius,
+                         [&](const BeamIndex::PackedBeam* q, const BeamIndex::PackedBeam* last) {
+                           for (; q != last; ++q) filter(index.decode(*q), q);
+                         });
   }
   if (n > 0) flush();
   const double norm = qe + qo - qu;

@@ -112,6 +112,8 @@ std::map<std::string, Key> table(PipelineParams& p) {
       {"ds.scan_conflict", d(p.ds.scan_conflict)},
       {"ds.ring_vote", Key{[&p](double v) { p.ds.ring_vote = v != 0; },
                            [&p] { return p.ds.ring_vote ? 1.0 : 0.0; }, true}},
+      {"ds.grazing", Key{[&p](double v) { p.ds.grazing = v != 0; },
+                         [&p] { return p.ds.grazing ? 1.0 : 0.0; }, true}},
       {"octree.leaf", d(p.octree.leaf)},
       {"octree.tau_np", i(p.octree.tau_np)},
       {"octree.fraction", d(p.octree.fraction)},

@@ -38,6 +38,7 @@ struct LaserPipeline::Prepared {
   std::vector<uint8_t> ground;     // DESIGN §2a, within the crop and the map radius
   std::vector<uint8_t> far;        // beyond the crop, within the map radius (DESIGN §2e)
   std::vector<uint8_t> candidate;  // in the crop and not ground: what the stages decide
+  std::vector<uint8_t> flat;       // kFlatSurface where on a flat surface (DESIGN §2b); or empty
   double ground_measured = std::numeric_limits<double>::quiet_NaN();  // estimateGroundHeight
   double ground_z = 0;  // h_G below the sensor used for this scan (DESIGN §2a)
   double density = 1;   // returns per solid angle relative to the HDL-64E (DESIGN §2d)
@@ -435,7 +436,19 @@ std::unique_ptr<LaserPipeline::Prepared> LaserPipeline::prepare(Registered&& r,
 
   auto t0 = Clock::now();
   // Every valid point is a beam (ground and far points included, DESIGN §2.4).
-  s->beams = BeamIndex(s->scan.points, test_.searchRadius());
+  // DESIGN §2b, grazing beams: each beam keeps where it grazes a flat surface of this scan.
+  if (p_.ds.grazing && p_.map.flat_slope > 0) {
+    const auto& pts = s->scan.points;
+    std::vector<float> azimuth(pts.size());
+    for (std::size_t n = 0; n < pts.size(); ++n) azimuth[n] = fast::atan2(pts[n].y, pts[n].x);
+    graze_.compute(pts, s->scan.pose.linear().cast<float>(), azimuth, p_.map.flat_slope,
+                   p_.map.margin, p_.map.graze_reach);
+    s->beams = BeamIndex(pts, test_.searchRadius(), BeamIndex::Binning::kFast, &graze_);
+    s->flat.resize(pts.size());
+    for (std::size_t n = 0; n < pts.size(); ++n) s->flat[n] = graze_.flat(n) ? kFlatSurface : 0;
+  } else {
+    s->beams = BeamIndex(s->scan.points, test_.searchRadius());
+  }
   st.ms.index = msSince(t0);
 
   t0 = Clock::now();
@@ -740,13 +753,21 @@ void LaserPipeline::decideReady(std::size_t future) {
 // beams and pose; its points and per-point masks go once its free-space insertion is done (a
 // 30-scan run holds nearly every scan at once: peak RSS 13-18 MiB less, doc/BENCHMARK.md). The
 // newest scan keeps its points: the next scan's camera link reads them (linkToPrevious).
+// MovingTest's EdgeBits of point i of s: its surface's edges (sparse lidars) and whether it lies
+// on a flat surface (grazing beams, DESIGN §2b).
+uint8_t LaserPipeline::edgeBits(const Prepared& s, uint32_t i, const WindowScan& own) const {
+  return static_cast<uint8_t>(test_.edgesOf(s.scan.points[i].xyz(), own) |
+                              (s.flat.empty() ? 0 : s.flat[i]));
+}
+
 void LaserPipeline::releasePoints() {
   for (std::size_t j = 0; j + 1 < buf_.size() && j < next_; ++j) {
     Prepared& s = *buf_[j];
     if (s.points_released) continue;
     if (free_queue_ && !free_queue_->doneThrough(static_cast<long>(s.index))) break;
     s.points_released = true;
-    for (auto* v : {&s.in_crop, &s.ground, &s.far, &s.candidate}) std::vector<uint8_t>().swap(*v);
+    for (auto* v : {&s.in_crop, &s.ground, &s.far, &s.candidate, &s.flat})
+      std::vector<uint8_t>().swap(*v);
     std::vector<PointXYZI>().swap(s.scan.points);
     std::vector<uint32_t>().swap(s.scan.original_index);
   }
@@ -871,8 +892,8 @@ void LaserPipeline::classify(const std::vector<WindowScan>& window, Prepared& s,
         const uint32_t l = w.tested_leaf[order[t]];
         auto& stats = acc[static_cast<std::size_t>(worker)];
         w.leaf_moving[l] = decideLeaf(w.leaves[l], [&](uint32_t c) {
-          const uint8_t edges = test_.edgesOf(s.scan.points[w.cand[c]].xyz(), own);
-          return test_.isMoving(w.cand_world[c], window, &stats, edges);
+          const uint32_t i = w.cand[c];
+          return test_.isMoving(w.cand_world[c], window, &stats, edgeBits(s, i, own));
         });
       },
       128);  // leaves differ in work: smaller chunks balance the threads
@@ -961,8 +982,7 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
       int left = 0;
       for (uint32_t i : idx) {
         if (!w.moving[i]) continue;
-        const uint8_t edges = test_.edgesOf(s.scan.points[i].xyz(), own);
-        left += test_.isMoving(w.world[i], *after, nullptr, edges);
+        left += test_.isMoving(w.world[i], *after, nullptr, edgeBits(s, i, own));
         if (left >= op.min_moving) return true;
       }
       return false;

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "cleanmap/core/fast_math.h"
+#include "cleanmap/core/grazing.h"
 #include "cleanmap/core/types.h"
 
 namespace cleanmap {
@@ -48,8 +49,10 @@ class BeamIndex {
 
   BeamIndex() = default;
   /// Indexes every point of the scan (ground and far points included: they are beams too).
-  /// `bin` is the angular bin size in rad (use the search radius).
-  BeamIndex(const std::vector<PointXYZI>& points, double bin, Binning binning = Binning::kFast);
+  /// `bin` is the angular bin size in rad (use the search radius). With `grazing` (computed for
+  /// these points), each beam keeps the stretch where it grazes a flat surface (grazing()).
+  BeamIndex(const std::vector<PointXYZI>& points, double bin, Binning binning = Binning::kFast,
+            const GrazingStretches* grazing = nullptr);
 
   /// Calls f(const Beam&) for every beam whose bin could lie within `radius` rad of `dir`
   /// (unit, sensor frame); f filters by the exact angle. Any radius (a wider one spans more
@@ -74,6 +77,10 @@ class BeamIndex {
   bool empty() const { return beams_.empty(); }
   const std::vector<PackedBeam>& beams() const { return beams_; }  ///< sorted by bin
   float rangeUnit() const { return range_unit_; }                  ///< m per PackedBeam::range
+  /// Per beam (parallel to beams()), the stretch along it that grazes a flat surface
+  /// (GrazingStretches, DESIGN §2b), in rangeUnit() steps: from in the low 16 bits, to in the
+  /// high ones (from 0xFFFF, to 0: none). Empty where the index was built without it.
+  const std::vector<uint32_t>& grazing() const { return graze_; }
   Beam decode(const PackedBeam& q) const {
     return {Eigen::Vector3f(q.x * kDirUnit, q.y * kDirUnit, q.z * kDirUnit),
             static_cast<float>(q.range) * range_unit_};
@@ -93,6 +100,7 @@ class BeamIndex {
   float range_unit_ = 1.0f / 512.0f;
   std::vector<PackedBeam> beams_;  // sorted by bin
   std::vector<uint32_t> offsets_;  // CSR over the bins, azimuth-major (offsets())
+  std::vector<uint32_t> graze_;    // parallel to beams_ (grazing())
 };
 
 template <class F>

@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "cleanmap/core/cell_map.h"
+#include "cleanmap/core/grazing.h"
 #include "cleanmap/core/params.h"
 #include "cleanmap/core/types.h"
 
@@ -123,15 +124,7 @@ class FreeSpaceMap {
   std::array<Recent, 1024> recent_{};
   Block& recentBlock(uint64_t key, int64_t scan);
   std::size_t marked_ = 0;
-  // Grazing beams (grazing(), per scan): the returns' cells of azimuth x elevation, each return's
-  // cell, lower neighbour, rise to it where flat, horizontal range and height from the sensor
-  // (world frame), and the stretch of its beam that marks nothing.
-  void grazing(const std::vector<PointXYZI>& points, const Eigen::Isometry3d& pose,
-               const std::vector<float>& azimuth);
-  std::vector<uint32_t> grid_;
-  std::vector<int> cell_, flat_below_;
-  std::vector<uint32_t> lower_;
-  std::vector<float> slope_, rho_, zw_, skip_a_, skip_b_;
+  GrazingStretches grazing_;  // grazing beams, per scan (DESIGN §2e)
   double bin_min_ = std::numeric_limits<double>::infinity(), bin_max_ = 0;
   // The sub-blocks, in chunks that never move (blocks point into them); freed with the map.
   std::vector<std::unique_ptr<SubBlock[]>> pool_;

@@ -46,8 +46,10 @@ enum class BeamMath { kFast, kReference };
 
 /// Where P's own scan shows the surface ending at P (issue #15, sparse lidars): the ring just
 /// above P's direction returns nowhere near P's range (kTopEdge), or the ring just below returns
-/// nowhere near it (kBottomEdge). MovingTest::edgesOf.
-enum EdgeBits : uint8_t { kTopEdge = 1, kBottomEdge = 2 };
+/// nowhere near it (kBottomEdge). MovingTest::edgesOf. kFlatSurface: P lies on a flat surface of
+/// its own scan (GrazingStretches::flat): a window scan's beam that grazes a flat surface of its
+/// own where it passes P does not vote (DESIGN §2b, grazing beams).
+enum EdgeBits : uint8_t { kTopEdge = 1, kBottomEdge = 2, kFlatSurface = 4 };
 
 class MovingTest {
  public:
@@ -56,8 +58,9 @@ class MovingTest {
   /// m(P, S_i) = (+)_Q m'(P, Q) over the beams of S_i within search radius of O_i->P (Eq. 6);
   /// unknown where that is empty but the scan's own beams conflict (DsParams::scan_conflict).
   /// A sparse scan with no beam near P may vote through its rings around P (DsParams::ring_vote).
+  /// `edges`: P's EdgeBits, as isMoving's.
   ds::Mass scanMass(const Eigen::Vector3d& p_world, const WindowScan& s, double* range_p,
-                    MovingTestStats* stats) const;
+                    MovingTestStats* stats, uint8_t edges = 0) const;
   /// Window decision: Dempster combination (Eq. 6) of the discretised scan masses (Eq. 8-10).
   ds::Mass windowMass(const Eigen::Vector3d& p_world, const std::vector<WindowScan>& window,
                       MovingTestStats* stats) const;

@@ -89,6 +89,10 @@ struct DsParams {
   /// in P's cone, the rings just above and below P vote empty if both pass well beyond P and no
   /// return of the scan lies near P (MovingTest::ringVote). false = such scans stay unknown.
   bool ring_vote = true;
+  /// Our addition (DESIGN §2b, "Grazing beams"): a window scan's beam that passes P where it runs
+  /// within static_map.margin of a flat surface of its own scan (static_map.flat_slope,
+  /// graze_reach: the stretches the clean map's free space skips, §2e) votes nothing.
+  bool grazing = true;
 };
 
 /// DESIGN §2c: octree leaf sampling.

@@ -14,6 +14,7 @@
 #include "cleanmap/core/duplicate_filter.h"
 #include "cleanmap/core/frame.h"
 #include "cleanmap/core/free_space.h"
+#include "cleanmap/core/grazing.h"
 #include "cleanmap/core/moving_test.h"
 #include "cleanmap/core/params.h"
 #include "cleanmap/core/scan_result.h"
@@ -94,6 +95,7 @@ class LaserPipeline {
   };
   struct RegQueue;  // one registration at a time on a thread of its own (registerAhead)
   std::unique_ptr<Prepared> prepare(Registered&& r, bool registered_beside);
+  uint8_t edgeBits(const Prepared& s, uint32_t i, const WindowScan& own) const;
   double groundBelowSensor(Prepared& s, const std::vector<PointXYZI>& levelled) const;
   PoseSource resolveSource(const Frame& f);
   void registerScan(Registered& r);
@@ -133,6 +135,7 @@ class LaserPipeline {
   double rate_hz_ = 0;          // the scan rate it was resolved from
   std::vector<double> stamps_;  // the first pushed scans' timestamps, until k_ is resolved
   MovingTest test_;
+  GrazingStretches graze_;  // scratch of prepare(): the stretches its beam index keeps
   DuplicateFilter dup_;
   std::deque<std::unique_ptr<Prepared>> buf_;  // scans k-K .. k+K around the next to decide
   std::size_t next_ = 0;                       // position in buf_ of the next scan to decide

@@ -1,0 +1,41 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// DESIGN §2e, grazing beams: per return of a scan, the stretch of its beam that runs within
+// `margin` of a flat surface (the road, a sidewalk, a roof), found from that scan alone. The
+// clean map's free space marks nothing there; the moving-point test's beams vote nothing there
+// (DESIGN §2b, "Grazing beams").
+#pragma once
+#include <Eigen/Core>
+#include <cmath>
+#include <cstdint>
+#include <vector>
+
+#include "cleanmap/core/types.h"
+
+namespace cleanmap {
+
+class GrazingStretches {
+ public:
+  /// `points` in the sensor frame, `R` the sensor-to-world rotation (the world's z is up),
+  /// `azimuth` per point (fast::atan2(y, x)). flat_slope: the largest rise of a flat surface;
+  /// margin: how near the surface a beam runs; reach: how far beyond its last return a surface a
+  /// beam passes over is taken to go on (all as MapParams).
+  void compute(const std::vector<PointXYZI>& points, const Eigen::Matrix3f& R,
+               const std::vector<float>& azimuth, double flat_slope, double margin, double reach);
+  /// Per point, metres along its beam from the sensor: the stretch [from, to] that grazes a flat
+  /// surface; to < from where there is none.
+  const std::vector<float>& from() const { return skip_a_; }
+  const std::vector<float>& to() const { return skip_b_; }
+  /// Whether point n lies on a flat surface (its rise from its lower neighbour in its column is
+  /// at most flat_slope).
+  bool flat(std::size_t n) const { return n < slope_.size() && !std::isnan(slope_[n]); }
+
+ private:
+  // The returns' cells of azimuth x elevation, each return's cell, lower neighbour, rise to it
+  // where flat, horizontal range and height from the sensor (world frame); kept between scans.
+  std::vector<uint32_t> grid_;
+  std::vector<int> cell_, flat_below_;
+  std::vector<uint32_t> lower_;
+  std::vector<float> slope_, rho_, zw_, skip_a_, skip_b_;
+};
+
+}  // namespace cleanmap

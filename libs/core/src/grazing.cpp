@@ -1,0 +1,106 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#include "cleanmap/core/grazing.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace cleanmap {
+
+// DESIGN §2e, grazing beams. The returns of a scan in columns of azimuth (0.69 degrees; `azimuth`
+// per return) and bands of elevation (0.1 degree, a ring or less); a return's lower neighbour is
+// the nearest below it in its column. A return lies on a flat surface where its rise from its lower
+// neighbour, over their horizontal distance (world frame), is at most flat_slope: the road, a
+// sidewalk, a roof. A beam that meets such a surface at a grazing angle runs within `margin` of
+// it (across it) for margin / k of horizontal distance, k its slope against the surface's, and
+// crosses the voxels that hold the surface there; so does a beam that passes just over one.
+// skip_a_ / skip_b_ (metres along the beam) bound the stretch where it marks nothing: for a beam
+// ending on a flat surface, from where it comes within margin of it (not before its lower
+// neighbour, or that one's where those two are flat too) to its end; for one passing within
+// margin over a flat return below it in its column (the nearest it passes so), the stretch within
+// margin of that surface's plane, from the return's lower neighbour to graze_reach beyond the
+// return (how far the surface goes on is not seen).
+void GrazingStretches::compute(const std::vector<PointXYZI>& points, const Eigen::Matrix3f& R,
+                               const std::vector<float>& azimuth, double flat_slope,
+                               double margin_m, double reach_m) {
+  constexpr float kAzBin = 0.012f;    // rad
+  constexpr float kElBand = 0.0017f;  // of the elevation's tangent: 0.1 degree near the horizon
+  constexpr float kElLow = -1.f;      // tangents -1 to +0.27: -45 to +15 degrees
+  constexpr int kElBands = 747, kMaxDown = 45;  // 4.4 degrees down near the horizon
+  const int naz = static_cast<int>(std::ceil(2 * M_PI / kAzBin));
+  const std::size_t np = points.size();
+  grid_.assign(static_cast<std::size_t>(naz) * kElBands, UINT32_MAX);
+  cell_.assign(np, -1);
+  rho_.resize(np);
+  zw_.resize(np);
+  for (std::size_t n = 0; n < np; ++n) {
+    const auto& q = points[n];
+    const float rh = std::sqrt(q.x * q.x + q.y * q.y);
+    const Eigen::Vector3f w = R * q.xyz();  // from the sensor, world axes
+    rho_[n] = w.head<2>().norm();
+    zw_[n] = w.z();
+    if (!(rh > 0)) continue;
+    const int az = std::clamp(static_cast<int>((azimuth[n] + float(M_PI)) / kAzBin), 0, naz - 1);
+    const int el = static_cast<int>(std::floor((q.z / rh - kElLow) / kElBand));
+    if (el < 0 || el >= kElBands) continue;
+    cell_[n] = az * kElBands + el;
+    grid_[static_cast<std::size_t>(cell_[n])] = static_cast<uint32_t>(n);
+  }
+  lower_.assign(np, UINT32_MAX);
+  slope_.assign(np, std::numeric_limits<float>::quiet_NaN());
+  const auto flat = [&](uint32_t n) { return n != UINT32_MAX && !std::isnan(slope_[n]); };
+  for (std::size_t n = 0; n < np; ++n) {
+    if (cell_[n] < 0) continue;
+    const int el = cell_[n] % kElBands;
+    for (int e = el - 1; e >= std::max(0, el - kMaxDown) && lower_[n] == UINT32_MAX; --e)
+      lower_[n] = grid_[static_cast<std::size_t>(cell_[n] - (el - e))];
+    const uint32_t l = lower_[n];
+    if (l == UINT32_MAX || !(rho_[n] > rho_[l] + 1e-3f)) continue;
+    const float rise = (zw_[n] - zw_[l]) / (rho_[n] - rho_[l]);
+    if (std::abs(rise) <= flat_slope) slope_[n] = rise;
+  }
+  // Per cell: the nearest cell at or below it in its column holding a flat return (-1: none).
+  flat_below_.resize(grid_.size());
+  for (int col = 0; col < naz; ++col) {
+    int last = -1;
+    for (int el = 0; el < kElBands; ++el) {
+      const int c = col * kElBands + el;
+      if (flat(grid_[static_cast<std::size_t>(c)])) last = c;
+      flat_below_[static_cast<std::size_t>(c)] = last;
+    }
+  }
+  skip_a_.assign(np, 0.f);
+  skip_b_.assign(np, -1.f);
+  const float m = static_cast<float>(margin_m), reach = static_cast<float>(reach_m);
+  for (std::size_t n = 0; n < np; ++n) {
+    if (cell_[n] < 0 || !(rho_[n] > 0)) continue;
+    const float tan_beam = zw_[n] / rho_[n];
+    const float along = points[n].xyz().norm() / rho_[n];  // metres along the beam per metre
+    const uint32_t l = lower_[n];
+    if (flat(static_cast<uint32_t>(n))) {  // it ends on the surface it shares with l
+      const float k = slope_[n] - tan_beam;
+      if (!(k > 1e-4f)) continue;
+      const float from = flat(l) ? rho_[lower_[l]] : rho_[l];
+      skip_a_[n] = std::max(from, rho_[n] - m / k) * along;
+      skip_b_[n] = (rho_[n] + m) * along;
+      continue;
+    }
+    if (reach <= 0) continue;
+    // The flat returns below it in its column, nearest first (by the flat-cell links).
+    const int el = cell_[n] % kElBands, base = cell_[n] - el;
+    const int stop = base + std::max(0, el - kMaxDown);
+    for (int c = el > 0 ? flat_below_[static_cast<std::size_t>(cell_[n] - 1)] : -1; c >= stop;
+         c = c > base ? flat_below_[static_cast<std::size_t>(c - 1)] : -1) {
+      const uint32_t f = grid_[static_cast<std::size_t>(c)];
+      if (!(rho_[f] < rho_[n])) continue;
+      const float h = tan_beam * rho_[f] - zw_[f];  // the beam's height over the return
+      const float k = slope_[f] - tan_beam;
+      if (h < 0 || h > m || !(k > 1e-4f)) continue;
+      skip_a_[n] = std::max(rho_[lower_[f]], rho_[f] + (h - m) / k) * along;
+      skip_b_[n] = std::min(rho_[f] + reach, rho_[f] + (h + m) / k) * along;
+      break;
+    }
+  }
+}
+
+}  // namespace cleanmap
