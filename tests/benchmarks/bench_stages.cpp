@@ -16,6 +16,7 @@
 #include "cleanmap/core/beam_index.h"
 #include "cleanmap/core/duplicate_filter.h"
 #include "cleanmap/core/free_space.h"
+#include "cleanmap/core/grazing.h"
 #include "cleanmap/core/ground.h"
 #include "cleanmap/core/moving_test.h"
 #include "cleanmap/core/object_consensus.h"
@@ -87,6 +88,23 @@ void BM_BeamIndex(benchmark::State& state) {
   for (auto _ : state) {
     const BeamIndex idx(in.scans[in.center].points, ds.search_lambdas * ds.lambda_theta);
     benchmark::DoNotOptimize(idx.size());
+  }
+}
+
+// DESIGN §2b, §2e: the stretches of the scan's beams that graze a flat surface (with the
+// azimuths the pipeline computes for them), once per scan beside the beam index.
+void BM_Grazing(benchmark::State& state) {
+  const auto& in = inputs();
+  const MapParams m;
+  const Scan& s = in.scans[in.center];
+  GrazingStretches g;
+  std::vector<float> azimuth(s.points.size());
+  for (auto _ : state) {
+    for (std::size_t n = 0; n < s.points.size(); ++n)
+      azimuth[n] = fast::atan2(s.points[n].y, s.points[n].x);
+    g.compute(s.points, s.pose.linear().cast<float>(), azimuth, m.flat_slope, m.margin,
+              m.graze_reach);
+    benchmark::DoNotOptimize(g.from().data());
   }
 }
 
@@ -207,6 +225,7 @@ void BM_FreeSpaceInsertKnownArea(benchmark::State& state) {
 }  // namespace
 
 BENCHMARK(BM_BeamIndex)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_Grazing)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_MovingTest)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_Ground)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_SensorChecks)->Unit(benchmark::kMillisecond);

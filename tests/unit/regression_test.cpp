@@ -166,6 +166,12 @@ MapScore cleanMapScore(const std::string& set) {
 // holds it as it was); city and residential stayed. Held through the last K / 2 scans (too few
 // after them to see a vehicle leave; no moving point of its own needed): the VW receding ahead
 // at 0.8 m/s in scans 27-29, highway recall 0.9751 -> 0.9800, precision 0.9407, IoU 0.9230.
+// Grazing beams in the windowed test (DESIGN §2b) changed every digest on purpose: at a point on
+// a flat surface of its own scan, a window scan's beam running within margin of a flat surface of
+// its own does not vote (roofs and bonnets seen edge-on); rule 4 under 10 % asks the far half of
+// the later scans with all of the object's points, and finds the previous object moved
+// (doc/OBJECTS.md). Residential precision 0.8325 -> 0.8492, highway recall 0.9800 -> 0.9795,
+// city precision 0.5800 -> 0.5801; the clean map's AA unchanged to 0.01.
 void expectDigest(const OutputDigest& d, uint64_t labels, uint64_t compact, uint64_t full,
                   uint64_t moving) {
   EXPECT_EQ(d.labels, labels) << "labels differ from the reference run";
@@ -183,12 +189,12 @@ TEST(Regression, OutputsByteIdenticalToTheReference) {
   runSet("kitti_city", &city);
   runSet("kitti_highway", &highway);
   runSet("kitti_residential", &residential);
-  expectDigest(city, 0x64a8a97fb29e466full, 0xcbf9f4050cc852d8ull, 0x820f6ed86fbf30dfull,
-               0x76518d0f0432c812ull);
-  expectDigest(highway, 0xd51523c74dd2c20full, 0x2f8d787325d7800aull, 0x0ab5f3342524698dull,
-               0xae255eb28545b471ull);
-  expectDigest(residential, 0x9473c9fa215adbf4ull, 0x204e003afed4818dull, 0xbe850e45c7c8b98cull,
-               0x224a83d2e475ca8dull);
+  expectDigest(city, 0x03824e654d1c1a0full, 0xec1461bbf558a55bull, 0xe4d5e9f87ea461dbull,
+               0xb5e46009eadf417aull);
+  expectDigest(highway, 0x0be45a3b0bc127cfull, 0xe9ff42ad15e1988cull, 0x52c75dd8b0f9e2feull,
+               0xb30aa7abab4a5e6aull);
+  expectDigest(residential, 0x4aa9828e608a32e6ull, 0xe80827ae531bd766ull, 0xcddd807662578d20ull,
+               0x0db17569b93b5a05ull);
 }
 
 TEST(Regression, City) {
