@@ -717,19 +717,69 @@ TEST(MovingTest, BeamsGrazingAFlatSurfaceDoNotVoteEmpty) {
   const MovingTest ref(p, BeamMath::kReference);
   EXPECT_LT(vote(ref, grazed, kFlatSurface), 0.05);
   EXPECT_GT(vote(ref, plain, kFlatSurface), 0.5);
-  // The roof's own returns lie on a flat surface, the wall's beyond it do not all.
+  // The roof's own returns lie on a flat surface (the pipeline's kFlatSurface: flatTop); the
+  // front face's do not, nor its lowest, whose lower neighbour is nothing near but from which
+  // the face rises (the foot of an upright surface, as a walker's shoe over the road).
   GrazingStretches g;
   std::vector<float> azimuth(parked.size());
   for (std::size_t n = 0; n < parked.size(); ++n) azimuth[n] = std::atan2(parked[n].y, parked[n].x);
   g.compute(parked, Eigen::Matrix3f::Identity(), azimuth, m.flat_slope, m.margin, m.graze_reach);
-  std::size_t roof_flat = 0, roof = 0;
-  for (std::size_t n = 0; n < parked.size(); ++n)
+  std::size_t roof_flat = 0, roof = 0, face_flat = 0, face = 0;
+  for (std::size_t n = 0; n < parked.size(); ++n) {
     if (std::abs(parked[n].z + 0.25f) < 1e-3f && parked[n].x > 8.5f) {
       ++roof;
-      roof_flat += g.flat(n);
+      roof_flat += g.flatTop(n);
+    } else if (std::abs(parked[n].x - 8.0f) < 1e-3f && parked[n].z < -0.3f) {
+      ++face;
+      face_flat += g.flatTop(n);
     }
+  }
   EXPECT_GT(roof, 100u);
   EXPECT_EQ(roof_flat, roof);
+  EXPECT_GT(face, 100u);
+  EXPECT_EQ(face_flat, 0u);
+}
+
+TEST(GrazingStretches, TheFootOfAnUprightSurfaceIsNotAFlatTop) {
+  // A leg 10 m ahead standing on a road 1 m under the sensor (rings every 0.5 degree). Its lowest
+  // return's lower neighbour is the road 0.5 m nearer, a rise of 0.08: flat by that alone, as a
+  // walker's shoe was (an HDL-32E lost the lowest 0.3 m of his legs to grazing beams). The leg
+  // rises straight above it, so it is not a flat top; the road's returns are.
+  std::vector<PointXYZI> pts;
+  for (int ie = -16; ie <= 0; ++ie)
+    for (int ia = -40; ia <= 40; ++ia) {
+      const double el = ie * 0.5 * M_PI / 180, az = ia * 0.1 * M_PI / 180;
+      const Eigen::Vector3d d(std::cos(el) * std::cos(az), std::cos(el) * std::sin(az),
+                              std::sin(el));
+      double t = 30 / d.x();                                                    // a wall
+      if (d.z() < 0) t = std::min(t, -1.0 / d.z());                             // the road
+      if (std::abs(10 / d.x() * d.y()) <= 0.3 && (10 / d.x()) * d.z() >= -1.0)  // the leg
+        t = std::min(t, 10 / d.x());
+      const Eigen::Vector3d q = t * d;
+      pts.push_back({float(q.x()), float(q.y()), float(q.z()), 0.f});
+    }
+  std::vector<float> azimuth(pts.size());
+  for (std::size_t n = 0; n < pts.size(); ++n) azimuth[n] = std::atan2(pts[n].y, pts[n].x);
+  const MapParams m;
+  GrazingStretches g;
+  g.compute(pts, Eigen::Matrix3f::Identity(), azimuth, m.flat_slope, m.margin, m.graze_reach);
+  std::size_t foot = 0, foot_flat = 0, foot_top = 0, road = 0, road_top = 0;
+  for (std::size_t n = 0; n < pts.size(); ++n) {
+    const bool on_leg = std::abs(pts[n].x - 10.f) < 1e-3f;
+    if (on_leg && pts[n].z < -0.95f) {
+      ++foot;
+      foot_flat += g.flat(n);
+      foot_top += g.flatTop(n);
+    } else if (!on_leg && std::abs(pts[n].z + 1.f) < 1e-3f && pts[n].x < 9.f && pts[n].x > 7.4f) {
+      ++road;
+      road_top += g.flatTop(n);
+    }
+  }
+  EXPECT_GT(foot, 0u);
+  EXPECT_EQ(foot_flat, foot);  // flat by its lower neighbour alone
+  EXPECT_EQ(foot_top, 0u);
+  EXPECT_GT(road, 50u);
+  EXPECT_EQ(road_top, road);
 }
 
 namespace {

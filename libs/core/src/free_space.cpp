@@ -233,7 +233,7 @@ void FreeSpaceMap::markNear(const std::array<int64_t, 6>& box, int64_t scan) {
 }
 
 void FreeSpaceMap::insertScan(const std::vector<PointXYZI>& points, const Eigen::Isometry3d& pose,
-                              int64_t scan, const std::vector<uint8_t>* moving) {
+                              int64_t scan, const std::vector<uint8_t>* moving, Stretches grazing) {
   if (moving && moving->size() != points.size())
     throw std::invalid_argument("FreeSpaceMap::insertScan: one moving flag per point needed");
   const Eigen::Vector3d o = pose.translation();
@@ -294,11 +294,13 @@ void FreeSpaceMap::insertScan(const std::vector<PointXYZI>& points, const Eigen:
                          : std::max(p_.min_range, p_.voxel / (std::ldexp(2.0, L) * spacing));
   const double inv_spacing = spacing > 0 ? 1.0 / spacing : 0.0;
   const Eigen::Matrix3d R = pose.linear();
-  if (p_.flat_slope > 0)
+  const bool given = grazing.from && grazing.to && grazing.from->size() == points.size() &&
+                     grazing.to->size() == points.size();
+  if (p_.flat_slope > 0 && !given)
     grazing_.compute(points, pose.linear().cast<float>(), azimuth_, p_.flat_slope, p_.margin,
                      p_.graze_reach);
-  const std::vector<float>& skip_a = grazing_.from();
-  const std::vector<float>& skip_b = grazing_.to();
+  const std::vector<float>& skip_a = given ? *grazing.from : grazing_.from();
+  const std::vector<float>& skip_b = given ? *grazing.to : grazing_.to();
   uint64_t cached = ~uint64_t(0);
   Block* b = nullptr;
   for (std::size_t n = 0; n < points.size(); ++n) {

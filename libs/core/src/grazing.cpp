@@ -47,6 +47,7 @@ void GrazingStretches::compute(const std::vector<PointXYZI>& points, const Eigen
     grid_[static_cast<std::size_t>(cell_[n])] = static_cast<uint32_t>(n);
   }
   lower_.assign(np, UINT32_MAX);
+  upright_above_.assign(grid_.size(), 0);
   slope_.assign(np, std::numeric_limits<float>::quiet_NaN());
   const auto flat = [&](uint32_t n) { return n != UINT32_MAX && !std::isnan(slope_[n]); };
   for (std::size_t n = 0; n < np; ++n) {
@@ -55,9 +56,16 @@ void GrazingStretches::compute(const std::vector<PointXYZI>& points, const Eigen
     for (int e = el - 1; e >= std::max(0, el - kMaxDown) && lower_[n] == UINT32_MAX; --e)
       lower_[n] = grid_[static_cast<std::size_t>(cell_[n] - (el - e))];
     const uint32_t l = lower_[n];
-    if (l == UINT32_MAX || !(rho_[n] > rho_[l] + 1e-3f)) continue;
-    const float rise = (zw_[n] - zw_[l]) / (rho_[n] - rho_[l]);
-    if (std::abs(rise) <= flat_slope) slope_[n] = rise;
+    if (l == UINT32_MAX) continue;
+    if (rho_[n] > rho_[l] + 1e-3f) {
+      const float rise = (zw_[n] - zw_[l]) / (rho_[n] - rho_[l]);
+      if (std::abs(rise) <= flat_slope) {
+        slope_[n] = rise;
+        continue;
+      }
+    }
+    // n rises steeply from l: l's cell (every return in it) is the foot of an upright surface
+    upright_above_[static_cast<std::size_t>(cell_[l])] = 1;
   }
   // Per cell: the nearest cell at or below it in its column holding a flat return (-1: none).
   flat_below_.resize(grid_.size());

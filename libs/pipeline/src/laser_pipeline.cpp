@@ -38,7 +38,13 @@ struct LaserPipeline::Prepared {
   std::vector<uint8_t> ground;     // DESIGN §2a, within the crop and the map radius
   std::vector<uint8_t> far;        // beyond the crop, within the map radius (DESIGN §2e)
   std::vector<uint8_t> candidate;  // in the crop and not ground: what the stages decide
-  std::vector<uint8_t> flat;       // kFlatSurface where on a flat surface (DESIGN §2b); or empty
+  std::vector<uint8_t> flat;       // kFlatSurface where on a flat top (DESIGN §2b); or empty
+  // Its GrazingStretches (from, to), for the free space's insertion (computed once; or empty).
+  std::vector<float> graze_from, graze_to;
+  FreeSpaceMap::Stretches grazing() const {
+    return graze_from.empty() ? FreeSpaceMap::Stretches{}
+                              : FreeSpaceMap::Stretches{&graze_from, &graze_to};
+  }
   double ground_measured = std::numeric_limits<double>::quiet_NaN();  // estimateGroundHeight
   double ground_z = 0;  // h_G below the sensor used for this scan (DESIGN §2a)
   double density = 1;   // returns per solid angle relative to the HDL-64E (DESIGN §2d)
@@ -185,7 +191,7 @@ struct LaserPipeline::FreeQueue {
       try {
         const auto t = Clock::now();
         map.insertScan(j.scan->scan.points, j.scan->scan.pose, static_cast<int64_t>(j.index),
-                       &j.mask);
+                       &j.mask, j.scan->grazing());
         t_ms = msSince(t);
       } catch (...) {
         e = std::current_exception();
@@ -444,8 +450,12 @@ std::unique_ptr<LaserPipeline::Prepared> LaserPipeline::prepare(Registered&& r,
     graze_.compute(pts, s->scan.pose.linear().cast<float>(), azimuth, p_.map.flat_slope,
                    p_.map.margin, p_.map.graze_reach);
     s->beams = BeamIndex(pts, test_.searchRadius(), BeamIndex::Binning::kFast, &graze_);
+    if (p_.map.clean) {
+      s->graze_from = graze_.from();
+      s->graze_to = graze_.to();
+    }
     s->flat.resize(pts.size());
-    for (std::size_t n = 0; n < pts.size(); ++n) s->flat[n] = graze_.flat(n) ? kFlatSurface : 0;
+    for (std::size_t n = 0; n < pts.size(); ++n) s->flat[n] = graze_.flatTop(n) ? kFlatSurface : 0;
   } else {
     s->beams = BeamIndex(s->scan.points, test_.searchRadius());
   }
@@ -644,7 +654,7 @@ double LaserPipeline::insertFreeSpace(const Prepared& s, const Work& w) {
     return finished_ms;
   }
   const auto t = Clock::now();
-  free_->insertScan(s.scan.points, s.scan.pose, static_cast<int64_t>(s.index), &mask);
+  free_->insertScan(s.scan.points, s.scan.pose, static_cast<int64_t>(s.index), &mask, s.grazing());
   return msSince(t);
 }
 
@@ -768,6 +778,7 @@ void LaserPipeline::releasePoints() {
     s.points_released = true;
     for (auto* v : {&s.in_crop, &s.ground, &s.far, &s.candidate, &s.flat})
       std::vector<uint8_t>().swap(*v);
+    for (auto* v : {&s.graze_from, &s.graze_to}) std::vector<float>().swap(*v);
     std::vector<PointXYZI>().swap(s.scan.points);
     std::vector<uint32_t>().swap(s.scan.original_index);
   }

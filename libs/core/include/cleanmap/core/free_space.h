@@ -50,6 +50,12 @@ bool removedByPolicy(const FreeEvidence& e, int64_t scan, const MapParams& p);
 double freeSpaceAzimuthBin(const std::vector<PointXYZI>& points, double spacing,
                            double* occupancy = nullptr);
 
+/// A scan's GrazingStretches::from() / to(), given to FreeSpaceMap::insertScan.
+struct GrazingSpans {
+  const std::vector<float>* from = nullptr;
+  const std::vector<float>* to = nullptr;
+};
+
 class FreeSpaceMap {
  public:
   explicit FreeSpaceMap(const MapParams& p);
@@ -61,8 +67,12 @@ class FreeSpaceMap {
   /// world, `scan` its index in the sequence (each once; in increasing order, or the runs of empty
   /// scans mean nothing). `moving` (optional, per point): the returns decided moving, around which
   /// hit_inflate does not apply (a slow mover's own neighbourhood is what it leaves empty next).
+  /// `grazing` (optional): the scan's GrazingStretches::from() / to(), computed with this map's
+  /// flat_slope, margin, graze_reach and the pose's rotation (the pipeline's, once per scan);
+  /// otherwise the map computes them.
+  using Stretches = GrazingSpans;
   void insertScan(const std::vector<PointXYZI>& points, const Eigen::Isometry3d& pose, int64_t scan,
-                  const std::vector<uint8_t>* moving = nullptr);
+                  const std::vector<uint8_t>* moving = nullptr, Stretches grazing = {});
   /// The evidence of the voxel holding world point p.
   FreeEvidence evidence(const Eigen::Vector3f& p) const;
   /// evidence() for many points in a row (below).

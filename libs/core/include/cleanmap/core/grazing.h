@@ -28,6 +28,12 @@ class GrazingStretches {
   /// Whether point n lies on a flat surface (its rise from its lower neighbour in its column is
   /// at most flat_slope).
   bool flat(std::size_t n) const { return n < slope_.size() && !std::isnan(slope_[n]); }
+  /// flat(n), and no return rises steeply from it (it is its upper neighbour's lower one): not
+  /// the foot of an upright surface, a walker's shoe or a car's sill whose lower neighbour is the
+  /// road a ring step nearer (the moving-point test's kFlatSurface, DESIGN §2b).
+  bool flatTop(std::size_t n) const {
+    return flat(n) && !upright_above_[static_cast<std::size_t>(cell_[n])];
+  }
 
  private:
   // The returns' cells of azimuth x elevation, each return's cell, lower neighbour, rise to it
@@ -35,6 +41,7 @@ class GrazingStretches {
   std::vector<uint32_t> grid_;
   std::vector<int> cell_, flat_below_;
   std::vector<uint32_t> lower_;
+  std::vector<uint8_t> upright_above_;  // per cell: a return rises steeply from its return
   std::vector<float> slope_, rho_, zw_, skip_a_, skip_b_;
 };
 
