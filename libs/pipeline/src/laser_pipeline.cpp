@@ -759,17 +759,17 @@ void LaserPipeline::decideReady(std::size_t future) {
   }
 }
 
-// Issue #16: a decided scan stays buffered as a window scan of the next K, which read only its
-// beams and pose; its points and per-point masks go once its free-space insertion is done (a
-// 30-scan run holds nearly every scan at once: peak RSS 13-18 MiB less, doc/BENCHMARK.md). The
-// newest scan keeps its points: the next scan's camera link reads them (linkToPrevious).
 // MovingTest's EdgeBits of point i of s: its surface's edges (sparse lidars) and whether it lies
-// on a flat surface (grazing beams, DESIGN §2b).
+// on a flat top (grazing beams, DESIGN §2b).
 uint8_t LaserPipeline::edgeBits(const Prepared& s, uint32_t i, const WindowScan& own) const {
   return static_cast<uint8_t>(test_.edgesOf(s.scan.points[i].xyz(), own) |
                               (s.flat.empty() ? 0 : s.flat[i]));
 }
 
+// Issue #16: a decided scan stays buffered as a window scan of the next K, which read only its
+// beams and pose; its points and per-point masks go once its free-space insertion is done (a
+// 30-scan run holds nearly every scan at once: peak RSS 13-18 MiB less, doc/BENCHMARK.md). The
+// newest scan keeps its points: the next scan's camera link reads them (linkToPrevious).
 void LaserPipeline::releasePoints() {
   for (std::size_t j = 0; j + 1 < buf_.size() && j < next_; ++j) {
     Prepared& s = *buf_[j];
