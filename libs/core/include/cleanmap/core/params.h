@@ -91,8 +91,10 @@ struct DsParams {
   bool ring_vote = true;
   /// Our addition (DESIGN §2b, "Grazing beams"): a window scan's beam that passes P where it runs
   /// within static_map.margin of a flat surface of its own scan (static_map.flat_slope,
-  /// graze_reach: the stretches the clean map's free space skips, §2e) votes nothing.
-  bool grazing = true;
+  /// graze_reach: the stretches the clean map's free space skips, §2e) votes nothing, at a point
+  /// on a flat top of its own scan. Off by default: it also takes the evidence slow movers drawing
+  /// away had on their roofs (doc/BENCHMARK.md, "Grazing beams in the windowed test").
+  bool grazing = false;
 };
 
 /// DESIGN §2c: octree leaf sampling.
