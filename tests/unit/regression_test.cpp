@@ -166,6 +166,15 @@ MapScore cleanMapScore(const std::string& set) {
 // holds it as it was); city and residential stayed. Held through the last K / 2 scans (too few
 // after them to see a vehicle leave; no moving point of its own needed): the VW receding ahead
 // at 0.8 m/s in scans 27-29, highway recall 0.9751 -> 0.9800, precision 0.9407, IoU 0.9230.
+// Grazing beams in the windowed test, on (DESIGN §2b), with rule 4's far-half leaving test and
+// moved match (doc/OBJECTS.md), changed city's and highway's on purpose: at a point on a flat top
+// of its own scan a window scan's beam running within margin of a flat surface of its own does
+// not vote (roofs and bonnets seen edge-on); an object the previous scan moved whole, also found
+// moved, stays moving where half of its points are moving for the far half of the later scans.
+// Highway: the car 16 m ahead at 0.6 m/s, seen over the one in front, held in scans 14-29
+// (+1,413 points), the tanker's share in scans 23 and 26 under 10 % (9.2 %, was 11.4 %) with
+// too little of it in view to be the previous scan's object (-2,303): recall 0.9800 -> 0.9787;
+// city precision 0.5800 -> 0.5801; residential stayed.
 void expectDigest(const OutputDigest& d, uint64_t labels, uint64_t compact, uint64_t full,
                   uint64_t moving) {
   EXPECT_EQ(d.labels, labels) << "labels differ from the reference run";
@@ -183,10 +192,10 @@ TEST(Regression, OutputsByteIdenticalToTheReference) {
   runSet("kitti_city", &city);
   runSet("kitti_highway", &highway);
   runSet("kitti_residential", &residential);
-  expectDigest(city, 0x64a8a97fb29e466full, 0xcbf9f4050cc852d8ull, 0x820f6ed86fbf30dfull,
-               0x76518d0f0432c812ull);
-  expectDigest(highway, 0xd51523c74dd2c20full, 0x2f8d787325d7800aull, 0x0ab5f3342524698dull,
-               0xae255eb28545b471ull);
+  expectDigest(city, 0xd3e796346e9c572full, 0xa0924c7da091c844ull, 0x93c428f1f1dbfe53ull,
+               0x164f042db5d5c956ull);
+  expectDigest(highway, 0x0da1da5bae67a5efull, 0xcba3cf3b09c0ff49ull, 0x975d9601332f30d1ull,
+               0xfe603a49b9308e99ull);
   expectDigest(residential, 0x9473c9fa215adbf4ull, 0x204e003afed4818dull, 0xbe850e45c7c8b98cull,
                0x224a83d2e475ca8dull);
 }
@@ -335,7 +344,10 @@ TEST(Regression, OwnPosesScoreAsGivenPoses) {
 // Every truly static point it flags in view is a vehicle's edge or a roof line (doc/BENCHMARK.md,
 // eighteenth session), so nothing is relabelled; with GICP's poses the near tanker, seen grazing,
 // used to lose 6,308 points on a one-to-one vote (recall 0.885 -> 0.835), and with the grazing
-// rule on, 58 (given) and 142 (GICP) of its points were still relabelled.
+// rule on, 58 (given) and 142 (GICP) of its points were still relabelled. Rule 4 holds the car
+// 16 m ahead (0.6 m/s, along the line of sight) in scans 27-29; voted on there, 3 of its 9 cells
+// looked changed and it lost 98 points in scan 27 (361 with the scans after): the camera leaves
+// objects rule 4 holds to that decision (DESIGN §3).
 TEST(Regression, HighwayCameraRelabelsNoMover) {
   CLEANMAP_REQUIRE_DATASET("kitti_highway");
   PipelineParams laser;

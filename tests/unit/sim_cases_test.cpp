@@ -99,9 +99,32 @@ TEST(SimCases, DefaultScenarioIoUAtLeast0_8) {
 }
 
 TEST(SimCases, CarFollowingTheEgoAtTheSameSpeed) {
+  // Measured 0.848; 0.866 before beams grazing a flat surface stopped voting (DESIGN §2b): its
+  // first scans' roof points, under its own roof in the next scans, were seen empty only by the
+  // beams grazing that roof.
   const auto r = runCase(scenario("following_car"));
-  EXPECT_GE(r.per_mover.at("follower").recall(), 0.80);  // measured 0.86
+  EXPECT_GE(r.per_mover.at("follower").recall(), 0.80);
   EXPECT_GE(r.all.precision(), 0.97);
+}
+
+TEST(SimCases, ACarPullingAwaySlowlyAheadStaysMoving) {
+  // A car 9 m ahead of the ego (2 m/s) pulling away at 2.8 m/s: 0.08 m a scan, so the scans
+  // before see its back's place inside its body and the near scans after see its back within the
+  // beam model's margin; its roof's evidence was beams grazing that roof (DESIGN §2b). Rule 4
+  // under 10 % finds the previous scan's object moved, and half of its points (all of them) gone
+  // for the far half of the later scans (doc/OBJECTS.md): recall 0.904 (0.737 before, the whole
+  // car lost from scan 22 of 30; 0.697 with the grazing beams alone). Scan 21 keeps only its
+  // lowest part (hysteresis with no moving point above its foot).
+  auto sc = scenario("following_car");
+  sc.ego_speed = 2.0;
+  ASSERT_EQ(sc.movers.size(), 1u);
+  auto& car = sc.movers[0];
+  car.name = "leader";
+  car.path = {{9.0, -2.5}, {290.0, -2.5}};
+  car.speed = 2.8;
+  const auto r = runCase(sc);
+  EXPECT_GE(r.per_mover.at("leader").recall(), 0.85);  // measured 0.904
+  EXPECT_GE(r.all.precision(), 0.97);                  // measured 1.000
 }
 
 TEST(SimCases, CarThatStopsAndStartsAgain) {
@@ -122,11 +145,13 @@ TEST(SimCases, ACarDrawingAwaySlowlyStaysMovingWhileItLeavesItsPlace) {
   // the labels' +-0.5 s; 36 of its ~40 moving points there are empty for the later scans, seen
   // from the ego closing in); the scans it stands in after those stay static. Through the last
   // K / 2 scans (35-39) too few scans follow to see it leave and it stays as it was: 7-11 % of
-  // it held there before, 96 % now (recall 0.617 before).
+  // it held there before, 96 % now (recall 0.617 before). Since beams grazing a flat top no
+  // longer vote (DESIGN §2b) scans 12-13 are static (the car stands; its roof's alarms held it),
+  // and the far half of the later scans sees it leave in 30-34 (0.376 without that test).
   auto sc = scenario("stop_and_go");
   for (auto& m : sc.movers) m.speed *= 0.5;
   const auto r = runCase(sc);
-  EXPECT_GE(r.per_mover.at("stop_go_car").recall(), 0.70);  // measured 0.765
+  EXPECT_GE(r.per_mover.at("stop_go_car").recall(), 0.70);  // measured 0.718 (0.765 before)
   EXPECT_GE(r.all.precision(), 0.97);                       // measured 1.000
 }
 
@@ -513,9 +538,11 @@ TEST(SimCases, CameraCheckKeepsMoversAndRelabelsOnlyStaticPoints) {
   EXPECT_GE(on.per_mover.at("overtaking_car").recall(),
             off.per_mover.at("overtaking_car").recall() - 0.03);
   // The drift makes the laser flag parts of walls and parked cars; those in the camera's view
-  // look the same in most cells, so the object vote relabels them (measured: +0.0165, 700 truly
+  // look the same in most cells, so the object vote relabels them (measured: +0.0046, 187 truly
   // static points, none moving; with "one changed cell keeps it moving": nothing relabelled).
-  EXPECT_GE(on.all.precision(), off.all.precision() + 0.008);
+  // Before beams grazing a flat surface stopped voting (DESIGN §2b) the laser also flagged the
+  // parked cars' roofs and bonnets, and the camera took +0.0165 (700 points).
+  EXPECT_GE(on.all.precision(), off.all.precision() + 0.003);
   EXPECT_GT(on.relabelled_static, 100u);
   const std::size_t relabelled = on.relabelled_static + on.relabelled_moving;
   EXPECT_GT(double(on.relabelled_static) / double(std::max<std::size_t>(relabelled, 1)), 0.6);

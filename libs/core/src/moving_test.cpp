@@ -265,7 +265,6 @@ ds::Mass MovingTest::scanMassAt(const Eigen::Vector3d& pl, double d, const Windo
           }
         });
   } else {
-    const BeamIndex& index = *s.beams;
     index.forEachRunNear(dir, radius,
                          [&](const BeamIndex::PackedBeam* q, const BeamIndex::PackedBeam* last) {
                            for (; q != last; ++q) filter(index.decode(*q), q);

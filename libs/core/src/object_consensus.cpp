@@ -235,7 +235,7 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
     } else if (rules.has_left && p.persist_radius > 0 && vehicle_sized && c.moving < c.n &&
                2 * c.near_prev >= c.n && leftItsPlace(v)) {
       // Rule 4 under static_fraction: it moved before and has left where it is now (or the
-      // scans after it are too few to tell); has_left asks for min_moving points seen leaving.
+      // scans after it are too few to tell); has_left says what leaving takes (the caller's).
       // It is the previous scan's object: every part goes, as under rule 5.
       turn[v] = 1;
       if (all_parts.empty()) all_parts.assign(voxels.size(), 0);

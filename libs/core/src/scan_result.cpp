@@ -61,6 +61,7 @@ ScanStats& ScanStats::operator+=(const ScanStats& o) {
   image_rejected_depth += o.image_rejected_depth;
   image_unseen += o.image_unseen;
   image_grazing += o.image_grazing;
+  image_held += o.image_held;
   image_links += o.image_links;
   image_links_aligned += o.image_links_aligned;
   image_link_shift += o.image_link_shift;

@@ -533,6 +533,7 @@ void OutputWriter::finish(double wall_s, const FreeSpaceMap* free_space) {
         {"rejected_with_depth", total.image_rejected_depth},
         {"unseen", total.image_unseen},
         {"comparisons_skipped_grazing", total.image_grazing},
+        {"points_held_not_compared", total.image_held},
         {"pose_links", total.image_links},
         {"pose_links_aligned", total.image_links_aligned},
         {"pose_link_mean_shift_m", total.image_links_aligned > 0

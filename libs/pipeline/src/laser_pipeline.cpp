@@ -81,6 +81,7 @@ struct LaserPipeline::Work {
     moving.clear();
     relabelled.clear();
     whole.clear();
+    held.clear();
   }
   std::vector<Eigen::Vector3d> world;  // candidates' world coordinates (others left zero)
   std::vector<uint8_t> duplicate;      // DESIGN §2.3
@@ -93,6 +94,7 @@ struct LaserPipeline::Work {
   std::vector<uint8_t> moving;                 // per scan point, the final decision
   std::vector<uint8_t> relabelled;  // per scan point: moving, relabelled static by the camera
   std::vector<uint8_t> whole;       // per scan point: in a vehicle-sized object moving as a whole
+  std::vector<uint8_t> held;  // per scan point: in an object rule 4 held (the camera leaves it)
 };
 
 LaserPipeline::LaserPipeline(const PipelineParams& params, Sink sink)
@@ -817,7 +819,7 @@ void LaserPipeline::decide(std::size_t pos) {
 }
 
 // W_k: the other buffered scans that have beams.
-std::vector<WindowScan> LaserPipeline::windowAround(std::size_t pos, bool after) const {
+std::vector<WindowScan> LaserPipeline::windowAround(std::size_t pos, std::size_t from) const {
   std::vector<WindowScan> window;
   // Issue #11: estimated poses are off relative to each other by about relative_error times the
   // path between the two scans (odometry error grows with the distance travelled; our GICP
@@ -826,7 +828,7 @@ std::vector<WindowScan> LaserPipeline::windowAround(std::size_t pos, bool after)
   const double e = p_.registration.relative_error;
   const auto corrected = posesAround(pos);  // DESIGN §3 "Camera poses"
   for (std::size_t j = 0; j < buf_.size(); ++j)
-    if (inWindow(j, pos) && !buf_[j]->beams.empty() && (!after || j > pos)) {
+    if (inWindow(j, pos) && !buf_[j]->beams.empty() && (from == 0 || j >= pos + from)) {
       double path = 0;  // summed between the two scans, so a chunk gets the same bits
       if (estimated && e > 0)
         for (std::size_t a = std::min(j, pos); a < std::max(j, pos); ++a)
@@ -954,10 +956,14 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
   WholeObjects prev;  // the previous scan's objects moved whole, built on the first call
   bool prev_built = false;
   std::vector<uint32_t> in_prev;
-  std::optional<std::vector<WindowScan>> after;  // the scans after it, built on first use
+  std::optional<std::vector<WindowScan>> after, far;  // the scans after it, built on first use
+  std::vector<Eigen::Vector3f> q_prev;                // an object's points in the previous frame
+  constexpr float kMovedMatch = 0.9f;  // m; half a car's width (a parked neighbour is 2.5 m off)
   const WindowScan own = s.own();
+  w.held.assign(s.scan.size(), 0);
+  std::function<bool(const std::vector<uint32_t>&)> left_place;
   if (!near_prev.empty()) {
-    rules.has_left = [&](const std::vector<uint32_t>& idx) {
+    left_place = [&](const std::vector<uint32_t>& idx) {
       // That object: half of its points in the voxels of one object the previous scan moved
       // whole (in that scan's sensor frame, where its consensus found it), and not smaller than
       // 1 - extent_tolerance of it (two solids do not share their space; the map's rule 5).
@@ -968,35 +974,80 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
       in_prev.assign(prev.extent.size(), 0);
       const float inv = static_cast<float>(1.0 / op.voxel);
       Eigen::Vector3f lo = Eigen::Vector3f::Constant(1e30f), hi = -lo;
-      for (uint32_t i : idx) {
+      Eigen::Vector3f c = Eigen::Vector3f::Zero();
+      q_prev.resize(idx.size());
+      const auto voxelOf = [&](const Eigen::Vector3f& q) {
+        return prev.voxel.find(
+            cellKey(floorToCell(q.x(), inv), floorToCell(q.y(), inv), floorToCell(q.z(), inv)));
+      };
+      for (std::size_t k = 0; k < idx.size(); ++k) {
+        const uint32_t i = idx[k];
         lo = lo.cwiseMin(s.scan.points[i].xyz());
         hi = hi.cwiseMax(s.scan.points[i].xyz());
         const Eigen::Vector3f q = (prev_pose_inverse_ * w.world[i]).cast<float>();
-        if (const uint32_t* a = prev.voxel.find(
-                cellKey(floorToCell(q.x(), inv), floorToCell(q.y(), inv), floorToCell(q.z(), inv))))
-          ++in_prev[*a];
+        q_prev[k] = q;
+        c += q;
+        if (const uint32_t* a = voxelOf(q)) ++in_prev[*a];
       }
-      const auto best = std::max_element(in_prev.begin(), in_prev.end());
-      if (best == in_prev.end() || 2 * std::size_t(*best) < idx.size()) return false;
+      auto best = std::max_element(in_prev.begin(), in_prev.end());
+      if (best == in_prev.end()) return false;
+      if (2 * std::size_t(*best) < idx.size()) {
+        // Or found moved: half of its points in the voxels of an object whose centroid lies
+        // within kMovedMatch of its own, shifted by the difference (a car moving about a voxel a
+        // scan no longer lies in its previous voxels; as the map's rule 5, DESIGN §2e).
+        c /= static_cast<float>(idx.size());
+        std::size_t found = prev.extent.size();
+        for (std::size_t a = 0; a < prev.extent.size() && found == prev.extent.size(); ++a) {
+          const Eigen::Vector3f shift = prev.centroid[a] - c;
+          if (shift.squaredNorm() > kMovedMatch * kMovedMatch) continue;
+          std::size_t in = 0;
+          for (const Eigen::Vector3f& q : q_prev)
+            if (const uint32_t* b = voxelOf(q + shift)) in += *b == a;
+          if (2 * in >= idx.size()) found = a;
+        }
+        if (found == prev.extent.size()) return false;
+        best = in_prev.begin() + static_cast<std::ptrdiff_t>(found);
+      }
       const Eigen::Vector3f e = hi - lo, x = prev.extent[std::size_t(best - in_prev.begin())];
       const auto close = [&](float u, float v) {  // not smaller (it may have joined its other part)
         return u >= (1.0 - rules.extent_tolerance) * v;
       };
       if (!close(e.head<2>().norm(), x.head<2>().norm()) || !close(e.z(), x.z())) return false;
-      // It left its place: the scans after it alone see at least min_moving of its moving points
-      // empty (a vehicle that stopped was only seen arriving, by the scans before it). Fewer
-      // than half of the window's later scans (the sequence's last ones, a dropout) cannot show
-      // that: a vehicle in stop-and-go traffic (0.5-1 m/s) moves less than a voxel and the beam
-      // model's margin in half a window (0.5 s). It stays as the previous scan had it.
-      if (!after) after = windowAround(pos, true);
+      // It left its place: the scans after it alone see it leave (below; a vehicle that stopped
+      // was only seen arriving, by the scans before it). Fewer than half of the window's later
+      // scans (the sequence's last ones, a dropout) cannot show that: a vehicle in stop-and-go
+      // traffic (0.5-1 m/s) moves less than a voxel and the beam model's margin in half a window
+      // (0.5 s). It stays as the previous scan had it.
+      if (!after) {
+        after = windowAround(pos, 1);
+        far = windowAround(pos, std::max<std::size_t>(1, k_ / 2));
+      }
       if (2 * after->size() < k_ / stride_) return true;
+      // Leaving: min_moving of its moving points are moving for the later scans (its rear, the
+      // gaps between its parts: a long vehicle driving on with its ends out of view), or half of
+      // all its points are for the far half of them: a car pulling away at 0.8 m/s moves 0.08 m
+      // a scan, the whole window may call none of its points moving (the scans before it saw its
+      // back's place inside its body) and the nearer later scans still see its back within the
+      // beam model's margin of where it was, but those K / 2 and more after it see it all gone.
       int left = 0;
+      for (uint32_t i : idx)
+        if (w.moving[i] && (left += test_.isMoving(w.world[i], *after, nullptr,
+                                                   edgeBits(s, i, own))) >= op.min_moving)
+          return true;
+      std::size_t gone = 0, asked = 0;
+      const std::size_t n = idx.size();
       for (uint32_t i : idx) {
-        if (!w.moving[i]) continue;
-        left += test_.isMoving(w.world[i], *after, nullptr, edgeBits(s, i, own));
-        if (left >= op.min_moving) return true;
+        gone += test_.isMoving(w.world[i], *far, nullptr, edgeBits(s, i, own));
+        ++asked;
+        if (2 * gone >= n) return true;
+        if (2 * (gone + n - asked) < n) break;  // half can no longer be reached
       }
       return false;
+    };
+    rules.has_left = [&](const std::vector<uint32_t>& idx) {
+      if (!left_place(idx)) return false;
+      for (uint32_t i : idx) w.held[i] = 1;  // validateImages leaves it to this decision
+      return true;
     };
   }
   const auto oc =
@@ -1047,8 +1098,14 @@ void LaserPipeline::validateImages(std::size_t pos, Prepared& s, Work& w) const 
   CellMap<std::size_t> cell_at;
   const double inv = 1.0 / ip.cell;
   std::vector<uint64_t> keys;
+  // An object rule 4 held is not compared (DESIGN §3, "Objects rule 4 holds"): its camera vote
+  // was the previous scan's, and it stays moving on evidence the images cannot resolve.
   for (uint32_t i = 0; i < s.scan.size(); ++i) {
     if (!w.moving[i]) continue;
+    if (w.held[i]) {
+      ++s.stats.image_held;
+      continue;
+    }
     const Eigen::Vector3d& x = w.world[i];
     const uint64_t key = cellKeyOf(x.x(), x.y(), x.z(), inv);
     bool fresh = false;

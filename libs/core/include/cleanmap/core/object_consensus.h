@@ -61,8 +61,9 @@ struct ConsensusRules {
   /// the rules above leave static (under static_fraction or min_moving of its points moving, or
   /// none), at least half of its points near the previous scan's moving points, moves as a whole,
   /// all of its parts, if has_left(its points' indices) says it is the object the previous scan
-  /// moved whole and the scans after it see it leave (at least min_moving of its moving points)
-  /// or are too few to see that. Empty: such an object is static.
+  /// moved whole (where it was, or moved by less than half a car's width) and the scans after it
+  /// see it leave (at least min_moving of its moving points, or half of all its points for the
+  /// far half of them) or are too few to see that. Empty: such an object is static.
   std::function<bool(const std::vector<uint32_t>&)> has_left;
 };
 

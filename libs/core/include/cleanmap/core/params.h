@@ -92,9 +92,9 @@ struct DsParams {
   /// Our addition (DESIGN §2b, "Grazing beams"): a window scan's beam that passes P where it runs
   /// within static_map.margin of a flat surface of its own scan (static_map.flat_slope,
   /// graze_reach: the stretches the clean map's free space skips, §2e) votes nothing, at a point
-  /// on a flat top of its own scan. Off by default: it also takes the evidence slow movers drawing
-  /// away had on their roofs (doc/BENCHMARK.md, "Grazing beams in the windowed test").
-  bool grazing = false;
+  /// on a flat top of its own scan (the evidence slow movers drawing away had on their roofs is
+  /// replaced by rule 4's far-half leaving test, doc/OBJECTS.md). false = such beams vote.
+  bool grazing = true;
 };
 
 /// DESIGN §2c: octree leaf sampling.

@@ -57,10 +57,11 @@ struct ScanStats {
   /// points) tested, of which confirmed moving by the colour / depth test, relabelled static
   /// when every camera found them similar (by colour only / with the depth test), and unseen
   /// (no camera to compare with: the laser label stays); points relabelled static; (cell,
-  /// camera) pairs not compared because the cell's surface was seen grazing.
+  /// camera) pairs not compared because the cell's surface was seen grazing; moving points of
+  /// objects rule 4 held (doc/OBJECTS.md), not compared: they keep the laser label.
   std::size_t image_scans = 0, image_units = 0, image_confirmed_colour = 0,
               image_confirmed_depth = 0, image_rejected_colour = 0, image_rejected_depth = 0,
-              image_unseen = 0, image_relabelled = 0, image_grazing = 0;
+              image_unseen = 0, image_relabelled = 0, image_grazing = 0, image_held = 0;
   /// DESIGN §3 "Camera poses": 1 when this scan and the one before it both had an image (a link
   /// to align), 1 when that alignment corrected the relative pose; the correction's length (m).
   std::size_t image_links = 0, image_links_aligned = 0;
