@@ -106,8 +106,8 @@ class LaserPipeline {
   void decide(std::size_t pos);
 
   // The stages of decide(), in order.
-  // `after`: only the scans after pos (rule 4 under static_fraction, doc/OBJECTS.md).
-  // from > 0: only the scans at least `from` after pos.
+  // from > 0: only the scans at least `from` after pos (rule 4 under static_fraction,
+  // doc/OBJECTS.md).
   std::vector<WindowScan> windowAround(std::size_t pos, std::size_t from = 0) const;
   // DESIGN §3 "Camera poses": each buffered scan's pose as the scan at `pos` sees it, through the
   // corrected relative poses between neighbours; nullopt where no correction lies between them.
