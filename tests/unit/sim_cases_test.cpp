@@ -28,6 +28,19 @@ sim::Scenario scenario(const std::string& name) {
       (fs::path(CLEANMAP_SOURCE_DIR) / "datasets/scenarios" / (name + ".ini")).string());
 }
 
+// following_car's street with the ego at 2 m/s and its one car, "leader", `ahead` m in front of
+// it in its lane, driving on at `speed`.
+sim::Scenario carAhead(double ahead, double speed) {
+  auto sc = scenario("following_car");
+  sc.ego_speed = 2.0;
+  EXPECT_EQ(sc.movers.size(), 1u);
+  auto& car = sc.movers.at(0);
+  car.name = "leader";
+  car.path = {{ahead, -2.5}, {290.0, -2.5}};
+  car.speed = speed;
+  return sc;
+}
+
 struct CaseResult {
   MosCounts all;
   std::map<std::string, MosCounts> per_mover;  // over the points that hit each mover
@@ -115,14 +128,7 @@ TEST(SimCases, ACarPullingAwaySlowlyAheadStaysMoving) {
   // for the far half of the later scans (doc/OBJECTS.md): recall 0.904 (0.737 before, the whole
   // car lost from scan 22 of 30; 0.697 with the grazing beams alone). Scan 21 keeps only its
   // lowest part (hysteresis with no moving point above its foot).
-  auto sc = scenario("following_car");
-  sc.ego_speed = 2.0;
-  ASSERT_EQ(sc.movers.size(), 1u);
-  auto& car = sc.movers[0];
-  car.name = "leader";
-  car.path = {{9.0, -2.5}, {290.0, -2.5}};
-  car.speed = 2.8;
-  const auto r = runCase(sc);
+  const auto r = runCase(carAhead(9.0, 2.8));
   EXPECT_GE(r.per_mover.at("leader").recall(), 0.85);  // measured 0.904
   EXPECT_GE(r.all.precision(), 0.97);                  // measured 1.000
 }
@@ -586,14 +592,7 @@ TEST(SimCases, CameraAlignedPosesRemoveTheDriftFalsePositives) {
 // points relabelled, and rule 4 forgets what the camera relabelled (recall 0.169). Left to the
 // laser, as the camera's vote was cast when the object was moved whole: 0.904, as laser only.
 TEST(SimCases, ACarDrawingAwayAlongTheCameraAxisKeepsWhatRule4Holds) {
-  auto sc = scenario("following_car");
-  sc.ego_speed = 2.0;
-  ASSERT_EQ(sc.movers.size(), 1u);
-  auto& car = sc.movers[0];
-  car.name = "leader";
-  car.path = {{20.0, -2.5}, {290.0, -2.5}};
-  car.speed = 0.6;
-  const auto [off, on] = laserThenImages(sc);
+  const auto [off, on] = laserThenImages(carAhead(20.0, 0.6));
   EXPECT_GE(off.per_mover.at("leader").recall(), 0.85);  // measured 0.904
   EXPECT_GE(on.per_mover.at("leader").recall(), off.per_mover.at("leader").recall() - 0.03);
   EXPECT_LE(on.relabelled_moving, 50u);  // measured 0 (534 when the camera voted on it)
