@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # SPDX-License-Identifier: BSD-3-Clause
 # Installs the Debian 12 packages cleanmap needs that are missing (apt-get; sudo when not root).
-# `install-deps.sh fuzz` adds clang and its libFuzzer runtime for `make fuzz`.
+# `install-deps.sh sanitize` adds clang and its sanitizer runtimes (`make test`'s sanitizer build);
+# `install-deps.sh fuzz` the same for `make fuzz` (libFuzzer is in the same runtime package).
 set -euo pipefail
 PACKAGES=(
   build-essential cmake pkg-config
@@ -10,7 +11,7 @@ PACKAGES=(
   libgtest-dev libbenchmark-dev
   clang-format-14  # pinned: `make format` and the style.format test use this exact version
 )
-if [[ "${1:-}" == "fuzz" ]]; then
+if [[ "${1:-}" == "sanitize" || "${1:-}" == "fuzz" ]]; then
   PACKAGES+=(clang-14 libclang-rt-14-dev)
 fi
 missing=()

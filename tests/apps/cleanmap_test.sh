@@ -215,7 +215,7 @@ expect_error 2 "--images is on, off or auto" "$bin/cleanmap" "$seq" -o "$scratch
 grep -q '"scans_with_image": 8' "$scratch/cam_out/report.json" || fail "report.json: images.scans_with_image is not 8"
 "$bin/cleanmap" "$scratch/cam" -o "$scratch/cam_off" --quiet --images off --no-mrpt-outputs --last 3 >/dev/null || fail "--images off failed"
 grep -q '"scans_with_image": 0' "$scratch/cam_off/report.json" || fail "--images off still used the images"
-expect_error 1 "--images on, but no scan came with a camera image" "$bin/cleanmap" "$seq/sequence.rawlog" -o "$scratch/t" --images on --no-mrpt-outputs
+expect_error 1 "--images on, but no scan came with a camera image" "$bin/cleanmap" "$seq/sequence.rawlog" -o "$scratch/t" --images on --no-mrpt-outputs --last 3
 "$bin/cleanmap" "$scratch/cam/sequence.rawlog" -o "$scratch/cam_rl_out" --quiet --images on --save-overlays --no-mrpt-outputs --last 3 >/dev/null ||
   fail "rawlog run with images failed"
 [[ $(ls "$scratch/cam_rl_out/overlays" 2>/dev/null | grep -c '\.png$') -eq 4 ]] || fail "rawlog: expected 4 overlay images"

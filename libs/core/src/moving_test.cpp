@@ -231,8 +231,9 @@ ds::Mass MovingTest::scanMassAt(const Eigen::Vector3d& pl, double d, const Windo
     // In the cone, in front of the sensor, and not far behind the hit (there a beam is unknown,
     // the identity of Dempster's rule). About half the beams of the bins pass, unpredictably:
     // each is written and kept by a count, not a branch.
-    const bool keep = (theta2 <= r2max) & (dir.dot(q.dir) > 0.0f) & (r <= r_far) &
-                      !(edges && open_side(q.dir)) & !grazes(packed, r);
+    const unsigned keep = unsigned(theta2 <= r2max) & unsigned(dir.dot(q.dir) > 0.0f) &
+                          unsigned(r <= r_far) & unsigned(!(edges && open_side(q.dir))) &
+                          unsigned(!grazes(packed, r));
     r_b[n] = r;
     t2_b[n] = theta2;
     n += keep;
