@@ -7,10 +7,10 @@ function(cleanmap_warnings target)
                                            -Wno-psabi)
 endfunction()
 
-# cleanmap_library(<name> SOURCES ... DEPS ...): builds cleanmap_<name>, alias cleanmap::<name>,
+# cleanmap_library(<name> [NO_UNITY] SOURCES ... DEPS ...): builds cleanmap_<name>, alias cleanmap::<name>,
 # public headers under include/, exported for install.
 function(cleanmap_library name)
-  cmake_parse_arguments(ARG "" "" "SOURCES;PUBLIC_DEPS;PRIVATE_DEPS" ${ARGN})
+  cmake_parse_arguments(ARG "NO_UNITY" "" "SOURCES;PUBLIC_DEPS;PRIVATE_DEPS" ${ARGN})
   add_library(cleanmap_${name} ${ARG_SOURCES})
   add_library(cleanmap::${name} ALIAS cleanmap_${name})
   set_target_properties(cleanmap_${name} PROPERTIES EXPORT_NAME ${name}
@@ -25,8 +25,9 @@ function(cleanmap_library name)
   # their shared headers parsed and their templates instantiated once per batch (doc/BENCHMARK.md,
   # fiftieth session). Files with their own flags (beam_filter.cpp, ...) stay apart.
   # gcc takes a batch's later files for headers and warns of their classes holding types of the
-  # file's anonymous namespace (-Wsubobject-linkage); in a .cpp that is no fault.
-  if(CLEANMAP_UNITY_BUILD)
+  # file's anonymous namespace (-Wsubobject-linkage); in a .cpp that is no fault. NO_UNITY: a
+  # library whose files depend on their static initializers' order (libs/maps/CMakeLists.txt).
+  if(CLEANMAP_UNITY_BUILD AND NOT ARG_NO_UNITY)
     set_target_properties(cleanmap_${name} PROPERTIES UNITY_BUILD ON UNITY_BUILD_BATCH_SIZE 8)
     if(CMAKE_CXX_COMPILER_ID STREQUAL "GNU")
       target_compile_options(cleanmap_${name} PRIVATE -Wno-subobject-linkage)
