@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cstring>
 #include <filesystem>
 #include <map>
 #include <opencv2/imgcodecs.hpp>
@@ -303,6 +304,51 @@ TEST(SimOutput, FolderReadsBackWithPosesLabelsObjectsAndCamera) {
   }
   ASSERT_GT(seen, 100u);
   EXPECT_GT(double(blue) / double(seen), 0.9);
+}
+
+TEST(SimCamera, CullingTheSolidsChangesNoPixel) {
+  // renderImage tests, per band of 32 columns, only the solids the band's rays can reach: every
+  // pixel as when each ray tests every solid. On the default street, a 20 % climb (the ego
+  // pitched) and a street of thin poles, with the camera looking ahead, left, back (its bands
+  // straddle azimuth pi), and up or down (bands whose rays turn round the vertical). A
+  // quarter-size KITTI camera, at each scene's middle frame.
+  std::vector<sim::Scenario> scenes = {sim::defaultScenario()};
+  for (const char* name : {"ground_slope", "poles_drift"})
+    scenes.push_back(sim::loadScenario(
+        (fs::path(CLEANMAP_SOURCE_DIR) / "datasets/scenarios" / (std::string(name) + ".ini"))
+            .string()));
+  PinholeCamera small = sim::kittiCamera();
+  small.P.topRows<2>() *= 0.25;
+  small.width = 310;
+  small.height = 94;
+  const std::map<std::string, Eigen::Matrix3d> turns = {
+      {"ahead", Eigen::Matrix3d::Identity()},
+      {"left", Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitZ()).toRotationMatrix()},
+      {"back", Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitZ()).toRotationMatrix()},
+      {"up", Eigen::AngleAxisd(1.3, Eigen::Vector3d::UnitY()).toRotationMatrix()},
+      {"down", Eigen::AngleAxisd(-1.55, Eigen::Vector3d::UnitY()).toRotationMatrix()}};
+  for (const auto& sc : scenes)
+    for (const auto& [name, R] : turns) {
+      PinholeCamera cam = small;
+      cam.T_cam_lidar = small.T_cam_lidar * Eigen::Isometry3d(R);
+      const cv::Mat culled = sim::renderImage(sc, sc.frames / 2, cam, 2, true);
+      const cv::Mat every = sim::renderImage(sc, sc.frames / 2, cam, 2, false);
+      ASSERT_TRUE(culled.isContinuous() && every.isContinuous());
+      ASSERT_EQ(culled.total(), every.total());
+      EXPECT_EQ(0, std::memcmp(culled.data, every.data, culled.total() * culled.elemSize()))
+          << sc.name << " looking " << name;
+    }
+  // The climb ahead at the camera's full width (its bands' own angle, a quarter of its rows):
+  // the tops of the solids beside the road, seen from the pitched ego, in every frame.
+  PinholeCamera wide = sim::kittiCamera();
+  wide.P.row(1) *= 0.25;
+  wide.height = 94;
+  for (int k = 0; k < scenes[1].frames; ++k) {
+    const cv::Mat culled = sim::renderImage(scenes[1], k, wide, 2, true);
+    const cv::Mat every = sim::renderImage(scenes[1], k, wide, 2, false);
+    EXPECT_EQ(0, std::memcmp(culled.data, every.data, culled.total() * culled.elemSize()))
+        << "frame " << k;
+  }
 }
 
 TEST(SimLidar, MotionDuringTheSweepDistortsOnlyAwayFromTheFront) {

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <optional>
 
 #include "cleanmap/core/parallel.h"
 #include "cleanmap/sim/world.h"
@@ -214,7 +215,8 @@ Eigen::Vector3f shade(const World& w, const Hit& h) {
 
 }  // namespace
 
-cv::Mat renderImage(const Scenario& sc, int k, const PinholeCamera& cam, int threads) {
+cv::Mat renderImage(const Scenario& sc, int k, const PinholeCamera& cam, int threads,
+                    bool cull_solids) {
   const double t_k = k / sc.rate_hz;
   const World w(sc, t_k);
   const Eigen::Isometry3d T_world_lidar = egoPose(sc, t_k);
@@ -222,6 +224,31 @@ cv::Mat renderImage(const Scenario& sc, int k, const PinholeCamera& cam, int thr
   const Eigen::Matrix3d R_world_opt = T_world_lidar.linear() * T_opt_lidar.linear().inverse();
   const Eigen::Vector3d origin = T_world_lidar * (T_opt_lidar.inverse() * Eigen::Vector3d::Zero());
   const Eigen::Matrix3d Kinv = cam.K().inverse();
+  // Solids culled per band of columns: a band's rays span, in the world's xy plane, the azimuths
+  // of its four corner rays (a convex cone narrower than pi), and a ray hits a solid only where
+  // its azimuth from the camera's centre meets the solid's upright bounding cylinder. Each band
+  // keeps, in index order, every solid a ray of it can hit: the same hits, the same image.
+  constexpr int kBand = 32;
+  const int bands = (cam.width + kBand - 1) / kBand;
+  Eigen::Isometry3d T_world_cam = Eigen::Isometry3d::Identity();  // upright, at the centre
+  T_world_cam.translation() = origin;
+  std::vector<std::vector<int>> band_solids(static_cast<std::size_t>(bands));
+  for (int b = 0; b < bands; ++b) {
+    std::optional<double> first;
+    double lo = 0, hi = 0;  // relative to the first corner's azimuth
+    for (const double u : {double(b * kBand), double(std::min(cam.width, (b + 1) * kBand))})
+      for (const double v : {0.0, double(cam.height)}) {
+        const Eigen::Vector3d d = R_world_opt * (Kinv * Eigen::Vector3d(u, v, 1.0));
+        const double a = std::atan2(d.y(), d.x());
+        if (!first) first = a;
+        const double r = wrapPi(a - *first);
+        lo = std::min(lo, r), hi = std::max(hi, r);
+      }
+    if (cull_solids && hi - lo < 0.9 * M_PI)  // else it may look straight up or down: all
+      band_solids[b] = cull(w, T_world_cam, *first + lo - 1e-3, *first + hi + 1e-3, 0.1);
+    else
+      for (int i = 0; i < static_cast<int>(w.solids().size()); ++i) band_solids[b].push_back(i);
+  }
   cv::Mat img(cam.height, cam.width, CV_8UC3);
   parallelFor(
       static_cast<std::size_t>(cam.height), threads,
@@ -233,7 +260,7 @@ cv::Mat renderImage(const Scenario& sc, int k, const PinholeCamera& cam, int thr
           const Eigen::Vector3d d =
               (R_world_opt * (Kinv * Eigen::Vector3d(u + 0.5, v + 0.5, 1.0))).normalized();
           Eigen::Vector3f c;
-          if (w.intersect(origin, d, 300.0, hit)) {
+          if (w.intersect(origin, d, 300.0, hit, &band_solids[u / kBand])) {
             c = shade(w, hit);
             const float fog = float(std::min(1.0, hit.t / 300.0));
             c = (1 - fog) * c + fog * Eigen::Vector3f(0.85f, 0.8f, 0.75f);

@@ -104,7 +104,10 @@ Frame frameOf(SimScan&& s, int k);
 
 /// KITTI 2011_09_26 left colour camera (rectified P2 and velodyne-to-camera Tr), 1242 x 375.
 PinholeCamera kittiCamera();
-/// Renders frame k by ray casting the scene at the frame's time (BGR, 8 bit).
-cv::Mat renderImage(const Scenario& sc, int k, const PinholeCamera& cam, int threads = 2);
+/// Renders frame k by ray casting the scene at the frame's time (BGR, 8 bit). `cull_solids`: each
+/// band of columns tests only the solids its rays can reach (the same image); false tests every
+/// solid for every pixel, the reference the tests compare against.
+cv::Mat renderImage(const Scenario& sc, int k, const PinholeCamera& cam, int threads = 2,
+                    bool cull_solids = true);
 
 }  // namespace cleanmap::sim
