@@ -3,7 +3,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <numeric>
 #include <string>
 
 #include "cleanmap/core/cell_key.h"
@@ -30,19 +29,24 @@ RadiusIndex::RadiusIndex(std::vector<Eigen::Vector3f> points, double radius)
     if (!indexable(p))
       throw Error("RadiusIndex", "a map point lies " + std::to_string(p.norm() / 1000) +
                                      " km from the origin; the index cannot hold it");
-  std::vector<uint64_t> keys(points.size());
+  // (key, input index) pairs sorted: cells in key order, each cell's points in input order.
+  std::vector<std::pair<uint64_t, uint32_t>> keyed(points.size());
   for (std::size_t i = 0; i < points.size(); ++i)
-    keys[i] =
-        cellKeyOf(double(points[i].x()), double(points[i].y()), double(points[i].z()), inv_cell_);
-  std::vector<uint32_t> order(points.size());
-  std::iota(order.begin(), order.end(), 0u);
-  std::sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) { return keys[a] < keys[b]; });
+    keyed[i] = {
+        cellKeyOf(double(points[i].x()), double(points[i].y()), double(points[i].z()), inv_cell_),
+        uint32_t(i)};
+  std::sort(keyed.begin(), keyed.end());
+  std::size_t n_cells = 0;
+  for (std::size_t i = 0; i < keyed.size(); ++i)
+    n_cells += i == 0 || keyed[i - 1].first != keyed[i].first;
+  cells_.reserve(n_cells);
   pts_.reserve(points.size());
-  for (std::size_t i = 0; i < order.size(); ++i) {
-    const uint64_t k = keys[order[i]];
-    if (i == 0 || keys[order[i - 1]] != k) cells_[k] = {uint32_t(i), uint32_t(i)};
-    cells_[k].second = uint32_t(i + 1);
-    pts_.push_back(points[order[i]]);
+  for (std::size_t i = 0, begin = 0; i < keyed.size(); ++i) {
+    pts_.push_back(points[keyed[i].second]);
+    if (i + 1 == keyed.size() || keyed[i + 1].first != keyed[i].first) {
+      cells_.get(keyed[i].first) = {uint32_t(begin), uint32_t(i + 1)};
+      begin = i + 1;
+    }
   }
 }
 
