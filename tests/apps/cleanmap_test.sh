@@ -69,10 +69,11 @@ expect_error 1 "000006.bin: truncated scan" "$bin/cleanmap" "$scratch/cut" -o "$
 [[ $(ls -A "$scratch" | grep -c cleanmap-staging) -eq 0 ]] || fail "a failed run left its staging folder"
 
 # A disk that fills up (full_disk: a file-size limit), early and in the last kilobyte of the run's
-# largest file: one line, the earlier run as it was.
-largest=$(find "$scratch/clean" -type f -printf '%s\n' | sort -n | tail -1)
+# largest file: one line, the earlier run as it was. The run is the earlier one's (--last 4), so its
+# largest file is as large.
+largest=$(find "$scratch/out" -type f -printf '%s\n' | sort -n | tail -1)
 for kb in 64 $(((largest - 1) / 1024)); do
-  expect_error 1 "write failed (disk full?)" full_disk "$kb" "$bin/cleanmap" "$seq" -o "$scratch/out" --quiet
+  expect_error 1 "write failed (disk full?)" full_disk "$kb" "$bin/cleanmap" "$seq" -o "$scratch/out" --quiet --last 4
   [[ "$(cat "$scratch/out/report.json")" == "$before" ]] || fail "full disk at $kb KB: the earlier run was touched"
   [[ $(ls -A "$scratch" | grep -c cleanmap-staging) -eq 0 ]] || fail "full disk at $kb KB: staging folder left"
 done
