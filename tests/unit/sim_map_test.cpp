@@ -51,20 +51,17 @@ struct MapCase {
 MapCase runMapCase(const sim::Scenario& sc, const PipelineParams& params, const std::string& tag) {
   const fs::path out = test::scratchDir(sc.name + "_" + tag);
   fs::remove_all(out);
-  {
-    io::OutputWriter writer(out.string(), "sim:" + sc.name, params);
-    LaserPipeline pipe(params, [&](ScanResult&& r) { writer.write(r, std::nullopt); });
-    for (int k = 0; k < sc.frames; ++k) pipe.push(sim::frameOf(sim::simulateScan(sc, k, 2), k));
-    pipe.finish();
-    writer.finish(0.0, pipe.freeSpace());
-  }
-  std::vector<Eigen::Vector3f> map;
-  for (const auto& p : io::readPly((out / "static_map_full.ply").string())) map.push_back(p.xyz());
-  const RadiusIndex index(std::move(map), 0.05);
-  std::map<std::string, MapScorer> scorers;
-  auto scorer = [&](const std::string& k) -> MapScorer& {
-    return scorers.try_emplace(k, index).first->second;
+  // The truth points scored, kept from the frames as they are simulated: world position, kind
+  // (index into `kinds`), moving, and whether a mover's point lies outside every mover's box at
+  // the last frame (its "/vacated" kind).
+  struct Truth {
+    Eigen::Vector3f p;
+    uint16_t kind;
+    bool moving, vacated;
   };
+  std::vector<Truth> truth;
+  std::vector<std::string> kinds;
+  std::map<std::string, uint16_t> kind_ids;
   const sim::World w_end(sc, double(sc.frames - 1) / sc.rate_hz);
   auto inside_at_end = [&](const Eigen::Vector3d& p) {  // any mover's box at the last frame
     for (const auto& b : w_end.solids())
@@ -78,20 +75,57 @@ MapCase runMapCase(const sim::Scenario& sc, const PipelineParams& params, const 
       }
     return false;
   };
-  for (int k = 0; k < sc.frames; ++k) {  // the same frames again (the simulation is seeded)
-    const sim::SimScan s = sim::simulateScan(sc, k, 2);
+  auto kindId = [&](const std::string& kind) {
+    const auto [it, fresh] = kind_ids.try_emplace(kind, uint16_t(kinds.size()));
+    if (fresh) kinds.push_back(kind);
+    return it->second;
+  };
+  auto keepTruth = [&](const sim::SimScan& s) {
     const sim::World w(sc, s.time);
+    std::vector<int> ids(2 * w.solids().size(), -1);  // per solid, standing and moving
     for (std::size_t i = 0; i < s.points.size(); ++i) {
       const uint32_t l = s.labels[i];
       const auto& p = s.points[i];
       if ((l != 9 && l != 251) || double(p.x) * p.x + double(p.y) * p.y > 50.0 * 50.0) continue;
-      const bool mover = s.solid[i] >= 0 && w.solids()[s.solid[i]].surface == sim::Surface::kMover;
-      const std::string kind =
-          !mover ? "world" : w.solids()[s.solid[i]].name + (l == 251 ? "" : "/standing");
+      const int j = s.solid[i];
+      const bool mover = j >= 0 && w.solids()[j].surface == sim::Surface::kMover;
+      uint16_t kind = 0;
+      if (!mover) {
+        kind = kindId("world");
+      } else {
+        int& id = ids[2 * j + (l == 251)];
+        if (id < 0) id = kindId(w.solids()[j].name + (l == 251 ? "" : "/standing"));
+        kind = uint16_t(id);
+      }
       const Eigen::Vector3d pw = s.pose * p.xyz().cast<double>();
-      scorer(kind).add(pw.cast<float>(), l == 251);
-      if (mover && !inside_at_end(pw)) scorer(kind + "/vacated").add(pw.cast<float>(), l == 251);
+      truth.push_back({pw.cast<float>(), kind, l == 251, mover && !inside_at_end(pw)});
     }
+  };
+  {
+    io::OutputWriter writer(out.string(), "sim:" + sc.name, params);
+    LaserPipeline pipe(params, [&](ScanResult&& r) { writer.write(r, std::nullopt); });
+    for (int k = 0; k < sc.frames; ++k) {
+      sim::SimScan s = sim::simulateScan(sc, k, 2);
+      keepTruth(s);
+      pipe.push(sim::frameOf(std::move(s), k));
+    }
+    pipe.finish();
+    writer.finish(0.0, pipe.freeSpace());
+  }
+  std::vector<Eigen::Vector3f> map;
+  for (const auto& p : io::readPly((out / "static_map_full.ply").string())) map.push_back(p.xyz());
+  const RadiusIndex index(std::move(map), 0.05);
+  std::map<std::string, MapScorer> scorers;
+  auto scorer = [&](const std::string& k) -> MapScorer& {
+    return scorers.try_emplace(k, index).first->second;
+  };
+  std::vector<MapScorer*> by_id, vacated_by_id(kinds.size(), nullptr);
+  for (const auto& k : kinds) by_id.push_back(&scorer(k));
+  for (const Truth& t : truth) {
+    by_id[t.kind]->add(t.p, t.moving);
+    if (!t.vacated) continue;
+    if (!vacated_by_id[t.kind]) vacated_by_id[t.kind] = &scorer(kinds[t.kind] + "/vacated");
+    vacated_by_id[t.kind]->add(t.p, t.moving);
   }
   MapCase res;
   for (const auto& [k, sc_k] : scorers) {
@@ -319,12 +353,27 @@ TEST(SimMap, TheMapLayerDecidesPerObjectAsTheAppsMaps) {
   const auto app = sorted(xyz(io::readPly(
       (fs::path(CLEANMAP_TEST_SCRATCH_DIR) / (sc.name + "_default") / "static_map_full.ply")
           .string())));
+  // The frames, simulated once for the four layers below, and the 0.1 m voxels of the truck's
+  // points (none shared with the scenery's) and the scenery's.
+  std::vector<Frame> frames;
+  std::set<uint64_t> truck, world;
+  for (int k = 0; k < sc.frames; ++k) {
+    sim::SimScan s = sim::simulateScan(sc, k, 2);
+    const sim::World w(sc, s.time);
+    for (std::size_t i = 0; i < s.points.size(); ++i) {
+      if (s.labels[i] != 9 && s.labels[i] != 251) continue;  // ground aside: always kept
+      const bool mover = s.solid[i] >= 0 && w.solids()[s.solid[i]].surface == sim::Surface::kMover;
+      const Eigen::Vector3f p = (s.pose * s.points[i].xyz().cast<double>()).cast<float>();
+      (mover ? truck : world).insert(cellKeyOf(p.x(), p.y(), p.z(), 10.0f));
+    }
+    frames.push_back(sim::frameOf(std::move(s), k));
+  }
+  for (const uint64_t k : world) truck.erase(k);
   const auto layer = [&](const PipelineParams& params, double voxel,
                          std::size_t object_scans = 0) {  // 0: all
     auto m = std::make_unique<cleanmap_maps::CMovingObjectsMap>(params, voxel);
     m->setObjectScans(object_scans);
-    for (int k = 0; k < sc.frames; ++k)
-      m->insertFrame(sim::frameOf(sim::simulateScan(sc, k, 2), k));
+    for (const Frame& f : frames) m->insertFrame(Frame(f));
     m->flush();
     return m;
   };
@@ -335,19 +384,6 @@ TEST(SimMap, TheMapLayerDecidesPerObjectAsTheAppsMaps) {
   EXPECT_TRUE(points == app) << "the layer's static points differ from static_map_full.ply's";
   EXPECT_GT(exact->objectPoints(), 0u);
 
-  // The 0.1 m voxels of the truck's points (none shared with the scenery's) and the scenery's.
-  std::set<uint64_t> truck, world;
-  for (int k = 0; k < sc.frames; ++k) {
-    const sim::SimScan s = sim::simulateScan(sc, k, 2);
-    const sim::World w(sc, s.time);
-    for (std::size_t i = 0; i < s.points.size(); ++i) {
-      if (s.labels[i] != 9 && s.labels[i] != 251) continue;  // ground aside: always kept
-      const bool mover = s.solid[i] >= 0 && w.solids()[s.solid[i]].surface == sim::Surface::kMover;
-      const Eigen::Vector3f p = (s.pose * s.points[i].xyz().cast<double>()).cast<float>();
-      (mover ? truck : world).insert(cellKeyOf(p.x(), p.y(), p.z(), 10.0f));
-    }
-  }
-  for (const uint64_t k : world) truck.erase(k);
   const auto keptShare = [](const std::vector<PointXYZI>& kept,
                             const std::vector<PointXYZI>& removed, const std::set<uint64_t>& in) {
     std::size_t k = 0, r = 0;
