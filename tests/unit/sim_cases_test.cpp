@@ -373,7 +373,9 @@ TEST(SimCases, DeskewFollowsTheModeAndThePointTimes) {
     ASSERT_EQ(stats.size(), 4u);
     for (const auto& st : stats) {
       EXPECT_EQ(st.deskewed, deskewed ? 1u : 0u) << int(mode) << " " << times;
-      if (deskewed) EXPECT_NEAR(st.deskew_max_shift, 0.7, 0.05) << int(mode) << " " << times;
+      if (deskewed) {
+        EXPECT_NEAR(st.deskew_max_shift, 0.7, 0.05) << int(mode) << " " << times;
+      }
     }
   }
   const auto one = run(DeskewMode::kAuto, true, 1);
