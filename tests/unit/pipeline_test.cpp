@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <random>
 
@@ -740,29 +741,45 @@ TEST(MovingTest, BeamsGrazingAFlatSurfaceDoNotVoteEmpty) {
   EXPECT_EQ(face_flat, 0u);
 }
 
-TEST(GrazingStretches, TheFootOfAnUprightSurfaceIsNotAFlatTop) {
-  // A leg 10 m ahead standing on a road 1 m under the sensor (rings every 0.5 degree). Its lowest
-  // return's lower neighbour is the road 0.5 m nearer, a rise of 0.08: flat by that alone, as a
-  // walker's shoe was (an HDL-32E lost the lowest 0.3 m of his legs to grazing beams). The leg
-  // rises straight above it, so it is not a flat top; the road's returns are.
+namespace {
+
+// A leg 10 m ahead standing on a road 1 m under the sensor before a wall 30 m away (rings every
+// 0.5 degree, columns every 0.1 degree within +-4 degrees); without the leg, or without the
+// returns of ring `skip_ring` (1: none), rings `lowest` to 0.
+std::vector<PointXYZI> legOnARoad(bool leg = true, int skip_ring = 1, int lowest = -16) {
   std::vector<PointXYZI> pts;
-  for (int ie = -16; ie <= 0; ++ie)
+  for (int ie = lowest; ie <= 0; ++ie)
     for (int ia = -40; ia <= 40; ++ia) {
+      if (ie == skip_ring) continue;
       const double el = ie * 0.5 * M_PI / 180, az = ia * 0.1 * M_PI / 180;
       const Eigen::Vector3d d(std::cos(el) * std::cos(az), std::cos(el) * std::sin(az),
                               std::sin(el));
-      double t = 30 / d.x();                                                    // a wall
-      if (d.z() < 0) t = std::min(t, -1.0 / d.z());                             // the road
-      if (std::abs(10 / d.x() * d.y()) <= 0.3 && (10 / d.x()) * d.z() >= -1.0)  // the leg
+      double t = 30 / d.x();                                                           // a wall
+      if (d.z() < 0) t = std::min(t, -1.0 / d.z());                                    // the road
+      if (leg && std::abs(10 / d.x() * d.y()) <= 0.3 && (10 / d.x()) * d.z() >= -1.0)  // the leg
         t = std::min(t, 10 / d.x());
       const Eigen::Vector3d q = t * d;
       pts.push_back({float(q.x()), float(q.y()), float(q.z()), 0.f});
     }
+  return pts;
+}
+
+void computeGrazing(GrazingStretches& g, const std::vector<PointXYZI>& pts) {
   std::vector<float> azimuth(pts.size());
   for (std::size_t n = 0; n < pts.size(); ++n) azimuth[n] = std::atan2(pts[n].y, pts[n].x);
   const MapParams m;
-  GrazingStretches g;
   g.compute(pts, Eigen::Matrix3f::Identity(), azimuth, m.flat_slope, m.margin, m.graze_reach);
+}
+
+}  // namespace
+
+TEST(GrazingStretches, TheFootOfAnUprightSurfaceIsNotAFlatTop) {
+  // Its lowest return's lower neighbour is the road 0.5 m nearer, a rise of 0.08: flat by that
+  // alone, as a walker's shoe was (an HDL-32E lost the lowest 0.3 m of his legs to grazing
+  // beams). The leg rises straight above it, so it is not a flat top; the road's returns are.
+  const std::vector<PointXYZI> pts = legOnARoad();
+  GrazingStretches g;
+  computeGrazing(g, pts);
   std::size_t foot = 0, foot_flat = 0, foot_top = 0, road = 0, road_top = 0;
   for (std::size_t n = 0; n < pts.size(); ++n) {
     const bool on_leg = std::abs(pts[n].x - 10.f) < 1e-3f;
@@ -780,6 +797,34 @@ TEST(GrazingStretches, TheFootOfAnUprightSurfaceIsNotAFlatTop) {
   EXPECT_EQ(foot_top, 0u);
   EXPECT_GT(road, 50u);
   EXPECT_EQ(road_top, road);
+}
+
+// One GrazingStretches computes scan after scan (the pipeline keeps it): each scan's stretches
+// and flat tops are those a fresh one gives, whatever the scan before it held (its cells, the
+// feet of upright surfaces it marked: the leg's foot is a flat top of the road once it is gone,
+// and its flat cells below the lowest ring of the next scan).
+TEST(GrazingStretches, AReusedOneGivesWhatAFreshOneGives) {
+  const std::vector<std::vector<PointXYZI>> scans = {legOnARoad(), legOnARoad(false),
+                                                     legOnARoad(true, -6), legOnARoad(false, -12),
+                                                     legOnARoad(true, 1, -14)};
+  const auto same = [](const GrazingStretches& a, const GrazingStretches& b, std::size_t n) {
+    std::size_t differ = 0;
+    for (std::size_t i = 0; i < n; ++i)
+      differ += std::memcmp(&a.from()[i], &b.from()[i], sizeof(float)) != 0 ||
+                std::memcmp(&a.to()[i], &b.to()[i], sizeof(float)) != 0 || a.flat(i) != b.flat(i) ||
+                a.flatTop(i) != b.flatTop(i);
+    return differ;
+  };
+  std::vector<GrazingStretches> fresh(scans.size());
+  for (std::size_t k = 0; k < scans.size(); ++k) computeGrazing(fresh[k], scans[k]);
+  EXPECT_GT(same(fresh[0], fresh[2], scans[2].size()), 0u);  // the scans differ where it counts
+  for (std::size_t a = 0; a < scans.size(); ++a)
+    for (std::size_t b = 0; b < scans.size(); ++b) {
+      GrazingStretches reused;
+      computeGrazing(reused, scans[a]);
+      computeGrazing(reused, scans[b]);
+      EXPECT_EQ(same(reused, fresh[b], scans[b].size()), 0u) << "scan " << b << " after " << a;
+    }
 }
 
 namespace {

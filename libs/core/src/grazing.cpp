@@ -28,11 +28,22 @@ void GrazingStretches::compute(const std::vector<PointXYZI>& points, const Eigen
   constexpr float kElLow = -1.f;      // tangents -1 to +0.27: -45 to +15 degrees
   constexpr int kElBands = 747, kMaxDown = 45;  // 4.4 degrees down near the horizon
   const int naz = static_cast<int>(std::ceil(2 * M_PI / kAzBin));
-  const std::size_t np = points.size();
-  grid_.assign(static_cast<std::size_t>(naz) * kElBands, UINT32_MAX);
+  const std::size_t np = points.size(), ncells = static_cast<std::size_t>(naz) * kElBands;
+  // Cells band after band (cell = band * naz + column): a ring's returns in scan order fill
+  // neighbouring cells. grid_ holds UINT32_MAX between calls (this call empties the cells it
+  // fills); upright_above_ the previous call's marks, cleared from its cells.
+  if (grid_.size() != ncells) {
+    grid_.assign(ncells, UINT32_MAX);
+    upright_above_.assign(ncells, 0);
+  } else {
+    for (const int c : cell_)
+      if (c >= 0) upright_above_[static_cast<std::size_t>(c)] = 0;
+  }
   cell_.assign(np, -1);
+  band_.resize(np);
   rho_.resize(np);
   zw_.resize(np);
+  int band_lo = kElBands, band_hi = -1;
   for (std::size_t n = 0; n < np; ++n) {
     const auto& q = points[n];
     const float rh = std::sqrt(q.x * q.x + q.y * q.y);
@@ -43,18 +54,21 @@ void GrazingStretches::compute(const std::vector<PointXYZI>& points, const Eigen
     const int az = std::clamp(static_cast<int>((azimuth[n] + float(M_PI)) / kAzBin), 0, naz - 1);
     const int el = static_cast<int>(std::floor((q.z / rh - kElLow) / kElBand));
     if (el < 0 || el >= kElBands) continue;
-    cell_[n] = az * kElBands + el;
+    cell_[n] = el * naz + az;
+    band_[n] = static_cast<uint16_t>(el);
+    band_lo = std::min(band_lo, el);
+    band_hi = std::max(band_hi, el);
     grid_[static_cast<std::size_t>(cell_[n])] = static_cast<uint32_t>(n);
   }
   lower_.assign(np, UINT32_MAX);
-  upright_above_.assign(grid_.size(), 0);
   slope_.assign(np, std::numeric_limits<float>::quiet_NaN());
   const auto flat = [&](uint32_t n) { return n != UINT32_MAX && !std::isnan(slope_[n]); };
   for (std::size_t n = 0; n < np; ++n) {
     if (cell_[n] < 0) continue;
-    const int el = cell_[n] % kElBands;
-    for (int e = el - 1; e >= std::max(0, el - kMaxDown) && lower_[n] == UINT32_MAX; --e)
-      lower_[n] = grid_[static_cast<std::size_t>(cell_[n] - (el - e))];
+    const int el = band_[n];
+    int c = cell_[n] - naz;
+    for (int e = el - 1; e >= std::max(0, el - kMaxDown) && lower_[n] == UINT32_MAX; --e, c -= naz)
+      lower_[n] = grid_[static_cast<std::size_t>(c)];
     const uint32_t l = lower_[n];
     if (l == UINT32_MAX) continue;
     if (rho_[n] > rho_[l] + 1e-3f) {
@@ -68,15 +82,16 @@ void GrazingStretches::compute(const std::vector<PointXYZI>& points, const Eigen
     upright_above_[static_cast<std::size_t>(cell_[l])] = 1;
   }
   // Per cell: the nearest cell at or below it in its column holding a flat return (-1: none).
-  flat_below_.resize(grid_.size());
-  for (int col = 0; col < naz; ++col) {
-    int last = -1;
-    for (int el = 0; el < kElBands; ++el) {
-      const int c = col * kElBands + el;
-      if (flat(grid_[static_cast<std::size_t>(c)])) last = c;
-      flat_below_[static_cast<std::size_t>(c)] = last;
-    }
-  }
+  // Only the bands from one below the lowest return's to the highest one's are ever read.
+  flat_below_.resize(ncells);
+  if (band_lo > 0 && band_lo <= band_hi)
+    std::fill_n(flat_below_.begin() + std::ptrdiff_t(band_lo - 1) * naz, naz, -1);
+  for (int el = band_lo; el <= band_hi; ++el)
+    for (int c = el * naz, end = c + naz; c < end; ++c)
+      flat_below_[static_cast<std::size_t>(c)] =
+          flat(grid_[static_cast<std::size_t>(c)]) ? c
+          : el > 0                                 ? flat_below_[static_cast<std::size_t>(c - naz)]
+                                                   : -1;
   skip_a_.assign(np, 0.f);
   skip_b_.assign(np, -1.f);
   const float m = static_cast<float>(margin_m), reach = static_cast<float>(reach_m);
@@ -94,11 +109,12 @@ void GrazingStretches::compute(const std::vector<PointXYZI>& points, const Eigen
       continue;
     }
     if (reach <= 0) continue;
-    // The flat returns below it in its column, nearest first (by the flat-cell links).
-    const int el = cell_[n] % kElBands, base = cell_[n] - el;
-    const int stop = base + std::max(0, el - kMaxDown);
-    for (int c = el > 0 ? flat_below_[static_cast<std::size_t>(cell_[n] - 1)] : -1; c >= stop;
-         c = c > base ? flat_below_[static_cast<std::size_t>(c - 1)] : -1) {
+    // The flat returns below it in its column, nearest first (by the flat-cell links), down to
+    // kMaxDown bands below it.
+    const int el = band_[n];
+    const int stop = std::max(0, el - kMaxDown) * naz + (cell_[n] - el * naz);
+    for (int c = el > 0 ? flat_below_[static_cast<std::size_t>(cell_[n] - naz)] : -1; c >= stop;
+         c = c >= naz ? flat_below_[static_cast<std::size_t>(c - naz)] : -1) {
       const uint32_t f = grid_[static_cast<std::size_t>(c)];
       if (!(rho_[f] < rho_[n])) continue;
       const float h = tan_beam * rho_[f] - zw_[f];  // the beam's height over the return
@@ -109,6 +125,8 @@ void GrazingStretches::compute(const std::vector<PointXYZI>& points, const Eigen
       break;
     }
   }
+  for (const int c : cell_)  // empty the grid for the next call
+    if (c >= 0) grid_[static_cast<std::size_t>(c)] = UINT32_MAX;
 }
 
 }  // namespace cleanmap

@@ -38,8 +38,9 @@ class GrazingStretches {
  private:
   // The returns' cells of azimuth x elevation, each return's cell, lower neighbour, rise to it
   // where flat, horizontal range and height from the sensor (world frame); kept between scans.
-  std::vector<uint32_t> grid_;
+  std::vector<uint32_t> grid_;  // UINT32_MAX between calls
   std::vector<int> cell_, flat_below_;
+  std::vector<uint16_t> band_;  // each return's band of elevation
   std::vector<uint32_t> lower_;
   std::vector<uint8_t> upright_above_;  // per cell: a return rises steeply from its return
   std::vector<float> slope_, rho_, zw_, skip_a_, skip_b_;
