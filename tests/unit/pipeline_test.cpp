@@ -3,9 +3,11 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <map>
 #include <random>
 
 #include "cleanmap/core/duplicate_filter.h"
@@ -971,8 +973,9 @@ TEST(OctreeSampling, DecideLeafStopsOnceSettledAndDecidesAsAllTested) {
   // majority over all of them, no point may be tested after the majority is settled, and
   // unanimous leaves of n points need about half of them.
   for (std::size_t n = 1; n <= 12; ++n) {
-    Leaf leaf;
-    for (uint32_t i = 0; i < n; ++i) leaf.tested.push_back(100 + i);
+    std::vector<uint32_t> ids;
+    for (uint32_t i = 0; i < n; ++i) ids.push_back(100 + i);
+    const Leaf leaf{{}, {ids.data(), ids.size()}};
     for (uint32_t bits = 0; bits < (1u << n); ++bits) {
       const auto moving = [&](uint32_t c) { return ((bits >> (c - 100)) & 1u) != 0; };
       std::size_t all = 0;
@@ -994,7 +997,8 @@ TEST(OctreeSampling, DecideLeafStopsOnceSettledAndDecidesAsAllTested) {
       }
     }
   }
-  EXPECT_FALSE(decideLeaf(Leaf{{7}, {}}, [](uint32_t) { return true; }));  // nothing tested
+  const uint32_t seven = 7;
+  EXPECT_FALSE(decideLeaf(Leaf{{&seven, 1}, {}}, [](uint32_t) { return true; }));  // none tested
 }
 
 TEST(OctreeSampling, DenseLeavesTestASixthDeterministically) {
@@ -1003,14 +1007,107 @@ TEST(OctreeSampling, DenseLeavesTestASixthDeterministically) {
   for (int i = 0; i < 3; ++i) pts.emplace_back(5.0 + 0.05 * i, 0.1, 0.1);     // sparse leaf
   OctreeParams p;
   std::mt19937_64 r1(9), r2(9);
-  const auto a = planLeaves(pts, p, r1), b = planLeaves(pts, p, r2);
+  LeafPlan a, b;
+  planLeaves(pts, p, r1, a);
+  planLeaves(pts, p, r2, b);
   ASSERT_EQ(a.size(), 2u);
   EXPECT_EQ(a[0].members.size(), 60u);
   EXPECT_EQ(a[0].tested.size(), 10u);
   EXPECT_EQ(a[1].tested.size(), 3u);
-  EXPECT_EQ(a[0].tested, b[0].tested);
+  EXPECT_EQ(a.testedTotal(), 13u);
+  EXPECT_TRUE(std::equal(a[0].tested.begin(), a[0].tested.end(), b[0].tested.begin()));
   EXPECT_TRUE(leafIsMoving(5, 10));
   EXPECT_FALSE(leafIsMoving(4, 10));
+}
+
+namespace {
+// planLeaves as it was written before its arrays were kept (issue #16): a hash map of OctoMap
+// keys to leaves, two vectors per leaf. The reference for the plan's grouping and draws.
+struct RefLeaf {
+  std::vector<uint32_t> members, tested;
+};
+std::vector<RefLeaf> referenceLeaves(const std::vector<Eigen::Vector3d>& pts, const OctreeParams& p,
+                                     std::mt19937_64& rng) {
+  const double inv = 1.0 / p.leaf;
+  std::map<std::array<int64_t, 3>, uint32_t> leaf_of;
+  std::vector<RefLeaf> leaves;
+  for (uint32_t i = 0; i < pts.size(); ++i) {
+    // OctoMap's key: floor(c / leaf) + 2^15 for the float coordinate, within [0, 2^16).
+    std::array<int64_t, 3> key{};
+    bool inside = true;
+    for (int a = 0; a < 3; ++a) {
+      key[a] = static_cast<int64_t>(std::floor(double(float(pts[i][a])) * inv)) + 32768;
+      inside = inside && key[a] >= 0 && key[a] < 65536;
+    }
+    if (!inside) {
+      leaves.push_back({{i}, {}});
+      continue;
+    }
+    const auto [it, added] = leaf_of.emplace(key, static_cast<uint32_t>(leaves.size()));
+    if (added) leaves.emplace_back();
+    leaves[it->second].members.push_back(i);
+  }
+  const std::size_t tau = static_cast<std::size_t>(std::max(p.tau_np, 1));
+  for (auto& leaf : leaves) {
+    const std::size_t n = leaf.members.size();
+    leaf.tested = leaf.members;
+    if (n < tau) continue;
+    const auto k = static_cast<std::size_t>(std::ceil(static_cast<double>(n) * p.fraction));
+    for (std::size_t j = 0; j < k; ++j) {
+      std::uniform_int_distribution<std::size_t> pick(j, n - 1);
+      std::swap(leaf.tested[j], leaf.tested[pick(rng)]);
+    }
+    leaf.tested.resize(k);
+  }
+  return leaves;
+}
+}  // namespace
+
+TEST(OctreeSampling, AReusedPlanGroupsAndDrawsAsTheReference) {
+  // One plan reused over clouds of different sizes (its arrays shrink and grow), against the
+  // reference: the same leaves in the same order, the same members and the same draws. The
+  // clouds mix dense clumps, scattered points and points beyond OctoMap's range (+-9830 m at
+  // 0.3 m leaves), each its own leaf.
+  std::mt19937_64 gen(5);
+  std::uniform_real_distribution<double> u(-40.0, 40.0), near(-0.4, 0.4);
+  LeafPlan plan;
+  std::size_t dense_seen = 0, outside_seen = 0;
+  for (const std::size_t n : {3000, 200, 0, 5000, 1}) {
+    for (const int tau : {1, 6}) {
+      std::vector<Eigen::Vector3d> pts;
+      for (std::size_t i = 0; i < n; ++i) {
+        if (i % 97 == 13) {
+          pts.emplace_back(1.0e4 + u(gen), u(gen), 0.0);  // outside OctoMap's range
+        } else if (i % 3 == 0) {
+          pts.emplace_back(u(gen), u(gen), u(gen) / 10);
+        } else {  // clumps around a few centres
+          const double cx = double(i % 7) * 3.1 - 9.0;
+          pts.emplace_back(cx + near(gen), 2.0 + near(gen), near(gen));
+        }
+      }
+      OctreeParams p;
+      p.tau_np = tau;
+      std::mt19937_64 r1(11 + n), r2(11 + n);
+      const auto ref = referenceLeaves(pts, p, r1);
+      planLeaves(pts, p, r2, plan);
+      ASSERT_EQ(plan.size(), ref.size()) << n << " " << tau;
+      std::size_t tested = 0;
+      for (std::size_t l = 0; l < ref.size(); ++l) {
+        const Leaf& leaf = plan[l];
+        ASSERT_EQ(std::vector<uint32_t>(leaf.members.begin(), leaf.members.end()), ref[l].members)
+            << n << " " << tau << " leaf " << l;
+        ASSERT_EQ(std::vector<uint32_t>(leaf.tested.begin(), leaf.tested.end()), ref[l].tested)
+            << n << " " << tau << " leaf " << l;
+        tested += ref[l].tested.size();
+        dense_seen += ref[l].members.size() >= 6 && ref[l].tested.size() < ref[l].members.size();
+        outside_seen += ref[l].members.size() == 1 && pts[ref[l].members[0]].x() > 5000;
+      }
+      EXPECT_EQ(plan.testedTotal(), tested);
+      EXPECT_EQ(r1(), r2()) << "the plan drew a different number of times";
+    }
+  }
+  EXPECT_GT(dense_seen, 100u);  // the clouds hold dense leaves, sampled
+  EXPECT_GT(outside_seen, 50u);
 }
 
 TEST(DuplicateFilter, RecentStaticPointsOnly) {

@@ -5,48 +5,73 @@
 
 #include <algorithm>
 #include <cmath>
-#include <unordered_map>
 
 namespace cleanmap {
 
-std::vector<Leaf> planLeaves(const std::vector<Eigen::Vector3d>& candidates, const OctreeParams& p,
-                             std::mt19937_64& rng) {
-  // An empty OcTree is only used for its key arithmetic (coordToKey at the leaf resolution).
+void planLeaves(const std::vector<Eigen::Vector3d>& candidates, const OctreeParams& p,
+                std::mt19937_64& rng, LeafPlan& plan) {
+  // An empty OcTree is only used for its key arithmetic (coordToKeyChecked at the leaf
+  // resolution).
   const octomap::OcTree tree(p.leaf);
-  std::unordered_map<octomap::OcTreeKey, uint32_t, octomap::OcTreeKey::KeyHash> leaf_of;
-  std::vector<Leaf> leaves;
-  for (uint32_t i = 0; i < candidates.size(); ++i) {
+  const auto n_cand = static_cast<uint32_t>(candidates.size());
+  // Each candidate's leaf, leaves numbered in the order of their first candidate.
+  plan.ids_.clear();
+  plan.ids_.reserve(candidates.size());
+  plan.leaf_of_.resize(candidates.size());
+  plan.count_.clear();
+  for (uint32_t i = 0; i < n_cand; ++i) {
     const auto& c = candidates[i];
     octomap::OcTreeKey key;
-    if (!tree.coordToKeyChecked(
+    const auto next = static_cast<uint32_t>(plan.count_.size());
+    uint32_t id = next;  // outside OctoMap's range: its own leaf
+    if (tree.coordToKeyChecked(
             octomap::point3d(static_cast<float>(c.x()), static_cast<float>(c.y()),
                              static_cast<float>(c.z())),
             key)) {
-      leaves.push_back(Leaf{{i}, {}});  // outside OctoMap's range: its own leaf
-      continue;
+      bool added = false;
+      uint32_t& slot =
+          plan.ids_.get(uint64_t(key[0]) | uint64_t(key[1]) << 16 | uint64_t(key[2]) << 32, &added);
+      if (added) slot = next;
+      id = slot;
     }
-    const auto [it, added] = leaf_of.emplace(key, static_cast<uint32_t>(leaves.size()));
-    if (added) leaves.emplace_back();
-    leaves[it->second].members.push_back(i);
+    if (id == next) plan.count_.push_back(0);
+    ++plan.count_[id];
+    plan.leaf_of_[i] = id;
   }
-  // Leaves are in order of first appearance, so the draw sequence is deterministic.
+  // Members grouped by leaf, in candidate order within each; the dense leaves' draws from copies.
+  const std::size_t n_leaves = plan.count_.size();
   const std::size_t tau = static_cast<std::size_t>(std::max(p.tau_np, 1));
-  for (auto& leaf : leaves) {
+  plan.members_.resize(candidates.size());
+  plan.leaves_.resize(n_leaves);
+  std::size_t start = 0, dense = 0;
+  for (std::size_t l = 0; l < n_leaves; ++l) {
+    const uint32_t n = plan.count_[l];
+    plan.leaves_[l].members = IndexRange{plan.members_.data() + start, n};
+    plan.count_[l] = static_cast<uint32_t>(start);  // now the leaf's next free place
+    start += n;
+    if (n >= tau) dense += n;
+  }
+  for (uint32_t i = 0; i < n_cand; ++i) plan.members_[plan.count_[plan.leaf_of_[i]]++] = i;
+  plan.drawn_.resize(dense);
+  plan.tested_total_ = 0;
+  uint32_t* drawn = plan.drawn_.data();
+  for (Leaf& leaf : plan.leaves_) {  // in leaf order, so the draw sequence is deterministic
     const std::size_t n = leaf.members.size();
     if (n < tau) {
       leaf.tested = leaf.members;
-      continue;
+    } else {
+      const auto k = static_cast<std::size_t>(std::ceil(static_cast<double>(n) * p.fraction));
+      std::copy(leaf.members.begin(), leaf.members.end(), drawn);
+      // Partial Fisher-Yates: the first k entries become a uniform random subset.
+      for (std::size_t j = 0; j < k; ++j) {
+        std::uniform_int_distribution<std::size_t> pick(j, n - 1);
+        std::swap(drawn[j], drawn[pick(rng)]);
+      }
+      leaf.tested = IndexRange{drawn, k};
+      drawn += n;
     }
-    const auto k = static_cast<std::size_t>(std::ceil(static_cast<double>(n) * p.fraction));
-    leaf.tested = leaf.members;
-    // Partial Fisher-Yates: the first k entries become a uniform random subset.
-    for (std::size_t j = 0; j < k; ++j) {
-      std::uniform_int_distribution<std::size_t> pick(j, n - 1);
-      std::swap(leaf.tested[j], leaf.tested[pick(rng)]);
-    }
-    leaf.tested.resize(k);
+    plan.tested_total_ += leaf.tested.size();
   }
-  return leaves;
 }
 
 }  // namespace cleanmap

@@ -87,7 +87,7 @@ struct LaserPipeline::Work {
   std::vector<uint8_t> duplicate;      // DESIGN §2.3
   std::vector<uint32_t> cand;          // candidates that are not duplicates: what is tested
   std::vector<Eigen::Vector3d> cand_world;
-  std::vector<Leaf> leaves;                    // DESIGN §2c, over `cand`
+  LeafPlan leaves;                             // DESIGN §2c, over `cand`
   std::vector<uint32_t> tested_leaf;           // the leaves with tested points
   std::vector<Eigen::Vector3f> tested_sensor;  // their first tested point, in the sensor frame
   std::vector<uint8_t> leaf_moving;            // per leaf, the decision (DESIGN §2c)
@@ -871,10 +871,8 @@ void LaserPipeline::findDuplicates(Prepared& s, Work& w) const {
 void LaserPipeline::sampleLeaves(Prepared& s, Work& w) const {
   const auto t0 = Clock::now();
   std::mt19937_64 rng(p_.seed * 0x9E3779B97F4A7C15ull + static_cast<uint64_t>(s.index));
-  w.leaves = planLeaves(w.cand_world, p_.octree, rng);
-  std::size_t tested = 0;
-  for (const auto& leaf : w.leaves) tested += leaf.tested.size();
-  s.stats.tested = tested;
+  planLeaves(w.cand_world, p_.octree, rng, w.leaves);
+  s.stats.tested = w.leaves.testedTotal();
   s.stats.ms.octree = msSince(t0);
 }
 

@@ -6,19 +6,65 @@
 #include <random>
 #include <vector>
 
+#include "cleanmap/core/cell_map.h"
 #include "cleanmap/core/params.h"
 
 namespace cleanmap {
 
+/// Candidate indices held by a LeafPlan (or any array that outlives the range).
+struct IndexRange {
+  const uint32_t* first = nullptr;
+  std::size_t n = 0;
+  const uint32_t* begin() const { return first; }
+  const uint32_t* end() const { return first + n; }
+  std::size_t size() const { return n; }
+  bool empty() const { return n == 0; }
+  uint32_t operator[](std::size_t i) const { return first[i]; }
+  uint32_t front() const { return first[0]; }
+};
+
 struct Leaf {
-  std::vector<uint32_t> members;  ///< indices into the candidate list
-  std::vector<uint32_t> tested;   ///< the subset to test (all if fewer than tau_np members)
+  IndexRange members;  ///< indices into the candidate list, increasing
+  IndexRange tested;   ///< the subset to test (all if fewer than tau_np members)
+};
+
+/// The candidates grouped by leaf (planLeaves). Its arrays are kept from one plan to the next,
+/// so a pipeline planning every scan allocates nothing per leaf (issue #16: 37,000 allocations a
+/// kitti_highway scan before). Not copyable: its leaves point into its own arrays.
+class LeafPlan {
+ public:
+  LeafPlan() = default;
+  LeafPlan(LeafPlan&&) = default;  // the arrays move with their elements in place
+  LeafPlan& operator=(LeafPlan&&) = default;
+  LeafPlan(const LeafPlan&) = delete;
+  LeafPlan& operator=(const LeafPlan&) = delete;
+
+  std::size_t size() const { return leaves_.size(); }
+  bool empty() const { return leaves_.empty(); }
+  const Leaf& operator[](std::size_t l) const { return leaves_[l]; }
+  std::vector<Leaf>::const_iterator begin() const { return leaves_.begin(); }
+  std::vector<Leaf>::const_iterator end() const { return leaves_.end(); }
+  std::size_t testedTotal() const { return tested_total_; }  ///< tested points over all leaves
+  void clear() { leaves_.clear(), tested_total_ = 0; }
+
+ private:
+  friend void planLeaves(const std::vector<Eigen::Vector3d>&, const OctreeParams&, std::mt19937_64&,
+                         LeafPlan&);
+  std::vector<Leaf> leaves_;
+  std::vector<uint32_t> members_;  // grouped by leaf
+  std::vector<uint32_t> drawn_;    // the dense leaves' members, shuffled; tested is a prefix
+  std::vector<uint32_t> leaf_of_;  // per candidate, its leaf
+  std::vector<uint32_t> count_;    // per leaf, its members (then its next free place)
+  CellMap<uint32_t> ids_;          // OctoMap key -> leaf
+  std::size_t tested_total_ = 0;
 };
 
 /// Groups candidates (world frame) by their OctoMap key at `leaf` resolution, in a deterministic
-/// order, and draws each dense leaf's ceil(n * fraction) tested points with `rng`.
-std::vector<Leaf> planLeaves(const std::vector<Eigen::Vector3d>& candidates, const OctreeParams& p,
-                             std::mt19937_64& rng);
+/// order (the order of each leaf's first candidate; a candidate outside OctoMap's range is a leaf
+/// of its own), and draws each dense leaf's ceil(n * fraction) tested points with `rng`. `plan`
+/// is overwritten, its memory reused.
+void planLeaves(const std::vector<Eigen::Vector3d>& candidates, const OctreeParams& p,
+                std::mt19937_64& rng, LeafPlan& plan);
 
 /// A leaf is moving iff at least half of its tested points are moving.
 inline bool leafIsMoving(std::size_t tested_moving, std::size_t tested) {
