@@ -8,6 +8,7 @@
 #include <exception>
 #include <limits>
 #include <mutex>
+#include <numeric>
 #include <random>
 #include <thread>
 
@@ -1091,11 +1092,12 @@ void LaserPipeline::validateImages(std::size_t pos, Prepared& s, Work& w) const 
                    [](const auto& a, const auto& b) { return a.first > b.first; });
   std::vector<const vision::CameraView*> window;
   for (const auto& o : order) window.push_back(o.second);
-  // Cells of moving points.
-  std::vector<std::vector<uint32_t>> cells;
+  // Cells of moving points: their keys in order of first point, each cell's points in flat arrays
+  // (cellPoints), not one vector per cell (issue #16: 4,700 allocations a highway scan).
   CellMap<std::size_t> cell_at;
   const double inv = 1.0 / ip.cell;
   std::vector<uint64_t> keys;
+  std::vector<uint32_t> considered, cell_of;  // the points placed in cells, and their cells
   // An object rule 4 held is not compared (DESIGN §3, "Objects rule 4 holds"): its camera vote
   // was the previous scan's, and it stays moving on evidence the images cannot resolve.
   for (uint32_t i = 0; i < s.scan.size(); ++i) {
@@ -1108,13 +1110,26 @@ void LaserPipeline::validateImages(std::size_t pos, Prepared& s, Work& w) const 
     const uint64_t key = cellKeyOf(x.x(), x.y(), x.z(), inv);
     bool fresh = false;
     std::size_t& at = cell_at.get(key, &fresh);
-    if (fresh) at = cells.size(), cells.emplace_back(), keys.push_back(key);
-    cells[at].push_back(i);
+    if (fresh) at = keys.size(), keys.push_back(key);
+    considered.push_back(i);
+    cell_of.push_back(static_cast<uint32_t>(at));
   }
+  const std::size_t n_cells = keys.size();
+  std::vector<uint32_t> cell_start(n_cells + 1, 0), cell_points(considered.size());
+  for (const uint32_t c : cell_of) ++cell_start[c + 1];
+  std::partial_sum(cell_start.begin(), cell_start.end(), cell_start.begin());
+  {
+    std::vector<uint32_t> next(cell_start.begin(), cell_start.end() - 1);
+    for (std::size_t k = 0; k < considered.size(); ++k)
+      cell_points[next[cell_of[k]]++] = considered[k];  // in point order within each cell
+  }
+  const auto cellPoints = [&](std::size_t c) {
+    return IndexRange{cell_points.data() + cell_start[c], cell_start[c + 1] - cell_start[c]};
+  };
   // Objects: connected components of the cells.
-  std::vector<int> obj_of(cells.size(), -1);
+  std::vector<int> obj_of(n_cells, -1);
   std::vector<std::vector<std::size_t>> objects;
-  for (std::size_t c0 = 0; c0 < cells.size(); ++c0) {
+  for (std::size_t c0 = 0; c0 < n_cells; ++c0) {
     if (obj_of[c0] >= 0) continue;
     const int id = static_cast<int>(objects.size());
     objects.push_back({c0});
@@ -1130,13 +1145,13 @@ void LaserPipeline::validateImages(std::size_t pos, Prepared& s, Work& w) const 
     }
   }
   // Each cell's point nearest its mean speaks for it.
-  std::vector<Eigen::Vector3d> rep(cells.size());
-  for (std::size_t c = 0; c < cells.size(); ++c) {
+  std::vector<Eigen::Vector3d> rep(n_cells);
+  for (std::size_t c = 0; c < n_cells; ++c) {
     Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-    for (uint32_t i : cells[c]) mean += w.world[i];
-    mean /= double(cells[c].size());
-    rep[c] = w.world[cells[c].front()];
-    for (uint32_t i : cells[c])
+    for (uint32_t i : cellPoints(c)) mean += w.world[i];
+    mean /= double(cellPoints(c).size());
+    rep[c] = w.world[cellPoints(c).front()];
+    for (uint32_t i : cellPoints(c))
       if ((w.world[i] - mean).squaredNorm() < (rep[c] - mean).squaredNorm()) rep[c] = w.world[i];
   }
   enum Outcome : uint8_t {
@@ -1155,14 +1170,14 @@ void LaserPipeline::validateImages(std::size_t pos, Prepared& s, Work& w) const 
     forEachNeighbour27([&](int dx, int dy, int dz) {
       const std::size_t* at = cell_at.find(cellKeyShift(keys[c], dx, dy, dz));
       if (!at) return;
-      for (uint32_t i : cells[*at])
+      for (uint32_t i : cellPoints(*at))
         if ((w.world[i] - rep[c]).squaredNorm() <= reach2) near.push_back(w.world[i]);
     });
     return vision::surfaceNormal(near).value_or(Eigen::Vector3d::Zero());
   };
   std::vector<Outcome> outcome(objects.size(), kUnseen);
   std::vector<std::size_t> grazing(objects.size(), 0);
-  std::vector<uint8_t> relabel_cell(cells.size(), 0);
+  std::vector<uint8_t> relabel_cell(n_cells, 0);
   parallelFor(objects.size(), p_.threads, [&](std::size_t o) {
     auto& members = objects[o];
     // Extremes first: a mover's leading and trailing ends differ most from frame to frame.
@@ -1201,9 +1216,9 @@ void LaserPipeline::validateImages(std::size_t pos, Prepared& s, Work& w) const 
     st.image_rejected_depth += oc == kRejectedDepth;
   }
   for (const std::size_t g : grazing) st.image_grazing += g;
-  for (std::size_t c = 0; c < cells.size(); ++c)
+  for (std::size_t c = 0; c < n_cells; ++c)
     if (relabel_cell[c])
-      for (uint32_t i : cells[c]) {
+      for (uint32_t i : cellPoints(c)) {
         w.moving[i] = 0;
         w.relabelled[i] = 1;
         ++st.image_relabelled;
