@@ -40,18 +40,27 @@ Components components(const std::vector<PointXYZI>& points, const std::vector<ui
   cc.voxel_of.reserve(static_cast<std::size_t>(
       std::count_if(member.begin(), member.end(), [](uint8_t m) { return m != 0; })));
   cc.point_voxel.assign(points.size(), UINT32_MAX);
+  // Neighbouring returns of a ring mostly share a voxel: the previous member's is checked before
+  // the table (issue #16: a probe per point missed the cache).
+  uint64_t last_key = CellMap<uint32_t>::kEmpty;
+  uint32_t last_voxel = 0;
   for (std::size_t i = 0; i < points.size(); ++i) {
     if (!member[i]) continue;
     const Eigen::Vector3i c(static_cast<int>(floorToCell(points[i].x, inv)),
                             static_cast<int>(floorToCell(points[i].y, inv)),
                             static_cast<int>(floorToCell(points[i].z, inv)));
-    bool fresh = false;
-    uint32_t& v = cc.voxel_of.get(cellKey(c.x(), c.y(), c.z()), &fresh);
-    if (fresh) {
-      v = static_cast<uint32_t>(cc.voxels.size());
-      cc.voxels.push_back(c);
+    const uint64_t key = cellKey(c.x(), c.y(), c.z());
+    if (key != last_key) {
+      bool fresh = false;
+      uint32_t& v = cc.voxel_of.get(key, &fresh);
+      if (fresh) {
+        v = static_cast<uint32_t>(cc.voxels.size());
+        cc.voxels.push_back(c);
+      }
+      last_key = key;
+      last_voxel = v;
     }
-    cc.point_voxel[i] = v;
+    cc.point_voxel[i] = last_voxel;
   }
   // One bit per hashed voxel key (issue #16): most of a voxel's forward neighbours are empty, and
   // a clear bit in 32 KiB (cache resident) rejects one before a probe of the voxel table, which
