@@ -139,6 +139,35 @@ TEST(KittiOdometry, MissingOrWrongDirectoryIsAnError) {
                     "not a KITTI folder");
 }
 
+TEST(KittiOdometry, TruncatedImageIsOneLineError) {
+  // An image cut short (an interrupted copy) is named in one error line, with nothing from libpng
+  // before it; a PNG with bytes after its end, and a JPEG named .png, still load.
+  CLEANMAP_REQUIRE_DATASET("kitti_city");
+  const std::string poses = std::string(kIdentityPose) + kIdentityPose + kIdentityPose;
+  const auto dir = miniOdometry("cutimage", poses,
+                                "P2: 100 0 32 0 0 100 24 0 0 0 1 0\nTr: 1 0 0 0 0 1 0 0 0 0 1 0\n");
+  fs::create_directories(dir / "image_2");
+  cv::Mat img(48, 64, CV_8UC3);
+  cv::randu(img, 0, 255);  // noise: a PNG of some kilobytes
+  for (const char* s : {"000000", "000001", "000002"})
+    ASSERT_TRUE(cv::imwrite((dir / "image_2" / (std::string(s) + ".png")).string(), img));
+  const auto second = dir / "image_2/000001.png";
+  const auto third = dir / "image_2/000002.png";
+  fs::resize_file(second, fs::file_size(second) / 2);
+  { std::ofstream(third, std::ios::binary | std::ios::app) << std::string(300, 'x'); }
+  auto seq = io::KittiSequence::open(dir.string());
+  ASSERT_TRUE(seq.hasImages());
+  EXPECT_EQ(seq.loadImage(0)->bgr.cols, 64);
+  testing::internal::CaptureStderr();
+  test::expectError([&] { seq.loadImage(1); }, "000001.png",
+                    "truncated PNG image (no IEND chunk at its end)");
+  EXPECT_EQ(testing::internal::GetCapturedStderr(), "");
+  EXPECT_EQ(seq.loadImage(2)->bgr.rows, 48);  // bytes after IEND are ignored
+  ASSERT_TRUE(cv::imwrite((dir / "image_2/000001.jpg").string(), img));
+  fs::rename(dir / "image_2/000001.jpg", second);
+  EXPECT_EQ(seq.loadImage(1)->bgr.cols, 64);  // a JPEG named .png: OpenCV reads it by content
+}
+
 // ---- KITTI raw: a synthetic drive with known motion ----
 
 namespace {

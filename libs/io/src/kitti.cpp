@@ -5,6 +5,7 @@
 #include <cmath>
 #include <ctime>
 #include <filesystem>
+#include <fstream>
 #include <iomanip>
 #include <sstream>
 
@@ -79,10 +80,41 @@ void requireProjection(const Eigen::Matrix<double, 3, 4>& P, const std::string& 
     throw Error(path, key + " is not a camera projection (finite, fx, fy > 0, P(3,3) = 1)");
 }
 
+// A PNG cut short (an interrupted copy) makes libpng print "libpng error: ..." before OpenCV
+// returns an empty image; it is told here in one line instead. A PNG ends with its IEND chunk
+// (decoders ignore bytes after it, so it is looked for in the last KiB). A file of another format
+// (a JPEG named .png) is left to OpenCV, which decodes by content.
+void requireWholePng(const std::string& path) {
+  std::ifstream f(path, std::ios::binary | std::ios::ate);
+  if (!f) throw Error(path, "cannot open image");
+  const auto size = static_cast<std::streamoff>(f.tellg());
+  static constexpr unsigned char kSignature[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1A, '\n'};
+  unsigned char head[8] = {};
+  f.seekg(0);
+  if (size < 8 || !f.read(reinterpret_cast<char*>(head), 8) ||
+      !std::equal(head, head + 8, kSignature))
+    return;
+  // The IEND chunk: length 0, type "IEND", its CRC AE 42 60 82.
+  static constexpr unsigned char kIend[12] = {0,   0,   0,    0,    'I',  'E',
+                                              'N', 'D', 0xAE, 0x42, 0x60, 0x82};
+  const std::streamoff tail = std::min<std::streamoff>(size, 1024);
+  std::vector<unsigned char> end(static_cast<std::size_t>(tail));
+  f.seekg(size - tail);
+  if (!f.read(reinterpret_cast<char*>(end.data()), tail) ||
+      std::search(end.begin(), end.end(), kIend, kIend + 12) == end.end())
+    throw Error(path, "truncated PNG image (no IEND chunk at its end)");
+}
+
+cv::Mat readImage(const std::string& path, int flags) {
+  requireWholePng(path);
+  cv::Mat img = cv::imread(path, flags);
+  if (img.empty()) throw Error(path, "cannot decode image");
+  return img;
+}
+
 // Image size without decoding the whole file would need a PNG parser; one decode at open is fine.
 std::pair<int, int> imageSize(const std::string& path) {
-  const cv::Mat img = cv::imread(path, cv::IMREAD_UNCHANGED);
-  if (img.empty()) throw Error(path, "cannot decode image");
+  const cv::Mat img = readImage(path, cv::IMREAD_UNCHANGED);
   return {img.cols, img.rows};
 }
 
@@ -349,8 +381,7 @@ Scan KittiSequence::loadScan(std::size_t i) const {
 std::optional<Image> KittiSequence::loadImage(std::size_t i) const {
   if (!hasImages()) return std::nullopt;
   Image img;
-  img.bgr = cv::imread(image_files_.at(i), cv::IMREAD_COLOR);
-  if (img.bgr.empty()) throw Error(image_files_[i], "cannot decode image");
+  img.bgr = readImage(image_files_.at(i), cv::IMREAD_COLOR);
   img.timestamp = times_.at(i);
   return img;
 }
