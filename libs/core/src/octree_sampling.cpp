@@ -18,12 +18,11 @@ void planLeaves(const std::vector<Eigen::Vector3d>& candidates, const OctreePara
   plan.ids_.clear();
   plan.ids_.reserve(candidates.size());
   plan.leaf_of_.resize(candidates.size());
-  plan.count_.clear();
+  uint32_t n_leaves = 0;
   for (uint32_t i = 0; i < n_cand; ++i) {
     const auto& c = candidates[i];
     octomap::OcTreeKey key;
-    const auto next = static_cast<uint32_t>(plan.count_.size());
-    uint32_t id = next;  // outside OctoMap's range: its own leaf
+    uint32_t id = n_leaves;  // outside OctoMap's range: its own leaf
     if (tree.coordToKeyChecked(
             octomap::point3d(static_cast<float>(c.x()), static_cast<float>(c.y()),
                              static_cast<float>(c.z())),
@@ -31,27 +30,21 @@ void planLeaves(const std::vector<Eigen::Vector3d>& candidates, const OctreePara
       bool added = false;
       uint32_t& slot =
           plan.ids_.get(uint64_t(key[0]) | uint64_t(key[1]) << 16 | uint64_t(key[2]) << 32, &added);
-      if (added) slot = next;
+      if (added) slot = n_leaves;
       id = slot;
     }
-    if (id == next) plan.count_.push_back(0);
-    ++plan.count_[id];
+    if (id == n_leaves) ++n_leaves;
     plan.leaf_of_[i] = id;
   }
   // Members grouped by leaf, in candidate order within each; the dense leaves' draws from copies.
-  const std::size_t n_leaves = plan.count_.size();
   const std::size_t tau = static_cast<std::size_t>(std::max(p.tau_np, 1));
-  plan.members_.resize(candidates.size());
+  plan.members_.assign(plan.leaf_of_, n_leaves);
   plan.leaves_.resize(n_leaves);
-  std::size_t start = 0, dense = 0;
+  std::size_t dense = 0;
   for (std::size_t l = 0; l < n_leaves; ++l) {
-    const uint32_t n = plan.count_[l];
-    plan.leaves_[l].members = IndexRange{plan.members_.data() + start, n};
-    plan.count_[l] = static_cast<uint32_t>(start);  // now the leaf's next free place
-    start += n;
-    if (n >= tau) dense += n;
+    plan.leaves_[l].members = plan.members_[l];
+    if (plan.members_[l].size() >= tau) dense += plan.members_[l].size();
   }
-  for (uint32_t i = 0; i < n_cand; ++i) plan.members_[plan.count_[plan.leaf_of_[i]]++] = i;
   plan.drawn_.resize(dense);
   plan.tested_total_ = 0;
   uint32_t* drawn = plan.drawn_.data();

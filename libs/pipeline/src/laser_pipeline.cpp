@@ -8,7 +8,6 @@
 #include <exception>
 #include <limits>
 #include <mutex>
-#include <numeric>
 #include <random>
 #include <thread>
 
@@ -17,6 +16,7 @@
 #include "cleanmap/core/deskew.h"
 #include "cleanmap/core/error.h"
 #include "cleanmap/core/ground.h"
+#include "cleanmap/core/grouped.h"
 #include "cleanmap/core/median.h"
 #include "cleanmap/core/object_consensus.h"
 #include "cleanmap/core/octree_sampling.h"
@@ -1093,7 +1093,7 @@ void LaserPipeline::validateImages(std::size_t pos, Prepared& s, Work& w) const 
   std::vector<const vision::CameraView*> window;
   for (const auto& o : order) window.push_back(o.second);
   // Cells of moving points: their keys in order of first point, each cell's points in flat arrays
-  // (cellPoints), not one vector per cell (issue #16: 4,700 allocations a highway scan).
+  // (Grouped), not one vector per cell (issue #16: 4,700 allocations a highway scan).
   CellMap<std::size_t> cell_at;
   const double inv = 1.0 / ip.cell;
   std::vector<uint64_t> keys;
@@ -1115,17 +1115,8 @@ void LaserPipeline::validateImages(std::size_t pos, Prepared& s, Work& w) const 
     cell_of.push_back(static_cast<uint32_t>(at));
   }
   const std::size_t n_cells = keys.size();
-  std::vector<uint32_t> cell_start(n_cells + 1, 0), cell_points(considered.size());
-  for (const uint32_t c : cell_of) ++cell_start[c + 1];
-  std::partial_sum(cell_start.begin(), cell_start.end(), cell_start.begin());
-  {
-    std::vector<uint32_t> next(cell_start.begin(), cell_start.end() - 1);
-    for (std::size_t k = 0; k < considered.size(); ++k)
-      cell_points[next[cell_of[k]]++] = considered[k];  // in point order within each cell
-  }
-  const auto cellPoints = [&](std::size_t c) {
-    return IndexRange{cell_points.data() + cell_start[c], cell_start[c + 1] - cell_start[c]};
-  };
+  Grouped cell_points;  // in point order within each cell
+  cell_points.assign(cell_of, n_cells, &considered);
   // Objects: connected components of the cells.
   std::vector<int> obj_of(n_cells, -1);
   std::vector<std::vector<std::size_t>> objects;
@@ -1148,10 +1139,10 @@ void LaserPipeline::validateImages(std::size_t pos, Prepared& s, Work& w) const 
   std::vector<Eigen::Vector3d> rep(n_cells);
   for (std::size_t c = 0; c < n_cells; ++c) {
     Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-    for (uint32_t i : cellPoints(c)) mean += w.world[i];
-    mean /= double(cellPoints(c).size());
-    rep[c] = w.world[cellPoints(c).front()];
-    for (uint32_t i : cellPoints(c))
+    for (uint32_t i : cell_points[c]) mean += w.world[i];
+    mean /= double(cell_points[c].size());
+    rep[c] = w.world[cell_points[c].front()];
+    for (uint32_t i : cell_points[c])
       if ((w.world[i] - mean).squaredNorm() < (rep[c] - mean).squaredNorm()) rep[c] = w.world[i];
   }
   enum Outcome : uint8_t {
@@ -1170,7 +1161,7 @@ void LaserPipeline::validateImages(std::size_t pos, Prepared& s, Work& w) const 
     forEachNeighbour27([&](int dx, int dy, int dz) {
       const std::size_t* at = cell_at.find(cellKeyShift(keys[c], dx, dy, dz));
       if (!at) return;
-      for (uint32_t i : cellPoints(*at))
+      for (uint32_t i : cell_points[*at])
         if ((w.world[i] - rep[c]).squaredNorm() <= reach2) near.push_back(w.world[i]);
     });
     return vision::surfaceNormal(near).value_or(Eigen::Vector3d::Zero());
@@ -1218,7 +1209,7 @@ void LaserPipeline::validateImages(std::size_t pos, Prepared& s, Work& w) const 
   for (const std::size_t g : grazing) st.image_grazing += g;
   for (std::size_t c = 0; c < n_cells; ++c)
     if (relabel_cell[c])
-      for (uint32_t i : cellPoints(c)) {
+      for (uint32_t i : cell_points[c]) {
         w.moving[i] = 0;
         w.relabelled[i] = 1;
         ++st.image_relabelled;

@@ -7,21 +7,10 @@
 #include <vector>
 
 #include "cleanmap/core/cell_map.h"
+#include "cleanmap/core/grouped.h"
 #include "cleanmap/core/params.h"
 
 namespace cleanmap {
-
-/// Candidate indices held by a LeafPlan (or any array that outlives the range).
-struct IndexRange {
-  const uint32_t* first = nullptr;
-  std::size_t n = 0;
-  const uint32_t* begin() const { return first; }
-  const uint32_t* end() const { return first + n; }
-  std::size_t size() const { return n; }
-  bool empty() const { return n == 0; }
-  uint32_t operator[](std::size_t i) const { return first[i]; }
-  uint32_t front() const { return first[0]; }
-};
 
 struct Leaf {
   IndexRange members;  ///< indices into the candidate list, increasing
@@ -51,10 +40,9 @@ class LeafPlan {
   friend void planLeaves(const std::vector<Eigen::Vector3d>&, const OctreeParams&, std::mt19937_64&,
                          LeafPlan&);
   std::vector<Leaf> leaves_;
-  std::vector<uint32_t> members_;  // grouped by leaf
+  Grouped members_;                // the candidates by leaf
   std::vector<uint32_t> drawn_;    // the dense leaves' members, shuffled; tested is a prefix
   std::vector<uint32_t> leaf_of_;  // per candidate, its leaf
-  std::vector<uint32_t> count_;    // per leaf, its members (then its next free place)
   CellMap<uint32_t> ids_;          // OctoMap key -> leaf
   std::size_t tested_total_ = 0;
 };
