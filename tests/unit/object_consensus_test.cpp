@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <stdexcept>
 
 #include "cleanmap/core/object_consensus.h"
 
@@ -534,4 +535,66 @@ TEST(MapObjects, RuleFiveTakesAnObjectStandingWhereAWholeOneOfItsSizeStood) {
   EXPECT_EQ(removedShare(std::vector<uint8_t>(both.removed.begin(),
                                               both.removed.begin() + long(moved.pts.size()))),
             1.0);
+}
+
+TEST(MapObjects, AGroupingMadeAheadDecidesAsTheOwnOne) {
+  // Issue #16: the map groups a scan's points while the scan before is decided, in one
+  // ObjectComponents whose buffers serve scan after scan. A crawling truck over four scans,
+  // forward and backward (rules 4 and 5 remembered across them), beside a parked car and a wall:
+  // the same decisions and counts as the consensus grouping each scan itself.
+  std::vector<Side> scans;
+  for (int k = 0; k < 4; ++k) {
+    Side s = truckSide(12 + 0.12f * k, k == 3 ? 1.8f : 0.9f, k == 3 ? 1.8f : 0.9f);
+    Side car = truckSide(-3, 0.2f, 0, 4.5f), wall = truckSide(60, 3.0f, 3.0f, 30);
+    for (const Side* o : {&car, &wall})
+      for (std::size_t i = 0; i < o->pts.size(); ++i) {
+        s.pts.push_back({o->pts[i].x, o->pts[i].y + 4 * (o == &car ? 1 : 3), o->pts[i].z, 0});
+        s.removed.push_back(o->removed[i]);
+      }
+    s.member.assign(s.pts.size(), 1);
+    scans.push_back(std::move(s));
+  }
+  ObjectParams p;
+  MapObjectConsensus own(p, 100, 0.5), ahead(p, 100, 0.5);
+  ObjectComponents groups;  // reused: a stale voxel of the scan before would change the objects
+  Side deck;                // as this one, which would join the truck, the car and the wall
+  for (float x = -8; x <= 60; x += 0.25f)
+    for (float y = 2; y <= 14; y += 0.25f) deck.pts.push_back({x, y, 1, 0});
+  deck.member.assign(deck.pts.size(), 1);
+  ahead.group(deck.pts, deck.member, groups);
+  auto mine = scans, theirs = scans;
+  for (std::size_t k = 0; k < scans.size(); ++k) {
+    const auto a = own.decide(int64_t(k), 1.0, mine[k].pts, mine[k].member, mine[k].removed,
+                              mine[k].pts.size());
+    ahead.group(theirs[k].pts, theirs[k].member, groups);
+    const auto b = ahead.decide(int64_t(k), 1.0, theirs[k].pts, theirs[k].member, theirs[k].removed,
+                                theirs[k].pts.size(), &groups);
+    ASSERT_EQ(mine[k].removed, theirs[k].removed) << "scan " << k;
+    EXPECT_EQ(a.points_added, b.points_added);
+    EXPECT_EQ(a.moving_objects, b.moving_objects);
+  }
+  const auto forward = mine;
+  for (std::size_t k = scans.size(); k-- > 0;) {
+    own.decideBackward(int64_t(k), 1.0, mine[k].pts, mine[k].member, mine[k].removed,
+                       mine[k].pts.size());
+    ahead.group(theirs[k].pts, theirs[k].member, groups);
+    ahead.decideBackward(int64_t(k), 1.0, theirs[k].pts, theirs[k].member, theirs[k].removed,
+                         theirs[k].pts.size(), &groups);
+    ASSERT_EQ(mine[k].removed, theirs[k].removed) << "scan " << k << " backward";
+  }
+  // The truck of the earlier scans went whole backwards: the rules ran, not only the grouping.
+  EXPECT_GT(removedShare(mine[0].removed), removedShare(forward[0].removed));
+
+  // A grouping of other points (another size, or another voxel side) is refused, not misread.
+  Side other = truckSide(12, 1.8f, 1.8f, 6);
+  ahead.group(other.pts, other.member, groups);
+  EXPECT_THROW(ahead.decide(5, 1.0, scans[0].pts, scans[0].member, scans[0].removed,
+                            scans[0].pts.size(), &groups),
+               std::invalid_argument);
+  ObjectComponents coarse;
+  groupObjects(scans[0].pts, scans[0].member, 2 * p.voxel, coarse);
+  auto removed = scans[0].removed;
+  EXPECT_THROW(
+      objectConsensus(scans[0].pts, scans[0].member, removed, p, nullptr, nullptr, {}, &coarse),
+      std::invalid_argument);
 }

@@ -5,6 +5,8 @@
 #include <algorithm>
 #include <cmath>
 #include <numeric>
+#include <stdexcept>
+#include <string>
 
 #include "cleanmap/core/cell_key.h"
 #include "cleanmap/core/cell_map.h"
@@ -25,18 +27,14 @@ struct UnionFind {
   }
 };
 
-// The 26-connected components of the member points' voxels (side `voxel`).
-struct Components {
-  CellMap<uint32_t> voxel_of;
-  std::vector<Eigen::Vector3i> voxels;
-  std::vector<uint32_t> point_voxel;  // per point; UINT32_MAX: not a member
-  std::vector<uint32_t> root_of;      // per voxel: its component's root, its smallest voxel
-};
+}  // namespace
 
-Components components(const std::vector<PointXYZI>& points, const std::vector<uint8_t>& member,
-                      double voxel) {
-  Components cc;
-  const float inv = static_cast<float>(1.0 / voxel);
+void groupObjects(const std::vector<PointXYZI>& points, const std::vector<uint8_t>& member,
+                  double side, ObjectComponents& cc) {
+  cc.side = side;
+  cc.voxel_of.clear();
+  cc.voxels.clear();
+  const float inv = static_cast<float>(1.0 / side);
   cc.voxel_of.reserve(static_cast<std::size_t>(
       std::count_if(member.begin(), member.end(), [](uint8_t m) { return m != 0; })));
   cc.point_voxel.assign(points.size(), UINT32_MAX);
@@ -89,8 +87,9 @@ Components components(const std::vector<PointXYZI>& points, const std::vector<ui
   }
   cc.root_of.resize(cc.voxels.size());  // each voxel's component, found once
   for (uint32_t v = 0; v < cc.voxels.size(); ++v) cc.root_of[v] = uf.find(v);
-  return cc;
 }
+
+namespace {
 
 // Rules 1-2 apply to an object of at most this extent; a larger one is a structure.
 bool vehicleSized(const Eigen::Vector3f& lo, const Eigen::Vector3f& hi, const ObjectParams& p) {
@@ -106,7 +105,8 @@ void wholeObjectsOf(const std::vector<PointXYZI>& points, const std::vector<uint
   out.voxel.clear();
   out.extent.clear();
   out.centroid.clear();
-  const Components cc = components(points, mask, side);
+  ObjectComponents cc;
+  groupObjects(points, mask, side, cc);
   std::vector<uint32_t> id(cc.voxels.size(), UINT32_MAX), n;
   std::vector<Eigen::Vector3f> lo, hi;
   for (std::size_t i = 0; i < points.size(); ++i) {
@@ -140,12 +140,19 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
                                      std::vector<uint8_t>& moving, const ObjectParams& p,
                                      const std::vector<uint8_t>* near_previous,
                                      std::vector<uint8_t>* in_moving_object,
-                                     const ConsensusRules& rules) {
+                                     const ConsensusRules& rules, const ObjectComponents* grouped) {
   ObjectConsensusStats st;
   if (in_moving_object) in_moving_object->assign(points.size(), 0);
   if (!p.enabled) return st;
   // Voxels of the member points and their 26-connected components.
-  const Components cc = components(points, member, p.voxel);
+  ObjectComponents own;
+  if (grouped && (grouped->point_voxel.size() != points.size() || grouped->side != p.voxel))
+    throw std::invalid_argument(
+        "objectConsensus: a grouping of " + std::to_string(grouped->point_voxel.size()) +
+        " points in voxels of " + std::to_string(grouped->side) + " m given for " +
+        std::to_string(points.size()) + " points in voxels of " + std::to_string(p.voxel) + " m");
+  if (!grouped) groupObjects(points, member, p.voxel, own);
+  const ObjectComponents& cc = grouped ? *grouped : own;
   const CellMap<uint32_t>& voxel_of = cc.voxel_of;
   const std::vector<Eigen::Vector3i>& voxels = cc.voxels;
   const std::vector<uint32_t>& point_voxel = cc.point_voxel;
@@ -462,7 +469,8 @@ std::vector<uint8_t> inVehicleSizedObject(const std::vector<PointXYZI>& points,
                                           const ObjectParams& p) {
   std::vector<uint8_t> in(points.size(), 0);
   if (!p.enabled) return in;
-  const Components cc = components(points, member, p.voxel);
+  ObjectComponents cc;
+  groupObjects(points, member, p.voxel, cc);
   std::vector<Eigen::Vector3f> lo(cc.voxels.size(), Eigen::Vector3f::Constant(1e30f)),
       hi(cc.voxels.size(), Eigen::Vector3f::Constant(-1e30f));
   for (std::size_t i = 0; i < points.size(); ++i) {
@@ -497,8 +505,8 @@ void persistCells(const std::vector<PointXYZI>& points, const std::vector<uint8_
 ObjectConsensusStats MapObjectConsensus::run(Memory& m, bool backward, int64_t scan, double density,
                                              const std::vector<PointXYZI>& points,
                                              const std::vector<uint8_t>& member,
-                                             std::vector<uint8_t>& removed,
-                                             std::size_t fixed_from) {
+                                             std::vector<uint8_t>& removed, std::size_t fixed_from,
+                                             const ObjectComponents* grouped) {
   if (!p_.enabled) return {};
   const int64_t e = epochOf(scan);
   if (e != m.epoch) m = Memory{};  // DESIGN §2f: no memory crosses an epoch's start, either way
@@ -520,8 +528,8 @@ ObjectConsensusStats MapObjectConsensus::run(Memory& m, bool backward, int64_t s
   ObjectParams op = p_;  // min_moving is an HDL-64E count (§2d)
   op.min_moving = std::max(1, static_cast<int>(std::lround(op.min_moving * density)));
   decided_ = removed;
-  ObjectConsensusStats st =
-      objectConsensus(points, member, decided_, op, persist ? &near_ : nullptr, &whole_, rules);
+  ObjectConsensusStats st = objectConsensus(points, member, decided_, op,
+                                            persist ? &near_ : nullptr, &whole_, rules, grouped);
   st.points_added = st.points_removed = 0;
   for (std::size_t i = 0; i < std::min(fixed_from, removed.size()); ++i) {
     if (backward && !decided_[i]) continue;  // backwards only adds (decide() kept the rest)

@@ -243,6 +243,7 @@ void OutputWriter::writeMaps(const FreeSpaceMap* free_space, const MapScanSink& 
     std::vector<SpoolPoint> pts, moving;
     std::vector<PointXYZI> objects;
     std::vector<uint8_t> member, gone;
+    ObjectComponents groups;  // the objects' grouping, made ahead in the backward pass
   };
   // Rules 4 and 5 both ways (DESIGN §2e "Objects"): a first pass decides the objects and keeps
   // its decisions per point (.map_decisions, a byte each); a second goes from the last scan to
@@ -325,7 +326,7 @@ void OutputWriter::writeMaps(const FreeSpaceMap* free_space, const MapScanSink& 
     }
     // From the last scan to the first: a scan without whole objects, after one without either,
     // has nothing the backward rules could change or pass on. With two threads the scan before
-    // is read beside this one's decision (issue #16), and dropped if it turns out not needed;
+    // is read and grouped beside this one's decision (issue #16), and dropped if not needed;
     // the files are only ever used by one thread at a time.
     PositionalFile spool(spool_path_, false), decisions_rw(decisions_path, true);
     const auto load = [&](std::size_t s, Spooled& b) {
@@ -339,6 +340,7 @@ void OutputWriter::writeMaps(const FreeSpaceMap* free_space, const MapScanSink& 
       b.gone.resize(b.pts.size());
       decisions_rw.readAt(decided_at[s], b.gone.data(), b.gone.size());
       assemble(b);
+      consensus.group(b.objects, b.member, b.groups);
     };
     Spooled cur, next;
     bool loaded = false;  // cur holds scan s
@@ -353,7 +355,7 @@ void OutputWriter::writeMaps(const FreeSpaceMap* free_space, const MapScanSink& 
       std::future<void> ahead;
       if (read_ahead) ahead = std::async(std::launch::async, load, s - 1, std::ref(next));
       const auto st = consensus.decideBackward(cur.h.index, cur.h.density, cur.objects, cur.member,
-                                               cur.gone, cur.pts.size());
+                                               cur.gone, cur.pts.size(), &cur.groups);
       if (read_ahead) ahead.get();
       map_object_points_ += st.points_added;
       map_objects_ += st.moving_objects;

@@ -67,8 +67,28 @@ struct ConsensusRules {
   std::function<bool(const std::vector<uint32_t>&)> has_left;
 };
 
+/// The 26-connected components of a set of member points' voxels: objectConsensus's grouping,
+/// which depends only on the points, the members and the voxel side. groupObjects() computes it
+/// apart, so that a caller can group the next scan's points while this one is decided (issue
+/// #16: the map's decision per object, DESIGN §2e).
+struct ObjectComponents {
+  double side = 0;                      ///< the voxel side it was computed with
+  CellMap<uint32_t> voxel_of;           ///< voxel key -> voxel
+  std::vector<Eigen::Vector3i> voxels;  ///< per voxel: its cell
+  std::vector<uint32_t> point_voxel;    ///< per point: its voxel; UINT32_MAX: not a member
+  std::vector<uint32_t> root_of;        ///< per voxel: its component's root, its smallest voxel
+};
+
+/// Fills `out` (its buffers reused) with the components of the points with `member[i]`, in
+/// voxels of side `side`. Deterministic; O(points).
+void groupObjects(const std::vector<PointXYZI>& points, const std::vector<uint8_t>& member,
+                  double side, ObjectComponents& out);
+
 /// Groups `points[i]` with `member[i]` (in crop, not ground) into 26-connected voxel components
 /// and sets `moving[i]` = 1 for every point of a component that passes the rule of `p`.
+/// `grouped` (optional): groupObjects() of the same points and members with side p.voxel, which
+/// is then not computed again (the same decisions); one of another size or side is an
+/// std::invalid_argument.
 /// `near_previous[i]` (optional): point i lies within p.persist_radius of a moving point of the
 /// previous scan (world frame); it lets a partly moving object stay moving (hysteresis).
 /// `in_moving_object` (optional, per point): set to 1 where the point's component is a
@@ -79,7 +99,8 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
                                      std::vector<uint8_t>& moving, const ObjectParams& p,
                                      const std::vector<uint8_t>* near_previous = nullptr,
                                      std::vector<uint8_t>* in_moving_object = nullptr,
-                                     const ConsensusRules& rules = {});
+                                     const ConsensusRules& rules = {},
+                                     const ObjectComponents* grouped = nullptr);
 
 /// Rule 5's objects (ConsensusRules::whole_objects): the 26-connected components of the points
 /// with `mask[i]`, in voxels of side `side`, with their extents and centroids.
@@ -129,11 +150,12 @@ class MapObjectConsensus {
   /// (the windowed test's: part of the objects, and they stay removed); `member[i]`: not ground;
   /// `removed[i]` on entry the free space's decision (1 for the moving points), on return the
   /// objects'. `density`: the lidar's (min_moving, §2d). Stats: points_added / points_removed
-  /// count the map points the objects removed / kept against the free space.
+  /// count the map points the objects removed / kept against the free space. `grouped`
+  /// (optional): group() of the same points and members.
   ObjectConsensusStats decide(int64_t scan, double density, const std::vector<PointXYZI>& points,
                               const std::vector<uint8_t>& member, std::vector<uint8_t>& removed,
-                              std::size_t fixed_from) {
-    return run(forward_, false, scan, density, points, member, removed, fixed_from);
+                              std::size_t fixed_from, const ObjectComponents* grouped = nullptr) {
+    return run(forward_, false, scan, density, points, member, removed, fixed_from, grouped);
   }
   /// Rules 4 and 5 with the next scan's whole objects: after decide() of every scan, the same
   /// scans in decreasing order, each with the points decide() had and the `removed` it returned;
@@ -142,8 +164,15 @@ class MapObjectConsensus {
   ObjectConsensusStats decideBackward(int64_t scan, double density,
                                       const std::vector<PointXYZI>& points,
                                       const std::vector<uint8_t>& member,
-                                      std::vector<uint8_t>& removed, std::size_t fixed_from) {
-    return run(backward_, true, scan, density, points, member, removed, fixed_from);
+                                      std::vector<uint8_t>& removed, std::size_t fixed_from,
+                                      const ObjectComponents* grouped = nullptr) {
+    return run(backward_, true, scan, density, points, member, removed, fixed_from, grouped);
+  }
+  /// The objects' grouping of a scan's points for decide() / decideBackward(): it reads only the
+  /// parameters, so one thread may group the next scan while another decides this one.
+  void group(const std::vector<PointXYZI>& points, const std::vector<uint8_t>& member,
+             ObjectComponents& out) const {
+    if (p_.enabled) groupObjects(points, member, p_.voxel, out);
   }
   /// Whether decide()'s last scan had whole objects. decideBackward() of a scan without them,
   /// while backwardMemory() is false, changes nothing: skipBackward() stands for it.
@@ -162,7 +191,8 @@ class MapObjectConsensus {
   static bool has(const Memory& m) { return !m.cells.empty() || !m.objects.empty(); }
   ObjectConsensusStats run(Memory& m, bool backward, int64_t scan, double density,
                            const std::vector<PointXYZI>& points, const std::vector<uint8_t>& member,
-                           std::vector<uint8_t>& removed, std::size_t fixed_from);
+                           std::vector<uint8_t>& removed, std::size_t fixed_from,
+                           const ObjectComponents* grouped);
   int64_t epochOf(int64_t scan) const { return epoch_ > 0 ? scan / epoch_ : 0; }
   ObjectParams p_;
   int epoch_;
