@@ -139,9 +139,9 @@ TEST(KittiOdometry, MissingOrWrongDirectoryIsAnError) {
                     "not a KITTI folder");
 }
 
-TEST(KittiOdometry, TruncatedImageIsOneLineError) {
-  // An image cut short (an interrupted copy) is named in one error line, with nothing from libpng
-  // before it; a PNG with bytes after its end, and a JPEG named .png, still load.
+TEST(KittiOdometry, TruncatedOrCorruptImageIsOneLineError) {
+  // An image cut short (an interrupted copy) or corrupt is named in one error line, with nothing
+  // from libpng before it; a PNG with bytes after its end, and a JPEG named .png, still load.
   CLEANMAP_REQUIRE_DATASET("kitti_city");
   const std::string poses = std::string(kIdentityPose) + kIdentityPose + kIdentityPose;
   const auto dir = miniOdometry("cutimage", poses,
@@ -163,6 +163,24 @@ TEST(KittiOdometry, TruncatedImageIsOneLineError) {
                     "truncated PNG image (no IEND chunk at its end)");
   EXPECT_EQ(testing::internal::GetCapturedStderr(), "");
   EXPECT_EQ(seq.loadImage(2)->bgr.rows, 48);  // bytes after IEND are ignored
+  // A byte changed inside the image data (a bad disk, a copy gone wrong): libpng would print
+  // "bad adaptive filter value" or decode garbage; the chunk's CRC tells it.
+  ASSERT_TRUE(cv::imwrite(second.string(), img));
+  {
+    std::fstream f(second, std::ios::binary | std::ios::in | std::ios::out);
+    const auto middle = static_cast<std::streamoff>(fs::file_size(second) / 2);
+    f.seekg(middle);
+    const char c = static_cast<char>(f.get());
+    f.seekp(middle);
+    f.put(static_cast<char>(~c));
+  }
+  testing::internal::CaptureStderr();
+  test::expectError([&] { seq.loadImage(1); }, "000001.png",
+                    "corrupt PNG image (its IDAT chunk at byte");
+  EXPECT_EQ(testing::internal::GetCapturedStderr(), "");
+  ASSERT_TRUE(cv::imwrite(second.string(), img));
+  fs::resize_file(second, 40);  // inside the second chunk's header: cut short too
+  test::expectError([&] { seq.loadImage(1); }, "000001.png", "truncated PNG image");
   ASSERT_TRUE(cv::imwrite((dir / "image_2/000001.jpg").string(), img));
   fs::rename(dir / "image_2/000001.jpg", second);
   EXPECT_EQ(seq.loadImage(1)->bgr.cols, 64);  // a JPEG named .png: OpenCV reads it by content
