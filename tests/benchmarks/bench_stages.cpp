@@ -222,6 +222,75 @@ void BM_FreeSpaceInsertKnownArea(benchmark::State& state) {
   state.counters["blocks"] = static_cast<double>(m.blocks());
 }
 
+// DESIGN §2e, the map's decision as its forward pass makes it (OutputWriter::writeMaps), one scan
+// an iteration, on a map that holds the 21 scans: /0 every map point's free-space verdict
+// (FreeSpaceMap::Lookup, removedByPolicy), /1 the objects' grouping (groupObjects), /2 the
+// objects' rules on that grouping (MapObjectConsensus::decide). Map points: every return above
+// the road within 50 m, in the world frame.
+struct MapInputs {
+  FreeSpaceMap map{MapParams{}};
+  std::vector<std::vector<PointXYZI>> world;
+  std::vector<std::vector<uint8_t>> member, removed;
+  std::vector<ObjectComponents> groups;
+};
+
+const MapInputs& mapInputs() {
+  static const MapInputs in = [] {
+    MapInputs r;
+    const auto& base = inputs();
+    for (std::size_t i = 0; i < base.scans.size(); ++i)
+      r.map.insertScan(base.scans[i].points, base.scans[i].pose, static_cast<int64_t>(i));
+    for (std::size_t i = 0; i < base.scans.size(); ++i) {
+      const Scan& s = base.scans[i];
+      auto& w = r.world.emplace_back();
+      for (const auto& p : s.points)
+        if (p.z > -1.4f && std::abs(p.x) <= 50 && std::abs(p.y) <= 50) {
+          const Eigen::Vector3f q = (s.pose * p.xyz().cast<double>()).cast<float>();
+          w.push_back({q.x(), q.y(), q.z(), p.intensity});
+        }
+      r.member.emplace_back(w.size(), 1);
+      auto& gone = r.removed.emplace_back();
+      FreeSpaceMap::Lookup look(r.map);
+      for (const auto& q : w)
+        gone.push_back(removedByPolicy(look(q.xyz()), static_cast<int64_t>(i), r.map.params()));
+      groupObjects(w, r.member.back(), ObjectParams{}.voxel, r.groups.emplace_back());
+    }
+    return r;
+  }();
+  return in;
+}
+
+void BM_MapDecision(benchmark::State& state) {
+  const auto& in = mapInputs();
+  const std::size_t n = in.world.size();
+  MapObjectConsensus consensus(ObjectParams{}, 0, mapObjectOverlap(in.map.params()));
+  ObjectComponents groups;
+  std::vector<uint8_t> gone;
+  std::size_t points = 0, removed = 0, k = 0;
+  for (auto _ : state) {
+    const std::size_t i = k % n;
+    const auto& w = in.world[i];
+    points += w.size();
+    if (state.range(0) == 0) {
+      FreeSpaceMap::Lookup look(in.map);
+      gone.clear();
+      for (const auto& q : w)
+        gone.push_back(removedByPolicy(look(q.xyz()), static_cast<int64_t>(i), in.map.params()));
+    } else if (state.range(0) == 1) {
+      consensus.group(w, in.member[i], groups);
+    } else {
+      gone = in.removed[i];
+      consensus.decide(static_cast<int64_t>(k), 1.0, w, in.member[i], gone, w.size(),
+                       &in.groups[i]);
+    }
+    for (const uint8_t g : gone) removed += g;
+    ++k;
+  }
+  state.counters["points"] = benchmark::Counter(double(points), benchmark::Counter::kAvgIterations);
+  state.counters["removed"] =
+      benchmark::Counter(double(removed), benchmark::Counter::kAvgIterations);
+}
+
 }  // namespace
 
 BENCHMARK(BM_BeamIndex)->Unit(benchmark::kMillisecond);
@@ -234,6 +303,7 @@ BENCHMARK(BM_DuplicateFilter)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_ObjectConsensus)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_FreeSpaceInsert)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_FreeSpaceInsertKnownArea)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_MapDecision)->Arg(0)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond);
 
 int main(int argc, char** argv) {
   std::vector<char*> rest{argv[0]};
