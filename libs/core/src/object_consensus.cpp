@@ -10,6 +10,7 @@
 
 #include "cleanmap/core/cell_key.h"
 #include "cleanmap/core/cell_map.h"
+#include "cleanmap/core/grouped.h"
 
 namespace cleanmap {
 namespace {
@@ -193,18 +194,16 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
   // the centroids lie more than max_shift apart).
   const WholeObjects* wo = rules.whole_objects;
   std::vector<uint8_t> all_parts;  // per root: another scan's object (rules 4, 5): all parts go
-  std::vector<uint32_t> member_of, starts;  // the members grouped by component (built once)
+  Grouped members;  // the member points by component, in point order (built once, if needed)
   const auto groupMembers = [&] {
-    if (!starts.empty()) return;  // counting sort of the members by component
-    starts.assign(voxels.size() + 1, 0);
+    if (members.size() > 0) return;
+    std::vector<uint32_t> root, index;
     for (std::size_t i = 0; i < points.size(); ++i)
-      if (point_voxel[i] != UINT32_MAX) ++starts[root_of[point_voxel[i]] + 1];
-    for (std::size_t v = 0; v < voxels.size(); ++v) starts[v + 1] += starts[v];
-    member_of.resize(starts.back());
-    std::vector<uint32_t> fill(starts.begin(), starts.end() - 1);
-    for (std::size_t i = 0; i < points.size(); ++i)
-      if (point_voxel[i] != UINT32_MAX)
-        member_of[fill[root_of[point_voxel[i]]]++] = static_cast<uint32_t>(i);
+      if (point_voxel[i] != UINT32_MAX) {
+        root.push_back(root_of[point_voxel[i]]);
+        index.push_back(static_cast<uint32_t>(i));
+      }
+    members.assign(root, voxels.size(), &index);
   };
   const float inv_voxel = static_cast<float>(1.0 / p.voxel);
   const auto shares = [&](uint32_t root, const Comp& c, uint32_t a) {
@@ -224,8 +223,8 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
       return o && *o == a;
     };
     std::size_t as_is = 0, moved = 0;
-    for (uint32_t k = starts[root]; k < starts[root + 1]; ++k) {
-      const Eigen::Vector3f q = points[member_of[k]].xyz();
+    for (const uint32_t i : members[root]) {
+      const Eigen::Vector3f q = points[i].xyz();
       as_is += in(q);
       moved += in(q + shift);
     }
@@ -239,8 +238,7 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
   // Component v's points, for rules.has_left.
   const auto leftItsPlace = [&](uint32_t v) {
     groupMembers();
-    return rules.has_left(
-        std::vector<uint32_t>(member_of.begin() + starts[v], member_of.begin() + starts[v + 1]));
+    return rules.has_left(std::vector<uint32_t>(members[v].begin(), members[v].end()));
   };
   const bool few_are_noise = rules.few_points_are_noise;
   bool body_check = false;  // a component turned static holds enough moving points for a body
