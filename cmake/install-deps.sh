@@ -7,7 +7,7 @@ set -euo pipefail
 PACKAGES=(
   build-essential cmake pkg-config
   libmrpt-dev mrpt-apps mrpt-common
-  liboctomap-dev libopencv-dev libeigen3-dev nlohmann-json3-dev zlib1g-dev
+  liboctomap-dev libopencv-dev libeigen3-dev nlohmann-json3-dev libdeflate-dev
   libgtest-dev libbenchmark-dev
   clang-format-14  # pinned: `make format` and the style.format test use this exact version
 )

@@ -9,13 +9,13 @@
 #include <iomanip>
 #include <sstream>
 
-#include <zlib.h>
 #include <opencv2/imgcodecs.hpp>
 
 #include "cleanmap/core/deskew.h"
 #include "cleanmap/core/error.h"
 #include "cleanmap/core/params.h"
 #include "cleanmap/io/calib.h"
+#include "cleanmap/io/image.h"
 
 namespace fs = std::filesystem;
 
@@ -79,54 +79,6 @@ void requireProjection(const Eigen::Matrix<double, 3, 4>& P, const std::string& 
                        const std::string& key) {
   if (!P.allFinite() || !(P(0, 0) > 0) || !(P(1, 1) > 0) || P(2, 2) != 1)
     throw Error(path, key + " is not a camera projection (finite, fx, fy > 0, P(3,3) = 1)");
-}
-
-// A PNG file's chunks (length, type, data, the CRC-32 of type and data: the PNG specification's
-// chunk layout) walked to IEND, each whole and its CRC right. libpng meets a cut (an interrupted
-// copy) or corrupt chunk only while it decodes, and prints its own "libpng error" line before
-// OpenCV returns an empty image; it is told here in one line instead. Bytes after IEND are ignored,
-// as libpng does; a file without the PNG signature is left to OpenCV (a JPEG named .png).
-void requireWholePng(const std::string& path, const std::vector<unsigned char>& b) {
-  static constexpr unsigned char kSignature[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1A, '\n'};
-  if (b.size() < 8 || !std::equal(kSignature, kSignature + 8, b.begin())) return;
-  const auto be32 = [&](std::size_t at) {
-    return uint32_t{b[at]} << 24 | uint32_t{b[at + 1]} << 16 | uint32_t{b[at + 2]} << 8 |
-           uint32_t{b[at + 3]};
-  };
-  for (std::size_t at = 8;;) {
-    // 12 bytes around the data: its length and type before, its CRC after.
-    if (b.size() - at < 12 || be32(at) > b.size() - at - 12)
-      throw Error(path, "truncated PNG image (no IEND chunk at its end)");
-    const uint32_t len = be32(at);
-    const std::string type(reinterpret_cast<const char*>(&b[at + 4]), 4);
-    const auto crc =
-        static_cast<uint32_t>(crc32(crc32(0L, Z_NULL, 0), &b[at + 4], static_cast<uInt>(len) + 4));
-    if (crc != be32(at + 8 + len))
-      throw Error(path, "corrupt PNG image (its " + type + " chunk at byte " + std::to_string(at) +
-                            " fails its CRC check)");
-    if (type == "IEND") return;
-    at += std::size_t{len} + 12;
-  }
-}
-
-cv::Mat readImage(const std::string& path, int flags) {
-  std::ifstream f(path, std::ios::binary | std::ios::ate);
-  if (!f) throw Error(path, "cannot open image");
-  std::vector<unsigned char> bytes(
-      static_cast<std::size_t>(std::max<std::streamoff>(f.tellg(), 0)));
-  f.seekg(0);
-  if (!f.read(reinterpret_cast<char*>(bytes.data()), static_cast<std::streamsize>(bytes.size())))
-    throw Error(path, "cannot read image");
-  requireWholePng(path, bytes);
-  cv::Mat img = cv::imdecode(bytes, flags);
-  if (img.empty()) throw Error(path, "cannot decode image");
-  return img;
-}
-
-// Image size without decoding the whole file would need a PNG parser; one decode at open is fine.
-std::pair<int, int> imageSize(const std::string& path) {
-  const cv::Mat img = readImage(path, cv::IMREAD_UNCHANGED);
-  return {img.cols, img.rows};
 }
 
 }  // namespace
