@@ -6,6 +6,7 @@
 #include <condition_variable>
 #include <deque>
 #include <exception>
+#include <future>
 #include <limits>
 #include <mutex>
 #include <random>
@@ -53,6 +54,7 @@ struct LaserPipeline::Prepared {
   Eigen::Isometry3d world_to_sensor;
   PoseInfo pose_info;
   ScanStats stats;
+  double prepare_ms = 0;  // prepare()'s wall: the index, crop + ground and camera view stages
   std::optional<vision::CameraView> view;  // DESIGN §3, when the frame has an image
   // DESIGN §3 "Camera poses": D, the correction of the motion from the scan buffered before this
   // one (its relative pose is T_prev^-1 T D), where the images aligned.
@@ -443,28 +445,41 @@ std::unique_ptr<LaserPipeline::Prepared> LaserPipeline::prepare(Registered&& r,
   st.deskewed = r.deskew_shift >= 0 ? 1 : 0;
   st.deskew_max_shift = std::max(0.0, r.deskew_shift);
 
-  auto t0 = Clock::now();
-  // Every valid point is a beam (ground and far points included, DESIGN §2.4).
-  // DESIGN §2b, grazing beams: each beam keeps where it grazes a flat surface of this scan.
-  if (p_.ds.grazing && p_.map.flat_slope > 0) {
-    const auto& pts = s->scan.points;
-    std::vector<float> azimuth(pts.size());
-    for (std::size_t n = 0; n < pts.size(); ++n) azimuth[n] = fast::atan2(pts[n].y, pts[n].x);
-    graze_.compute(pts, s->scan.pose.linear().cast<float>(), azimuth, p_.map.flat_slope,
-                   p_.map.margin, p_.map.graze_reach);
-    s->beams = BeamIndex(pts, test_.searchRadius(), BeamIndex::Binning::kFast, &graze_);
-    if (p_.map.clean) {
-      s->graze_from = graze_.from();
-      s->graze_to = graze_.to();
+  // Issue #16: the beam index (with the grazing stretches), the crop and ground masks, and the
+  // camera view depend on this scan and the ones buffered before it, never on each other; with
+  // two threads or more the index is built on a thread of its own beside the other two. Each
+  // writes its own fields of *s (and the index graze_), so the result is the same.
+  const auto t_prepare = Clock::now();
+  auto build_index = [&] {
+    const auto t_index = Clock::now();
+    // Every valid point is a beam (ground and far points included, DESIGN §2.4).
+    // DESIGN §2b, grazing beams: each beam keeps where it grazes a flat surface of this scan.
+    if (p_.ds.grazing && p_.map.flat_slope > 0) {
+      const auto& pts = s->scan.points;
+      std::vector<float> azimuth(pts.size());
+      for (std::size_t n = 0; n < pts.size(); ++n) azimuth[n] = fast::atan2(pts[n].y, pts[n].x);
+      graze_.compute(pts, s->scan.pose.linear().cast<float>(), azimuth, p_.map.flat_slope,
+                     p_.map.margin, p_.map.graze_reach);
+      s->beams = BeamIndex(pts, test_.searchRadius(), BeamIndex::Binning::kFast, &graze_);
+      if (p_.map.clean) {
+        s->graze_from = graze_.from();
+        s->graze_to = graze_.to();
+      }
+      s->flat.resize(pts.size());
+      for (std::size_t n = 0; n < pts.size(); ++n)
+        s->flat[n] = graze_.flatTop(n) ? kFlatSurface : 0;
+    } else {
+      s->beams = BeamIndex(s->scan.points, test_.searchRadius());
     }
-    s->flat.resize(pts.size());
-    for (std::size_t n = 0; n < pts.size(); ++n) s->flat[n] = graze_.flatTop(n) ? kFlatSurface : 0;
-  } else {
-    s->beams = BeamIndex(s->scan.points, test_.searchRadius());
-  }
-  st.ms.index = msSince(t0);
+    st.ms.index = msSince(t_index);
+  };
+  std::future<void> beside;  // joined below, or by its destructor where a stage below throws
+  if (p_.threads > 1)
+    beside = std::async(std::launch::async, build_index);
+  else
+    build_index();
 
-  t0 = Clock::now();
+  auto t0 = Clock::now();
   const auto& pts = s->scan.points;
   const float tau = static_cast<float>(p_.filter.crop_tau);
   // The ground grid covers the map radius too (inner cells do not depend on outer ones, so the
@@ -532,7 +547,8 @@ std::unique_ptr<LaserPipeline::Prepared> LaserPipeline::prepare(Registered&& r,
     if (!p_.image.align) s->view->grey.clear();
     st.ms.images = msSince(t0);
   }
-
+  if (beside.valid()) beside.get();  // rethrows its error
+  s->prepare_ms = msSince(t_prepare);
   return s;
 }
 
@@ -791,7 +807,6 @@ void LaserPipeline::releasePoints() {
 void LaserPipeline::decide(std::size_t pos) {
   Prepared& s = *buf_[pos];
   const auto t_start = Clock::now();
-  const double view_ms = s.stats.ms.images;  // the camera view, built before (validation adds)
   const std::vector<WindowScan> window = windowAround(pos);
   s.stats.window = window.size();
   s.stats.window_k = k_;
@@ -811,10 +826,11 @@ void LaserPipeline::decide(std::size_t pos) {
   if (source_ == PoseSource::kGicp || source_ == PoseSource::kRefine)  // movers leave GICP's map
     drops_.push_back({s.seq, static_cast<int64_t>(s.index), w.moving});
   r.stats.ms.free_space = insertFreeSpace(s, w);  // DESIGN §2e, beside the next scan's work
-  // The stages before this call, and this call's (the image validation included, once).
-  // A registration ahead ran beside the pipeline's work, as the free space does: not in `total`.
-  r.stats.ms.total = msSince(t_start) + (s.registered_beside ? 0.0 : s.stats.ms.registration) +
-                     s.stats.ms.index + s.stats.ms.ground + view_ms;
+  // The stages before this call (prepare()'s wall: its index built beside counts only where it
+  // finished last), and this call's. A registration ahead ran beside the pipeline's work, as the
+  // free space does: not in `total`.
+  r.stats.ms.total =
+      msSince(t_start) + (s.registered_beside ? 0.0 : s.stats.ms.registration) + s.prepare_ms;
   ++decided_;
   sink_(std::move(r));
 }
