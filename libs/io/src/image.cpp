@@ -23,7 +23,6 @@ uint32_t be32(const unsigned char* p) {
 
 // What the chunk walk found in a PNG file (the PNG specification's layout).
 struct PngLayout {
-  bool png = false;     // the PNG signature: the walk ran
   bool header = false;  // IHDR first, 13 bytes: the fields below
   uint32_t width = 0, height = 0;
   int depth = 0, colour = 0, compression = 0, filter = 0, interlace = 0;
@@ -31,7 +30,6 @@ struct PngLayout {
   // time, pixel size (a palette, transparency, gamma or profile sends the file to OpenCV).
   bool plain = true;
   std::vector<std::pair<std::size_t, uint32_t>> idat;  // each IDAT's data: offset, length
-  std::size_t idat_bytes = 0;
 };
 
 // Deflate packs at most 1032 bytes into one (a 258-byte match in two bits). A header that claims
@@ -44,8 +42,10 @@ void requireRoomForPixels(const PngLayout& L, const std::string& path) {
     return;
   const std::size_t bits = std::size_t{L.width} * kChannels[L.colour] * std::size_t(L.depth);
   const std::size_t samples = (bits + 7) / 8 * L.height;  // every interlace pass holds as many
-  if (samples / 1032 > L.idat_bytes + 1)
-    throw Error(path, "corrupt PNG image (its " + std::to_string(L.idat_bytes) +
+  std::size_t data = 0;
+  for (const auto& chunk : L.idat) data += chunk.second;
+  if (samples / 1032 > data + 1)
+    throw Error(path, "corrupt PNG image (its " + std::to_string(data) +
                           " bytes of image data cannot hold its " + std::to_string(L.width) +
                           " x " + std::to_string(L.height) + " pixels)");
 }
@@ -64,7 +64,6 @@ bool ignorable(const unsigned char* type) {
 PngLayout walkPng(const std::vector<unsigned char>& b, const std::string& path) {
   PngLayout L;
   if (b.size() < 8 || !std::equal(kSignature, kSignature + 8, b.begin())) return L;
-  L.png = true;
   bool idat_ended = false;
   for (std::size_t at = 8;;) {
     // 12 bytes around the data: its length and type before, its CRC after.
@@ -90,7 +89,6 @@ PngLayout walkPng(const std::vector<unsigned char>& b, const std::string& path) 
     } else if (std::memcmp(type, "IDAT", 4) == 0) {
       L.plain = L.plain && !idat_ended;
       L.idat.emplace_back(at + 8, len);
-      L.idat_bytes += len;
     } else if (std::memcmp(type, "IEND", 4) == 0) {
       requireRoomForPixels(L, path);
       return L;
