@@ -19,7 +19,8 @@ namespace cleanmap {
 // neighbour, or that one's where those two are flat too) to its end; for one passing within
 // margin over a flat return below it in its column (the nearest it passes so), the stretch within
 // margin of that surface's plane, from the return's lower neighbour to graze_reach beyond the
-// return (how far the surface goes on is not seen).
+// return (how far the surface goes on is not seen). A return on a descending beam with nothing
+// below it in its column is taken to lie on a level surface (unseen below).
 void GrazingStretches::compute(const std::vector<PointXYZI>& points, const Eigen::Matrix3f& R,
                                const std::vector<float>& azimuth, double flat_slope,
                                double margin_m, double reach_m) {
@@ -92,6 +93,10 @@ void GrazingStretches::compute(const std::vector<PointXYZI>& points, const Eigen
           flat(grid_[static_cast<std::size_t>(c)]) ? c
           : el > 0                                 ? flat_below_[static_cast<std::size_t>(c - naz)]
                                                    : -1;
+  // A return on a descending beam with nothing returned below it in its column (below).
+  const auto unseen = [&](uint32_t n) {
+    return n != UINT32_MAX && cell_[n] >= 0 && lower_[n] == UINT32_MAX && zw_[n] < 0;
+  };
   skip_a_.assign(np, 0.f);
   skip_b_.assign(np, -1.f);
   const float m = static_cast<float>(margin_m), reach = static_cast<float>(reach_m);
@@ -103,8 +108,20 @@ void GrazingStretches::compute(const std::vector<PointXYZI>& points, const Eigen
     if (flat(static_cast<uint32_t>(n))) {  // it ends on the surface it shares with l
       const float k = slope_[n] - tan_beam;
       if (!(k > 1e-4f)) continue;
-      const float from = flat(l) ? rho_[lower_[l]] : rho_[l];
+      const float from = flat(l)     ? rho_[lower_[l]]
+                         : unseen(l) ? std::max(0.f, rho_[l] + m * rho_[l] / zw_[l])
+                                     : rho_[l];
       skip_a_[n] = std::max(from, rho_[n] - m / k) * along;
+      skip_b_[n] = (rho_[n] + m) * along;
+      continue;
+    }
+    if (unseen(static_cast<uint32_t>(n))) {
+      // Nothing returned below it in its column: the lidar's lower beams there met something
+      // nearer than its minimum range (a roof or a bonnet passed close) or nothing that echoed,
+      // and the surface it lies on is not seen. Taken as level: the beam marks nothing where it
+      // runs within margin of the horizontal plane through its return.
+      const float k = -tan_beam;
+      skip_a_[n] = std::max(0.f, rho_[n] - m / k) * along;
       skip_b_[n] = (rho_[n] + m) * along;
       continue;
     }
