@@ -37,6 +37,16 @@ sim::Scenario scenario(const std::string& name) {
       (fs::path(CLEANMAP_SOURCE_DIR) / "datasets/scenarios" / (name + ".ini")).string());
 }
 
+// The shipped scenario seen by another lidar (its preset's rings and azimuth step).
+sim::Scenario scenario(const std::string& name, SensorModel m) {
+  sim::Scenario sc = scenario(name);
+  sc.sensor.model = m;
+  sc.sensor.elevations = ringElevations(m);
+  sc.sensor.azimuth_step_deg = sensorPreset(m).azimuth_step_deg;
+  sc.name += std::string("_") + sensorPreset(m).name;
+  return sc;
+}
+
 // Truth points by kind: "world" (static scenery and ground), "<mover>" (a mover's points while it
 // moves: the map should not hold them) and "<mover>/standing" (a mover's points while it stands,
 // static in the truth). "<kind>/vacated" are those of them whose place no mover holds at the last
@@ -170,12 +180,7 @@ TEST(SimMap, TruckCrawlingSeenByAnHdl32) {
   // the first 12 scans and reaches it in the 13th. Rule 4 forwards then holds it to the end, but
   // the first 12 scans kept it whole and their points cover the side the truck slides along
   // (map DA 0.32); rule 4 backwards (DESIGN §2e "Objects") takes them from the 13th down.
-  sim::Scenario sc = scenario("truck_crawl");
-  sc.sensor.model = SensorModel::kHdl32;
-  sc.sensor.elevations = ringElevations(SensorModel::kHdl32);
-  sc.sensor.azimuth_step_deg = sensorPreset(SensorModel::kHdl32).azimuth_step_deg;
-  sc.name += "_hdl32";
-  const auto r = runMapCase(sc, {}, "default");
+  const auto r = runMapCase(scenario("truck_crawl", SensorModel::kHdl32), {}, "default");
   EXPECT_GE(r.removed("truck"), 0.95);  // measured 0.984 (0.324 forwards only)
   EXPECT_GE(r.kept("world"), 0.999);    // measured 1.0000
 }
@@ -218,12 +223,7 @@ TEST(SimMap, ParkedCarsPassedCloseByAVlp16KeepTheirRoofs) {
   // within 2 m and return nothing, so no ring there is flat and the ring above grazed the roof's
   // voxels, seen empty; the object rules then took the car whole in many scans. A return
   // with nothing below it is taken to lie on a level surface (DESIGN §2e, grazing beams).
-  sim::Scenario sc = scenario("parked_leaves");
-  sc.sensor.model = SensorModel::kVlp16;
-  sc.sensor.elevations = ringElevations(SensorModel::kVlp16);
-  sc.sensor.azimuth_step_deg = sensorPreset(SensorModel::kVlp16).azimuth_step_deg;
-  sc.name += "_vlp16";
-  const auto r = runMapCase(sc, {}, "default");
+  const auto r = runMapCase(scenario("parked_leaves", SensorModel::kVlp16), {}, "default");
   EXPECT_GE(r.kept("world"), 0.995);          // measured 0.9999 (0.9472 before)
   EXPECT_GE(r.removed("leaving_car"), 0.85);  // measured 0.9003 (0.9003 before)
 }
@@ -304,12 +304,7 @@ TEST(SimMap, QueueSeenByLidarsSparserThanTheFreeSpaceBins) {
   // the VLP-16. The bins now follow the lidar (DESIGN §2e): measured 0.977 / 0.902 and 0.988 /
   // 0.799, the world kept 1.0000 by both.
   for (const SensorModel m : {SensorModel::kOs1_128, SensorModel::kVlp16}) {
-    sim::Scenario sc = scenario("queue_stop_go");
-    sc.sensor.model = m;
-    sc.sensor.elevations = ringElevations(m);
-    sc.sensor.azimuth_step_deg = sensorPreset(m).azimuth_step_deg;
-    sc.name += std::string("_") + sensorPreset(m).name;
-    const auto r = runMapCase(sc, {}, "default");
+    const auto r = runMapCase(scenario("queue_stop_go", m), {}, "default");
     const std::string lidar = sensorPreset(m).name;
     EXPECT_GE(r.removed("queue_1"), 0.90) << lidar;
     EXPECT_GE(r.removed("queue_2"), 0.75) << lidar;
