@@ -426,7 +426,7 @@ std::vector<PointXYZI> carPassedCloseBySparseLidar(double roof) {
       double t0 = 0, t1 = t;                          // the car: slabs
       for (int i = 0; i < 3; ++i) {
         if (d[i] == 0) continue;
-        const double a = (lo[i]) / d[i], b = (hi[i]) / d[i];
+        const double a = lo[i] / d[i], b = hi[i] / d[i];
         t0 = std::max(t0, std::min(a, b));
         t1 = std::min(t1, std::max(a, b));
       }

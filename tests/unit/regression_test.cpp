@@ -401,7 +401,7 @@ TEST(Regression, CameraRunIsTheSameWithOneOrTwoThreads) {
     EXPECT_EQ(r.second, two.at(index).second) << "scan " << index;
     tested += static_cast<std::size_t>(r.second[1]);
   }
-  EXPECT_GT(tested, 50u);  // the camera check ran (measured: 199 objects over the 30 scans)
+  EXPECT_GT(tested, 50u);  // the camera check ran (199 objects over all 30 scans)
 }
 
 // Issue #12's bar: the clean map's AA (ground truth within 50 m) strictly above DUFOMap's
