@@ -6,6 +6,7 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "cleanmap/core/mover_feet.h"
 #include "cleanmap/core/object_consensus.h"
 
 using namespace cleanmap;
@@ -597,4 +598,123 @@ TEST(MapObjects, AGroupingMadeAheadDecidesAsTheOwnOne) {
   EXPECT_THROW(
       objectConsensus(scans[0].pts, scans[0].member, removed, p, nullptr, nullptr, {}, &coarse),
       std::invalid_argument);
+}
+
+// doc/OBJECTS.md rule 6, a mover's feet. A scene in the sensor frame (the sensor 1.73 m over a
+// level road, pose identity): the road on a 0.1 m grid 6-14 m ahead, with a scatter of +-5 mm,
+// and a car's rear face at x = 10 m standing on it, one return every 0.1 m across and a ring
+// every 0.07 m up. The face's returns within 0.09 m of the road are ground refined in the face's
+// cell (DESIGN §2a), the road's returns there too; the others are ground cells.
+namespace {
+
+constexpr float kRoad = -1.73f;
+
+struct FeetScene {
+  std::vector<PointXYZI> pts;
+  std::vector<uint8_t> ground, moving, in_crop;
+  std::vector<uint32_t> foot;  // the face's returns 0.04 and 0.08 m over the road
+  std::vector<uint32_t> low;   // its returns 0.01 m over the road: the road's own height
+  std::vector<uint32_t> road_at_face;
+
+  void add(float x, float y, float z, uint8_t g, uint8_t m) {
+    pts.push_back({x, y, z, 0});
+    ground.push_back(g);
+    moving.push_back(m);
+    in_crop.push_back(1);
+  }
+  explicit FeetScene(bool face_moving, float face_y0 = -0.9f, float face_y1 = 0.9f) {
+    for (int i = 0; i <= 80; ++i)
+      for (int j = -30; j <= 30; ++j) {
+        const float x = 6.0f + 0.1f * static_cast<float>(i), y = 0.1f * static_cast<float>(j);
+        if (x >= 9.95f && x < 14.5f && y > face_y0 - 0.05f && y < face_y1 + 0.05f)
+          continue;  // behind the face: hidden
+        const float noise = 0.005f * static_cast<float>((i * 7 + j * 13) % 3 - 1);
+        const bool by_face = x >= 9.75f && y > face_y0 - 0.3f && y < face_y1 + 0.3f;
+        if (by_face && x >= 9.85f) road_at_face.push_back(static_cast<uint32_t>(pts.size()));
+        add(x, y, kRoad + noise, by_face ? kGroundRefined : kGroundCell, 0);
+      }
+    for (float y = face_y0; y <= face_y1 + 1e-3f; y += 0.1f) {
+      for (const float h : {0.01f, 0.04f, 0.08f}) {
+        (h < 0.02f ? low : foot).push_back(static_cast<uint32_t>(pts.size()));
+        add(10.0f, y, kRoad + h, kGroundRefined, 0);
+      }
+      for (float h = 0.15f; h <= 1.5f; h += 0.07f) add(10.0f, y, kRoad + h, 0, face_moving);
+    }
+  }
+  std::vector<uint32_t> feet(const MoverFeetParams& p = {}) const {
+    return moverFeet(pts, Eigen::Isometry3d::Identity(), ground, moving, in_crop, p);
+  }
+};
+
+bool contains(const std::vector<uint32_t>& v, uint32_t i) {
+  return std::find(v.begin(), v.end(), i) != v.end();
+}
+
+}  // namespace
+
+TEST(MoverFeet, AMovingFacesReturnsRaisedOverTheRoadGoWithIt) {
+  const FeetScene s(true);
+  const auto feet = s.feet();
+  for (uint32_t i : s.foot) EXPECT_TRUE(contains(feet, i)) << "foot " << i;
+  // Returns as low as the road's own scatter allows (0.01 m) stay ground, and so does the road
+  // in front of the face, though a moving return stands over it within the radius.
+  for (uint32_t i : s.low) EXPECT_FALSE(contains(feet, i)) << "low " << i;
+  ASSERT_FALSE(s.road_at_face.empty());
+  for (uint32_t i : s.road_at_face) EXPECT_FALSE(contains(feet, i)) << "road " << i;
+  EXPECT_EQ(feet.size(), s.foot.size());
+  EXPECT_TRUE(std::is_sorted(feet.begin(), feet.end()));
+}
+
+TEST(MoverFeet, AStaticFaceKeepsItsFeet) {
+  EXPECT_TRUE(FeetScene(false).feet().empty());
+}
+
+TEST(MoverFeet, ARaisedReturnWithNoMoverJustAboveStaysGround) {
+  // The moving face ends at y = -0.05; a raised return 0.17 m beyond it (a curb's foot beside a
+  // car) is ground, though a body stands 0.44 m over it, higher than two ring steps; so is one
+  // under that body once the face is gone. The road rising 0.3 m far ahead (a refined return
+  // there) lets the search reach that high.
+  FeetScene s(true, -0.95f, -0.05f);
+  const auto beside = static_cast<uint32_t>(s.pts.size());
+  s.add(10.0f, 0.12f, kRoad + 0.06f, kGroundRefined, 0);
+  const auto under_body = static_cast<uint32_t>(s.pts.size());
+  s.add(10.0f, -0.55f, kRoad + 0.06f, kGroundRefined, 0);
+  for (float y = -0.95f; y <= 0.35f + 1e-3f; y += 0.1f) s.add(10.1f, y, kRoad + 0.5f, 0, 1);
+  s.add(25.0f, 5.0f, kRoad + 0.3f, kGroundRefined, 0);
+  MoverFeetParams p;
+  auto feet = s.feet(p);
+  EXPECT_FALSE(contains(feet, beside));
+  EXPECT_TRUE(contains(feet, under_body));  // the face's own ring at 0.15 m is over it
+  // Without the face, the body 0.44 m up is more than two ring steps (0.3 m here) above it.
+  for (std::size_t i = 0; i < s.pts.size(); ++i)
+    if (s.pts[i].x == 10.0f && s.moving[i]) s.moving[i] = 0;
+  feet = s.feet(p);
+  EXPECT_FALSE(contains(feet, under_body));
+  // A sparse lidar's ring step (2 degrees: 0.7 m at 10 m) reaches it.
+  p.ring_gap = 2.0 * M_PI / 180.0;
+  EXPECT_TRUE(contains(s.feet(p), under_body));
+}
+
+TEST(MoverFeet, ARoughRoadsOwnReturnsAreNotRaised) {
+  // The road's scatter at +-5 cm: the least rise is three times it (1.4826 MAD), so the face's
+  // returns 0.04-0.08 m up are within the road's own spread and stay ground.
+  FeetScene s(true);
+  for (std::size_t i = 0; i < s.pts.size(); ++i)
+    if (s.ground[i] && !contains(s.foot, static_cast<uint32_t>(i)) &&
+        !contains(s.low, static_cast<uint32_t>(i)))
+      s.pts[i].z = kRoad + 0.05f * static_cast<float>(static_cast<int>(i % 3) - 1);
+  EXPECT_TRUE(s.feet().empty());
+}
+
+TEST(MoverFeet, OutsideTheCropOrWithoutRoadNothingIsTaken) {
+  FeetScene s(true);
+  for (uint32_t i : s.foot) s.in_crop[i] = 0;
+  EXPECT_TRUE(s.feet().empty());
+  // The face alone, its road gone: fewer than 5 road returns around, nothing to rise over.
+  FeetScene bare(true);
+  for (std::size_t i = 0; i < bare.pts.size(); ++i)
+    if (bare.ground[i] && !contains(bare.foot, static_cast<uint32_t>(i)) &&
+        !contains(bare.low, static_cast<uint32_t>(i)))
+      bare.in_crop[i] = bare.ground[i] = 0;
+  EXPECT_TRUE(bare.feet().empty());
 }

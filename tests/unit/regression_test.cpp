@@ -175,6 +175,11 @@ MapScore cleanMapScore(const std::string& set) {
 // (+1,413 points), the tanker's share in scans 23 and 26 under 10 % (9.2 %, was 11.4 %) with
 // too little of it in view to be the previous scan's object (-2,303): recall 0.9800 -> 0.9787;
 // city precision 0.5800 -> 0.5801; residential stayed.
+// Rule 6, a mover's feet (doc/OBJECTS.md), changed every digest but the compact maps' on purpose:
+// returns refined to ground under a moving object, raised over the road around them, go with it
+// (city 438 points, highway 2,387, residential 11: a motorcycle's tyres, which the labels call
+// ground below 0.10 m). Precision city 0.5801 -> 0.5794, highway 0.9408 -> 0.9396,
+// residential 0.8325 -> 0.8244; recall within 0.0003; the map's AA within 0.0001.
 void expectDigest(const OutputDigest& d, uint64_t labels, uint64_t compact, uint64_t full,
                   uint64_t moving) {
   EXPECT_EQ(d.labels, labels) << "labels differ from the reference run";
@@ -192,12 +197,12 @@ TEST(Regression, OutputsByteIdenticalToTheReference) {
   runSet("kitti_city", &city);
   runSet("kitti_highway", &highway);
   runSet("kitti_residential", &residential);
-  expectDigest(city, 0xd3e796346e9c572full, 0xa0924c7da091c844ull, 0x93c428f1f1dbfe53ull,
-               0x164f042db5d5c956ull);
-  expectDigest(highway, 0x0da1da5bae67a5efull, 0xcba3cf3b09c0ff49ull, 0x975d9601332f30d1ull,
-               0xfe603a49b9308e99ull);
-  expectDigest(residential, 0x9473c9fa215adbf4ull, 0x204e003afed4818dull, 0xbe850e45c7c8b98cull,
-               0x224a83d2e475ca8dull);
+  expectDigest(city, 0x4c4d03769968252full, 0xa0924c7da091c844ull, 0x937e87d6e069b0beull,
+               0x009c52816278476full);
+  expectDigest(highway, 0xeba0be9ae40360dcull, 0xcba3cf3b09c0ff49ull, 0x4658daa95984e6ffull,
+               0xedf325cb6194433bull);
+  expectDigest(residential, 0x6bd3a29d2e3a5697ull, 0x204e003afed4818dull, 0xb7dce1380a53d5b4ull,
+               0x12eb86e05013ba6dull);
 }
 
 TEST(Regression, City) {

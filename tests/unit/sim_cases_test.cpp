@@ -46,6 +46,7 @@ struct CaseResult {
   std::map<std::string, MosCounts> per_mover;  // over the points that hit each mover
   std::size_t relabelled_static = 0, relabelled_moving = 0;
   std::size_t image_units = 0;  // objects the camera check looked at
+  MosCounts low;  // over the points less than 0.12 m over the road (z = 0 on the flat scenes)
 };
 
 // Simulates every frame and runs the laser pipeline with the poses the scenario reports (the true
@@ -70,6 +71,9 @@ CaseResult runCase(const sim::Scenario& sc, const PipelineParams& params = {},
     const auto& t = truth[r.index];
     if (poses) poses->emplace_back(r.pose, t.pose);  // (estimated or given, true)
     res.all += compareLabels(r.labels, t.labels, "frame " + std::to_string(r.index));
+    for (std::size_t i = 0; i < t.labels.size(); ++i)
+      if ((t.pose * t.points[i].xyz().cast<double>()).z() < 0.12)
+        res.low += compareLabels({r.labels[i]}, {t.labels[i]}, "x");
     const sim::World w(sc, t.time);
     for (std::size_t i = 0; i < t.labels.size(); ++i) {
       if (t.solid[i] < 0 || w.solids()[t.solid[i]].surface != sim::Surface::kMover) continue;
@@ -112,12 +116,20 @@ TEST(SimCases, DefaultScenarioIoUAtLeast0_8) {
 }
 
 TEST(SimCases, CarFollowingTheEgoAtTheSameSpeed) {
-  // Measured 0.848; 0.866 before beams grazing a flat surface stopped voting (DESIGN §2b): its
-  // first scans' roof points, under its own roof in the next scans, were seen empty only by the
-  // beams grazing that roof.
+  // Measured 0.870 (0.848 before its returns within 0.09 m of the road went with it, rule 6;
+  // 0.866 before beams grazing a flat surface stopped voting, DESIGN §2b: its first scans' roof
+  // points, under its own roof in the next scans, were seen empty only by the beams grazing
+  // that roof).
   const auto r = runCase(scenario("following_car"));
-  EXPECT_GE(r.per_mover.at("follower").recall(), 0.80);
+  EXPECT_GE(r.per_mover.at("follower").recall(), 0.85);
   EXPECT_GE(r.all.precision(), 0.97);
+  // doc/OBJECTS.md rule 6: the car's face down to the road is the car's. Its returns less than
+  // 0.12 m over the road: recall 0.766 (0.433 as ground refined in its cells, DESIGN §2a, all
+  // below the road's 0.09 m step); nothing of the road itself taken.
+  std::printf("  under 0.12 m: recall %.3f, %llu road points labelled moving\n", r.low.recall(),
+              (unsigned long long)r.low.fp);
+  EXPECT_GE(r.low.recall(), 0.7);
+  EXPECT_EQ(r.low.fp, 0u);
 }
 
 TEST(SimCases, ACarPullingAwaySlowlyAheadStaysMoving) {

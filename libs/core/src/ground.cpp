@@ -85,7 +85,10 @@ std::vector<uint8_t> segmentGround(const std::vector<PointXYZI>& points, const G
   for (std::size_t k = 0; k < points.size(); ++k) {
     if (cell_of[k] < 0) continue;
     const auto c = static_cast<std::size_t>(cell_of[k]);
-    out[k] = ground_cell[c] || (p.point_refine && points[k].z < hG[c] + p.step);
+    if (ground_cell[c])
+      out[k] = kGroundCell;
+    else if (p.point_refine && points[k].z < hG[c] + p.step)
+      out[k] = kGroundRefined;
   }
   return out;
 }

@@ -127,6 +127,8 @@ std::map<std::string, Key> table(PipelineParams& p) {
       {"object.max_height", d(p.object.max_height)},
       {"object.persist_radius", d(p.object.persist_radius)},
       {"object.foot_height", d(p.object.foot_height)},
+      {"object.feet", Key{[&p](double v) { p.object.feet = v != 0; },
+                          [&p] { return p.object.feet ? 1.0 : 0.0; }, true}},
       {"registration.min_range", d(p.registration.min_range)},
       {"registration.max_range", d(p.registration.max_range)},
       {"registration.voxel", d(p.registration.voxel)},

@@ -19,6 +19,7 @@
 #include "cleanmap/core/ground.h"
 #include "cleanmap/core/grouped.h"
 #include "cleanmap/core/median.h"
+#include "cleanmap/core/mover_feet.h"
 #include "cleanmap/core/object_consensus.h"
 #include "cleanmap/core/octree_sampling.h"
 #include "cleanmap/core/parallel.h"
@@ -521,7 +522,7 @@ std::unique_ptr<LaserPipeline::Prepared> LaserPipeline::prepare(Registered&& r,
         std::abs(pts[i].x) <= tau && std::abs(pts[i].y) <= tau && std::abs(pts[i].z) <= tau;
     s->far[i] = !s->in_crop[i] &&
                 double(pts[i].x) * pts[i].x + double(pts[i].y) * pts[i].y <= r_map * r_map;
-    s->ground[i] = s->ground[i] && (s->in_crop[i] || s->far[i]);
+    if (!s->in_crop[i] && !s->far[i]) s->ground[i] = kNotGround;  // keeps GroundFlag's kind
     s->candidate[i] = s->in_crop[i] && !s->ground[i];
     st.in_crop += s->in_crop[i];
     st.ground += s->ground[i] && s->in_crop[i];
@@ -821,6 +822,7 @@ void LaserPipeline::decide(std::size_t pos) {
   decideLeaves(s, w);                      // §2c
   objectConsensus(pos, s, w);              // doc/OBJECTS.md
   validateImages(pos, s, w);               // §3
+  moverFeet(s, w);                         // doc/OBJECTS.md rule 6
   ScanResult r = collect(s, w);            // §2.7: labels, static map, dynamic layer
   remember(r, static_cast<long>(s.index), s, w);
   if (source_ == PoseSource::kGicp || source_ == PoseSource::kRefine)  // movers leave GICP's map
@@ -1235,6 +1237,25 @@ void LaserPipeline::validateImages(std::size_t pos, Prepared& s, Work& w) const 
 
 // DESIGN §2.7 and §4: labels in the original order; static points to the map (the compact map
 // without duplicates), moving points to the dynamic layer, all in the world frame.
+// doc/OBJECTS.md rule 6: the returns refined to ground under a moving object, raised over the
+// road around them, go with it (after the camera: they follow the final decision).
+void LaserPipeline::moverFeet(Prepared& s, Work& w) const {
+  if (!p_.object.enabled || !p_.object.feet) return;
+  const auto t0 = Clock::now();
+  MoverFeetParams fp;
+  fp.cell = p_.ground.cell;
+  if (s.ring_gap > 0) fp.ring_gap = s.ring_gap;
+  const auto& pts = s.scan.points;
+  for (uint32_t i : cleanmap::moverFeet(pts, s.scan.pose, s.ground, w.moving, s.in_crop, fp)) {
+    s.ground[i] = kNotGround;
+    w.moving[i] = 1;
+    w.world[i] = s.scan.pose * pts[i].xyz().cast<double>();
+    ++s.stats.mover_feet;
+    --s.stats.ground;  // in the crop, as every foot: counted moving now
+  }
+  s.stats.ms.objects += msSince(t0);
+}
+
 ScanResult LaserPipeline::collect(Prepared& s, const Work& w) const {
   ScanResult r;
   r.index = s.index;

@@ -10,7 +10,12 @@
 
 namespace cleanmap {
 
-/// Ground flags (1 = ground) for `points` (sensor frame, z up). Only points with
+/// segmentGround's flags: not ground; a point of a ground cell; a point of a cell an object
+/// stands in, refined to ground for lying within `step` of the propagated ground height
+/// (GroundParams::point_refine). Every user but mover_feet.h reads them as a yes / no.
+enum GroundFlag : uint8_t { kNotGround = 0, kGroundCell = 1, kGroundRefined = 2 };
+
+/// Ground flags (GroundFlag; non-zero = ground) for `points` (sensor frame, z up). Only points with
 /// |x|, |y| <= half_extent are considered (others get 0); half_extent is rounded up to cells.
 /// Cells are visited ring by ring from the sensor's cell; a cell is ground iff
 /// H - h < s and H < hat_h + s (Eq. 1), where hat_h is the largest propagated height of its

@@ -122,6 +122,9 @@ struct ObjectParams {
   /// point only where some of its points stand at or above it in their column (a car's wheels
   /// under its body, not the sidewalk it touches; doc/OBJECTS.md rule 2). 0 = all of them.
   double foot_height = 0.3;
+  /// Rule 6: a moving object's returns refined to ground under it, raised over the road around
+  /// them (its lowest face, tyres, shoes), go with it (MoverFeetParams; doc/OBJECTS.md).
+  bool feet = true;
 };
 
 /// DESIGN §2.1: GICP scan-to-map odometry (used with --poses gicp / refine, or when the input has

@@ -50,6 +50,7 @@ struct ScanStats {
   std::size_t objects_left_place = 0;   ///< of objects_persisted, under static_fraction (leaving)
   std::size_t consensus_body_kept = 0;  ///< moving points of bodies a static component kept
   std::size_t consensus_foot_left = 0;  ///< points at a moving component's foot left static
+  std::size_t mover_feet = 0;  ///< ground returns under a moving object taken along (rule 6)
   /// points of a moving component's raised parts with no moving point of their own, left static
   std::size_t consensus_still_part_left = 0;
   std::size_t empty = 0;  ///< 1 for a scan without valid points (summed: empty scans)

@@ -1,0 +1,174 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#include "cleanmap/core/mover_feet.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace cleanmap {
+namespace {
+
+constexpr uint32_t kNone = UINT32_MAX;
+
+// Items in square horizontal cells over a box of the world's xy plane, a flat array of list
+// heads threaded through `next` (a scan's few thousand movers or road returns: no hashing).
+class FlatLists {
+ public:
+  // Cells on the world's grid of `side` (floor(x / side)), those meeting `box`.
+  FlatLists(const Eigen::AlignedBox2d& box, double side) : inv_(1.0 / side) {
+    i0_ = static_cast<int64_t>(std::floor(box.min().x() * inv_));
+    j0_ = static_cast<int64_t>(std::floor(box.min().y() * inv_));
+    nx_ = static_cast<int64_t>(std::floor(box.max().x() * inv_)) - i0_ + 1;
+    ny_ = static_cast<int64_t>(std::floor(box.max().y() * inv_)) - j0_ + 1;
+    head_.assign(static_cast<std::size_t>(nx_ * ny_), kNone);
+  }
+  // The cell of q; -1 outside the box.
+  int64_t cell(double x, double y) const {
+    const auto i = static_cast<int64_t>(std::floor(x * inv_)) - i0_;
+    const auto j = static_cast<int64_t>(std::floor(y * inv_)) - j0_;
+    return i < 0 || j < 0 || i >= nx_ || j >= ny_ ? -1 : i * ny_ + j;
+  }
+  uint32_t& head(int64_t c) { return head_[static_cast<std::size_t>(c)]; }
+  std::size_t cells() const { return head_.size(); }
+  void add(int64_t c, uint32_t item) {
+    if (next.size() <= item) next.resize(item + 1);
+    next[item] = head(c);
+    head(c) = item;
+  }
+  // Calls f(item) for the items of the 3 x 3 cells around cell c, each cell's in list order
+  // until f returns false.
+  template <class F>
+  void around(int64_t c, F&& f) const {
+    const int64_t i = c / ny_, j = c % ny_;
+    for (int64_t a = std::max<int64_t>(0, i - 1); a <= std::min(nx_ - 1, i + 1); ++a)
+      for (int64_t b = std::max<int64_t>(0, j - 1); b <= std::min(ny_ - 1, j + 1); ++b)
+        for (uint32_t k = head_[static_cast<std::size_t>(a * ny_ + b)]; k != kNone && f(k);
+             k = next[k]) {
+        }
+  }
+  std::vector<uint32_t> next;
+
+ private:
+  double inv_;
+  int64_t i0_ = 0, j0_ = 0, nx_ = 0, ny_ = 0;
+  std::vector<uint32_t> head_;
+};
+
+}  // namespace
+
+std::vector<uint32_t> moverFeet(const std::vector<PointXYZI>& points, const Eigen::Isometry3d& pose,
+                                const std::vector<uint8_t>& ground,
+                                const std::vector<uint8_t>& moving,
+                                const std::vector<uint8_t>& in_crop, const MoverFeetParams& p) {
+  const std::size_t n = points.size();
+  auto world = [&](std::size_t i) -> Eigen::Vector3d {
+    return pose * points[i].xyz().cast<double>();
+  };
+  // The refined ground points in the crop, and how high over them a mover can be to stand on
+  // them: only the movers up to there are indexed (a truck's lowest metre, not its side).
+  struct Candidate {
+    uint32_t i;
+    Eigen::Vector3d q;
+    double up;
+  };
+  std::vector<Candidate> cand;
+  double reach = -std::numeric_limits<double>::infinity();
+  for (std::size_t i = 0; i < n; ++i) {
+    if (ground[i] != kGroundRefined || !in_crop[i]) continue;
+    const double range = std::hypot(double(points[i].x), double(points[i].y));
+    cand.push_back({static_cast<uint32_t>(i), world(i), std::max(0.3, 2.0 * range * p.ring_gap)});
+    reach = std::max(reach, cand.back().q.z() + cand.back().up);
+  }
+  if (cand.empty()) return {};
+  // The moving returns within reach, in cells of `radius` over their box.
+  std::vector<Eigen::Vector3d> mov;
+  Eigen::AlignedBox2d mov_box;
+  for (std::size_t i = 0; i < n; ++i)
+    if (moving[i] && !ground[i] && in_crop[i]) {
+      const Eigen::Vector3d q = world(i);
+      if (q.z() > reach) continue;
+      mov.push_back(q);
+      mov_box.extend(q.head<2>());
+    }
+  if (mov.empty()) return {};
+  FlatLists movers(mov_box, p.radius);
+  movers.next.resize(mov.size());
+  for (uint32_t m = 0; m < mov.size(); ++m) movers.add(movers.cell(mov[m].x(), mov[m].y()), m);
+
+  // Refined ground points with a moving return just above: a surface going on down to them.
+  std::vector<uint32_t> under;
+  std::vector<Eigen::Vector3d> under_w;
+  Eigen::AlignedBox2d under_box;
+  const double r2 = p.radius * p.radius;
+  const Eigen::AlignedBox2d near_movers(mov_box.min().array() - p.radius,
+                                        mov_box.max().array() + p.radius);
+  for (const Candidate& k : cand) {
+    const Eigen::Vector3d& q = k.q;
+    const double up = k.up;
+    if (!near_movers.contains(q.head<2>())) continue;
+    const int64_t c = movers.cell(std::clamp(q.x(), mov_box.min().x(), mov_box.max().x()),
+                                  std::clamp(q.y(), mov_box.min().y(), mov_box.max().y()));
+    bool found = false;
+    movers.around(c, [&](uint32_t m) {
+      const double dz = mov[m].z() - q.z();
+      found = found || (dz > 0 && dz <= up && (mov[m].head<2>() - q.head<2>()).squaredNorm() <= r2);
+      return !found;
+    });
+    if (found) {
+      under.push_back(k.i);
+      under_w.push_back(q);
+      under_box.extend(q.head<2>());
+    }
+  }
+  if (under.empty()) return {};
+
+  // The road around each: the other ground returns in the 3 x 3 ground cells around it.
+  FlatLists road(
+      Eigen::AlignedBox2d(under_box.min().array() - p.cell, under_box.max().array() + p.cell),
+      p.cell);
+  std::vector<uint8_t> is_under(n, 0);
+  for (uint32_t i : under) is_under[i] = 1;
+  std::vector<float> road_z;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!ground[i] || is_under[i]) continue;
+    const Eigen::Vector3d q = world(i);
+    const int64_t c = road.cell(q.x(), q.y());
+    if (c < 0) continue;
+    road.add(c, static_cast<uint32_t>(road_z.size()));
+    road_z.push_back(static_cast<float>(q.z()));
+  }
+
+  // Per road cell, the level of the road around it (median, and the least rise over it): the
+  // feet in one cell share their 3 x 3 block.
+  std::vector<float> level(road.cells(), std::numeric_limits<float>::quiet_NaN());
+  std::vector<uint8_t> known(road.cells(), 0);
+  std::vector<float> zs;
+  auto middle = [&zs] {
+    const auto mid = zs.begin() + static_cast<std::ptrdiff_t>(zs.size() / 2);
+    std::nth_element(zs.begin(), mid, zs.end());
+    return *mid;
+  };
+  std::vector<uint32_t> feet;
+  for (std::size_t u = 0; u < under.size(); ++u) {
+    const int64_t c = road.cell(under_w[u].x(), under_w[u].y());
+    const auto cu = static_cast<std::size_t>(c);
+    if (!known[cu]) {
+      known[cu] = 1;
+      zs.clear();
+      road.around(c, [&](uint32_t j) {
+        zs.push_back(road_z[j]);
+        return true;
+      });
+      if (zs.size() >= 5) {  // fewer: too little road to tell a raised return from it
+        const float mid = middle();
+        for (auto& z : zs) z = std::abs(z - mid);
+        const double scatter = 1.4826 * middle();
+        level[cu] = static_cast<float>(mid + std::max(p.rise, 3.0 * scatter));
+      }
+    }
+    if (under_w[u].z() > level[cu]) feet.push_back(under[u]);  // false where NaN
+  }
+  return feet;
+}
+
+}  // namespace cleanmap
