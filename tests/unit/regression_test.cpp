@@ -177,8 +177,8 @@ MapScore cleanMapScore(const std::string& set) {
 // city precision 0.5800 -> 0.5801; residential stayed.
 // Rule 6, a mover's feet (doc/OBJECTS.md), changed every digest but the compact maps' on purpose:
 // returns refined to ground under a moving object, raised over the road around them, go with it
-// (city 438 points, highway 2,387, residential 11: a motorcycle's tyres, which the labels call
-// ground below 0.10 m). Precision city 0.5801 -> 0.5794, highway 0.9408 -> 0.9396,
+// (city 438 points, highway 2,387, residential 11: 5 of them a motorcycle's tyres, which the
+// labels call ground below 0.10 m). Precision city 0.5801 -> 0.5794, highway 0.9408 -> 0.9396,
 // residential 0.8325 -> 0.8244; recall within 0.0003; the map's AA within 0.0001.
 void expectDigest(const OutputDigest& d, uint64_t labels, uint64_t compact, uint64_t full,
                   uint64_t moving) {
