@@ -687,7 +687,7 @@ TEST(MoverFeet, ARaisedReturnWithNoMoverJustAboveStaysGround) {
   EXPECT_TRUE(contains(feet, under_body));  // the face's own ring at 0.15 m is over it
   // Without the face, the body 0.44 m up is more than two ring steps (0.3 m here) above it.
   for (std::size_t i = 0; i < s.pts.size(); ++i)
-    if (s.pts[i].x == 10.0f && s.moving[i]) s.moving[i] = 0;
+    if (s.pts[i].x == 10.0f && s.moving[i]) s.in_crop[i] = 0;
   feet = s.feet(p);
   EXPECT_FALSE(contains(feet, under_body));
   // A sparse lidar's ring step (2 degrees: 0.7 m at 10 m) reaches it.
@@ -717,4 +717,20 @@ TEST(MoverFeet, OutsideTheCropOrWithoutRoadNothingIsTaken) {
         !contains(bare.low, static_cast<uint32_t>(i)))
       bare.in_crop[i] = bare.ground[i] = 0;
   EXPECT_TRUE(bare.feet().empty());
+}
+
+TEST(MoverFeet, AWallsFootBehindAWalkerStaysGround) {
+  // A walker 0.1 m in front of a static wall (the wall is the scene's face, static): the wall's
+  // lowest returns have the wall itself straight above them and stay ground, though his legs
+  // stand within the radius; his shoes, his legs straight above them, go with him.
+  FeetScene s(false);
+  std::vector<uint32_t> shoes;
+  for (float y = -0.2f; y <= 0.2f + 1e-3f; y += 0.05f) {
+    shoes.push_back(static_cast<uint32_t>(s.pts.size()));
+    s.add(9.9f, y, kRoad + 0.05f, kGroundRefined, 0);
+    for (float h = 0.15f; h <= 0.9f; h += 0.07f) s.add(9.9f, y, kRoad + h, 0, 1);
+  }
+  const auto feet = s.feet();
+  for (uint32_t i : shoes) EXPECT_TRUE(contains(feet, i)) << "shoe " << i;
+  for (uint32_t i : s.foot) EXPECT_FALSE(contains(feet, i)) << "wall's foot " << i;
 }

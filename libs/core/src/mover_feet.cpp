@@ -80,41 +80,60 @@ std::vector<uint32_t> moverFeet(const std::vector<PointXYZI>& points, const Eige
     reach = std::max(reach, cand.back().q.z() + cand.back().up);
   }
   if (cand.empty()) return {};
-  // The moving returns within reach, in cells of `radius` over their box.
-  std::vector<Eigen::Vector3d> mov;
+  // The moving returns within reach, and the others near them, in cells of `radius` over the
+  // movers' box.
+  std::vector<Eigen::Vector3d> above;
+  std::vector<uint8_t> above_moving;
   Eigen::AlignedBox2d mov_box;
   for (std::size_t i = 0; i < n; ++i)
     if (moving[i] && !ground[i] && in_crop[i]) {
       const Eigen::Vector3d q = world(i);
       if (q.z() > reach) continue;
-      mov.push_back(q);
+      above.push_back(q);
+      above_moving.push_back(1);
       mov_box.extend(q.head<2>());
     }
-  if (mov.empty()) return {};
-  FlatLists movers(mov_box, p.radius);
-  movers.next.resize(mov.size());
-  for (uint32_t m = 0; m < mov.size(); ++m) movers.add(movers.cell(mov[m].x(), mov[m].y()), m);
+  if (above.empty()) return {};
+  // A foot lies within `radius` of a mover; the returns nearer to it, within 2 `radius`.
+  const Eigen::AlignedBox2d near_movers(mov_box.min().array() - p.radius,
+                                        mov_box.max().array() + p.radius);
+  const Eigen::AlignedBox2d indexed(mov_box.min().array() - 2 * p.radius,
+                                    mov_box.max().array() + 2 * p.radius);
+  for (std::size_t i = 0; i < n; ++i)
+    if (!moving[i] && !ground[i] && in_crop[i]) {
+      const Eigen::Vector3d q = world(i);
+      if (q.z() > reach || !indexed.contains(q.head<2>())) continue;
+      above.push_back(q);
+      above_moving.push_back(0);
+    }
+  FlatLists returns(indexed, p.radius);
+  returns.next.resize(above.size());
+  for (uint32_t m = 0; m < above.size(); ++m)
+    returns.add(returns.cell(above[m].x(), above[m].y()), m);
 
-  // Refined ground points with a moving return just above: a surface going on down to them.
+  // Refined ground points whose nearest return above (horizontally, within `radius` and reach) is
+  // moving: the surface going on down to them is a mover's.
   std::vector<uint32_t> under;
   std::vector<Eigen::Vector3d> under_w;
   Eigen::AlignedBox2d under_box;
   const double r2 = p.radius * p.radius;
-  const Eigen::AlignedBox2d near_movers(mov_box.min().array() - p.radius,
-                                        mov_box.max().array() + p.radius);
   for (const Candidate& k : cand) {
     const Eigen::Vector3d& q = k.q;
-    const double up = k.up;
     if (!near_movers.contains(q.head<2>())) continue;
-    const int64_t c = movers.cell(std::clamp(q.x(), mov_box.min().x(), mov_box.max().x()),
-                                  std::clamp(q.y(), mov_box.min().y(), mov_box.max().y()));
-    bool found = false;
-    movers.around(c, [&](uint32_t m) {
-      const double dz = mov[m].z() - q.z();
-      found = found || (dz > 0 && dz <= up && (mov[m].head<2>() - q.head<2>()).squaredNorm() <= r2);
-      return !found;
+    double best = 0;
+    bool best_moving = false, any = false;
+    returns.around(returns.cell(q.x(), q.y()), [&](uint32_t m) {
+      const double dz = above[m].z() - q.z();
+      if (dz <= 0 || dz > k.up) return true;
+      const double d2 = (above[m].head<2>() - q.head<2>()).squaredNorm();
+      if (d2 <= r2 && (!any || d2 < best || (d2 == best && !above_moving[m]))) {  // ties: static
+        best = d2;
+        best_moving = above_moving[m] != 0;
+        any = true;
+      }
+      return true;
     });
-    if (found) {
+    if (any && best_moving) {
       under.push_back(k.i);
       under_w.push_back(q);
       under_box.extend(q.head<2>());
