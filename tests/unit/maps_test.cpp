@@ -474,6 +474,14 @@ TEST(GroundModelMap, FlatRoadHeightsAndMergeCommutes) {
   for (std::size_t i = 40000; i < scan.points.size(); ++i)
     box_ground += flags[i] && scan.points[i].z > -1.73f + 0.3f;
   EXPECT_EQ(box_ground, 0u) << "box points above 0.3 m labelled ground";
+  // The flags are 1 = ground whatever its kind: the box's cells' lowest returns, refined to
+  // ground (DESIGN §2a), too.
+  std::size_t refined = 0;
+  for (std::size_t i = 40000; i < scan.points.size(); ++i) {
+    ASSERT_LE(flags[i], 1) << "point " << i;
+    refined += flags[i];
+  }
+  EXPECT_GT(refined, 0u);
   const auto h = a.height(100.0 - 10.0, 50.0 + 5.0);
   ASSERT_TRUE(h);
   EXPECT_NEAR(*h, 10.0 - 1.73, 1e-5);

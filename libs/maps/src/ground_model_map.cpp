@@ -146,6 +146,7 @@ void CGroundModelMap::insertGround(const cleanmap::Scan& scan, const std::vector
 const std::vector<uint8_t>& CGroundModelMap::insertScan(const cleanmap::Scan& scan) {
   last_flags_ = cleanmap::segmentGround(scan.points, groundParams(), insertionOptions.extent,
                                         groundBelowSensor(scan));
+  for (auto& f : last_flags_) f = f != 0;  // 1 = ground, whichever kind (lastGroundFlags)
   insertGround(scan, last_flags_);
   return last_flags_;
 }
