@@ -663,6 +663,11 @@ TEST(MoverFeet, AMovingFacesReturnsRaisedOverTheRoadGoWithIt) {
   for (uint32_t i : s.road_at_face) EXPECT_FALSE(contains(feet, i)) << "road " << i;
   EXPECT_EQ(feet.size(), s.foot.size());
   EXPECT_TRUE(std::is_sorted(feet.begin(), feet.end()));
+  // A mover 2 km off (a crop made that long) makes the grid of returns coarser, not the answer
+  // different.
+  FeetScene far = s;
+  far.add(2000.0f, 2000.0f, kRoad + 0.2f, 0, 1);
+  EXPECT_EQ(far.feet(), feet);
 }
 
 TEST(MoverFeet, AStaticFaceKeepsItsFeet) {

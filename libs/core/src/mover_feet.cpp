@@ -106,7 +106,10 @@ std::vector<uint32_t> moverFeet(const std::vector<PointXYZI>& points, const Eige
       above.push_back(q);
       above_moving.push_back(0);
     }
-  FlatLists returns(indexed, p.radius);
+  // Cells of `radius` (3 x 3 of them hold every return within it), coarser where a long crop
+  // would make their array large (the same returns found, a few more looked at).
+  const double area = indexed.sizes().prod();
+  FlatLists returns(indexed, std::max(p.radius, std::sqrt(area / double(1 << 20))));
   returns.next.resize(above.size());
   for (uint32_t m = 0; m < above.size(); ++m)
     returns.add(returns.cell(above[m].x(), above[m].y()), m);
