@@ -124,8 +124,8 @@ TEST(SimCases, CarFollowingTheEgoAtTheSameSpeed) {
   EXPECT_GE(r.per_mover.at("follower").recall(), 0.85);
   EXPECT_GE(r.all.precision(), 0.97);
   // doc/OBJECTS.md rule 6: the car's face down to the road is the car's. Its returns less than
-  // 0.12 m over the road: recall 0.766 (0.433 as ground refined in its cells, DESIGN §2a, all
-  // below the road's 0.09 m step); nothing of the road itself taken.
+  // 0.12 m over the road: recall 0.766 (0.433 before, when those under the ground stage's 0.09 m
+  // step were ground refined in its cells, DESIGN §2a); nothing of the road itself taken.
   std::printf("  under 0.12 m: recall %.3f, %llu road points labelled moving\n", r.low.recall(),
               (unsigned long long)r.low.fp);
   EXPECT_GE(r.low.recall(), 0.7);
