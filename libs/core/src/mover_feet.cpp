@@ -5,6 +5,8 @@
 #include <cmath>
 #include <limits>
 
+#include "cleanmap/core/median.h"
+
 namespace cleanmap {
 namespace {
 
@@ -160,35 +162,30 @@ std::vector<uint32_t> moverFeet(const std::vector<PointXYZI>& points, const Eige
     road_z.push_back(static_cast<float>(q.z()));
   }
 
-  // Per road cell, the level of the road around it (median, and the least rise over it): the
-  // feet in one cell share their 3 x 3 block.
+  // Per road cell, the height a foot must rise over (the road's median and the least rise; +inf
+  // with too little road to tell a raised return from it): the feet in one cell share their
+  // 3 x 3 block. NaN: not computed yet.
   std::vector<float> level(road.cells(), std::numeric_limits<float>::quiet_NaN());
-  std::vector<uint8_t> known(road.cells(), 0);
   std::vector<float> zs;
-  auto middle = [&zs] {
-    const auto mid = zs.begin() + static_cast<std::ptrdiff_t>(zs.size() / 2);
-    std::nth_element(zs.begin(), mid, zs.end());
-    return *mid;
-  };
   std::vector<uint32_t> feet;
   for (std::size_t u = 0; u < under.size(); ++u) {
     const int64_t c = road.cell(under_w[u].x(), under_w[u].y());
     const auto cu = static_cast<std::size_t>(c);
-    if (!known[cu]) {
-      known[cu] = 1;
+    if (std::isnan(level[cu])) {
       zs.clear();
       road.around(c, [&](uint32_t j) {
         zs.push_back(road_z[j]);
         return true;
       });
-      if (zs.size() >= 5) {  // fewer: too little road to tell a raised return from it
-        const float mid = middle();
+      level[cu] = std::numeric_limits<float>::infinity();
+      if (zs.size() >= 5) {
+        const float mid = median(zs);
         for (auto& z : zs) z = std::abs(z - mid);
-        const double scatter = 1.4826 * middle();
+        const double scatter = 1.4826 * median(zs);
         level[cu] = static_cast<float>(mid + std::max(p.rise, 3.0 * scatter));
       }
     }
-    if (under_w[u].z() > level[cu]) feet.push_back(under[u]);  // false where NaN
+    if (under_w[u].z() > level[cu]) feet.push_back(under[u]);
   }
   return feet;
 }
