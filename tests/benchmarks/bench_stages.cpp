@@ -277,10 +277,10 @@ void BM_MapDecision(benchmark::State& state) {
       for (const auto& q : w)
         gone.push_back(removedByPolicy(look(q.xyz()), static_cast<int64_t>(i), in.map.params()));
     } else if (state.range(0) == 1) {
-      consensus.group(w, in.member[i], groups);
+      consensus.group(w, in.member[i], {}, groups);
     } else {
       gone = in.removed[i];
-      consensus.decide(static_cast<int64_t>(k), 1.0, w, in.member[i], gone, w.size(),
+      consensus.decide(static_cast<int64_t>(k), 1.0, {}, w, in.member[i], gone, w.size(),
                        &in.groups[i]);
     }
     for (const uint8_t g : gone) removed += g;

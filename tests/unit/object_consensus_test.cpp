@@ -215,6 +215,102 @@ TEST(ObjectConsensus, DisabledOrNonMembersUnchanged) {
   EXPECT_EQ(objectConsensus({}, {}, moving, ObjectParams{}).objects, 0u);
 }
 
+namespace {
+
+// A walker 0.5 m wide seen by a sparse lidar: `rings` returns across him every 0.08 m at each of
+// the heights in `zs`, `range` m ahead of the sensor at the origin; per ring the first `moving`
+// returns tested moving.
+struct RingWalker {
+  std::vector<PointXYZI> pts;
+  std::vector<uint8_t> member, moving;
+  RingWalker(float range, const std::vector<float>& zs, const std::vector<int>& moving_per_ring) {
+    for (std::size_t k = 0; k < zs.size(); ++k)
+      for (int j = 0; j < 7; ++j) {
+        pts.push_back({range, -0.25f + 0.08f * float(j), zs[k], 0});
+        moving.push_back(j < moving_per_ring[k]);
+      }
+    member.assign(pts.size(), 1);
+  }
+};
+
+constexpr double kHdl32Gap = 1.33 * M_PI / 180.0;
+
+}  // namespace
+
+std::size_t components(const ObjectComponents& cc) {
+  std::size_t n = 0;
+  for (uint32_t v = 0; v < cc.voxels.size(); ++v) n += cc.root_of[v] == v;
+  return n;
+}
+
+TEST(ObjectConsensus, ASparseLidarsRingsAtRangeJoinIntoOneObject) {
+  // doc/OBJECTS.md rule 1, object.ring_pool: an HDL-32E's rings are 0.58 m apart at 25 m, two
+  // voxels and more; the walker's three rings (legs, waist, shoulders) are one object only where
+  // the reach joins them. Each ring has 3 of its 7 returns moving: 9 of 21 (43 %) for the walker,
+  // but fewer than min_moving (8 here) in any ring.
+  ObjectParams p;
+  p.min_moving = 8;
+  p.ring_pool = 2.5;
+  const RingWalker w(25.0f, {-1.28f, -0.70f, -0.12f}, {3, 3, 3});
+  ObjectComponents alone, joined;
+  groupObjects(w.pts, w.member, p.voxel, alone, ringReach(ObjectParams{}, kHdl32Gap));  // off
+  const RingReach reach = ringReach(p, kHdl32Gap);
+  groupObjects(w.pts, w.member, p.voxel, joined, reach);
+  EXPECT_EQ(components(alone), 3u);
+  EXPECT_EQ(components(joined), 1u);
+  auto moving = w.moving;
+  objectConsensus(w.pts, w.member, moving, p);  // no reach: three slices, each noise
+  for (uint8_t m : moving) EXPECT_EQ(m, 0);
+  // Joined: moving as a whole, and its moving points one group across the rings (rule 3: the
+  // rings' groups of 7 alone are under min_moving).
+  moving = w.moving;
+  ConsensusRules rules;
+  rules.reach = reach;
+  const auto st = objectConsensus(w.pts, w.member, moving, p, nullptr, nullptr, rules);
+  EXPECT_EQ(st.moving_objects, 1u);
+  for (uint8_t m : moving) EXPECT_EQ(m, 1);
+  // The same rings 0.58 m apart 5 m from the sensor are further apart than its ring step
+  // there (0.12 m): three objects, as the lidar sees them.
+  RingWalker nearer = w;
+  for (auto& q : nearer.pts) q.x = 5.0f;
+  groupObjects(nearer.pts, nearer.member, p.voxel, joined, reach);
+  EXPECT_EQ(components(joined), 3u);
+  // The sensor's position counts, not the frame's origin (the map's points are in the world
+  // frame): the walker 25 m from a sensor at (-20, 0) is 5 m from the origin.
+  RingWalker shifted = w;
+  for (auto& q : shifted.pts) q.x -= 20.0f;
+  groupObjects(shifted.pts, shifted.member, p.voxel, joined,
+               ringReach(p, kHdl32Gap, Eigen::Vector2d(-20.0, 0.0)));
+  EXPECT_EQ(components(joined), 1u);
+  // A grouping made with another reach is refused.
+  moving = w.moving;
+  EXPECT_THROW(objectConsensus(w.pts, w.member, moving, p, nullptr, nullptr, rules, &alone),
+               std::invalid_argument);
+}
+
+TEST(ObjectConsensus, ARingSliceWiderThanTheRingPoolIsDecidedAlone) {
+  // object.ring_pool bounds the slices that join across rings: a hedge 4 m wide seen by the same
+  // three rings beside the walker holds enough returns per ring to be decided alone; at 2.5 m
+  // its rings stay three objects, at 25 m (every vehicle-sized slice) they join too.
+  RingWalker w(25.0f, {-1.28f, -0.70f, -0.12f}, {0, 0, 0});
+  for (const float z : {-1.28f, -0.70f, -0.12f})
+    for (float y = 3.0f; y <= 7.0f; y += 0.08f) {
+      w.pts.push_back({25.0f, y, z, 0});
+      w.moving.push_back(0);
+    }
+  w.member.assign(w.pts.size(), 1);
+  ObjectParams p;
+  ObjectComponents cc;
+  p.ring_pool = 2.5;
+  groupObjects(w.pts, w.member, p.voxel, cc, ringReach(p, kHdl32Gap));
+  EXPECT_EQ(components(cc), 4u);  // the walker, the hedge's three rings
+  p.ring_pool = 25;
+  groupObjects(w.pts, w.member, p.voxel, cc, ringReach(p, kHdl32Gap));
+  EXPECT_EQ(components(cc), 2u);
+  groupObjects(w.pts, w.member, p.voxel, cc, ringReach(p, 0.0));  // a dense lidar: no reach
+  EXPECT_EQ(components(cc), 6u);
+}
+
 TEST(ObjectConsensus, HysteresisKeepsAPartlyMovingObjectThatMovedBefore) {
   // A 14 m truck with its leading 2 m tested moving: ~15 %, between static_fraction (10 %) and
   // moving_fraction (20 %). Alone it is undecided and keeps its labels; next to the previous
@@ -366,7 +462,7 @@ TEST(MapObjects, ASlowTrucksSideGoesWithItsEnds) {
   MapObjectConsensus mc(ObjectParams{}, 100);
   Side s = truckSide(12, 1.8f, 1.8f);
   ASSERT_NEAR(removedShare(s.removed), 0.3, 0.01);
-  auto st = mc.decide(0, 1.0, s.pts, s.member, s.removed, s.pts.size());
+  auto st = mc.decide(0, 1.0, {}, s.pts, s.member, s.removed, s.pts.size());
   EXPECT_EQ(removedShare(s.removed), 1.0);
   EXPECT_EQ(st.moving_objects, 1u);
   EXPECT_GT(st.points_added, s.pts.size() / 2);
@@ -374,13 +470,13 @@ TEST(MapObjects, ASlowTrucksSideGoesWithItsEnds) {
   Side mid = truckSide(12, 0.9f, 0.9f);  // 15 %: undecided, and no memory in a fresh consensus
   const auto before = mid.removed;
   MapObjectConsensus fresh(ObjectParams{}, 100);
-  fresh.decide(0, 1.0, mid.pts, mid.member, mid.removed, mid.pts.size());
+  fresh.decide(0, 1.0, {}, mid.pts, mid.member, mid.removed, mid.pts.size());
   EXPECT_EQ(mid.removed, before);
 
   Side few = truckSide(12, 0, 0);  // 4 %, scattered: a static object's stray removals are kept
   for (std::size_t i = 0; i < few.removed.size(); ++i) few.removed[i] = i % 25 == 0;
   ASSERT_GT(removedShare(few.removed), 0.03);
-  st = fresh.decide(1, 1.0, few.pts, few.member, few.removed, few.pts.size());
+  st = fresh.decide(1, 1.0, {}, few.pts, few.member, few.removed, few.pts.size());
   EXPECT_EQ(removedShare(few.removed), 0.0);
   EXPECT_GT(st.points_removed, 0u);
 }
@@ -391,16 +487,16 @@ TEST(MapObjects, AnObjectRemovedWholeStaysRemovedWhileItCrawls) {
   Side first = truckSide(12, 1.8f, 1.8f), next = truckSide(12.12f, 0.9f, 0.9f);
   const auto next_before = next.removed;
   MapObjectConsensus mc(ObjectParams{}, 10);
-  mc.decide(8, 1.0, first.pts, first.member, first.removed, first.pts.size());
+  mc.decide(8, 1.0, {}, first.pts, first.member, first.removed, first.pts.size());
   Side again = next;
-  mc.decide(9, 1.0, again.pts, again.member, again.removed, again.pts.size());
+  mc.decide(9, 1.0, {}, again.pts, again.member, again.removed, again.pts.size());
   EXPECT_EQ(removedShare(again.removed), 1.0);
 
   MapObjectConsensus cut(ObjectParams{}, 10);
   first = truckSide(12, 1.8f, 1.8f);
-  cut.decide(9, 1.0, first.pts, first.member, first.removed, first.pts.size());
+  cut.decide(9, 1.0, {}, first.pts, first.member, first.removed, first.pts.size());
   again = next;
-  cut.decide(10, 1.0, again.pts, again.member, again.removed, again.pts.size());  // new epoch
+  cut.decide(10, 1.0, {}, again.pts, again.member, again.removed, again.pts.size());  // new epoch
   EXPECT_EQ(again.removed, next_before);
 }
 
@@ -412,18 +508,18 @@ TEST(MapObjects, TheWindowedTestsMovingPointsStayRemovedAndCount) {
   std::size_t first = asWindowedMoving(s);
   ASSERT_EQ(s.removed[0], 0);
   MapObjectConsensus mc(ObjectParams{}, 100);
-  mc.decide(0, 1.0, s.pts, s.member, s.removed, first);
+  mc.decide(0, 1.0, {}, s.pts, s.member, s.removed, first);
   EXPECT_EQ(removedShare(s.removed), 1.0);
 
   Side car = truckSide(12, 0.2f, 0, 4.5f);  // 4 % moving, all of them the windowed test's
   first = asWindowedMoving(car);
   ASSERT_LT(first, car.pts.size());
-  mc.decide(1, 1.0, car.pts, car.member, car.removed, first);
+  mc.decide(1, 1.0, {}, car.pts, car.member, car.removed, first);
   for (std::size_t i = 0; i < car.pts.size(); ++i) ASSERT_EQ(car.removed[i], i >= first) << i;
 
   Side wall = truckSide(30, 3.0f, 3.0f, 30);  // 30 m long: a structure
   const auto wall_before = wall.removed;
-  mc.decide(2, 1.0, wall.pts, wall.member, wall.removed, wall.pts.size());
+  mc.decide(2, 1.0, {}, wall.pts, wall.member, wall.removed, wall.pts.size());
   EXPECT_EQ(wall.removed, wall_before);
 }
 
@@ -443,12 +539,13 @@ TEST(MapObjects, RuleFourRunsBackwardsFromTheFirstScanThatTookTheObjectWhole) {
       sides.push_back(k == 9 ? truckSide(x, 1.8f, 1.8f) : truckSide(x, 0.9f, 0.9f));
       Side& s = sides.back();
       before.push_back(s.removed);
-      mc.decide(k, 1.0, s.pts, s.member, s.removed, s.pts.size());
+      mc.decide(k, 1.0, {}, s.pts, s.member, s.removed, s.pts.size());
     }
     for (std::size_t i = sides.size(); i-- > 0;) {
       Side& s = sides[i];
       const auto forwards = s.removed;
-      mc.decideBackward(static_cast<int64_t>(i) + 5, 1.0, s.pts, s.member, s.removed, s.pts.size());
+      mc.decideBackward(static_cast<int64_t>(i) + 5, 1.0, {}, s.pts, s.member, s.removed,
+                        s.pts.size());
       for (std::size_t j = 0; j < s.removed.size(); ++j)
         EXPECT_GE(s.removed[j], forwards[j]) << "scan " << i + 5 << " point " << j;
     }
@@ -466,12 +563,12 @@ TEST(MapObjects, RuleFourRunsBackwardsFromTheFirstScanThatTookTheObjectWhole) {
   MapObjectConsensus alone(ObjectParams{}, 100);
   Side s = truckSide(12, 0.9f, 0.9f), t = truckSide(12.12f, 0.9f, 0.9f);
   const auto kept_s = s.removed, kept_t = t.removed;
-  alone.decide(0, 1.0, s.pts, s.member, s.removed, s.pts.size());
-  alone.decide(1, 1.0, t.pts, t.member, t.removed, t.pts.size());
+  alone.decide(0, 1.0, {}, s.pts, s.member, s.removed, s.pts.size());
+  alone.decide(1, 1.0, {}, t.pts, t.member, t.removed, t.pts.size());
   EXPECT_FALSE(alone.hadWholeObjects());
-  alone.decideBackward(1, 1.0, t.pts, t.member, t.removed, t.pts.size());
+  alone.decideBackward(1, 1.0, {}, t.pts, t.member, t.removed, t.pts.size());
   EXPECT_FALSE(alone.backwardMemory());
-  alone.decideBackward(0, 1.0, s.pts, s.member, s.removed, s.pts.size());
+  alone.decideBackward(0, 1.0, {}, s.pts, s.member, s.removed, s.pts.size());
   EXPECT_EQ(s.removed, kept_s);
   EXPECT_EQ(t.removed, kept_t);
 }
@@ -492,10 +589,10 @@ TEST(MapObjects, RuleFiveTakesAnObjectStandingWhereAWholeOneOfItsSizeStood) {
       const float x = 12 + 0.06f * static_cast<float>(k);
       sides.push_back(k == 8 ? truckSide(x, 1.8f, 1.8f) : truckSide(x, 0.24f, 0));
       Side& s = sides.back();
-      mc.decide(k, 1.0, s.pts, s.member, s.removed, s.pts.size());
+      mc.decide(k, 1.0, {}, s.pts, s.member, s.removed, s.pts.size());
     }
     for (std::size_t i = sides.size(); i-- > 0;)
-      mc.decideBackward(static_cast<int64_t>(i), 1.0, sides[i].pts, sides[i].member,
+      mc.decideBackward(static_cast<int64_t>(i), 1.0, {}, sides[i].pts, sides[i].member,
                         sides[i].removed, sides[i].pts.size());
     std::vector<double> shares;
     for (const Side& s : sides) shares.push_back(removedShare(s.removed));
@@ -509,15 +606,15 @@ TEST(MapObjects, RuleFiveTakesAnObjectStandingWhereAWholeOneOfItsSizeStood) {
   // Not the same object: a 4.5 m car in the voxels of a whole 12 m truck, and one beside them.
   MapObjectConsensus mc(ObjectParams{}, 100, 0.5);
   Side truck = truckSide(12, 1.8f, 1.8f);
-  mc.decide(0, 1.0, truck.pts, truck.member, truck.removed, truck.pts.size());
+  mc.decide(0, 1.0, {}, truck.pts, truck.member, truck.removed, truck.pts.size());
   Side inside = truckSide(8, 0, 0, 4.5f);  // x 3.5-8, within the truck's voxels (x 0-12)
   Side beside = truckSide(12, 0, 0);
   for (auto& p : beside.pts) p.y += 1.0f;  // 1 m away: other voxels
   const auto in_before = inside.removed, beside_before = beside.removed;
   MapObjectConsensus two = mc, three = mc;
-  mc.decide(1, 1.0, inside.pts, inside.member, inside.removed, inside.pts.size());
+  mc.decide(1, 1.0, {}, inside.pts, inside.member, inside.removed, inside.pts.size());
   EXPECT_EQ(inside.removed, in_before);
-  two.decide(1, 1.0, beside.pts, beside.member, beside.removed, beside.pts.size());
+  two.decide(1, 1.0, {}, beside.pts, beside.member, beside.removed, beside.pts.size());
   EXPECT_EQ(removedShare(beside.removed), 1.0);  // the truck, moved 1 m
   // The truck itself, 0.12 m on and whole, in the same scan as a same-sized one 2 m beside it:
   // it claims the truck of the scan before; its neighbour stays.
@@ -529,7 +626,7 @@ TEST(MapObjects, RuleFiveTakesAnObjectStandingWhereAWholeOneOfItsSizeStood) {
     both.removed.insert(both.removed.end(), part->removed.begin(), part->removed.end());
   }
   both.member.assign(both.pts.size(), 1);
-  three.decide(1, 1.0, both.pts, both.member, both.removed, both.pts.size());
+  three.decide(1, 1.0, {}, both.pts, both.member, both.removed, both.pts.size());
   const std::vector<uint8_t> row_after(both.removed.begin() + long(moved.pts.size()),
                                        both.removed.end());
   EXPECT_EQ(row_after, beside_before);  // none removed
@@ -562,24 +659,24 @@ TEST(MapObjects, AGroupingMadeAheadDecidesAsTheOwnOne) {
   for (float x = -8; x <= 60; x += 0.25f)
     for (float y = 2; y <= 14; y += 0.25f) deck.pts.push_back({x, y, 1, 0});
   deck.member.assign(deck.pts.size(), 1);
-  ahead.group(deck.pts, deck.member, groups);
+  ahead.group(deck.pts, deck.member, {}, groups);
   auto mine = scans, theirs = scans;
   for (std::size_t k = 0; k < scans.size(); ++k) {
-    const auto a = own.decide(int64_t(k), 1.0, mine[k].pts, mine[k].member, mine[k].removed,
+    const auto a = own.decide(int64_t(k), 1.0, {}, mine[k].pts, mine[k].member, mine[k].removed,
                               mine[k].pts.size());
-    ahead.group(theirs[k].pts, theirs[k].member, groups);
-    const auto b = ahead.decide(int64_t(k), 1.0, theirs[k].pts, theirs[k].member, theirs[k].removed,
-                                theirs[k].pts.size(), &groups);
+    ahead.group(theirs[k].pts, theirs[k].member, {}, groups);
+    const auto b = ahead.decide(int64_t(k), 1.0, {}, theirs[k].pts, theirs[k].member,
+                                theirs[k].removed, theirs[k].pts.size(), &groups);
     ASSERT_EQ(mine[k].removed, theirs[k].removed) << "scan " << k;
     EXPECT_EQ(a.points_added, b.points_added);
     EXPECT_EQ(a.moving_objects, b.moving_objects);
   }
   const auto forward = mine;
   for (std::size_t k = scans.size(); k-- > 0;) {
-    own.decideBackward(int64_t(k), 1.0, mine[k].pts, mine[k].member, mine[k].removed,
+    own.decideBackward(int64_t(k), 1.0, {}, mine[k].pts, mine[k].member, mine[k].removed,
                        mine[k].pts.size());
-    ahead.group(theirs[k].pts, theirs[k].member, groups);
-    ahead.decideBackward(int64_t(k), 1.0, theirs[k].pts, theirs[k].member, theirs[k].removed,
+    ahead.group(theirs[k].pts, theirs[k].member, {}, groups);
+    ahead.decideBackward(int64_t(k), 1.0, {}, theirs[k].pts, theirs[k].member, theirs[k].removed,
                          theirs[k].pts.size(), &groups);
     ASSERT_EQ(mine[k].removed, theirs[k].removed) << "scan " << k << " backward";
   }
@@ -588,8 +685,8 @@ TEST(MapObjects, AGroupingMadeAheadDecidesAsTheOwnOne) {
 
   // A grouping of other points (another size, or another voxel side) is refused, not misread.
   Side other = truckSide(12, 1.8f, 1.8f, 6);
-  ahead.group(other.pts, other.member, groups);
-  EXPECT_THROW(ahead.decide(5, 1.0, scans[0].pts, scans[0].member, scans[0].removed,
+  ahead.group(other.pts, other.member, {}, groups);
+  EXPECT_THROW(ahead.decide(5, 1.0, {}, scans[0].pts, scans[0].member, scans[0].removed,
                             scans[0].pts.size(), &groups),
                std::invalid_argument);
   ObjectComponents coarse;

@@ -763,6 +763,14 @@ TEST(SimSensors, SparseLidarsFindSmallMoversBetweenTheirRings) {
   const auto wall16 = runCase(seen_by("pedestrian_wall", SensorModel::kVlp16));
   EXPECT_GE(wall16.per_mover.at("walker").recall(), 0.62);  // measured 0.68 (0.42 without)
   EXPECT_GE(wall16.all.precision(), 0.95);                  // measured 0.98 (0.97 without)
+  // object.ring_pool (doc/OBJECTS.md rule 1): the walker at 22-30 m is one slice per ring, each
+  // under min_moving (7), and the object rules called every slice noise; joined across the
+  // rings he is one object.
+  PipelineParams pool;
+  pool.object.ring_pool = 2.5;
+  const auto poles_pool = runCase(hdl32("poles_drift"), pool);
+  EXPECT_GE(poles_pool.per_mover.at("walker").recall(), 0.9);  // measured 0.965
+  EXPECT_GE(poles_pool.all.precision(), 0.97);                 // measured 1.000
 }
 
 // The mounting is measured, not assumed: each scan's estimate lies within 0.1 m of the truth

@@ -31,8 +31,9 @@ struct UnionFind {
 }  // namespace
 
 void groupObjects(const std::vector<PointXYZI>& points, const std::vector<uint8_t>& member,
-                  double side, ObjectComponents& cc) {
+                  double side, ObjectComponents& cc, const RingReach& reach) {
   cc.side = side;
+  cc.reach = reach;
   cc.voxel_of.clear();
   cc.voxels.clear();
   const float inv = static_cast<float>(1.0 / side);
@@ -86,6 +87,26 @@ void groupObjects(const std::vector<PointXYZI>& points, const std::vector<uint8_
       if (n) uf.unite(v, *n);
     });
   }
+  // A sparse lidar's slices (the components so far) at most reach.pool across join those of
+  // their column across rings (RingReach).
+  cc.pooled.clear();
+  if (reach.active() && !cc.voxels.empty()) {
+    std::vector<Eigen::Vector2i> lo(cc.voxels.size(), Eigen::Vector2i::Constant(INT32_MAX)),
+        hi(cc.voxels.size(), Eigen::Vector2i::Constant(INT32_MIN));
+    std::vector<uint32_t> slice(cc.voxels.size());
+    for (uint32_t v = 0; v < cc.voxels.size(); ++v) {
+      slice[v] = uf.find(v);
+      lo[slice[v]] = lo[slice[v]].cwiseMin(cc.voxels[v].head<2>());
+      hi[slice[v]] = hi[slice[v]].cwiseMax(cc.voxels[v].head<2>());
+    }
+    cc.pooled.resize(cc.voxels.size());
+    for (uint32_t v = 0; v < cc.voxels.size(); ++v) {
+      const Eigen::Vector2i span = hi[slice[v]] - lo[slice[v]];  // in voxels, less one
+      cc.pooled[v] = span.cast<double>().norm() * side <= reach.pool;
+    }
+    for (uint32_t v = 0; v < cc.voxels.size(); ++v)
+      forEachAcrossRings(cc, v, [&](uint32_t n) { uf.unite(v, n); });
+  }
   cc.root_of.resize(cc.voxels.size());  // each voxel's component, found once
   for (uint32_t v = 0; v < cc.voxels.size(); ++v) cc.root_of[v] = uf.find(v);
 }
@@ -102,12 +123,12 @@ bool vehicleSized(const Eigen::Vector3f& lo, const Eigen::Vector3f& hi, const Ob
 
 // Rule 5's objects: the components of the points of `mask`.
 void wholeObjectsOf(const std::vector<PointXYZI>& points, const std::vector<uint8_t>& mask,
-                    double side, WholeObjects& out) {
+                    double side, WholeObjects& out, const RingReach& reach) {
   out.voxel.clear();
   out.extent.clear();
   out.centroid.clear();
   ObjectComponents cc;
-  groupObjects(points, mask, side, cc);
+  groupObjects(points, mask, side, cc, reach);
   std::vector<uint32_t> id(cc.voxels.size(), UINT32_MAX), n;
   std::vector<Eigen::Vector3f> lo, hi;
   for (std::size_t i = 0; i < points.size(); ++i) {
@@ -147,27 +168,27 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
   if (!p.enabled) return st;
   // Voxels of the member points and their 26-connected components.
   ObjectComponents own;
-  if (grouped && (grouped->point_voxel.size() != points.size() || grouped->side != p.voxel))
+  if (grouped && (grouped->point_voxel.size() != points.size() || grouped->side != p.voxel ||
+                  !(grouped->reach == rules.reach)))
     throw std::invalid_argument(
         "objectConsensus: a grouping of " + std::to_string(grouped->point_voxel.size()) +
-        " points in voxels of " + std::to_string(grouped->side) + " m given for " +
-        std::to_string(points.size()) + " points in voxels of " + std::to_string(p.voxel) + " m");
-  if (!grouped) groupObjects(points, member, p.voxel, own);
+        " points in voxels of " + std::to_string(grouped->side) + " m (rings " +
+        std::to_string(grouped->reach.ring_gap) + " rad apart) given for " +
+        std::to_string(points.size()) + " points in voxels of " + std::to_string(p.voxel) +
+        " m (rings " + std::to_string(rules.reach.ring_gap) + " rad apart)");
+  if (!grouped) groupObjects(points, member, p.voxel, own, rules.reach);
   const ObjectComponents& cc = grouped ? *grouped : own;
-  const CellMap<uint32_t>& voxel_of = cc.voxel_of;
   const std::vector<Eigen::Vector3i>& voxels = cc.voxels;
   const std::vector<uint32_t>& point_voxel = cc.point_voxel;
   const std::vector<uint32_t>& root_of = cc.root_of;
-  // The voxels that hold moving points (moving_in[v] > 0), joined with their 26-neighbours that
-  // do: connected groups of moving points.
+  // The voxels that hold moving points (moving_in[v] > 0), joined with the linked voxels that do
+  // (26-neighbours, and a sparse lidar's rings: RingReach): connected groups of moving points.
   const auto movingGroups = [&](const std::vector<uint32_t>& moving_in) {
     UnionFind g(voxels.size());
     for (uint32_t v = 0; v < voxels.size(); ++v) {
       if (!moving_in[v]) continue;
-      const Eigen::Vector3i& c = voxels[v];
-      forEachNeighbour13([&](int dx, int dy, int dz) {
-        const uint32_t* n = voxel_of.find(cellKey(c.x() + dx, c.y() + dy, c.z() + dz));
-        if (n && moving_in[*n]) g.unite(v, *n);
+      forEachLinked(cc, v, [&](uint32_t n) {
+        if (moving_in[n]) g.unite(v, n);
       });
     }
     return g;
@@ -463,12 +484,12 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
 }
 
 std::vector<uint8_t> inVehicleSizedObject(const std::vector<PointXYZI>& points,
-                                          const std::vector<uint8_t>& member,
-                                          const ObjectParams& p) {
+                                          const std::vector<uint8_t>& member, const ObjectParams& p,
+                                          const RingReach& reach) {
   std::vector<uint8_t> in(points.size(), 0);
   if (!p.enabled) return in;
   ObjectComponents cc;
-  groupObjects(points, member, p.voxel, cc);
+  groupObjects(points, member, p.voxel, cc, reach);
   std::vector<Eigen::Vector3f> lo(cc.voxels.size(), Eigen::Vector3f::Constant(1e30f)),
       hi(cc.voxels.size(), Eigen::Vector3f::Constant(-1e30f));
   for (std::size_t i = 0; i < points.size(); ++i) {
@@ -501,6 +522,7 @@ void persistCells(const std::vector<PointXYZI>& points, const std::vector<uint8_
 // One scan with the memory of the scan decided before it in this direction (the previous one
 // forwards, the next one backwards).
 ObjectConsensusStats MapObjectConsensus::run(Memory& m, bool backward, int64_t scan, double density,
+                                             const RingReach& reach,
                                              const std::vector<PointXYZI>& points,
                                              const std::vector<uint8_t>& member,
                                              std::vector<uint8_t>& removed, std::size_t fixed_from,
@@ -511,6 +533,7 @@ ObjectConsensusStats MapObjectConsensus::run(Memory& m, bool backward, int64_t s
   m.epoch = e;
   ConsensusRules rules;
   rules.few_points_are_noise = false;  // a removal is a voxel the sequence saw empty, no alarm
+  rules.reach = reach;
   const bool persist = p_.persist_radius > 0 && !m.cells.empty();
   if (persist) {
     const double inv = 1.0 / p_.persist_radius;
@@ -538,7 +561,7 @@ ObjectConsensusStats MapObjectConsensus::run(Memory& m, bool backward, int64_t s
   // The memory: the objects removed whole, not the free space's scattered removals (a parked car
   // seen through its windows loses a few points in every scan).
   if (p_.persist_radius > 0) persistCells(points, &whole_, p_.persist_radius, m.cells);
-  if (overlap_ > 0) wholeObjectsOf(points, whole_, p_.voxel, m.objects);
+  if (overlap_ > 0) wholeObjectsOf(points, whole_, p_.voxel, m.objects, reach);
   return st;
 }
 

@@ -43,6 +43,8 @@ void validate(const PipelineParams& p, const std::string& name) {
   require(p.object.min_moving >= 1, "object.min_moving must be >= 1");
   require(p.object.max_length > 0 && p.object.max_height > 0,
           "object.max_length and max_height must be > 0");
+  require(p.object.ring_pool >= 0 && p.object.ring_pool <= p.object.max_length,
+          "object.ring_pool must be in [0, object.max_length] m (0 = off)");
   require(p.object.persist_radius >= 0 && p.object.persist_radius <= 10,
           "object.persist_radius must be in [0, 10] m (0 = off)");
   require(p.object.foot_height >= 0 && p.object.foot_height <= 2,

@@ -129,6 +129,7 @@ std::map<std::string, Key> table(PipelineParams& p) {
       {"object.foot_height", d(p.object.foot_height)},
       {"object.feet", Key{[&p](double v) { p.object.feet = v != 0; },
                           [&p] { return p.object.feet ? 1.0 : 0.0; }, true}},
+      {"object.ring_pool", d(p.object.ring_pool)},
       {"registration.min_range", d(p.registration.min_range)},
       {"registration.max_range", d(p.registration.max_range)},
       {"registration.voxel", d(p.registration.voxel)},

@@ -187,8 +187,8 @@ void OutputWriter::write(const ScanResult& r, const std::optional<MosCounts>& ev
 namespace {
 struct SpoolHeader {
   int64_t index;
-  double z;
-  double density;
+  double x, y, z;  // the sensor's position
+  double density, ring_gap;
   uint64_t points, full, moving;
 };
 struct SpoolPoint {
@@ -207,9 +207,16 @@ void OutputWriter::spoolScan(const ScanResult& r) {
   if (!indexed && !r.static_compact.empty())
     throw Error(staging_, "scan " + r.stem +
                               ": a compact map without static_full_kind (which points are in it)");
-  const SpoolHeader h{
-      static_cast<int64_t>(r.index), r.pose.translation().z(), r.density, r.labels.size(),
-      r.static_full.size(),          r.moving.size()};
+  const Eigen::Vector3d t = r.pose.translation();
+  const SpoolHeader h{static_cast<int64_t>(r.index),
+                      t.x(),
+                      t.y(),
+                      t.z(),
+                      r.density,
+                      r.ring_gap,
+                      r.labels.size(),
+                      r.static_full.size(),
+                      r.moving.size()};
   spool_offsets_.push_back(spool_->size());
   spool_->write(&h, sizeof h);
   std::vector<SpoolPoint> pts(r.static_full.size());
@@ -301,9 +308,12 @@ void OutputWriter::writeMaps(const FreeSpaceMap* free_space, const MapScanSink& 
     }
   };
   MapObjectConsensus consensus(params_.object, params_.epoch, mapObjectOverlap(params_.map));
+  const auto reachOf = [&](const SpoolHeader& h) {  // its lidar's rings (doc/OBJECTS.md rule 1)
+    return ringReach(params_.object, h.ring_gap, Eigen::Vector2d(h.x, h.y));
+  };
   const auto decideObjects = [&](Spooled& b) {
-    const auto st =
-        consensus.decide(b.h.index, b.h.density, b.objects, b.member, b.gone, b.pts.size());
+    const auto st = consensus.decide(b.h.index, b.h.density, reachOf(b.h), b.objects, b.member,
+                                     b.gone, b.pts.size());
     map_object_points_ += st.points_added;
     map_object_kept_ += st.points_removed;
     map_objects_ += st.moving_objects;
@@ -340,7 +350,7 @@ void OutputWriter::writeMaps(const FreeSpaceMap* free_space, const MapScanSink& 
       b.gone.resize(b.pts.size());
       decisions_rw.readAt(decided_at[s], b.gone.data(), b.gone.size());
       assemble(b);
-      consensus.group(b.objects, b.member, b.groups);
+      consensus.group(b.objects, b.member, reachOf(b.h), b.groups);
     };
     Spooled cur, next;
     bool loaded = false;  // cur holds scan s
@@ -354,8 +364,9 @@ void OutputWriter::writeMaps(const FreeSpaceMap* free_space, const MapScanSink& 
       const bool read_ahead = s > 0 && params_.threads > 1;
       std::future<void> ahead;
       if (read_ahead) ahead = std::async(std::launch::async, load, s - 1, std::ref(next));
-      const auto st = consensus.decideBackward(cur.h.index, cur.h.density, cur.objects, cur.member,
-                                               cur.gone, cur.pts.size(), &cur.groups);
+      const auto st =
+          consensus.decideBackward(cur.h.index, cur.h.density, reachOf(cur.h), cur.objects,
+                                   cur.member, cur.gone, cur.pts.size(), &cur.groups);
       if (read_ahead) ahead.get();
       map_object_points_ += st.points_added;
       map_objects_ += st.moving_objects;

@@ -223,10 +223,13 @@ void CMovingObjectsMap::onDecided(cleanmap::ScanResult&& r) {
       std::vector<uint8_t> member(pts.size(), 1);
       for (std::size_t i = 0; i < r.static_full.size(); ++i)
         member[i] = !cleanmap::isGroundKind(r.static_full_kind[i]);
-      const std::vector<uint8_t> in = cleanmap::inVehicleSizedObject(pts, member, params_.object);
+      const cleanmap::RingReach reach{r.ring_gap, r.pose.translation().head<2>()};
+      const std::vector<uint8_t> in =
+          cleanmap::inVehicleSizedObject(pts, member, params_.object, reach);
       ObjectScan os;
       os.index = static_cast<int64_t>(r.index);
       os.density = r.density;
+      os.reach = reach;
       os.points.reserve(static_cast<std::size_t>(std::count(in.begin(), in.end(), uint8_t{1})));
       for (std::size_t i = 0; i < r.static_full.size(); ++i)
         if (in[i]) {
@@ -266,7 +269,7 @@ void CMovingObjectsMap::decideScan(cleanmap::MapObjectConsensus& consensus,
   gone.assign(pts.size(), 1);
   for (std::size_t i = 0; i < os.fixed_from; ++i)
     gone[i] = cleanmap::removedByPolicy(fs.evidence(os.points[i]), os.index, params_.map);
-  consensus.decide(os.index, os.density, pts, member, gone, os.fixed_from);
+  consensus.decide(os.index, os.density, os.reach, pts, member, gone, os.fixed_from);
 }
 
 void CMovingObjectsMap::addDecisions(const ObjectScan& os, const std::vector<uint8_t>& gone,
@@ -325,7 +328,7 @@ std::shared_ptr<const std::unordered_map<uint64_t, uint8_t>> CMovingObjectsMap::
   for (std::size_t k = object_scans_.size(); k-- > 0;) {
     const ObjectScan& os = object_scans_[k];
     const std::vector<uint8_t> member(os.points.size(), 1);
-    consensus.decideBackward(os.index, os.density, asPoints(os.points), member, gone[k],
+    consensus.decideBackward(os.index, os.density, os.reach, asPoints(os.points), member, gone[k],
                              os.fixed_from);
   }
   for (std::size_t k = 0; k < object_scans_.size(); ++k)

@@ -970,6 +970,7 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
   // Rule 4 under static_fraction (doc/OBJECTS.md): the object the previous scan moved whole,
   // still moving.
   ConsensusRules rules;
+  rules.reach = ringReach(op, s.ring_gap);  // a sparse lidar's rings (sensor frame; OBJECTS.md)
   WholeObjects prev;  // the previous scan's objects moved whole, built on the first call
   bool prev_built = false;
   std::vector<uint32_t> in_prev;
@@ -985,7 +986,8 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
       // whole (in that scan's sensor frame, where its consensus found it), and not smaller than
       // 1 - extent_tolerance of it (two solids do not share their space; the map's rule 5).
       if (!prev_built) {
-        wholeObjectsOf(prev_whole_, std::vector<uint8_t>(prev_whole_.size(), 1), op.voxel, prev);
+        wholeObjectsOf(prev_whole_, std::vector<uint8_t>(prev_whole_.size(), 1), op.voxel, prev,
+                       rules.reach);
         prev_built = true;
       }
       in_prev.assign(prev.extent.size(), 0);
@@ -1267,6 +1269,7 @@ ScanResult LaserPipeline::collect(Prepared& s, const Work& w) const {
   r.ground_measured = s.ground_measured;
   r.ground_z = s.ground_z;
   r.density = s.density;
+  r.ring_gap = s.ring_gap;
   r.labels.assign(s.stats.points, kUnclassified);
   const auto& pts = s.scan.points;
   for (uint32_t i = 0; i < pts.size(); ++i) {

@@ -4,10 +4,14 @@
 // own length keeps its sides occupied. A rigid object moves as a whole: if enough of a connected,
 // vehicle-sized group of non-ground points is moving, all of it is.
 #pragma once
+#include <Eigen/Core>
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <functional>
 #include <vector>
 
+#include "cleanmap/core/cell_key.h"
 #include "cleanmap/core/cell_map.h"
 #include "cleanmap/core/params.h"
 #include "cleanmap/core/types.h"
@@ -38,6 +42,31 @@ struct WholeObjects {
   bool empty() const { return extent.empty(); }
 };
 
+/// A sparse lidar's rings at range lie further apart than the grouping's voxel (doc/OBJECTS.md
+/// rule 1): an HDL-32E's (1.33 degrees) are 0.6 m apart at 25 m, a VLP-16's 0.9 m, and a walker
+/// falls apart into one slice per ring, each too small for the rules. With `pool` > 0 a slice (a
+/// 26-connected component) at most `pool` across (horizontal diagonal) is also joined to those
+/// of its 3 x 3 column up to `kRingReach` ring steps above it, a ring step being d x ring_gap at
+/// the column's horizontal distance d from `origin` (the sensor, in the points' frame): what lies
+/// closer than that, the lidar cannot tell apart. ring_gap 0 (dense lidars, whose rings lie
+/// within a voxel) or pool 0 (ObjectParams::ring_pool, the default): 26-connected voxels only.
+struct RingReach {
+  double ring_gap = 0;  ///< rad between rings (WindowScan::ring_gap, ScanResult::ring_gap)
+  Eigen::Vector2d origin = Eigen::Vector2d::Zero();
+  double pool = 0;  ///< m
+  bool active() const { return ring_gap > 0 && pool > 0; }
+  bool operator==(const RingReach& o) const {
+    return ring_gap == o.ring_gap && origin == o.origin && pool == o.pool;
+  }
+};
+/// A scan's reach under `p` (its ring_pool): `ring_gap` of the scan's lidar (0: dense), `origin`
+/// its sensor in the points' frame.
+inline RingReach ringReach(const ObjectParams& p, double ring_gap,
+                           const Eigen::Vector2d& origin = Eigen::Vector2d::Zero()) {
+  return {ring_gap, origin, p.ring_pool};
+}
+constexpr double kRingReach = 1.25;  ///< ring steps (uneven spacing and the voxel's rounding)
+
 /// Whether few moving points are noise (doc/OBJECTS.md rules 2-3): the windowed test's scattered
 /// alarms are; the map's removals (DESIGN §2e), each in a voxel the sequence saw empty, are not.
 struct ConsensusRules {
@@ -57,6 +86,9 @@ struct ConsensusRules {
   double overlap_fraction = 0.5;
   double extent_tolerance = 0.3;
   double max_shift = 3.0;  ///< m: 30 m/s between two scans at 10 Hz
+  /// How the points' voxels join (a sparse lidar's rings; groupObjects); a `grouped` given to
+  /// objectConsensus must have been made with the same.
+  RingReach reach;
   /// Rule 4 under static_fraction (doc/OBJECTS.md): a vehicle-sized object not all moving that
   /// the rules above leave static (under static_fraction or min_moving of its points moving, or
   /// none), at least half of its points near the previous scan's moving points, moves as a whole,
@@ -67,12 +99,16 @@ struct ConsensusRules {
   std::function<bool(const std::vector<uint32_t>&)> has_left;
 };
 
-/// The 26-connected components of a set of member points' voxels: objectConsensus's grouping,
-/// which depends only on the points, the members and the voxel side. groupObjects() computes it
+/// The 26-connected components of a set of member points' voxels (and those a sparse lidar's rings
+/// join, RingReach): objectConsensus's grouping, which depends only on the points, the members,
+/// the voxel side and the reach. groupObjects() computes it
 /// apart, so that a caller can group the next scan's points while this one is decided (issue
 /// #16: the map's decision per object, DESIGN §2e).
 struct ObjectComponents {
-  double side = 0;                      ///< the voxel side it was computed with
+  double side = 0;  ///< the voxel side it was computed with
+  RingReach reach;  ///< and the rings' reach
+  /// per voxel: its slice may join others across rings (RingReach); empty where none may
+  std::vector<uint8_t> pooled;
   CellMap<uint32_t> voxel_of;           ///< voxel key -> voxel
   std::vector<Eigen::Vector3i> voxels;  ///< per voxel: its cell
   std::vector<uint32_t> point_voxel;    ///< per point: its voxel; UINT32_MAX: not a member
@@ -82,7 +118,38 @@ struct ObjectComponents {
 /// Fills `out` (its buffers reused) with the components of the points with `member[i]`, in
 /// voxels of side `side`. Deterministic; O(points).
 void groupObjects(const std::vector<PointXYZI>& points, const std::vector<uint8_t>& member,
-                  double side, ObjectComponents& out);
+                  double side, ObjectComponents& out, const RingReach& reach = {});
+
+/// Calls f(voxel) for the voxels of `cc` that voxel v's slice joins across rings (RingReach):
+/// where both are pooled, those of v's 3 x 3 column 2 to the reach's voxels above it (at most
+/// kMaxReachVoxels). Visiting every voxel meets each such pair once.
+constexpr int kMaxReachVoxels = 8;
+template <class F>
+void forEachAcrossRings(const ObjectComponents& cc, uint32_t v, F&& f) {
+  if (cc.pooled.empty() || !cc.pooled[v]) return;
+  const Eigen::Vector3i& c = cc.voxels[v];
+  const double x = (c.x() + 0.5) * cc.side - cc.reach.origin.x();
+  const double y = (c.y() + 0.5) * cc.side - cc.reach.origin.y();
+  const double up = std::ceil(kRingReach * std::hypot(x, y) * cc.reach.ring_gap / cc.side);
+  const int top = static_cast<int>(std::min<double>(kMaxReachVoxels, up));
+  for (int dz = 2; dz <= top; ++dz)
+    for (int dx = -1; dx <= 1; ++dx)
+      for (int dy = -1; dy <= 1; ++dy)
+        if (const uint32_t* n = cc.voxel_of.find(cellKey(c.x() + dx, c.y() + dy, c.z() + dz)))
+          if (cc.pooled[*n]) f(*n);
+}
+
+/// Calls f(voxel) for the voxels of `cc` linked to voxel v and coming after it: its forward
+/// 26-neighbours (forEachNeighbour13) and those forEachAcrossRings gives. Visiting every voxel
+/// meets each linked pair once.
+template <class F>
+void forEachLinked(const ObjectComponents& cc, uint32_t v, F&& f) {
+  const Eigen::Vector3i& c = cc.voxels[v];
+  forEachNeighbour13([&](int dx, int dy, int dz) {
+    if (const uint32_t* n = cc.voxel_of.find(cellKey(c.x() + dx, c.y() + dy, c.z() + dz))) f(*n);
+  });
+  forEachAcrossRings(cc, v, f);
+}
 
 /// Groups `points[i]` with `member[i]` (in crop, not ground) into 26-connected voxel components
 /// and sets `moving[i]` = 1 for every point of a component that passes the rule of `p`.
@@ -102,18 +169,18 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
                                      const ConsensusRules& rules = {},
                                      const ObjectComponents* grouped = nullptr);
 
-/// Rule 5's objects (ConsensusRules::whole_objects): the 26-connected components of the points
+/// Rule 5's objects (ConsensusRules::whole_objects): the components (groupObjects) of the points
 /// with `mask[i]`, in voxels of side `side`, with their extents and centroids.
 void wholeObjectsOf(const std::vector<PointXYZI>& points, const std::vector<uint8_t>& mask,
-                    double side, WholeObjects& out);
+                    double side, WholeObjects& out, const RingReach& reach = {});
 
 /// Per point: a member of a vehicle-sized component (as objectConsensus groups them). Under
 /// ConsensusRules{few_points_are_noise = false} no other point's decision can change, and
 /// objectConsensus on these points alone decides each of them as on the whole set (same
 /// components, extents and counts): DESIGN §4b keeps only these. Deterministic; O(points).
 std::vector<uint8_t> inVehicleSizedObject(const std::vector<PointXYZI>& points,
-                                          const std::vector<uint8_t>& member,
-                                          const ObjectParams& p);
+                                          const std::vector<uint8_t>& member, const ObjectParams& p,
+                                          const RingReach& reach = {});
 
 /// Rule 4's memory (doc/OBJECTS.md): the cells of side `radius` holding a point of `points`
 /// (world frame; only those with `mask[i]` where a mask is given), dilated by one cell.
@@ -149,30 +216,32 @@ class MapObjectConsensus {
   /// `points`: a scan's map points (world frame), then from `fixed_from` on its moving points
   /// (the windowed test's: part of the objects, and they stay removed); `member[i]`: not ground;
   /// `removed[i]` on entry the free space's decision (1 for the moving points), on return the
-  /// objects'. `density`: the lidar's (min_moving, §2d). Stats: points_added / points_removed
-  /// count the map points the objects removed / kept against the free space. `grouped`
-  /// (optional): group() of the same points and members.
-  ObjectConsensusStats decide(int64_t scan, double density, const std::vector<PointXYZI>& points,
+  /// objects'. `density`: the lidar's (min_moving, §2d); `reach`: its rings' (the sensor's
+  /// position in the world frame). Stats: points_added / points_removed count the map points the
+  /// objects removed / kept against the free space. `grouped` (optional): group() of the same
+  /// points, members and reach.
+  ObjectConsensusStats decide(int64_t scan, double density, const RingReach& reach,
+                              const std::vector<PointXYZI>& points,
                               const std::vector<uint8_t>& member, std::vector<uint8_t>& removed,
                               std::size_t fixed_from, const ObjectComponents* grouped = nullptr) {
-    return run(forward_, false, scan, density, points, member, removed, fixed_from, grouped);
+    return run(forward_, false, scan, density, reach, points, member, removed, fixed_from, grouped);
   }
   /// Rules 4 and 5 with the next scan's whole objects: after decide() of every scan, the same
   /// scans in decreasing order, each with the points decide() had and the `removed` it returned;
   /// adds removals, never takes one back. Stats: points_added (map points), moving_objects,
   /// persisted.
-  ObjectConsensusStats decideBackward(int64_t scan, double density,
+  ObjectConsensusStats decideBackward(int64_t scan, double density, const RingReach& reach,
                                       const std::vector<PointXYZI>& points,
                                       const std::vector<uint8_t>& member,
                                       std::vector<uint8_t>& removed, std::size_t fixed_from,
                                       const ObjectComponents* grouped = nullptr) {
-    return run(backward_, true, scan, density, points, member, removed, fixed_from, grouped);
+    return run(backward_, true, scan, density, reach, points, member, removed, fixed_from, grouped);
   }
   /// The objects' grouping of a scan's points for decide() / decideBackward(): it reads only the
   /// parameters, so one thread may group the next scan while another decides this one.
   void group(const std::vector<PointXYZI>& points, const std::vector<uint8_t>& member,
-             ObjectComponents& out) const {
-    if (p_.enabled) groupObjects(points, member, p_.voxel, out);
+             const RingReach& reach, ObjectComponents& out) const {
+    if (p_.enabled) groupObjects(points, member, p_.voxel, out, reach);
   }
   /// Whether decide()'s last scan had whole objects. decideBackward() of a scan without them,
   /// while backwardMemory() is false, changes nothing: skipBackward() stands for it.
@@ -190,9 +259,9 @@ class MapObjectConsensus {
   };
   static bool has(const Memory& m) { return !m.cells.empty() || !m.objects.empty(); }
   ObjectConsensusStats run(Memory& m, bool backward, int64_t scan, double density,
-                           const std::vector<PointXYZI>& points, const std::vector<uint8_t>& member,
-                           std::vector<uint8_t>& removed, std::size_t fixed_from,
-                           const ObjectComponents* grouped);
+                           const RingReach& reach, const std::vector<PointXYZI>& points,
+                           const std::vector<uint8_t>& member, std::vector<uint8_t>& removed,
+                           std::size_t fixed_from, const ObjectComponents* grouped);
   int64_t epochOf(int64_t scan) const { return epoch_ > 0 ? scan / epoch_ : 0; }
   ObjectParams p_;
   int epoch_;

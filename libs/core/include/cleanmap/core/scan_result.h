@@ -115,8 +115,9 @@ struct ScanResult {
   /// and the one its ground segmentation started from (-sensor.height, or the median measured).
   double ground_measured = std::numeric_limits<double>::quiet_NaN();
   double ground_z = 0;
-  double density = 1;  ///< the lidar's returns per solid angle relative to the HDL-64E (§2d)
-  Labels labels;       ///< one per original point, original order (DESIGN §4)
+  double density = 1;   ///< the lidar's returns per solid angle relative to the HDL-64E (§2d)
+  double ring_gap = 0;  ///< rad between the lidar's rings where sparse (§2b); 0: dense
+  Labels labels;        ///< one per original point, original order (DESIGN §4)
   std::vector<PointXYZI> static_compact;  ///< world frame: static points not already in the map
   std::vector<PointXYZI> static_full;     ///< world frame: every static point (ground included)
   std::vector<PointXYZI> moving;          ///< world frame

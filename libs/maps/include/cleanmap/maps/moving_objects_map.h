@@ -175,6 +175,7 @@ class CMovingObjectsMap : public mrpt::maps::CMetricMap {
   struct ObjectScan {
     int64_t index = 0;
     double density = 1;
+    cleanmap::RingReach reach;  // its lidar's rings (doc/OBJECTS.md rule 1)
     std::vector<Eigen::Vector3f> points;
     std::size_t fixed_from = 0;
     std::vector<uint64_t> keys;  // with map_voxel 0: the map points' static_ keys
