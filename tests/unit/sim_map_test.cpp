@@ -438,4 +438,25 @@ TEST(SimMap, ASparseLidarsWalkerGoesFromTheMapWithTheRingPool) {
   EXPECT_LE(off.removed("walker"), 0.72);                  // measured 0.679
   EXPECT_GE(on.removed("walker"), 0.78);                   // measured 0.817
   EXPECT_GE(on.kept("world"), off.kept("world") - 0.001);  // measured 0.9718 and 0.9719
+  // The MRPT map layer (map_voxel 0, every scan's objects) decides as the app's maps, point for
+  // point (DESIGN §4b).
+  cleanmap_maps::CMovingObjectsMap layer(pool, 0.0);
+  layer.setObjectScans(0);
+  for (int k = 0; k < sc.frames; ++k)
+    layer.insertFrame(sim::frameOf(sim::simulateScan(sc, k, 2), k));
+  layer.flush();
+  const auto sorted = [](const std::vector<PointXYZI>& pts) {
+    std::vector<Eigen::Vector3f> v;
+    for (const auto& p : pts) v.push_back(p.xyz());
+    std::sort(v.begin(), v.end(), [](const Eigen::Vector3f& a, const Eigen::Vector3f& b) {
+      return std::lexicographical_compare(a.data(), a.data() + 3, b.data(), b.data() + 3);
+    });
+    return v;
+  };
+  const auto app = sorted(io::readPly(
+      (fs::path(CLEANMAP_TEST_SCRATCH_DIR) / (sc.name + "_pool_on") / "static_map_full.ply")
+          .string()));
+  const auto points = sorted(layer.staticPoints());
+  EXPECT_EQ(points.size(), app.size());
+  EXPECT_TRUE(points == app) << "the layer's static points differ from static_map_full.ply's";
 }

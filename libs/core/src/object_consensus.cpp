@@ -166,7 +166,7 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
   ObjectConsensusStats st;
   if (in_moving_object) in_moving_object->assign(points.size(), 0);
   if (!p.enabled) return st;
-  // Voxels of the member points and their 26-connected components.
+  // Voxels of the member points and their components (26-connected; a sparse lidar's rings).
   ObjectComponents own;
   if (grouped && (grouped->point_voxel.size() != points.size() || grouped->side != p.voxel ||
                   !(grouped->reach == rules.reach)))

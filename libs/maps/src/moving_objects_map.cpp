@@ -223,7 +223,8 @@ void CMovingObjectsMap::onDecided(cleanmap::ScanResult&& r) {
       std::vector<uint8_t> member(pts.size(), 1);
       for (std::size_t i = 0; i < r.static_full.size(); ++i)
         member[i] = !cleanmap::isGroundKind(r.static_full_kind[i]);
-      const cleanmap::RingReach reach{r.ring_gap, r.pose.translation().head<2>()};
+      const cleanmap::RingReach reach =
+          cleanmap::ringReach(params_.object, r.ring_gap, r.pose.translation().head<2>());
       const std::vector<uint8_t> in =
           cleanmap::inVehicleSizedObject(pts, member, params_.object, reach);
       ObjectScan os;
