@@ -253,7 +253,9 @@ TEST(ObjectConsensus, ASparseLidarsRingsAtRangeJoinIntoOneObject) {
   p.ring_pool = 2.5;
   const RingWalker w(25.0f, {-1.28f, -0.70f, -0.12f}, {3, 3, 3});
   ObjectComponents alone, joined;
-  groupObjects(w.pts, w.member, p.voxel, alone, ringReach(ObjectParams{}, kHdl32Gap));  // off
+  ObjectParams off = p;
+  off.ring_pool = 0;
+  groupObjects(w.pts, w.member, p.voxel, alone, ringReach(off, kHdl32Gap));
   const RingReach reach = ringReach(p, kHdl32Gap);
   groupObjects(w.pts, w.member, p.voxel, joined, reach);
   EXPECT_EQ(components(alone), 3u);

@@ -431,9 +431,10 @@ TEST(SimMap, ASparseLidarsWalkerGoesFromTheMapWithTheRingPool) {
   // many scans. Joined across the rings (the spooled sensor position and ring step) he goes
   // whole more often.
   const sim::Scenario sc = scenario("poles_drift", SensorModel::kVlp16);
-  const auto off = runMapCase(sc, {}, "pool_off");
-  PipelineParams pool;
-  pool.object.ring_pool = 2.5;
+  PipelineParams no_pool;
+  no_pool.object.ring_pool = 0;
+  const auto off = runMapCase(sc, no_pool, "pool_off");
+  const PipelineParams pool;  // ring_pool 1 m, the default
   const auto on = runMapCase(sc, pool, "pool_on");
   EXPECT_LE(off.removed("walker"), 0.72);                  // measured 0.679
   EXPECT_GE(on.removed("walker"), 0.78);                   // measured 0.817

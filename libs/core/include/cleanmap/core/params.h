@@ -126,9 +126,9 @@ struct ObjectParams {
   /// them (its lowest face, tyres, shoes), go with it (MoverFeetParams; doc/OBJECTS.md).
   bool feet = true;
   /// m; rule 1 for sparse lidars (RingReach, doc/OBJECTS.md): a ring's slice of an object at
-  /// most this wide (horizontal diagonal) joins the slices of its column up to 1.25 ring steps
-  /// above and below it. 0 = off (every lidar's objects are 26-connected voxels).
-  double ring_pool = 0;
+  /// most this wide (horizontal diagonal: a walker's) joins the slices of its column up to 1.25
+  /// ring steps above and below it. 0 = off (every lidar's objects are 26-connected voxels).
+  double ring_pool = 1.0;
 };
 
 /// DESIGN §2.1: GICP scan-to-map odometry (used with --poses gicp / refine, or when the input has
