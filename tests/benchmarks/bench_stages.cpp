@@ -189,9 +189,12 @@ void BM_ObjectConsensus(benchmark::State& state) {
   const auto& c = in.scans[in.center];
   std::vector<uint8_t> seed(c.points.size(), 0);
   for (std::size_t j = 0; j < seed.size(); j += 20) seed[j] = in.member[j];
+  ConsensusRules rules;  // the pipeline's: a dense lidar's, low surfaces split (OBJECTS.md rule 1)
+  rules.reach = ringReach(ObjectParams{}, 0.0);
   for (auto _ : state) {
     auto moving = seed;
-    const auto st = objectConsensus(c.points, in.member, moving, ObjectParams{});
+    const auto st =
+        objectConsensus(c.points, in.member, moving, ObjectParams{}, nullptr, nullptr, rules);
     benchmark::DoNotOptimize(st.objects);
   }
 }
@@ -253,7 +256,8 @@ const MapInputs& mapInputs() {
       FreeSpaceMap::Lookup look(r.map);
       for (const auto& q : w)
         gone.push_back(removedByPolicy(look(q.xyz()), static_cast<int64_t>(i), r.map.params()));
-      groupObjects(w, r.member.back(), ObjectParams{}.voxel, r.groups.emplace_back());
+      groupObjects(w, r.member.back(), ObjectParams{}.voxel, r.groups.emplace_back(),
+                   ringReach(ObjectParams{}, 0.0));
     }
     return r;
   }();
@@ -277,11 +281,11 @@ void BM_MapDecision(benchmark::State& state) {
       for (const auto& q : w)
         gone.push_back(removedByPolicy(look(q.xyz()), static_cast<int64_t>(i), in.map.params()));
     } else if (state.range(0) == 1) {
-      consensus.group(w, in.member[i], {}, groups);
+      consensus.group(w, in.member[i], ringReach(ObjectParams{}, 0.0), groups);
     } else {
       gone = in.removed[i];
-      consensus.decide(static_cast<int64_t>(k), 1.0, {}, w, in.member[i], gone, w.size(),
-                       &in.groups[i]);
+      consensus.decide(static_cast<int64_t>(k), 1.0, ringReach(ObjectParams{}, 0.0), w,
+                       in.member[i], gone, w.size(), &in.groups[i]);
     }
     for (const uint8_t g : gone) removed += g;
     ++k;

@@ -28,6 +28,107 @@ struct UnionFind {
   }
 };
 
+// Low surfaces (doc/OBJECTS.md rule 1): a structure (a component larger than an object) joined
+// only through low voxels (a sidewalk that is not ground, 0.12 m up, between a parked car, a pole
+// and a wall) falls apart into the objects standing on them. A voxel is raised if it holds a
+// point at least `foot` above the lowest member of its 3 x 3 column. Raised voxels link among
+// themselves; a low voxel right under a raised one is part of it (a car's lowest band); the other
+// low voxels link among themselves, and such a cluster that touches one object only is its part.
+// `find(key)` is the voxel table's lookup (behind groupObjects' occupancy bits).
+template <class Find>
+void splitOnLowSurfaces(const std::vector<PointXYZI>& points, ObjectComponents& cc,
+                        const RingReach& reach, Find&& find) {
+  const std::size_t nv = cc.voxels.size();
+  if (nv == 0) return;
+  std::vector<Eigen::Vector3f> lo(nv, Eigen::Vector3f::Constant(1e30f)),
+      hi(nv, Eigen::Vector3f::Constant(-1e30f));
+  std::vector<float> z_lo(nv, 1e30f), z_hi(nv, -1e30f);  // per voxel
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    const uint32_t v = cc.point_voxel[i];
+    if (v == UINT32_MAX) continue;
+    const uint32_t r = cc.root_of[v];
+    lo[r] = lo[r].cwiseMin(points[i].xyz());
+    hi[r] = hi[r].cwiseMax(points[i].xyz());
+    z_lo[v] = std::min(z_lo[v], points[i].z);
+    z_hi[v] = std::max(z_hi[v], points[i].z);
+  }
+  std::vector<uint8_t> structure(nv, 0);
+  bool any = false;
+  for (uint32_t v = 0; v < nv; ++v) {
+    const uint32_t r = cc.root_of[v];
+    const Eigen::Vector3f e = hi[r] - lo[r];
+    structure[v] = !(e.head<2>().norm() <= reach.max_length && e.z() <= reach.max_height);
+    any = any || structure[v];
+  }
+  if (!any) return;
+  CellMap<float> column_low, column_floor;  // a column's lowest member; its 3 x 3 columns'
+  for (uint32_t v = 0; v < nv; ++v) {
+    bool fresh = false;
+    float& low = column_low.get(cellKey(cc.voxels[v].x(), cc.voxels[v].y(), 0), &fresh);
+    low = fresh ? z_lo[v] : std::min(low, z_lo[v]);
+  }
+  // 0: raised, 1: low under a raised voxel, 2: other low voxels.
+  std::vector<uint8_t> kind(nv, 2);
+  const float f = static_cast<float>(reach.foot);
+  for (uint32_t v = 0; v < nv; ++v) {
+    if (!structure[v]) continue;
+    const Eigen::Vector3i& c = cc.voxels[v];
+    bool fresh = false;
+    float& floor = column_floor.get(cellKey(c.x(), c.y(), 0), &fresh);
+    if (fresh) {
+      floor = 1e30f;
+      for (int dx = -1; dx <= 1; ++dx)
+        for (int dy = -1; dy <= 1; ++dy)
+          if (const float* l = column_low.find(cellKey(c.x() + dx, c.y() + dy, 0)))
+            floor = std::min(floor, *l);
+    }
+    if (z_hi[v] >= floor + f) kind[v] = 0;
+  }
+  UnionFind uf(nv);
+  for (uint32_t v = 0; v < nv; ++v) {
+    if (!structure[v] || kind[v] == 0) continue;
+    const Eigen::Vector3i& c = cc.voxels[v];
+    const uint32_t* n = find(cellKey(c.x(), c.y(), c.z() + 1));
+    if (n && kind[*n] == 0 && cc.root_of[*n] == cc.root_of[v]) {
+      kind[v] = 1;
+      uf.unite(v, *n);
+    }
+  }
+  for (uint32_t v = 0; v < nv; ++v) {
+    if (!structure[v] || kind[v] == 1) continue;
+    const Eigen::Vector3i& c = cc.voxels[v];
+    forEachNeighbour13([&](int dx, int dy, int dz) {
+      const uint32_t* n = find(cellKey(c.x() + dx, c.y() + dy, c.z() + dz));
+      if (n && kind[*n] == kind[v] && cc.root_of[*n] == cc.root_of[v]) uf.unite(v, *n);
+    });
+  }
+  constexpr uint32_t kNone = UINT32_MAX, kMany = UINT32_MAX - 1;
+  std::vector<uint32_t> touches(nv, kNone);  // per low cluster: the one object it touches
+  for (uint32_t v = 0; v < nv; ++v) {
+    if (!structure[v] || kind[v] != 2) continue;
+    const Eigen::Vector3i& c = cc.voxels[v];
+    uint32_t& t = touches[uf.find(v)];
+    for (int dx = -1; dx <= 1; ++dx)
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dz = -1; dz <= 1; ++dz) {
+          const uint32_t* n = find(cellKey(c.x() + dx, c.y() + dy, c.z() + dz));
+          if (!n || kind[*n] == 2 || cc.root_of[*n] != cc.root_of[v]) continue;
+          const uint32_t obj = uf.find(*n);
+          t = t == kNone || t == obj ? obj : kMany;
+        }
+  }
+  for (uint32_t v = 0; v < nv; ++v)
+    if (structure[v] && kind[v] == 2 && uf.find(v) == v && touches[v] != kNone &&
+        touches[v] != kMany)
+      uf.unite(v, touches[v]);
+  cc.piece.assign(nv, 0);
+  for (uint32_t v = 0; v < nv; ++v)
+    if (structure[v]) {
+      cc.root_of[v] = uf.find(v);
+      cc.piece[cc.root_of[v]] = 1;
+    }
+}
+
 }  // namespace
 
 void groupObjects(const std::vector<PointXYZI>& points, const std::vector<uint8_t>& member,
@@ -109,6 +210,12 @@ void groupObjects(const std::vector<PointXYZI>& points, const std::vector<uint8_
   }
   cc.root_of.resize(cc.voxels.size());  // each voxel's component, found once
   for (uint32_t v = 0; v < cc.voxels.size(); ++v) cc.root_of[v] = uf.find(v);
+  cc.piece.clear();
+  if (reach.foot > 0)
+    splitOnLowSurfaces(points, cc, reach, [&](uint64_t key) -> const uint32_t* {
+      const std::size_t b = bit(key);
+      return (occupied[b >> 6] >> (b & 63)) & 1u ? cc.voxel_of.find(key) : nullptr;
+    });
 }
 
 namespace {
@@ -293,7 +400,7 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
       ++st.moving_objects;
       ++st.persisted;
       ++st.left_place;
-    } else if (vehicle_sized && c.moving > 0 &&
+    } else if (vehicle_sized && c.moving > 0 && (cc.piece.empty() || !cc.piece[v]) &&
                ((few_are_noise && static_cast<int>(c.moving) < p.min_moving) ||
                 static_cast<double>(c.moving) < p.static_fraction * static_cast<double>(c.n))) {
       turn[v] = 2;

@@ -50,20 +50,27 @@ struct WholeObjects {
 /// the column's horizontal distance d from `origin` (the sensor, in the points' frame): what lies
 /// closer than that, the lidar cannot tell apart. ring_gap 0 (dense lidars, whose rings lie
 /// within a voxel) or pool 0 (ObjectParams::ring_pool, the default): 26-connected voxels only.
+/// It also says where low surfaces stop linking (rule 1, "Low surfaces"): a structure (more than
+/// `max_length` across or `max_height` high) joined only through voxels less than `foot` above
+/// the lowest member of their 3 x 3 column falls apart into what stands on them (0: it does not).
 struct RingReach {
   double ring_gap = 0;  ///< rad between rings (WindowScan::ring_gap, ScanResult::ring_gap)
   Eigen::Vector2d origin = Eigen::Vector2d::Zero();
-  double pool = 0;  ///< m
+  double pool = 0;        ///< m
+  double foot = 0;        ///< m (ObjectParams::foot_height)
+  double max_length = 0;  ///< m (ObjectParams::max_length)
+  double max_height = 0;  ///< m (ObjectParams::max_height)
   bool active() const { return ring_gap > 0 && pool > 0; }
   bool operator==(const RingReach& o) const {
-    return ring_gap == o.ring_gap && origin == o.origin && pool == o.pool;
+    return ring_gap == o.ring_gap && origin == o.origin && pool == o.pool && foot == o.foot &&
+           max_length == o.max_length && max_height == o.max_height;
   }
 };
 /// A scan's reach under `p` (its ring_pool): `ring_gap` of the scan's lidar (0: dense), `origin`
 /// its sensor in the points' frame.
 inline RingReach ringReach(const ObjectParams& p, double ring_gap,
                            const Eigen::Vector2d& origin = Eigen::Vector2d::Zero()) {
-  return {ring_gap, origin, p.ring_pool};
+  return {ring_gap, origin, p.ring_pool, p.foot_height, p.max_length, p.max_height};
 }
 constexpr double kRingReach = 1.25;  ///< ring steps (uneven spacing and the voxel's rounding)
 
@@ -113,6 +120,9 @@ struct ObjectComponents {
   std::vector<Eigen::Vector3i> voxels;  ///< per voxel: its cell
   std::vector<uint32_t> point_voxel;    ///< per point: its voxel; UINT32_MAX: not a member
   std::vector<uint32_t> root_of;        ///< per voxel: its component's root, its smallest voxel
+  /// per voxel: its component is a piece of a structure that low surfaces joined (RingReach);
+  /// empty where none is. Rule 2 may turn such a piece moving, not static (doc/OBJECTS.md).
+  std::vector<uint8_t> piece;
 };
 
 /// Fills `out` (its buffers reused) with the components of the points with `member[i]`, in
