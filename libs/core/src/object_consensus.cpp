@@ -15,6 +15,13 @@
 namespace cleanmap {
 namespace {
 
+// Rules 1-2 apply to an object of at most this extent; a larger one is a structure.
+bool vehicleSized(const Eigen::Vector3f& lo, const Eigen::Vector3f& hi, double max_length,
+                  double max_height) {
+  const Eigen::Vector3f ext = hi - lo;
+  return ext.head<2>().norm() <= max_length && ext.z() <= max_height;
+}
+
 struct UnionFind {
   std::vector<uint32_t> parent;
   explicit UnionFind(std::size_t n) : parent(n) { std::iota(parent.begin(), parent.end(), 0u); }
@@ -56,8 +63,7 @@ void splitOnLowSurfaces(const std::vector<PointXYZI>& points, ObjectComponents& 
   bool any = false;
   for (uint32_t v = 0; v < nv; ++v) {
     const uint32_t r = cc.root_of[v];
-    const Eigen::Vector3f e = hi[r] - lo[r];
-    structure[v] = !(e.head<2>().norm() <= reach.max_length && e.z() <= reach.max_height);
+    structure[v] = !vehicleSized(lo[r], hi[r], reach.max_length, reach.max_height);
     any = any || structure[v];
   }
   if (!any) return;
@@ -220,10 +226,8 @@ void groupObjects(const std::vector<PointXYZI>& points, const std::vector<uint8_
 
 namespace {
 
-// Rules 1-2 apply to an object of at most this extent; a larger one is a structure.
 bool vehicleSized(const Eigen::Vector3f& lo, const Eigen::Vector3f& hi, const ObjectParams& p) {
-  const Eigen::Vector3f ext = hi - lo;
-  return ext.head<2>().norm() <= p.max_length && ext.z() <= p.max_height;
+  return vehicleSized(lo, hi, p.max_length, p.max_height);
 }
 
 }  // namespace
