@@ -13,14 +13,14 @@
 #include "cleanmap/core/grouped.h"
 
 namespace cleanmap {
-namespace {
 
-// Rules 1-2 apply to an object of at most this extent; a larger one is a structure.
 bool vehicleSized(const Eigen::Vector3f& lo, const Eigen::Vector3f& hi, double max_length,
                   double max_height) {
   const Eigen::Vector3f ext = hi - lo;
   return ext.head<2>().norm() <= max_length && ext.z() <= max_height;
 }
+
+namespace {
 
 struct UnionFind {
   std::vector<uint32_t> parent;
@@ -227,7 +227,7 @@ void groupObjects(const std::vector<PointXYZI>& points, const std::vector<uint8_
 namespace {
 
 bool vehicleSized(const Eigen::Vector3f& lo, const Eigen::Vector3f& hi, const ObjectParams& p) {
-  return vehicleSized(lo, hi, p.max_length, p.max_height);
+  return cleanmap::vehicleSized(lo, hi, p.max_length, p.max_height);
 }
 
 }  // namespace
@@ -266,6 +266,38 @@ void wholeObjectsOf(const std::vector<PointXYZI>& points, const std::vector<uint
     const Eigen::Vector3i& c = cc.voxels[v];
     out.voxel.get(cellKey(c.x(), c.y(), c.z())) = id[cc.root_of[v]];
   }
+}
+
+std::optional<WholeMatch> matchWholeObject(const std::vector<Eigen::Vector3f>& q,
+                                           const WholeObjects& objects, double side,
+                                           float max_shift) {
+  const float inv = static_cast<float>(1.0 / side);
+  const auto voxelOf = [&](const Eigen::Vector3f& x) {
+    return objects.voxel.find(
+        cellKey(floorToCell(x.x(), inv), floorToCell(x.y(), inv), floorToCell(x.z(), inv)));
+  };
+  std::vector<uint32_t> in(objects.extent.size(), 0);
+  Eigen::Vector3f c = Eigen::Vector3f::Zero();
+  for (const Eigen::Vector3f& x : q) {
+    c += x;
+    if (const uint32_t* a = voxelOf(x)) ++in[*a];
+  }
+  const auto best = std::max_element(in.begin(), in.end());
+  if (best == in.end()) return std::nullopt;
+  if (2 * std::size_t(*best) >= q.size())
+    return WholeMatch{static_cast<std::size_t>(best - in.begin()), Eigen::Vector3f::Zero()};
+  // Found moved (a car moving about a voxel a scan no longer lies in its previous voxels; the
+  // map's rule 5, DESIGN §2e).
+  c /= static_cast<float>(q.size());
+  for (std::size_t a = 0; a < objects.extent.size(); ++a) {
+    const Eigen::Vector3f shift = objects.centroid[a] - c;
+    if (shift.squaredNorm() > max_shift * max_shift) continue;
+    std::size_t n = 0;
+    for (const Eigen::Vector3f& x : q)
+      if (const uint32_t* b = voxelOf(x + shift)) n += *b == a;
+    if (2 * n >= q.size()) return WholeMatch{a, shift};
+  }
+  return std::nullopt;
 }
 
 ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,

@@ -9,6 +9,7 @@
 #include <future>
 #include <limits>
 #include <mutex>
+#include <numeric>
 #include <random>
 #include <thread>
 
@@ -29,6 +30,10 @@
 #include "cleanmap/vision/image_validation.h"
 
 namespace cleanmap {
+namespace {
+// Rule 4's "found moved" (doc/OBJECTS.md): m, half a car's width (a parked neighbour is 2.5 m off).
+constexpr float kMovedMatch = 0.9f;
+}  // namespace
 
 struct LaserPipeline::Prepared {
   std::size_t index;
@@ -295,7 +300,7 @@ LaserPipeline::~LaserPipeline() {
 
 std::size_t LaserPipeline::pending() const {
   return buf_.size() - next_ + (reg_queue_ && reg_queue_->in_flight ? 1 : 0) + (held_ ? 1 : 0) +
-         (deskew_first_ ? 1 : 0);
+         (deskew_first_ ? 1 : 0) + start_held_.size();
 }
 
 std::unique_ptr<LaserPipeline> LaserPipeline::clone(Sink sink) const {
@@ -325,6 +330,7 @@ std::unique_ptr<LaserPipeline> LaserPipeline::clone(Sink sink) const {
   c->prev_moving_cells_ = prev_moving_cells_;
   c->prev_whole_ = prev_whole_;
   c->prev_pose_inverse_ = prev_pose_inverse_;
+  c->start_held_ = start_held_;
   c->epoch_ = epoch_;
   c->map_first_ = map_first_;
   c->map_last_ = map_last_;
@@ -758,6 +764,7 @@ void LaserPipeline::finish() {
     deskew_first_.reset();
   }
   decideReady(0);  // the windows shrink at the end
+  if (!start_held_.empty()) carryBack({}, Eigen::Isometry3d::Identity());  // a run that short
   joinFreeSpace();
   buf_.clear();
   next_ = 0;
@@ -834,6 +841,21 @@ void LaserPipeline::decide(std::size_t pos) {
   r.stats.ms.total =
       msSince(t_start) + (s.registered_beside ? 0.0 : s.stats.ms.registration) + s.prepare_ms;
   ++decided_;
+  // doc/OBJECTS.md rule 4 at the start: the scans before it are too few to show a mover arriving
+  // (a car coming up behind the sensor shows only its front, whose place only they saw empty).
+  std::size_t before = 0;
+  for (std::size_t j = 0; j < pos; ++j) before += inWindow(j, pos) && !buf_[j]->beams.empty();
+  if (p_.object.enabled && p_.object.persist_radius > 0 && 2 * before < k_ / stride_) {
+    hold(std::move(r), s, w);
+    return;
+  }
+  if (!start_held_.empty()) {
+    std::vector<PointXYZI> whole;
+    for (std::size_t i = 0; i < w.whole.size(); ++i)
+      if (w.whole[i] && (w.relabelled.empty() || !w.relabelled[i]))
+        whole.push_back(s.scan.points[i]);
+    carryBack(std::move(whole), s.world_to_sensor);
+  }
   sink_(std::move(r));
 }
 
@@ -973,11 +995,9 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
   rules.reach = ringReach(op, s.ring_gap);  // a sparse lidar's rings (sensor frame; OBJECTS.md)
   WholeObjects prev;  // the previous scan's objects moved whole, built on the first call
   bool prev_built = false;
-  std::vector<uint32_t> in_prev;
   std::optional<std::vector<WindowScan>> after, far;  // the scans after it, built on first use
   std::vector<Eigen::Vector3f> q_prev;                // an object's points in the previous frame
   std::vector<Eigen::Vector3f> pieces_at;  // the scan's grouped points in the previous frame
-  constexpr float kMovedMatch = 0.9f;  // m; half a car's width (a parked neighbour is 2.5 m off)
   const WindowScan own = s.own();
   w.held.assign(s.scan.size(), 0);
   std::function<bool(const std::vector<uint32_t>&)> left_place;
@@ -991,10 +1011,8 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
                        rules.reach);
         prev_built = true;
       }
-      in_prev.assign(prev.extent.size(), 0);
       const float inv = static_cast<float>(1.0 / op.voxel);
       Eigen::Vector3f lo = Eigen::Vector3f::Constant(1e30f), hi = -lo;
-      Eigen::Vector3f c = Eigen::Vector3f::Zero();
       q_prev.resize(idx.size());
       const auto voxelOf = [&](const Eigen::Vector3f& q) {
         return prev.voxel.find(
@@ -1004,33 +1022,13 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
         const uint32_t i = idx[k];
         lo = lo.cwiseMin(s.scan.points[i].xyz());
         hi = hi.cwiseMax(s.scan.points[i].xyz());
-        const Eigen::Vector3f q = (prev_pose_inverse_ * w.world[i]).cast<float>();
-        q_prev[k] = q;
-        c += q;
-        if (const uint32_t* a = voxelOf(q)) ++in_prev[*a];
+        q_prev[k] = (prev_pose_inverse_ * w.world[i]).cast<float>();
       }
-      auto best = std::max_element(in_prev.begin(), in_prev.end());
-      if (best == in_prev.end()) return false;
-      Eigen::Vector3f moved_by = Eigen::Vector3f::Zero();  // the shift that found it (below)
-      if (2 * std::size_t(*best) < idx.size()) {
-        // Or found moved: half of its points in the voxels of an object whose centroid lies
-        // within kMovedMatch of its own, shifted by the difference (a car moving about a voxel a
-        // scan no longer lies in its previous voxels; as the map's rule 5, DESIGN §2e).
-        c /= static_cast<float>(idx.size());
-        std::size_t found = prev.extent.size();
-        for (std::size_t a = 0; a < prev.extent.size() && found == prev.extent.size(); ++a) {
-          const Eigen::Vector3f shift = prev.centroid[a] - c;
-          if (shift.squaredNorm() > kMovedMatch * kMovedMatch) continue;
-          std::size_t in = 0;
-          for (const Eigen::Vector3f& q : q_prev)
-            if (const uint32_t* b = voxelOf(q + shift)) in += *b == a;
-          if (2 * in >= idx.size()) found = a;
-        }
-        if (found == prev.extent.size()) return false;
-        best = in_prev.begin() + static_cast<std::ptrdiff_t>(found);
-        moved_by = prev.centroid[found] - c;
-      }
-      const std::size_t a = static_cast<std::size_t>(best - in_prev.begin());
+      // Or found moved: a car moving about a voxel a scan no longer lies in its previous voxels.
+      const std::optional<WholeMatch> match = matchWholeObject(q_prev, prev, op.voxel, kMovedMatch);
+      if (!match) return false;
+      const std::size_t a = match->object;
+      const Eigen::Vector3f moved_by = match->shift;  // the shift that found it (zero: in place)
       const Eigen::Vector3f e = hi - lo, x = prev.extent[a];
       const auto close = [&](float u, float v) {  // not smaller (it may have joined its other part)
         return u >= (1.0 - rules.extent_tolerance) * v;
@@ -1407,6 +1405,153 @@ void LaserPipeline::remember(const ScanResult& r, long index, const Prepared& s,
     if (w.whole[i] && (w.relabelled.empty() || !w.relabelled[i]))
       prev_whole_.push_back(s.scan.points[i]);
   prev_pose_inverse_ = s.world_to_sensor;
+}
+
+// A decided scan held at the start: its result and what carryBack needs of its decision.
+struct LaserPipeline::StartHeld {
+  ScanResult r;
+  std::vector<PointXYZI> points;                   // its candidates (sensor frame) ...
+  std::vector<Eigen::Vector3d> world;              // ... in the world, as the test saw them
+  std::vector<uint32_t> at, original;              // ... their positions in the scan and as read
+  std::vector<uint8_t> moving, whole, relabelled;  // ... and their decisions (Work)
+  Eigen::Isometry3d world_to_sensor = Eigen::Isometry3d::Identity();
+  double density = 1, ring_gap = 0;
+  // --save-overlays: the camera view, every point of the scan and its colour (collect()).
+  std::optional<vision::CameraView> view;
+  std::vector<PointXYZI> all_points;
+  std::vector<uint8_t> kind;
+};
+
+void LaserPipeline::hold(ScanResult&& r, const Prepared& s, const Work& w) {
+  StartHeld h;
+  h.r = std::move(r);
+  for (uint32_t i = 0; i < s.scan.size(); ++i) {
+    if (!s.candidate[i]) continue;
+    h.points.push_back(s.scan.points[i]);
+    h.world.push_back(w.world[i]);
+    h.at.push_back(i);
+    h.original.push_back(s.scan.originalIndex(i));
+    h.moving.push_back(w.moving[i]);
+    h.whole.push_back(w.whole.empty() ? 0 : w.whole[i]);
+    h.relabelled.push_back(w.relabelled.empty() ? 0 : w.relabelled[i]);
+  }
+  h.world_to_sensor = s.world_to_sensor;
+  h.density = s.density;
+  h.ring_gap = s.ring_gap;
+  if (overlays_ && s.view) {
+    h.view = s.view;
+    h.all_points = s.scan.points;
+    h.kind.assign(s.scan.size(), 0);
+    for (uint32_t i = 0; i < s.scan.size(); ++i)
+      if (s.in_crop[i] && !s.ground[i])
+        h.kind[i] = !w.relabelled.empty() && w.relabelled[i] ? 3 : w.moving[i] ? 2 : 1;
+  }
+  start_held_.push_back(std::move(h));
+}
+
+// doc/OBJECTS.md rule 4 at the start, the mirror of rule 4 where the later scans are too few: a
+// held scan's vehicle-sized component that is the object the next scan moved whole (half of its
+// points in that object's voxels, as they are or found moved, and not smaller than 1 -
+// extent_tolerance of it) is moving, every part; the scan then is the next of the one before it.
+// Only the results change: the memories of later decisions (duplicates, persistence, the free
+// space) keep what the scans were decided with, so no later scan depends on it (DESIGN §2f).
+void LaserPipeline::carryBack(std::vector<PointXYZI> next_whole,
+                              Eigen::Isometry3d next_world_to_sensor) {
+  const double tolerance = ConsensusRules{}.extent_tolerance;
+  for (auto it = start_held_.rbegin(); it != start_held_.rend(); ++it) {
+    StartHeld& h = *it;
+    ObjectParams op = p_.object;
+    op.min_moving = std::max(1, static_cast<int>(std::lround(op.min_moving * h.density)));
+    const RingReach reach = ringReach(op, h.ring_gap);
+    std::vector<uint32_t> turned;  // candidate positions turned moving
+    if (!next_whole.empty() && !h.points.empty()) {
+      WholeObjects next;
+      wholeObjectsOf(next_whole, std::vector<uint8_t>(next_whole.size(), 1), op.voxel, next, reach);
+      ObjectComponents cc;
+      groupObjects(h.points, std::vector<uint8_t>(h.points.size(), 1), op.voxel, cc, reach);
+      std::vector<uint32_t> root(h.points.size()), order(h.points.size());
+      for (uint32_t k = 0; k < h.points.size(); ++k) root[k] = cc.root_of[cc.point_voxel[k]];
+      std::iota(order.begin(), order.end(), 0u);
+      std::stable_sort(order.begin(), order.end(),
+                       [&](uint32_t a, uint32_t b) { return root[a] < root[b]; });
+      std::vector<Eigen::Vector3f> q;
+      for (std::size_t from = 0; from < order.size();) {
+        std::size_t to = from;
+        while (to < order.size() && root[order[to]] == root[order[from]]) ++to;
+        const std::size_t n = to - from;
+        std::size_t moving = 0;
+        Eigen::Vector3f lo = Eigen::Vector3f::Constant(1e30f), hi = -lo;
+        q.clear();
+        for (std::size_t k = from; k < to; ++k) {
+          const uint32_t i = order[k];
+          moving += h.moving[i] != 0;
+          lo = lo.cwiseMin(h.points[i].xyz());
+          hi = hi.cwiseMax(h.points[i].xyz());
+          q.push_back((next_world_to_sensor * h.world[i]).cast<float>());
+        }
+        std::optional<WholeMatch> match;
+        if (static_cast<int>(n) >= op.min_moving && moving < n &&
+            vehicleSized(lo, hi, op.max_length, op.max_height))
+          match = matchWholeObject(q, next, op.voxel, kMovedMatch);
+        const auto as_large = [&](float u, float v) { return u >= (1.0 - tolerance) * v; };
+        if (match) {
+          const Eigen::Vector3f e = hi - lo, x = next.extent[match->object];
+          if (as_large(e.head<2>().norm(), x.head<2>().norm()) && as_large(e.z(), x.z())) {
+            ++h.r.stats.objects_carried_back;
+            for (std::size_t k = from; k < to; ++k) {
+              const uint32_t i = order[k];
+              if (h.relabelled[i]) continue;  // the camera's decision stands (DESIGN §3)
+              h.whole[i] = 1;
+              if (!h.moving[i]) turned.push_back(i);
+            }
+          }
+        }
+        from = to;
+      }
+    }
+    if (!turned.empty()) {
+      // The result as collect() makes it with these points moving.
+      ScanResult& r = h.r;
+      for (const uint32_t k : turned) {
+        h.moving[k] = 1;
+        r.labels[h.original[k]] = kMoving;
+        if (h.view) h.kind[h.at[k]] = 2;
+      }
+      std::size_t kept = 0, compact = 0, compact_kept = 0;
+      for (std::size_t j = 0; j < r.static_full.size(); ++j) {
+        const uint8_t kind = r.static_full_kind[j];
+        const bool turns = (kind == kMapStatic || kind == kMapDuplicate) &&
+                           r.labels[r.static_full_index[j]] == kMoving;
+        if (kind == kMapStatic) {
+          if (!turns) r.static_compact[compact_kept++] = r.static_compact[compact];
+          ++compact;
+        }
+        if (turns) {
+          r.moving.push_back(r.static_full[j]);
+          r.moving_index.push_back(r.static_full_index[j]);
+          continue;
+        }
+        r.static_full[kept] = r.static_full[j];
+        r.static_full_index[kept] = r.static_full_index[j];
+        r.static_full_kind[kept] = kind;
+        ++kept;
+      }
+      r.static_full.resize(kept);
+      r.static_full_index.resize(kept);
+      r.static_full_kind.resize(kept);
+      r.static_compact.resize(compact_kept);
+      r.stats.moving += turned.size();
+      r.stats.static_points -= turned.size();
+      r.stats.carried_back_points += turned.size();
+      if (h.view) r.overlay = vision::drawOverlay(*h.view, h.all_points, r.pose, h.kind);
+    }
+    next_whole.clear();
+    for (uint32_t k = 0; k < h.points.size(); ++k)
+      if (h.whole[k] && !h.relabelled[k]) next_whole.push_back(h.points[k]);
+    next_world_to_sensor = h.world_to_sensor;
+  }
+  for (StartHeld& h : start_held_) sink_(std::move(h.r));
+  start_held_.clear();
 }
 
 }  // namespace cleanmap

@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdint>
 #include <functional>
+#include <optional>
 #include <vector>
 
 #include "cleanmap/core/cell_key.h"
@@ -183,6 +184,24 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
 /// with `mask[i]`, in voxels of side `side`, with their extents and centroids.
 void wholeObjectsOf(const std::vector<PointXYZI>& points, const std::vector<uint8_t>& mask,
                     double side, WholeObjects& out, const RingReach& reach = {});
+
+/// Rules 1-2 apply to an object whose points span lo..hi if its horizontal extent is at most
+/// `max_length` and its height at most `max_height`; a larger one is a structure.
+bool vehicleSized(const Eigen::Vector3f& lo, const Eigen::Vector3f& hi, double max_length,
+                  double max_height);
+
+/// Rule 4's "the same object" (doc/OBJECTS.md): the object of `objects` (voxels of side `side`)
+/// holding at least half of `q` (an object's points in the frame of `objects`) as they are, the
+/// one holding most of them; or, failing that, *found moved*: the first object whose centroid
+/// lies within `max_shift` of theirs holding half of them shifted by the difference. `object`
+/// is its index, `shift` the shift that found it (zero as they are); nullopt: none.
+struct WholeMatch {
+  std::size_t object = 0;
+  Eigen::Vector3f shift = Eigen::Vector3f::Zero();
+};
+std::optional<WholeMatch> matchWholeObject(const std::vector<Eigen::Vector3f>& q,
+                                           const WholeObjects& objects, double side,
+                                           float max_shift);
 
 /// Per point: a member of a vehicle-sized component (as objectConsensus groups them). Under
 /// ConsensusRules{few_points_are_noise = false} no other point's decision can change, and

@@ -89,7 +89,8 @@ class CMovingObjectsMap : public mrpt::maps::CMetricMap {
   void insertFrame(cleanmap::Frame&& frame);
   /// Decides the scans still in the window. Later insertions start a new window.
   void flush();
-  /// Scans inserted but not yet decided (at most K until flush()).
+  /// Scans inserted but not yet decided (at most K until flush()), or decided and held with the
+  /// first K / 2 (LaserPipeline::push()).
   std::size_t pending() const;
   std::size_t decided() const { return trajectory_.size(); }
 
