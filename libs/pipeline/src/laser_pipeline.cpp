@@ -1411,15 +1411,16 @@ void LaserPipeline::remember(const ScanResult& r, long index, const Prepared& s,
 struct LaserPipeline::StartHeld {
   ScanResult r;
   std::vector<PointXYZI> points;                   // its candidates (sensor frame) ...
-  std::vector<Eigen::Vector3d> world;              // ... in the world, as the test saw them
-  std::vector<uint32_t> at, original;              // ... their positions in the scan and as read
+  std::vector<uint32_t> original;                  // ... their indices as read ...
   std::vector<uint8_t> moving, whole, relabelled;  // ... and their decisions (Work)
   Eigen::Isometry3d world_to_sensor = Eigen::Isometry3d::Identity();
   double density = 1, ring_gap = 0;
-  // --save-overlays: the camera view, every point of the scan and its colour (collect()).
+  // --save-overlays: the camera view, every point of the scan, its colour (collect()) and the
+  // candidates' positions among them.
   std::optional<vision::CameraView> view;
   std::vector<PointXYZI> all_points;
   std::vector<uint8_t> kind;
+  std::vector<uint32_t> at;
 };
 
 void LaserPipeline::hold(ScanResult&& r, const Prepared& s, const Work& w) {
@@ -1428,9 +1429,8 @@ void LaserPipeline::hold(ScanResult&& r, const Prepared& s, const Work& w) {
   for (uint32_t i = 0; i < s.scan.size(); ++i) {
     if (!s.candidate[i]) continue;
     h.points.push_back(s.scan.points[i]);
-    h.world.push_back(w.world[i]);
-    h.at.push_back(i);
     h.original.push_back(s.scan.originalIndex(i));
+    if (overlays_ && s.view) h.at.push_back(i);
     h.moving.push_back(w.moving[i]);
     h.whole.push_back(w.whole.empty() ? 0 : w.whole[i]);
     h.relabelled.push_back(w.relabelled.empty() ? 0 : w.relabelled[i]);
@@ -1487,7 +1487,9 @@ void LaserPipeline::carryBack(std::vector<PointXYZI> next_whole,
           moving += h.moving[i] != 0;
           lo = lo.cwiseMin(h.points[i].xyz());
           hi = hi.cwiseMax(h.points[i].xyz());
-          q.push_back((next_world_to_sensor * h.world[i]).cast<float>());
+          // The world point as the test had it (Work::world: the pose times the point).
+          const Eigen::Vector3d world = h.r.pose * h.points[i].xyz().cast<double>();
+          q.push_back((next_world_to_sensor * world).cast<float>());
         }
         std::optional<WholeMatch> match;
         if (static_cast<int>(n) >= op.min_moving && moving < n &&
