@@ -155,10 +155,19 @@ TEST(SimCases, CarThatStopsAndStartsAgain) {
   // Moving along its own length at 6 m/s next to a slow ego: the DS test alone sees its sides
   // occupied in most scans of the window (the highway tanker's failure: 0.39 without the object
   // consensus, doc/OBJECTS.md). While it stands it must not be flagged.
+  // It stops at 1.2 s (scan 12) and starts again at 2.7 s; the labels call it moving while it
+  // moved over +-0.5 s (scans 12-16 and 23-27). Just after it stopped it is held while the scans
+  // before it saw part of it empty (rule 4, arriving): scans 12-14. Once it has stood for more
+  // than half a window it is static.
   const auto r = runCase(scenario("stop_and_go"));
   EXPECT_GE(r.per_mover.at("stop_go_car").recall(),
-            0.63);  // measured 0.685 (0.62 without hysteresis)
+            0.74);  // measured 0.776 (0.708 before "arriving", 0.62 without hysteresis)
   EXPECT_GE(r.all.precision(), 0.97);
+  MosCounts stopped, standing;
+  for (std::size_t k = 12; k < 15; ++k) stopped += r.per_frame.at(k);
+  for (std::size_t k = 17; k < 23; ++k) standing += r.per_frame.at(k);
+  EXPECT_GE(stopped.recall(), 0.9);  // measured 0.99 (0 before)
+  EXPECT_EQ(standing.fp, 0u);        // it stands: nothing of it moving
 }
 
 TEST(SimCases, ACarDrawingAwaySlowlyStaysMovingWhileItLeavesItsPlace) {
@@ -175,8 +184,25 @@ TEST(SimCases, ACarDrawingAwaySlowlyStaysMovingWhileItLeavesItsPlace) {
   auto sc = scenario("stop_and_go");
   for (auto& m : sc.movers) m.speed *= 0.5;
   const auto r = runCase(sc);
-  EXPECT_GE(r.per_mover.at("stop_go_car").recall(), 0.70);  // measured 0.718 (0.765 before)
-  EXPECT_GE(r.all.precision(), 0.97);                       // measured 1.000
+  // measured 0.789 (0.742 before "arriving" held it in scans 12-13 again, 0.718 and 0.765 before)
+  EXPECT_GE(r.per_mover.at("stop_go_car").recall(), 0.75);
+  EXPECT_GE(r.all.precision(), 0.97);  // measured 1.000
+}
+
+TEST(SimCases, AnOncomingCarStaysMovingWhileOnlyItsFrontShowsIt) {
+  // car_stops_5s at half speed: the oncoming car drives on at 3 m/s after its stop and passes the
+  // ego 5 m to the side. 11-10 m ahead (scans 65-69) only its front tests moving, 4-8 % of it,
+  // and rule 4 held it only where the scans after it saw it leave; an oncoming car shows them
+  // its front inside itself, its side still occupied: lost in those scans (recall 0.025 there).
+  // It has just arrived: the scans before it saw its front's place empty (doc/OBJECTS.md).
+  auto sc = scenario("car_stops_5s");
+  for (auto& m : sc.movers) m.speed *= 0.5;
+  const auto r = runCase(sc);
+  MosCounts passing;
+  for (std::size_t k = 65; k < 70; ++k) passing += r.per_frame.at(k);
+  std::printf("  scans 65-69: recall %.3f precision %.3f\n", passing.recall(), passing.precision());
+  EXPECT_GE(passing.recall(), 0.9);
+  EXPECT_GE(r.all.precision(), 0.99);
 }
 
 TEST(SimCases, PedestrianWalkingAlongAWall) {

@@ -860,7 +860,8 @@ void LaserPipeline::decide(std::size_t pos) {
 }
 
 // W_k: the other buffered scans that have beams.
-std::vector<WindowScan> LaserPipeline::windowAround(std::size_t pos, std::size_t from) const {
+std::vector<WindowScan> LaserPipeline::windowAround(std::size_t pos, std::size_t from,
+                                                    std::size_t before) const {
   std::vector<WindowScan> window;
   // Issue #11: estimated poses are off relative to each other by about relative_error times the
   // path between the two scans (odometry error grows with the distance travelled; our GICP
@@ -869,7 +870,8 @@ std::vector<WindowScan> LaserPipeline::windowAround(std::size_t pos, std::size_t
   const double e = p_.registration.relative_error;
   const auto corrected = posesAround(pos);  // DESIGN §3 "Camera poses"
   for (std::size_t j = 0; j < buf_.size(); ++j)
-    if (inWindow(j, pos) && !buf_[j]->beams.empty() && (from == 0 || j >= pos + from)) {
+    if (inWindow(j, pos) && !buf_[j]->beams.empty() && (from == 0 || j >= pos + from) &&
+        (before == 0 || (j < pos && pos - j <= before))) {
       double path = 0;  // summed between the two scans, so a chunk gets the same bits
       if (estimated && e > 0)
         for (std::size_t a = std::min(j, pos); a < std::max(j, pos); ++a)
@@ -995,8 +997,9 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
   rules.reach = ringReach(op, s.ring_gap);  // a sparse lidar's rings (sensor frame; OBJECTS.md)
   WholeObjects prev;  // the previous scan's objects moved whole, built on the first call
   bool prev_built = false;
-  std::optional<std::vector<WindowScan>> after, far;  // the scans after it, built on first use
-  std::vector<Eigen::Vector3f> q_prev;                // an object's points in the previous frame
+  // The scans after it, the far half of them and the near half before it, built on first use.
+  std::optional<std::vector<WindowScan>> after, far, just_before;
+  std::vector<Eigen::Vector3f> q_prev;     // an object's points in the previous frame
   std::vector<Eigen::Vector3f> pieces_at;  // the scan's grouped points in the previous frame
   const WindowScan own = s.own();
   w.held.assign(s.scan.size(), 0);
@@ -1041,6 +1044,7 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
       if (!after) {
         after = windowAround(pos, 1);
         far = windowAround(pos, std::max<std::size_t>(1, k_ / 2));
+        just_before = windowAround(pos, 0, std::max<std::size_t>(1, k_ / 2));
       }
       const bool can_leave = 2 * after->size() >= k_ / stride_;
       if (!as_large(e)) {
@@ -1115,6 +1119,15 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
         if (2 * gone >= n) return true;
         if (2 * (gone + n - asked) < n) break;  // half can no longer be reached
       }
+      // Or it has just arrived: min_moving of its moving points are moving for the K / 2 scans
+      // before it alone (their places were empty less than half a window ago). A vehicle coming
+      // towards the sensor shows only its front, which the scans after it see inside it; one that
+      // stopped moved within the last K / 2 scans: moving, as the labels' +-0.5 s count it.
+      int arrived = 0;
+      for (uint32_t i : idx)
+        if ((arrived += test_.isMoving(w.world[i], *just_before, nullptr, edgeBits(s, i, own))) >=
+            op.min_moving)
+          return true;
       return false;
     };
     rules.has_left = [&](const std::vector<uint32_t>& idx) {

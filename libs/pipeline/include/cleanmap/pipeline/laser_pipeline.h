@@ -109,9 +109,10 @@ class LaserPipeline {
   void decide(std::size_t pos);
 
   // The stages of decide(), in order.
-  // from > 0: only the scans at least `from` after pos (rule 4 under static_fraction,
-  // doc/OBJECTS.md).
-  std::vector<WindowScan> windowAround(std::size_t pos, std::size_t from = 0) const;
+  // from > 0: only the scans at least `from` after pos; before > 0: only those at most `before`
+  // before it (rule 4 under static_fraction, doc/OBJECTS.md).
+  std::vector<WindowScan> windowAround(std::size_t pos, std::size_t from = 0,
+                                       std::size_t before = 0) const;
   // DESIGN §3 "Camera poses": each buffered scan's pose as the scan at `pos` sees it, through the
   // corrected relative poses between neighbours; nullopt where no correction lies between them.
   std::vector<std::optional<Eigen::Isometry3d>> posesAround(std::size_t pos) const;
