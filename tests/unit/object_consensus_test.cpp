@@ -389,6 +389,43 @@ TEST(ObjectConsensus, ARingSliceWiderThanTheRingPoolIsDecidedAlone) {
   EXPECT_EQ(components(cc), 6u);
 }
 
+TEST(ObjectConsensus, TheSameObjectIsFoundInPlaceOrMovedAndNothingElseIs) {
+  // Rule 4's match (matchWholeObject): a car and, 6 m away, a van, objects of one scan. The car
+  // 0.1 m on lies in its own voxels; 0.6 m aside it is found moved, with the shift back; 2 m
+  // aside, beyond the 0.9 m the centroids may differ, and a box where there was none, match
+  // nothing.
+  std::vector<PointXYZI> pts;
+  addBox(pts, 0, 4.4f, 0, 1.8f, 1.5f);
+  addBox(pts, 0, 5.2f, 6, 8, 2.2f);
+  WholeObjects objects;
+  wholeObjectsOf(pts, std::vector<uint8_t>(pts.size(), 1), 0.3, objects);
+  ASSERT_EQ(objects.extent.size(), 2u);
+  const auto car = [](float dx, float dy) {
+    std::vector<PointXYZI> c;
+    addBox(c, dx, 4.4f + dx, dy, 1.8f + dy, 1.5f);
+    std::vector<Eigen::Vector3f> q;
+    for (const auto& p : c) q.push_back(p.xyz());
+    return q;
+  };
+  const auto in_place = matchWholeObject(car(0.1f, 0), objects, 0.3, 0.9f);
+  ASSERT_TRUE(in_place);
+  const std::size_t the_car = in_place->object;
+  EXPECT_LT(objects.centroid[the_car].y(), 3.0f);  // the car's, not the van's
+  EXPECT_EQ(in_place->shift, Eigen::Vector3f::Zero());
+  const auto moved = matchWholeObject(car(0, 0.6f), objects, 0.3, 0.9f);
+  ASSERT_TRUE(moved);
+  EXPECT_EQ(moved->object, the_car);
+  EXPECT_NEAR(moved->shift.x(), 0.0f, 0.05f);
+  EXPECT_NEAR(moved->shift.y(), -0.6f, 0.05f);
+  EXPECT_FALSE(matchWholeObject(car(0, 2.0f), objects, 0.3, 0.9f));
+  std::vector<PointXYZI> elsewhere;
+  addBox(elsewhere, 20, 24.4f, 0, 1.8f, 1.5f);
+  std::vector<Eigen::Vector3f> q;
+  for (const auto& p : elsewhere) q.push_back(p.xyz());
+  EXPECT_FALSE(matchWholeObject(q, objects, 0.3, 0.9f));
+  EXPECT_FALSE(matchWholeObject({}, objects, 0.3, 0.9f));  // no points: no object
+}
+
 TEST(ObjectConsensus, HysteresisKeepsAPartlyMovingObjectThatMovedBefore) {
   // A 14 m truck with its leading 2 m tested moving: ~15 %, between static_fraction (10 %) and
   // moving_fraction (20 %). Alone it is undecided and keeps its labels; next to the previous

@@ -271,6 +271,7 @@ void wholeObjectsOf(const std::vector<PointXYZI>& points, const std::vector<uint
 std::optional<WholeMatch> matchWholeObject(const std::vector<Eigen::Vector3f>& q,
                                            const WholeObjects& objects, double side,
                                            float max_shift) {
+  if (q.empty()) return std::nullopt;
   const float inv = static_cast<float>(1.0 / side);
   const auto voxelOf = [&](const Eigen::Vector3f& x) {
     return objects.voxel.find(

@@ -46,8 +46,9 @@ struct ScanStats {
   std::size_t conflicting_scans = 0;  ///< empty scan votes made unknown (doc/SCAN_CONFLICT.md)
   std::size_t ring_votes = 0;  ///< empty votes of a sparse lidar's rings around P (DESIGN §2b)
   std::size_t objects_moving = 0, consensus_points = 0, consensus_removed = 0;  ///< doc/OBJECTS.md
-  std::size_t objects_persisted = 0;   ///< of objects_moving, kept moving by the hysteresis
-  std::size_t objects_left_place = 0;  ///< of objects_persisted, under static_fraction (leaving)
+  std::size_t objects_persisted = 0;  ///< of objects_moving, kept moving by the hysteresis
+  /// of objects_persisted, under static_fraction (leaving or arriving)
+  std::size_t objects_left_place = 0;
   /// Rule 4 at the start: objects the next scan moved whole, turned moving, and their points
   /// turned moving (doc/OBJECTS.md).
   std::size_t objects_carried_back = 0, carried_back_points = 0;
