@@ -261,14 +261,17 @@ TEST(Regression, ResidentialFalseAlarms) {
 // 0.044 / 0.088 / 0.075 / 0.155 % (the objects' sides that were ground are tested; at offset 3
 // a post 3.6 m away turns moving whole in scans 3-5) and 0.918 / 0.910 / 0.889 / 0.884, the
 // map's AA 55.4 -> 72.3 at offset 0. Rule 4 under static_fraction (doc/OBJECTS.md) holds the
-// tanker there too: 0.950 / 0.943 / 0.943 / 0.936 (the 64-ring run 0.890 -> 0.975).
+// tanker there too: 0.950 / 0.943 / 0.943 / 0.936 (the 64-ring run 0.890 -> 0.975). Rule 4 at
+// the start and arriving (sixtieth session) cost residential 0.062 / 0.099 / 0.092 / 0.156 % ->
+// 0.067 / 0.103 / 0.130 / 0.171 %: small static objects a scan moved whole by mistake are carried
+// back to the first scans or held one scan longer (doc/BENCHMARK.md, "Rule 4 arriving").
 TEST(Regression, SixteenRingBars) {
   for (const char* set : {"kitti_city", "kitti_highway", "kitti_residential"})
     CLEANMAP_REQUIRE_DATASET(set);
   for (int offset = 0; offset < 4; ++offset) {
     const MosCounts r = runSetSixteenRings("kitti_residential", offset);
     EXPECT_LE(r.flaggedRate(), 0.002) << "lasers " << offset << " + 4k";
-    EXPECT_LE(r.flaggedRate(), 0.0017) << "lasers " << offset << " + 4k";  // regression bound
+    EXPECT_LE(r.flaggedRate(), 0.0018) << "lasers " << offset << " + 4k";  // regression bound
     const MosCounts h = runSetSixteenRings("kitti_highway", offset);
     EXPECT_GE(h.recall(), 0.975 - 0.05) << "lasers " << offset << " + 4k";
     EXPECT_GE(h.precision(), 0.92) << "lasers " << offset << " + 4k";
