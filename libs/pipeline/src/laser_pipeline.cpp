@@ -849,13 +849,8 @@ void LaserPipeline::decide(std::size_t pos) {
     hold(std::move(r), s, w);
     return;
   }
-  if (!start_held_.empty()) {
-    std::vector<PointXYZI> whole;
-    for (std::size_t i = 0; i < w.whole.size(); ++i)
-      if (w.whole[i] && (w.relabelled.empty() || !w.relabelled[i]))
-        whole.push_back(s.scan.points[i]);
-    carryBack(std::move(whole), s.world_to_sensor);
-  }
+  if (!start_held_.empty())
+    carryBack(prev_whole_, prev_pose_inverse_);  // this scan's objects moved whole (remember())
   sink_(std::move(r));
 }
 
@@ -1119,8 +1114,8 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
         if (2 * gone >= n) return true;
         if (2 * (gone + n - asked) < n) break;  // half can no longer be reached
       }
-      // Or it has just arrived: min_moving of its moving points are moving for the K / 2 scans
-      // before it alone (their places were empty less than half a window ago). A vehicle coming
+      // Or it has just arrived: min_moving of its points are moving for the K / 2 scans before it
+      // alone (their places were empty less than half a window ago). A vehicle coming
       // towards the sensor shows only its front, which the scans after it see inside it; one that
       // stopped moved within the last K / 2 scans: moving, as the labels' +-0.5 s count it.
       int arrived = 0;
@@ -1377,16 +1372,21 @@ ScanResult LaserPipeline::collect(Prepared& s, const Work& w) const {
   if (!w.relabelled.empty())
     for (uint32_t i = 0; i < pts.size(); ++i)
       if (w.relabelled[i]) r.relabelled_index.push_back(s.scan.originalIndex(i));
-  if (overlays_ && s.view) {  // --save-overlays: static green, moving red, relabelled yellow
-    std::vector<uint8_t> kind(pts.size(), 0);
-    for (uint32_t i = 0; i < pts.size(); ++i)
-      if (s.in_crop[i] && !s.ground[i])
-        kind[i] = !w.relabelled.empty() && w.relabelled[i] ? 3 : w.moving[i] ? 2 : 1;
-    r.overlay = vision::drawOverlay(*s.view, pts, s.scan.pose, kind);
-  }
+  if (overlays_ && s.view)
+    r.overlay = vision::drawOverlay(*s.view, pts, s.scan.pose, overlayKinds(s, w));
   r.stats = s.stats;
   if (keep_scans_) r.scan = s.scan;
   return r;
+}
+
+// --save-overlays: per point, 0 not drawn, 1 static (green), 2 moving (red), 3 relabelled static
+// by the camera (yellow).
+std::vector<uint8_t> LaserPipeline::overlayKinds(const Prepared& s, const Work& w) {
+  std::vector<uint8_t> kind(s.scan.size(), 0);
+  for (uint32_t i = 0; i < s.scan.size(); ++i)
+    if (s.in_crop[i] && !s.ground[i])
+      kind[i] = !w.relabelled.empty() && w.relabelled[i] ? 3 : w.moving[i] ? 2 : 1;
+  return kind;
 }
 
 // State for the next scans: the compact static points feed the duplicate filter; this scan's
@@ -1454,10 +1454,7 @@ void LaserPipeline::hold(ScanResult&& r, const Prepared& s, const Work& w) {
   if (overlays_ && s.view) {
     h.view = s.view;
     h.all_points = s.scan.points;
-    h.kind.assign(s.scan.size(), 0);
-    for (uint32_t i = 0; i < s.scan.size(); ++i)
-      if (s.in_crop[i] && !s.ground[i])
-        h.kind[i] = !w.relabelled.empty() && w.relabelled[i] ? 3 : w.moving[i] ? 2 : 1;
+    h.kind = overlayKinds(s, w);
   }
   start_held_.push_back(std::move(h));
 }

@@ -124,6 +124,7 @@ class LaserPipeline {
   void validateImages(std::size_t pos, Prepared& s, Work& w) const;
   void linkToPrevious(const Prepared& prev, Prepared& s, const PinholeCamera& camera) const;
   ScanResult collect(Prepared& s, const Work& w) const;
+  static std::vector<uint8_t> overlayKinds(const Prepared& s, const Work& w);
   void moverFeet(Prepared& s, Work& w) const;
   void remember(const ScanResult& r, long index, const Prepared& s, const Work& w);
   void startEpoch(long index);
