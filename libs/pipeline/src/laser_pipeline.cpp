@@ -1090,10 +1090,11 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
         }
         if (!as_large(phi - plo)) return false;
       }
-      // It left its place: the scans after it alone see it leave (below; a vehicle that stopped
-      // was only seen arriving, by the scans before it). Where they are too few to tell, a
-      // vehicle in stop-and-go traffic (0.5-1 m/s) moves less than a voxel and the beam model's
-      // margin in half a window (0.5 s): it stays as the previous scan had it.
+      // It left its place: the scans after it alone see it leave, or those just before it see it
+      // arrive (below; a vehicle that stopped over half a window ago shows neither). Where the
+      // scans after it are too few to tell, a vehicle in stop-and-go traffic (0.5-1 m/s) moves
+      // less than a voxel and the beam model's margin in half a window (0.5 s): it stays as the
+      // previous scan had it.
       if (!can_leave) return true;
       // Leaving: min_moving of its moving points are moving for the later scans (its rear, the
       // gaps between its parts: a long vehicle driving on with its ends out of view), or half of
