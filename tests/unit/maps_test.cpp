@@ -193,8 +193,8 @@ TEST(MovingObjectsMap, InsertedObservationsDecidedAsThePipelineDecides) {
     const auto obs = observation(f, sensor, robot);
     EXPECT_TRUE(mm.insertObservation(*obs, robot));
   }
-  // Auto K: 1 s of the 10 Hz scans. Scans 0-1 are decided, and held with the first K / 2 (rule 4
-  // at the start, doc/OBJECTS.md): all 12 pending.
+  // Auto K: 1 s of the 10 Hz scans. Scans 0-1 are decided, and held with the last ceil(K / 2) + 2
+  // decided (rule 4 backwards, doc/OBJECTS.md): all 12 pending.
   ASSERT_EQ(n, std::size_t(kDefaultWindowK) + 2);
   EXPECT_EQ(moving->pending(), n);
   moving->flush();
@@ -377,12 +377,13 @@ TEST(MovingObjectsMap, CopiesAndSerializedMultiMapsAreEqual) {
     const auto obs = observation(seq.frame(i), sensor, robot);
     m.insertObservation(*obs, robot);
   };
+  // K = 3: scans 0-2 are decided and held (rule 4 backwards holds the last ceil(K / 2) + 2).
   for (std::size_t i = 0; i < 6; ++i) insert(mm, i);
-  ASSERT_EQ(moving->pending(), 3u);
+  ASSERT_EQ(moving->pending(), 6u);
 
   // Serialized now: the copy is flushed, the original keeps its window.
   const auto bytes = serialize(mm);
-  EXPECT_EQ(moving->pending(), 3u);
+  EXPECT_EQ(moving->pending(), 6u);
   const auto back = deserialize<::mrpt::maps::CMultiMetricMap>(bytes);
   ASSERT_TRUE(back);
   ASSERT_TRUE(back->mapByClass<CMovingObjectsMap>() && back->mapByClass<CGroundModelMap>());
@@ -402,8 +403,8 @@ TEST(MovingObjectsMap, CopiesAndSerializedMultiMapsAreEqual) {
   // The map's own clone() is deep, window included: both continue identically.
   std::unique_ptr<CMovingObjectsMap> cm(dynamic_cast<CMovingObjectsMap*>(moving->clone()));
   ASSERT_TRUE(cm);
-  EXPECT_EQ(cm->pending(), 3u);
-  EXPECT_EQ(cm->decided(), 3u);
+  EXPECT_EQ(cm->pending(), 6u);
+  EXPECT_EQ(cm->decided(), 0u);  // decided scans are added once handed on
   for (std::size_t i = 6; i < 9; ++i) {
     insert(mm, i);
     ::mrpt::poses::CPose3D robot;

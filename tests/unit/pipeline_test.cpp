@@ -203,10 +203,10 @@ TEST(Pipeline, StreamsWithDelayKAndBoundedWindow) {
     pl.push(castScene(i, double(i), 10.0, nullptr));
     decided_after_push.push_back(decided);
   }
-  // Scan k is decided once scan k + K has arrived; the first K / 2 are handed on with scan K / 2
-  // (doc/OBJECTS.md, rule 4 at the start).
+  // Scan k is decided once scan k + K has arrived, and handed on once ceil(K / 2) + 2 more are
+  // decided (doc/OBJECTS.md, rule 4 backwards): with scan k + 8.
   for (std::size_t i = 0; i < 12; ++i)
-    EXPECT_EQ(decided_after_push[i], i >= 4 + 2 ? i + 1 - 4 : 0u) << "after scan " << i;
+    EXPECT_EQ(decided_after_push[i], i >= 4 + 4 ? i + 1 - 8 : 0u) << "after scan " << i;
   pl.finish();
   EXPECT_EQ(decided, 12u);
   EXPECT_EQ(max_window, 8u);  // 2K scans, never more

@@ -33,6 +33,23 @@ namespace cleanmap {
 namespace {
 // Rule 4's "found moved" (doc/OBJECTS.md): m, half a car's width (a parked neighbour is 2.5 m off).
 constexpr float kMovedMatch = 0.9f;
+// Rule 4 backwards: a vehicle that stood is moving by the labels where it moves more than 0.5 m
+// over the half window around it, static under 0.2 m, neither between (../shared/data/README.md:
+// over +-5 scans). The middle of that band allows for the error of our estimate.
+constexpr double kMovedDistance = 0.35;
+
+// Positions 0..n-1 in the order of their components' roots, and where each component ends.
+void orderByComponent(const std::vector<uint32_t>& root, std::vector<uint32_t>& order,
+                      std::vector<uint32_t>& ends) {
+  order.resize(root.size());
+  std::iota(order.begin(), order.end(), 0u);
+  std::stable_sort(order.begin(), order.end(),
+                   [&](uint32_t a, uint32_t b) { return root[a] < root[b]; });
+  ends.clear();
+  for (std::size_t k = 1; k <= order.size(); ++k)
+    if (k == order.size() || root[order[k]] != root[order[k - 1]])
+      ends.push_back(static_cast<uint32_t>(k));
+}
 }  // namespace
 
 struct LaserPipeline::Prepared {
@@ -75,6 +92,27 @@ struct LaserPipeline::Prepared {
   }
 };
 
+// A decided scan held for rule 4 backwards: its result and what carryBack needs of its decision.
+struct LaserPipeline::Held {
+  ScanResult r;
+  std::vector<PointXYZI> points;              // its candidates (sensor frame) ...
+  std::vector<uint32_t> original;             // ... their indices as read ...
+  std::vector<uint8_t> moving, relabelled;    // ... and their decisions (Work)
+  std::vector<PointXYZI> whole;               // its objects moved whole (remember()) ...
+  std::optional<WholeObjects> whole_objects;  // ... grouped once it is first asked
+  Eigen::Isometry3d world_to_sensor = Eigen::Isometry3d::Identity();
+  double density = 1, ring_gap = 0;
+  // The candidates' components, grouped once it is first asked: their positions in component
+  // order and where each component ends in it.
+  std::vector<uint32_t> order, ends;
+  // --save-overlays: the camera view, every point of the scan, its colour (collect()) and the
+  // candidates' positions among them.
+  std::optional<vision::CameraView> view;
+  std::vector<PointXYZI> all_points;
+  std::vector<uint8_t> kind;
+  std::vector<uint32_t> at;
+};
+
 /// The scan being decided, computed once and passed down the stages. One instance lives as long
 /// as the pipeline: clear() keeps the capacity, so steady state allocates nothing per scan here.
 struct LaserPipeline::Work {
@@ -91,6 +129,7 @@ struct LaserPipeline::Work {
     relabelled.clear();
     whole.clear();
     held.clear();
+    grouped = false;
   }
   std::vector<Eigen::Vector3d> world;  // candidates' world coordinates (others left zero)
   std::vector<uint8_t> duplicate;      // DESIGN §2.3
@@ -104,6 +143,8 @@ struct LaserPipeline::Work {
   std::vector<uint8_t> relabelled;  // per scan point: moving, relabelled static by the camera
   std::vector<uint8_t> whole;       // per scan point: in a vehicle-sized object moving as a whole
   std::vector<uint8_t> held;  // per scan point: in an object rule 4 held (the camera leaves it)
+  ObjectComponents groups;    // the candidates' components (doc/OBJECTS.md rule 1) ...
+  bool grouped = false;       // ... where the object consensus ran
 };
 
 LaserPipeline::LaserPipeline(const PipelineParams& params, Sink sink)
@@ -300,7 +341,7 @@ LaserPipeline::~LaserPipeline() {
 
 std::size_t LaserPipeline::pending() const {
   return buf_.size() - next_ + (reg_queue_ && reg_queue_->in_flight ? 1 : 0) + (held_ ? 1 : 0) +
-         (deskew_first_ ? 1 : 0) + start_held_.size();
+         (deskew_first_ ? 1 : 0) + held_results_.size();
 }
 
 std::unique_ptr<LaserPipeline> LaserPipeline::clone(Sink sink) const {
@@ -330,7 +371,7 @@ std::unique_ptr<LaserPipeline> LaserPipeline::clone(Sink sink) const {
   c->prev_moving_cells_ = prev_moving_cells_;
   c->prev_whole_ = prev_whole_;
   c->prev_pose_inverse_ = prev_pose_inverse_;
-  c->start_held_ = start_held_;
+  c->held_results_ = held_results_;
   c->epoch_ = epoch_;
   c->map_first_ = map_first_;
   c->map_last_ = map_last_;
@@ -764,7 +805,7 @@ void LaserPipeline::finish() {
     deskew_first_.reset();
   }
   decideReady(0);  // the windows shrink at the end
-  if (!start_held_.empty()) carryBack({}, Eigen::Isometry3d::Identity());  // a run that short
+  handOn(0);
   joinFreeSpace();
   buf_.clear();
   next_ = 0;
@@ -841,17 +882,20 @@ void LaserPipeline::decide(std::size_t pos) {
   r.stats.ms.total =
       msSince(t_start) + (s.registered_beside ? 0.0 : s.stats.ms.registration) + s.prepare_ms;
   ++decided_;
-  // doc/OBJECTS.md rule 4 at the start: the scans before it are too few to show a mover arriving
-  // (a car coming up behind the sensor shows only its front, whose place only they saw empty).
-  std::size_t before = 0;
-  for (std::size_t j = 0; j < pos; ++j) before += inWindow(j, pos) && !buf_[j]->beams.empty();
-  if (p_.object.enabled && p_.object.persist_radius > 0 && 2 * before < k_ / stride_) {
-    hold(std::move(r), s, w);
+  if (!p_.object.enabled || p_.object.persist_radius <= 0) {
+    sink_(std::move(r));
     return;
   }
-  if (!start_held_.empty())
-    carryBack(prev_whole_, prev_pose_inverse_);  // this scan's objects moved whole (remember())
-  sink_(std::move(r));
+  // doc/OBJECTS.md rule 4 backwards: the objects the scan before this one moved whole and this one
+  // too are carried back to the ceil(K / 2) held scans before them; older ones go on.
+  hold(std::move(r), s, w);
+  handOn((k_ + 1) / 2 + 2);
+  const auto t_back = Clock::now();
+  carryBack();
+  StageTimes& ms = held_results_.back().r.stats.ms;  // rule 4's work, in this scan's times
+  const double back_ms = msSince(t_back);
+  ms.objects += back_ms;
+  ms.total += back_ms;
 }
 
 // W_k: the other buffered scans that have beams.
@@ -1132,9 +1176,12 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
       return true;
     };
   }
-  const auto oc =
-      cleanmap::objectConsensus(s.scan.points, s.candidate, w.moving, op,
-                                near_prev.empty() ? nullptr : &near_prev, &w.whole, rules);
+  // Grouped here so that a held scan keeps its components for rule 4 backwards (hold()).
+  groupObjects(s.scan.points, s.candidate, op.voxel, w.groups, rules.reach);
+  w.grouped = true;
+  const auto oc = cleanmap::objectConsensus(s.scan.points, s.candidate, w.moving, op,
+                                            near_prev.empty() ? nullptr : &near_prev, &w.whole,
+                                            rules, &w.groups);
   s.stats.objects_persisted = oc.persisted;
   s.stats.objects_left_place = oc.left_place;
   s.stats.objects_moving = oc.moving_objects;
@@ -1421,24 +1468,8 @@ void LaserPipeline::remember(const ScanResult& r, long index, const Prepared& s,
   prev_pose_inverse_ = s.world_to_sensor;
 }
 
-// A decided scan held at the start: its result and what carryBack needs of its decision.
-struct LaserPipeline::StartHeld {
-  ScanResult r;
-  std::vector<PointXYZI> points;                   // its candidates (sensor frame) ...
-  std::vector<uint32_t> original;                  // ... their indices as read ...
-  std::vector<uint8_t> moving, whole, relabelled;  // ... and their decisions (Work)
-  Eigen::Isometry3d world_to_sensor = Eigen::Isometry3d::Identity();
-  double density = 1, ring_gap = 0;
-  // --save-overlays: the camera view, every point of the scan, its colour (collect()) and the
-  // candidates' positions among them.
-  std::optional<vision::CameraView> view;
-  std::vector<PointXYZI> all_points;
-  std::vector<uint8_t> kind;
-  std::vector<uint32_t> at;
-};
-
 void LaserPipeline::hold(ScanResult&& r, const Prepared& s, const Work& w) {
-  StartHeld h;
+  Held h;
   h.r = std::move(r);
   for (uint32_t i = 0; i < s.scan.size(); ++i) {
     if (!s.candidate[i]) continue;
@@ -1446,9 +1477,16 @@ void LaserPipeline::hold(ScanResult&& r, const Prepared& s, const Work& w) {
     h.original.push_back(s.scan.originalIndex(i));
     if (overlays_ && s.view) h.at.push_back(i);
     h.moving.push_back(w.moving[i]);
-    h.whole.push_back(w.whole.empty() ? 0 : w.whole[i]);
     h.relabelled.push_back(w.relabelled.empty() ? 0 : w.relabelled[i]);
   }
+  if (w.grouped) {  // its components as the object consensus found them
+    std::vector<uint32_t> root;
+    root.reserve(h.points.size());
+    for (uint32_t i = 0; i < s.scan.size(); ++i)
+      if (s.candidate[i]) root.push_back(w.groups.root_of[w.groups.point_voxel[i]]);
+    orderByComponent(root, h.order, h.ends);
+  }
+  h.whole = prev_whole_;
   h.world_to_sensor = s.world_to_sensor;
   h.density = s.density;
   h.ring_gap = s.ring_gap;
@@ -1457,70 +1495,281 @@ void LaserPipeline::hold(ScanResult&& r, const Prepared& s, const Work& w) {
     h.all_points = s.scan.points;
     h.kind = overlayKinds(s, w);
   }
-  start_held_.push_back(std::move(h));
+  held_results_.push_back(std::move(h));
 }
 
-// doc/OBJECTS.md rule 4 at the start, the mirror of rule 4 where the later scans are too few: a
-// held scan's vehicle-sized component that is the object the next scan moved whole (half of its
-// points in that object's voxels, as they are or found moved, and not smaller than 1 -
-// extent_tolerance of it) is moving, every part; the scan then is the next of the one before it.
-// Only the results change: the memories of later decisions (duplicates, persistence, the free
-// space) keep what the scans were decided with, so no later scan depends on it (DESIGN §2f).
-void LaserPipeline::carryBack(std::vector<PointXYZI> next_whole,
-                              Eigen::Isometry3d next_world_to_sensor) {
+void LaserPipeline::handOn(std::size_t keep) {
+  while (held_results_.size() > keep) {
+    sink_(std::move(held_results_.front().r));
+    held_results_.pop_front();
+  }
+}
+
+namespace {
+
+// Rule 4's "not smaller than 1 - tolerance of it" (horizontal diagonal, height) of a box [lo, hi]
+// against an object's extent x, and with `at_most`, not larger than x / (1 - tolerance) across.
+bool sizedAs(const Eigen::Vector3f& lo, const Eigen::Vector3f& hi, const Eigen::Vector3f& x,
+             double tolerance, bool at_most) {
+  const Eigen::Vector3f e = hi - lo;
+  const float eh = e.head<2>().norm(), xh = x.head<2>().norm(), f = 1.0f - float(tolerance);
+  return eh >= f * xh && e.z() >= f * x.z() && (!at_most || xh >= f * eh);
+}
+
+// The positions from + k of the points q[k] (the object's frame) that lie, shifted by the match,
+// in the matched object's voxels or next to them (26 neighbours).
+std::vector<uint32_t> nearObject(const std::vector<Eigen::Vector3f>& q, std::size_t from,
+                                 const WholeObjects& objects, const WholeMatch& m, double side) {
+  const float inv = static_cast<float>(1.0 / side);
+  std::vector<uint32_t> near;
+  for (std::size_t k = 0; k < q.size(); ++k) {
+    const Eigen::Vector3f x = q[k] + m.shift;
+    const int cx = floorToCell(x.x(), inv), cy = floorToCell(x.y(), inv),
+              cz = floorToCell(x.z(), inv);
+    bool in = false;
+    for (int dx = -1; dx <= 1 && !in; ++dx)
+      for (int dy = -1; dy <= 1 && !in; ++dy)
+        for (int dz = -1; dz <= 1 && !in; ++dz) {
+          const uint32_t* o = objects.voxel.find(cellKey(cx + dx, cy + dy, cz + dz));
+          in = o && *o == m.object;
+        }
+    if (in) near.push_back(static_cast<uint32_t>(from + k));
+  }
+  return near;
+}
+
+// Rule 2's foot (doc/OBJECTS.md), of the points order[k] of `part`: a point less than
+// foot_height above their lowest with none at or above that height in its 3 x 3 column of voxels
+// is a low surface the object touches (from 0.8 m, a sidewalk 0.12 m up), not a part of it.
+std::vector<uint32_t> withoutFoot(const std::vector<uint32_t>& part,
+                                  const std::vector<uint32_t>& order,
+                                  const std::vector<PointXYZI>& points, double side, double foot) {
+  if (foot <= 0 || part.empty()) return part;
+  float lowest = std::numeric_limits<float>::max();
+  for (const uint32_t k : part) lowest = std::min(lowest, points[order[k]].z);
+  const float inv = static_cast<float>(1.0 / side), top = lowest + static_cast<float>(foot);
+  const auto column = [&](const PointXYZI& x, int dx, int dy) {
+    return cellKey(floorToCell(x.x, inv) + dx, floorToCell(x.y, inv) + dy, 0);
+  };
+  CellMap<uint8_t> raised;
+  for (const uint32_t k : part)
+    if (points[order[k]].z >= top) raised.insert(column(points[order[k]], 0, 0));
+  std::vector<uint32_t> kept;
+  for (const uint32_t k : part) {
+    const PointXYZI& x = points[order[k]];
+    bool under = x.z >= top;
+    for (int dx = -1; dx <= 1 && !under; ++dx)
+      for (int dy = -1; dy <= 1 && !under; ++dy) under = raised.contains(column(x, dx, dy));
+    if (under) kept.push_back(k);
+  }
+  return kept;
+}
+
+}  // namespace
+
+// doc/OBJECTS.md rule 4 backwards, the mirror of rule 4 over the scans before a decision: the
+// objects the last two decided scans both moved whole are carried back through the held scans,
+// nearest first. A held scan's vehicle-sized component that is the object the next scan moved
+// or turned whole (half of its points in that object's voxels, as they are or found moved, and
+// not smaller than 1 - extent_tolerance of it) is moving, every part, where it was moving by the
+// labels: more than kMovedDistance from where the object is H scans later. A vehicle coming
+// towards the sensor in the run's first scans shows only its front, whose place only the scans
+// before saw empty; a vehicle about to pull away is moving by the labels' +-0.5 s before it
+// starts. Only the results change: the memories of later decisions (duplicates, persistence, the
+// free space) keep what the scans were decided with, so no later scan depends on it (DESIGN §2f).
+void LaserPipeline::carryBack() {
   const double tolerance = ConsensusRules{}.extent_tolerance;
-  for (auto it = start_held_.rbegin(); it != start_held_.rend(); ++it) {
-    StartHeld& h = *it;
+  const auto paramsOf = [&](const Held& h) {
     ObjectParams op = p_.object;
     op.min_moving = std::max(1, static_cast<int>(std::lround(op.min_moving * h.density)));
-    const RingReach reach = ringReach(op, h.ring_gap);
-    std::vector<uint32_t> turned;  // candidate positions turned moving
-    if (!next_whole.empty() && !h.points.empty()) {
-      WholeObjects next;
-      wholeObjectsOf(next_whole, std::vector<uint8_t>(next_whole.size(), 1), op.voxel, next, reach);
+    return std::make_pair(op, ringReach(op, h.ring_gap));
+  };
+  const std::size_t n_held = held_results_.size();
+  if (n_held < 3) return;
+  const float inv = static_cast<float>(1.0 / p_.object.voxel);
+  const auto objectOf = [&](const WholeObjects& o, const Eigen::Vector3f& x) {
+    return o.voxel.find(
+        cellKey(floorToCell(x.x(), inv), floorToCell(x.y(), inv), floorToCell(x.z(), inv)));
+  };
+  // An object carried back: where it was (world centroids, horizontal) at which scan (index),
+  // the nearest first, and its motion per scan when first found.
+  struct Track {
+    std::deque<std::pair<double, Eigen::Vector2d>> at;
+    Eigen::Vector2d velocity = Eigen::Vector2d::Zero();
+    Eigen::Vector2d where(double t) const {  // extrapolated after its last known place
+      if (t >= at.back().first) return at.back().second + velocity * (t - at.back().first);
+      std::size_t j = 1;
+      while (j + 1 < at.size() && at[j].first < t) ++j;
+      const auto& [ta, pa] = at[j - 1];
+      const auto& [tb, pb] = at[j];
+      return tb > ta ? Eigen::Vector2d(pa + (pb - pa) * ((t - ta) / (tb - ta))) : pb;
+    }
+  };
+  std::vector<Track> tracks;
+  const auto worldCentroid = [](const Held& h, Eigen::Vector3f c) {
+    return Eigen::Vector2d((h.r.pose * c.cast<double>()).head<2>());
+  };
+  // The objects the scan before the newest moved whole that the newest moved whole too (the same
+  // object as rule 4 finds it): one scan's mistake is not carried back.
+  std::vector<PointXYZI> next_whole;
+  std::vector<uint32_t> next_track;  // per point of next_whole
+  {
+    Held& a = held_results_[n_held - 2];
+    Held& b = held_results_[n_held - 1];
+    const ObjectParams op = paramsOf(a).first;
+    for (Held* x : {&a, &b})
+      if (!x->whole_objects) {
+        x->whole_objects.emplace();
+        wholeObjectsOf(x->whole, std::vector<uint8_t>(x->whole.size(), 1), op.voxel,
+                       *x->whole_objects, paramsOf(*x).second);
+      }
+    const WholeObjects &oa = *a.whole_objects, &ob = *b.whole_objects;
+    if (oa.empty() || ob.empty()) return;
+    std::vector<std::vector<uint32_t>> members(oa.extent.size());
+    for (uint32_t k = 0; k < a.whole.size(); ++k)
+      if (const uint32_t* o = objectOf(oa, a.whole[k].xyz())) members[*o].push_back(k);
+    const Eigen::Isometry3d a_to_b = b.world_to_sensor * a.r.pose;
+    const double dt = static_cast<double>(b.r.index) - static_cast<double>(a.r.index);
+    std::vector<Eigen::Vector3f> q;
+    for (std::size_t o = 0; o < members.size(); ++o) {
+      q.clear();
+      for (const uint32_t k : members[o])
+        q.push_back((a_to_b * a.whole[k].xyz().cast<double>()).cast<float>());
+      const std::optional<WholeMatch> m = matchWholeObject(q, ob, op.voxel, kMovedMatch);
+      if (!m || dt <= 0) continue;
+      Track t;
+      t.at.push_back({double(a.r.index), worldCentroid(a, oa.centroid[o])});
+      t.at.push_back({double(b.r.index), worldCentroid(b, ob.centroid[m->object])});
+      t.velocity = (t.at[1].second - t.at[0].second) / dt;
+      for (const uint32_t k : members[o]) {
+        next_whole.push_back(a.whole[k]);
+        next_track.push_back(static_cast<uint32_t>(tracks.size()));
+      }
+      tracks.push_back(std::move(t));
+    }
+  }
+  // The half window after a held scan, in scans (H, as long as it is held).
+  const double half = static_cast<double>((k_ + 1) / 2);
+  Eigen::Isometry3d next_world_to_sensor = held_results_[n_held - 2].world_to_sensor;
+  for (std::size_t at = n_held - 2; at-- > 0 && !next_whole.empty();) {
+    Held& h = held_results_[at];
+    const auto [op, reach] = paramsOf(h);
+    if (h.ends.empty() && !h.points.empty()) {
       ObjectComponents cc;
       groupObjects(h.points, std::vector<uint8_t>(h.points.size(), 1), op.voxel, cc, reach);
-      std::vector<uint32_t> root(h.points.size()), order(h.points.size());
+      std::vector<uint32_t> root(h.points.size());
       for (uint32_t k = 0; k < h.points.size(); ++k) root[k] = cc.root_of[cc.point_voxel[k]];
-      std::iota(order.begin(), order.end(), 0u);
-      std::stable_sort(order.begin(), order.end(),
-                       [&](uint32_t a, uint32_t b) { return root[a] < root[b]; });
-      std::vector<Eigen::Vector3f> q;
-      for (std::size_t from = 0; from < order.size();) {
-        std::size_t to = from;
-        while (to < order.size() && root[order[to]] == root[order[from]]) ++to;
-        const std::size_t n = to - from;
-        std::size_t moving = 0;
-        Eigen::Vector3f lo = Eigen::Vector3f::Constant(1e30f), hi = -lo;
+      orderByComponent(root, h.order, h.ends);
+    }
+    WholeObjects next;
+    wholeObjectsOf(next_whole, std::vector<uint8_t>(next_whole.size(), 1), op.voxel, next, reach);
+    std::vector<uint32_t> track_of(next.extent.size(), UINT32_MAX);  // each object's track
+    for (std::size_t k = 0; k < next_whole.size(); ++k)
+      if (const uint32_t* o = objectOf(next, next_whole[k].xyz()))
+        if (track_of[*o] == UINT32_MAX) track_of[*o] = next_track[k];
+    std::vector<uint32_t> turned;  // candidate positions turned moving
+    next_whole.clear();            // becomes what this scan turned
+    next_track.clear();
+    std::vector<Eigen::Vector3f> q;
+    // The world point as the test had it (Work::world: the pose times the point), in the next
+    // scan's sensor frame.
+    const Eigen::Isometry3d to_next = next_world_to_sensor * h.r.pose;
+    std::size_t from = 0;
+    for (const std::size_t to : h.ends) {
+      const std::size_t n = to - from;
+      std::size_t moving = 0;
+      Eigen::Vector3f lo = Eigen::Vector3f::Constant(1e30f), hi = -lo,
+                      sum = Eigen::Vector3f::Zero();
+      for (std::size_t k = from; k < to; ++k) {
+        const uint32_t i = h.order[k];
+        moving += h.moving[i] != 0;
+        lo = lo.cwiseMin(h.points[i].xyz());
+        hi = hi.cwiseMax(h.points[i].xyz());
+        sum += h.points[i].xyz();
+      }
+      std::optional<WholeMatch> match;
+      // Only a component that can reach an object: its box and the object's overlap (the one
+      // holding half of its points in the other's voxels, a voxel's quantisation aside), or do
+      // once shifted by at most kMovedMatch; two points of overlapping boxes lie at most their
+      // diagonals apart.
+      const auto within_reach = [&] {
+        const Eigen::Vector3f c = (to_next * (sum / float(n)).cast<double>()).cast<float>();
+        const float own = (hi - lo).head<2>().norm() + static_cast<float>(2 * op.voxel);
+        for (std::size_t o = 0; o < next.extent.size(); ++o)
+          if ((c - next.centroid[o]).head<2>().norm() <=
+              kMovedMatch + own + next.extent[o].head<2>().norm())
+            return true;
+        return false;
+      };
+      if (static_cast<int>(n) >= op.min_moving && moving < n &&
+          vehicleSized(lo, hi, op.max_length, op.max_height) && within_reach()) {
         q.clear();
-        for (std::size_t k = from; k < to; ++k) {
-          const uint32_t i = order[k];
-          moving += h.moving[i] != 0;
-          lo = lo.cwiseMin(h.points[i].xyz());
-          hi = hi.cwiseMax(h.points[i].xyz());
-          // The world point as the test had it (Work::world: the pose times the point).
-          const Eigen::Vector3d world = h.r.pose * h.points[i].xyz().cast<double>();
-          q.push_back((next_world_to_sensor * world).cast<float>());
+        for (std::size_t k = from; k < to; ++k)
+          q.push_back((to_next * h.points[h.order[k]].xyz().cast<double>()).cast<float>());
+        match = matchWholeObject(q, next, op.voxel, kMovedMatch);
+      }
+      if (match && track_of[match->object] != UINT32_MAX) {
+        // Its points turn whole where it is that object's size; where it is larger (it holds
+        // something else too: a car that stood at a kerb, joined with the kerb's stones in one
+        // scan), those in the object's voxels and next to them, once shifted, if they are.
+        const WholeMatch& m = *match;
+        std::vector<uint32_t> part;  // positions in h.order
+        for (std::size_t k = from; k < to; ++k) part.push_back(static_cast<uint32_t>(k));
+        if (!sizedAs(lo, hi, next.extent[m.object], tolerance, true))
+          part = nearObject(q, from, next, m, op.voxel);
+        lo = Eigen::Vector3f::Constant(1e30f);
+        hi = -lo;
+        for (const uint32_t k : part) {
+          lo = lo.cwiseMin(h.points[h.order[k]].xyz());
+          hi = hi.cwiseMax(h.points[h.order[k]].xyz());
         }
-        std::optional<WholeMatch> match;
-        if (static_cast<int>(n) >= op.min_moving && moving < n &&
-            vehicleSized(lo, hi, op.max_length, op.max_height))
-          match = matchWholeObject(q, next, op.voxel, kMovedMatch);
-        const auto as_large = [&](float u, float v) { return u >= (1.0 - tolerance) * v; };
-        if (match) {
-          const Eigen::Vector3f e = hi - lo, x = next.extent[match->object];
-          if (as_large(e.head<2>().norm(), x.head<2>().norm()) && as_large(e.z(), x.z())) {
-            ++h.r.stats.objects_carried_back;
-            for (std::size_t k = from; k < to; ++k) {
-              const uint32_t i = order[k];
-              if (h.relabelled[i]) continue;  // the camera's decision stands (DESIGN §3)
-              h.whole[i] = 1;
-              if (!h.moving[i]) turned.push_back(i);
+        // And where it was moving by the labels: more than kMovedDistance between where it was
+        // half a window before this scan and where it is half a window after. After its last
+        // known place the object goes on at the velocity it was found with; before this scan it
+        // stood, unless it moves here (from here to its next known place within half that
+        // velocity of it): then it came at that velocity.
+        Track& track = tracks[track_of[m.object]];
+        Eigen::Vector3f c = Eigen::Vector3f::Zero();
+        for (const uint32_t k : part) c += h.points[h.order[k]].xyz();
+        const double t = static_cast<double>(h.r.index);
+        const Eigen::Vector2d here =
+            worldCentroid(h, c / static_cast<float>(std::max<std::size_t>(part.size(), 1)));
+        // Its motion here: to its last known place within half of the half window after it (a
+        // longer span steadies a slow walker's jittering centroid; a shorter one keeps a car
+        // that starts two scans later standing here).
+        std::size_t j = 0;
+        while (j + 1 < track.at.size() && track.at[j + 1].first <= t + std::ceil(half / 2)) ++j;
+        const auto& [t_next, p_next] = track.at[j];
+        const bool moves_here =
+            t_next > t &&
+            ((p_next - here) / (t_next - t) - track.velocity).norm() <= 0.5 * track.velocity.norm();
+        const Eigen::Vector2d before =
+            moves_here ? Eigen::Vector2d(here - track.velocity * half) : here;
+        const double moved = (track.where(t + half) - before).norm();
+        if (!part.empty() && sizedAs(lo, hi, next.extent[m.object], tolerance, true) &&
+            moved > kMovedDistance) {
+          ++h.r.stats.objects_carried_back;
+          track.at.push_front({t, here});
+          // Its foot stays (rule 2): it goes on in the chain, as the objects moved whole keep
+          // theirs, but does not turn.
+          const std::vector<uint32_t> body =
+              withoutFoot(part, h.order, h.points, op.voxel, op.foot_height);
+          std::vector<uint8_t> in_body(part.size(), 0);
+          for (std::size_t a = 0, b = 0; a < part.size(); ++a)
+            if (b < body.size() && body[b] == part[a]) {
+              in_body[a] = 1;
+              ++b;
             }
+          for (std::size_t a = 0; a < part.size(); ++a) {
+            const uint32_t i = h.order[part[a]];
+            if (h.relabelled[i]) continue;  // the camera's decision stands (DESIGN §3)
+            next_whole.push_back(h.points[i]);
+            next_track.push_back(track_of[m.object]);
+            if (!h.moving[i] && in_body[a]) turned.push_back(i);
           }
         }
-        from = to;
       }
+      from = to;
     }
     if (!turned.empty()) {
       // The result as collect() makes it with these points moving.
@@ -1558,13 +1807,8 @@ void LaserPipeline::carryBack(std::vector<PointXYZI> next_whole,
       r.stats.carried_back_points += turned.size();
       if (h.view) r.overlay = vision::drawOverlay(*h.view, h.all_points, r.pose, h.kind);
     }
-    next_whole.clear();
-    for (uint32_t k = 0; k < h.points.size(); ++k)
-      if (h.whole[k] && !h.relabelled[k]) next_whole.push_back(h.points[k]);
     next_world_to_sensor = h.world_to_sensor;
   }
-  for (StartHeld& h : start_held_) sink_(std::move(h.r));
-  start_held_.clear();
 }
 
 }  // namespace cleanmap

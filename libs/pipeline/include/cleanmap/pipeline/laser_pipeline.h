@@ -32,9 +32,9 @@ class LaserPipeline {
   ~LaserPipeline();
 
   /// Adds the next scan. Its pose is the given one, or GICP's (DESIGN §2.1, PipelineParams::poses).
-  /// Scans are decided K scans later; those with fewer than K / 2 scans before them in their
-  /// window are handed to the sink with the first that has enough (doc/OBJECTS.md rule 4 at the
-  /// start), or at finish().
+  /// Scans are decided K scans later and handed to the sink ceil(K / 2) decided scans after that
+  /// (doc/OBJECTS.md rule 4 backwards; at once with the object rules or persistence off), or at
+  /// finish().
   void push(Frame&& frame);
   /// Decides the remaining scans (windows shrink at the end).
   void finish();
@@ -48,7 +48,7 @@ class LaserPipeline {
   /// The window's stride (ds.window_stride, or auto from K); 1 until K is resolved.
   std::size_t windowStride() const { return stride_; }
   /// Scans pushed but not yet handed to the sink: not decided (at most K until finish(), K + 1
-  /// registering ahead), or decided and held at the start (at most K / 2 more; push()).
+  /// registering ahead), or decided and held (at most ceil(K / 2) more; push()).
   std::size_t pending() const;
   /// A deep copy of the whole state (window, duplicate history, odometry map) handing its
   /// results to `sink`: fed the same scans, it decides them exactly as this pipeline would.
@@ -159,13 +159,13 @@ class LaserPipeline {
   // The last decided scan's objects moved whole (its sensor frame) and its world-to-sensor pose.
   std::vector<PointXYZI> prev_whole_;
   Eigen::Isometry3d prev_pose_inverse_ = Eigen::Isometry3d::Identity();
-  // doc/OBJECTS.md rule 4 at the start: the decided scans whose windows hold fewer than K / 2
-  // earlier scans, handed on once the first scan with enough of them is decided (or at finish()),
-  // after the objects each next scan moved whole were carried back to them.
-  struct StartHeld;
-  std::vector<StartHeld> start_held_;
+  // doc/OBJECTS.md rule 4 backwards: the last ceil(K / 2) decided scans, held so that an object
+  // a later scan moved whole is carried back to them, then handed on in scan order.
+  struct Held;
+  std::deque<Held> held_results_;
   void hold(ScanResult&& r, const Prepared& s, const Work& w);
-  void carryBack(std::vector<PointXYZI> next_whole, Eigen::Isometry3d next_world_to_sensor);
+  void carryBack();
+  void handOn(std::size_t keep);  // hands on the oldest held results until `keep` remain
   std::unique_ptr<Work> work_;
   std::unique_ptr<FreeSpaceMap> free_;  // DESIGN §2e, whole sequence
   // The decided scans' free-space insertions run in scan order on one thread of their own,
