@@ -102,8 +102,8 @@ struct LaserPipeline::Held {
   std::optional<WholeObjects> whole_objects;  // ... grouped once it is first asked
   Eigen::Isometry3d world_to_sensor = Eigen::Isometry3d::Identity();
   double density = 1, ring_gap = 0;
-  // The candidates' components, grouped once it is first asked: their positions in component
-  // order and where each component ends in it.
+  // The candidates' components as the object consensus grouped them (grouped again if it did
+  // not run): their positions in component order and where each component ends in it.
   std::vector<uint32_t> order, ends;
   // --save-overlays: the camera view, every point of the scan, its colour (collect()) and the
   // candidates' positions among them.
@@ -1571,12 +1571,13 @@ std::vector<uint32_t> withoutFoot(const std::vector<uint32_t>& part,
 // objects the last two decided scans both moved whole are carried back through the held scans,
 // nearest first. A held scan's vehicle-sized component that is the object the next scan moved
 // or turned whole (half of its points in that object's voxels, as they are or found moved, and
-// not smaller than 1 - extent_tolerance of it) is moving, every part, where it was moving by the
-// labels: more than kMovedDistance from where the object is H scans later. A vehicle coming
-// towards the sensor in the run's first scans shows only its front, whose place only the scans
-// before saw empty; a vehicle about to pull away is moving by the labels' +-0.5 s before it
-// starts. Only the results change: the memories of later decisions (duplicates, persistence, the
-// free space) keep what the scans were decided with, so no later scan depends on it (DESIGN §2f).
+// not smaller than 1 - extent_tolerance of it) is moving, every part but its foot, where it was
+// moving by the labels: where it was half a window before and where it is half a window after
+// lie more than kMovedDistance apart. A vehicle coming towards the sensor in the run's first
+// scans shows only its front, whose place only the scans before saw empty; a vehicle about to
+// pull away is moving by the labels' +-0.5 s before it starts. Only the results change: the
+// memories of later decisions (duplicates, persistence, the free space) keep what the scans were
+// decided with, so no later scan depends on it (DESIGN §2f).
 void LaserPipeline::carryBack() {
   const double tolerance = ConsensusRules{}.extent_tolerance;
   const auto paramsOf = [&](const Held& h) {
