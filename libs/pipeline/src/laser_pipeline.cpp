@@ -1654,7 +1654,9 @@ void LaserPipeline::carryBack() {
   Eigen::Isometry3d next_world_to_sensor = held_results_[n_held - 2].world_to_sensor;
   for (std::size_t at = n_held - 2; at-- > 0 && !next_whole.empty();) {
     Held& h = held_results_[at];
-    const auto [op, reach] = paramsOf(h);
+    const auto params = paramsOf(h);  // not a structured binding: the lambdas below capture them
+    const ObjectParams& op = params.first;
+    const RingReach& reach = params.second;
     if (h.ends.empty() && !h.points.empty()) {
       ObjectComponents cc;
       groupObjects(h.points, std::vector<uint8_t>(h.points.size(), 1), op.voxel, cc, reach);
