@@ -38,6 +38,14 @@ constexpr float kMovedMatch = 0.9f;
 // over +-5 scans). The middle of that band allows for the error of our estimate.
 constexpr double kMovedDistance = 0.35;
 
+// Rule 4's "not smaller than 1 - tolerance of it" (horizontal diagonal, height) of an extent e
+// against an object's extent x, and with `at_most`, not larger than x / (1 - tolerance) across.
+bool sizedAs(const Eigen::Vector3f& e, const Eigen::Vector3f& x, double tolerance, bool at_most) {
+  const float eh = e.head<2>().norm(), xh = x.head<2>().norm();
+  const double f = 1.0 - tolerance;
+  return eh >= f * xh && e.z() >= f * x.z() && (!at_most || xh >= f * eh);
+}
+
 // Positions 0..n-1 in the order of their components' roots, and where each component ends.
 void orderByComponent(const std::vector<uint32_t>& root, std::vector<uint32_t>& order,
                       std::vector<uint32_t>& ends) {
@@ -1072,11 +1080,9 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
       const std::size_t a = match->object;
       const Eigen::Vector3f moved_by = match->shift;  // the shift that found it (zero: in place)
       const Eigen::Vector3f e = hi - lo, x = prev.extent[a];
-      const auto close = [&](float u, float v) {  // not smaller (it may have joined its other part)
-        return u >= (1.0 - rules.extent_tolerance) * v;
-      };
+      // Not smaller (it may have joined its other part).
       const auto as_large = [&](const Eigen::Vector3f& ext) {
-        return close(ext.head<2>().norm(), x.head<2>().norm()) && close(ext.z(), x.z());
+        return sizedAs(ext, x, rules.extent_tolerance, false);
       };
       // Fewer than half of the window's later scans (the sequence's last ones, a dropout) cannot
       // show it leave (below); there it must be that whole object itself.
@@ -1507,15 +1513,6 @@ void LaserPipeline::handOn(std::size_t keep) {
 
 namespace {
 
-// Rule 4's "not smaller than 1 - tolerance of it" (horizontal diagonal, height) of a box [lo, hi]
-// against an object's extent x, and with `at_most`, not larger than x / (1 - tolerance) across.
-bool sizedAs(const Eigen::Vector3f& lo, const Eigen::Vector3f& hi, const Eigen::Vector3f& x,
-             double tolerance, bool at_most) {
-  const Eigen::Vector3f e = hi - lo;
-  const float eh = e.head<2>().norm(), xh = x.head<2>().norm(), f = 1.0f - float(tolerance);
-  return eh >= f * xh && e.z() >= f * x.z() && (!at_most || xh >= f * eh);
-}
-
 // The positions from + k of the points q[k] (the object's frame) that lie, shifted by the match,
 // in the matched object's voxels or next to them (26 neighbours).
 std::vector<uint32_t> nearObject(const std::vector<Eigen::Vector3f>& q, std::size_t from,
@@ -1589,8 +1586,7 @@ void LaserPipeline::carryBack() {
   if (n_held < 3) return;
   const float inv = static_cast<float>(1.0 / p_.object.voxel);
   const auto objectOf = [&](const WholeObjects& o, const Eigen::Vector3f& x) {
-    return o.voxel.find(
-        cellKey(floorToCell(x.x(), inv), floorToCell(x.y(), inv), floorToCell(x.z(), inv)));
+    return o.voxel.find(cellKeyOf(x.x(), x.y(), x.z(), inv));
   };
   // An object carried back: where it was (world centroids, horizontal) at which scan (index),
   // the nearest first, and its motion per scan when first found.
@@ -1718,7 +1714,7 @@ void LaserPipeline::carryBack() {
         const WholeMatch& m = *match;
         std::vector<uint32_t> part;  // positions in h.order
         for (std::size_t k = from; k < to; ++k) part.push_back(static_cast<uint32_t>(k));
-        if (!sizedAs(lo, hi, next.extent[m.object], tolerance, true))
+        if (!sizedAs(hi - lo, next.extent[m.object], tolerance, true))
           part = nearObject(q, from, next, m, op.voxel);
         lo = Eigen::Vector3f::Constant(1e30f);
         hi = -lo;
@@ -1749,7 +1745,7 @@ void LaserPipeline::carryBack() {
         const Eigen::Vector2d before =
             moves_here ? Eigen::Vector2d(here - track.velocity * half) : here;
         const double moved = (track.where(t + half) - before).norm();
-        if (!part.empty() && sizedAs(lo, hi, next.extent[m.object], tolerance, true) &&
+        if (!part.empty() && sizedAs(hi - lo, next.extent[m.object], tolerance, true) &&
             moved > kMovedDistance) {
           ++h.r.stats.objects_carried_back;
           track.at.push_front({t, here});
