@@ -11,6 +11,8 @@ each moving object's points labelled moving. Variants:
   mov_slow  every mover at 0.5x     mov_fast  every mover at 1.5x
   noisy     twice the range noise   hdl32     an HDL-32E instead of the scene's lidar
   vlp16     a VLP-16 instead of the scene's lidar (not in the default list)
+  accel     movers pull away and brake at 2 m/s2 instead of changing speed at once (not in the
+            default list; only scenes whose movers wait or stop change)
 The bars the named tests check are for the shipped scenes; this looks around them. A run's
 folders are removed once scored (about 100 MB each); --keep keeps them.
 
@@ -27,6 +29,7 @@ import sys
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 VARIANTS = ["base", "seed", "ego_slow", "ego_fast", "mov_slow", "mov_fast", "noisy", "hdl32"]
+OPTIONAL = ["vlp16", "accel"]  # variants run only when named
 SENSORS = {"hdl32": "hdl32", "vlp16": "vlp16"}  # variant -> the [sensor] model preset it uses
 # (section, key) -> factor, per variant
 SCALE = {
@@ -71,6 +74,8 @@ def perturb(text, variant):
         text = text.replace("[sensor]", "[sensor]\nrange_noise = 0.02", 1)  # twice the default
     if variant in SENSORS:
         text = text.replace("[sensor]", f"[sensor]\nmodel = {SENSORS[variant]}", 1)
+    if variant == "accel":
+        text = re.sub(r"^(\s*\[mover\][^\n]*)$", r"\1\naccel = 2", text, flags=re.M)
     return text
 
 
@@ -104,8 +109,8 @@ def main():
             fail(f"{s}: no such scenario in {scen_dir}")
     variants = [v for v in a.variants.split(",") if v]
     for v in variants:
-        if v not in VARIANTS and v not in SENSORS:
-            fail(f"{v}: unknown variant (known: {', '.join(VARIANTS + ['vlp16'])})")
+        if v not in VARIANTS + OPTIONAL:
+            fail(f"{v}: unknown variant (known: {', '.join(VARIANTS + OPTIONAL)})")
     if a.config and not os.path.isfile(a.config):
         fail(f"{a.config}: no such configuration file")
     os.makedirs(a.output, exist_ok=True)

@@ -266,6 +266,55 @@ TEST(SimLidar, MoverLabelsFollowItsMotion) {
   EXPECT_EQ(sim::World(sc, 2.0).solids().back().motion, 0);
 }
 
+// `accel`: pulls away from rest and brakes to a stop at that rate (s = a t^2 / 2 up to speed),
+// and the labels' +-0.5 s test follows it; without it the speed changes at once.
+TEST(SimLidar, MoversAccelerateAndBrakeAtTheirRate) {
+  sim::MoverSpec m;
+  m.path = {{0, 0}, {1000, 0}};
+  m.speed = 6;
+  m.start = 2;
+  m.stop = std::make_pair(10.0, 12.0);
+  EXPECT_DOUBLE_EQ(sim::moverArc(m, 3), 6.0);  // at once
+  m.accel = 2;                                 // 3 s to reach 6 m/s, 9 m on the way
+  EXPECT_DOUBLE_EQ(sim::moverArc(m, 1.5), 0.0);
+  EXPECT_DOUBLE_EQ(sim::moverArc(m, 3), 1.0);
+  EXPECT_DOUBLE_EQ(sim::moverArc(m, 5), 9.0);
+  EXPECT_DOUBLE_EQ(sim::moverArc(m, 6), 15.0);
+  // Brakes over the last 3 s before the stop at 10 s: 9 + 12 + 9 m, and stands still until 12.
+  EXPECT_DOUBLE_EQ(sim::moverArc(m, 9), 30.0 - 1.0);
+  EXPECT_DOUBLE_EQ(sim::moverArc(m, 10), 30.0);
+  EXPECT_DOUBLE_EQ(sim::moverArc(m, 11.5), 30.0);
+  EXPECT_DOUBLE_EQ(sim::moverArc(m, 13), 31.0);
+  EXPECT_DOUBLE_EQ(sim::moverArc(m, 16), 30.0 + 9.0 + 6.0);
+  // A stretch too short to reach full speed: up for half of it, down for the other half.
+  m.stop = std::make_pair(4.0, 12.0);
+  EXPECT_DOUBLE_EQ(sim::moverArc(m, 3), 1.0);
+  EXPECT_DOUBLE_EQ(sim::moverArc(m, 4), 2.0);
+  EXPECT_DOUBLE_EQ(sim::moverArc(m, 8), 2.0);
+  // A mover that does not wait is at speed from the first frame, and never before it.
+  m.start = 0;
+  m.stop.reset();
+  EXPECT_DOUBLE_EQ(sim::moverArc(m, -0.05), 0.0);
+  EXPECT_DOUBLE_EQ(sim::moverArc(m, 2), 12.0);
+
+  // The labels: 0.5 s after pulling away at 2 m/s2 it has covered 0.25 m over +-0.5 s (ignore);
+  // 1 s after, 1 m (moving). At full speed at once it is moving from 0.42 s before it pulls away.
+  auto sc = boxAhead();
+  sc.movers[0].speed = 6;
+  sc.movers[0].start = 1;
+  sc.movers[0].accel = 2;
+  EXPECT_EQ(sim::World(sc, 1.0).solids().back().motion, -1);
+  EXPECT_EQ(sim::World(sc, 1.5).solids().back().motion, 1);
+  EXPECT_EQ(sim::World(sc, 0.6).solids().back().motion, 0);
+  sc.movers[0].accel = 0;
+  EXPECT_EQ(sim::World(sc, 0.55).solids().back().motion, -1);
+  EXPECT_EQ(sim::World(sc, 0.6).solids().back().motion, 1);
+  test::expectError([] { sim::parseScenario("[mover]\npath = 0 0  9 0\naccel = -1\n", "s.ini"); },
+                    "s.ini:3", "outside");
+  EXPECT_DOUBLE_EQ(
+      sim::parseScenario("[mover]\npath = 0 0  9 0\naccel = 2.5\n", "s.ini").movers[0].accel, 2.5);
+}
+
 TEST(SimOutput, FolderReadsBackWithPosesLabelsObjectsAndCamera) {
   auto sc = sim::defaultScenario();
   sc.frames = 3;

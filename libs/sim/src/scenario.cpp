@@ -234,6 +234,8 @@ Scenario parseScenario(const std::string& text, const std::string& name) {
       m.speed = r.number(k, v, 0, 60);
     else if (k == "start")
       m.start = r.number(k, v, 0, 1e6);
+    else if (k == "accel")
+      m.accel = r.number(k, v, 0, 20);
     else if (k == "stop") {
       const auto n = r.numbers(k, v, 2, 2);
       if (!(n[0] >= 0 && n[1] > n[0])) r.fail("stop: expected t0 < t1, seconds");

@@ -19,15 +19,40 @@ double planeT(const Eigen::Vector3d& o, const Eigen::Vector3d& dir, const Eigen:
   return t > 1e-6 ? t : std::numeric_limits<double>::infinity();
 }
 
+// Distance covered y seconds after pulling away from rest at `a` up to speed `v` (y >= 0).
+double rampDistance(double v, double a, double y) {
+  const double ramp = v / a;
+  return y <= ramp ? 0.5 * a * y * y : 0.5 * v * ramp + v * (y - ramp);
+}
+
+// Distance covered by time t within one stretch of motion [s, e] (e may be +inf): pulls away at
+// s, brakes to stand at e, at `a` up to speed `v`. The profile min(v, a(t - s), a(e - t)) is
+// symmetric, so its rise and its fall meet at the middle.
+double stretchDistance(double v, double a, double s, double e, double t) {
+  if (t <= s || e <= s) return 0.0;
+  t = std::min(t, e);
+  const double mid = std::isinf(e) ? e : 0.5 * (s + e);
+  if (t <= mid) return rampDistance(v, a, t - s);
+  return rampDistance(v, a, mid - s) + rampDistance(v, a, e - mid) - rampDistance(v, a, e - t);
+}
+
 }  // namespace
 
 double moverArc(const MoverSpec& m, double t) {
-  double moving = std::max(0.0, t - m.start);
-  if (m.stop) {
-    const double a = std::max(m.stop->first, m.start), b = std::max(m.stop->second, m.start);
-    moving -= std::max(0.0, std::min(t, b) - a);
+  const double inf = std::numeric_limits<double>::infinity();
+  // Stretches of motion: [start, stop_from] and [stop_to, inf), or [start, inf).
+  double a0 = inf, b0 = m.start;
+  if (m.stop) a0 = std::max(m.stop->first, m.start), b0 = std::max(m.stop->second, m.start);
+  if (m.accel <= 0) {
+    const double moving = std::max(0.0, t - m.start) - std::max(0.0, std::min(t, b0) - a0);
+    return m.speed * std::max(0.0, moving);
   }
-  return m.speed * std::max(0.0, moving);
+  // A mover that waits pulls away from rest at `start`; one that does not (start = 0) is at speed
+  // from the first frame, as if it had pulled away v / a earlier.
+  const double from = m.start > 0 ? m.start : -m.speed / m.accel;
+  const double first = stretchDistance(m.speed, m.accel, from, a0, std::max(t, m.start)) -
+                       stretchDistance(m.speed, m.accel, from, a0, m.start);
+  return m.stop ? first + stretchDistance(m.speed, m.accel, b0, inf, t) : first;
 }
 
 Eigen::Vector3d alongPath(const std::vector<Eigen::Vector2d>& path, double s) {

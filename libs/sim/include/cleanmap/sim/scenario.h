@@ -60,13 +60,15 @@ struct CylinderSpec {
   Eigen::Vector3f colour{0.5f, 0.45f, 0.4f};
 };
 
-/// A box moving along a polyline at constant speed, optionally waiting before `start` and
-/// standing still during [stop_from, stop_to].
+/// A box moving along a polyline at `speed`, optionally waiting before `start` and standing
+/// still during [stop_from, stop_to]. With `accel` > 0 it pulls away from rest and brakes to a
+/// stop at that rate (m/s2) instead of changing speed at once.
 struct MoverSpec {
   std::string name, cls = "car";
   Eigen::Vector3d size{4.5, 1.8, 1.5};
   std::vector<Eigen::Vector2d> path;
   double speed = 5.0, start = 0.0;
+  double accel = 0.0;  ///< m/s2; 0 = speed changes at once
   std::optional<std::pair<double, double>> stop;
   Texture texture = Texture::kChecker;
   Eigen::Vector3f colour{0.7f, 0.1f, 0.1f};
