@@ -8,6 +8,7 @@
 
 #include "cleanmap/core/mover_feet.h"
 #include "cleanmap/core/object_consensus.h"
+#include "cleanmap/core/object_shift.h"
 
 using namespace cleanmap;
 
@@ -950,4 +951,68 @@ TEST(MoverFeet, AWallsFootBehindAWalkerStaysGround) {
   const auto feet = s.feet();
   for (uint32_t i : shoes) EXPECT_TRUE(contains(feet, i)) << "shoe " << i;
   for (uint32_t i : s.foot) EXPECT_FALSE(contains(feet, i)) << "wall's foot " << i;
+}
+
+// Rule 7 (doc/OBJECTS.md, "Measured"): an object's outline matched against another scan's.
+namespace {
+
+// The vertical faces a sensor behind and to the right of a car sees: its right side (y = 0,
+// x in [x0, x0 + 4.5]) and its rear (x = x0, y in [0, 1.8]), 0.3-1.5 m up, every 5 cm.
+std::vector<Eigen::Vector3f> carFaces(float x0, bool rear = true, float from = 0, float to = 4.5f) {
+  std::vector<Eigen::Vector3f> out;
+  for (float z = 0.3f; z <= 1.5f; z += 0.1f) {
+    for (float x = from; x <= to; x += 0.05f) out.emplace_back(x0 + x, 0.0f, z);
+    if (rear)
+      for (float y = 0.05f; y <= 1.8f; y += 0.05f) out.emplace_back(x0, y, z);
+  }
+  return out;
+}
+
+}  // namespace
+
+TEST(OutlineShift, ACarThatMovedAlongItsSideIsFoundByItsRear) {
+  // 0.6 m forward: the side matches anywhere along itself, the rear only shifted.
+  const auto m = outlineShift(carFaces(0.0f), carFaces(0.6f));
+  EXPECT_NEAR(m.shift.x(), 0.6f, 0.16f);
+  EXPECT_NEAR(m.shift.y(), 0.0f, 0.01f);
+  EXPECT_EQ(m.at_shift, m.cells);
+  EXPECT_GE(m.facing, 10u);  // the rear's cells (12), across the shift
+  EXPECT_EQ(m.facing_at_rest, 0u);
+  EXPECT_EQ(m.facing_at_shift, m.facing);
+  // The evidence is the rear's points: where the car stood and no longer stands.
+  ASSERT_FALSE(m.evidence.empty());
+  const auto object = carFaces(0.0f);
+  for (const uint32_t i : m.evidence) EXPECT_LT(object[i].x(), 0.3f) << i;
+}
+
+TEST(OutlineShift, ASideAloneShowsNoShift) {
+  // The same side seen over another stretch (a sensor further on): it matches best shifted
+  // along itself, but no cell faces that shift.
+  const auto m = outlineShift(carFaces(0.0f, false, 0.0f, 3.5f), carFaces(0.0f, false, 1.0f, 4.5f));
+  EXPECT_EQ(m.facing, 0u);
+  EXPECT_TRUE(m.evidence.empty());
+}
+
+TEST(OutlineShift, AStandingCarMatchesWhereItIs) {
+  auto target = carFaces(0.0f);
+  for (std::size_t i = 0; i < target.size(); ++i)  // 2 cm of range noise
+    target[i].y() += 0.02f * static_cast<float>(static_cast<int>(i % 5) - 2) / 2.0f;
+  const auto m = outlineShift(carFaces(0.0f), target);
+  EXPECT_EQ(m.shift, Eigen::Vector2f::Zero());
+  EXPECT_EQ(m.at_rest, m.cells);
+  EXPECT_TRUE(m.evidence.empty());
+}
+
+TEST(OutlineShift, RoofStripesAreNotOutline) {
+  // One ring's stripe over a roof (constant height) is no vertical face: it counts no cell, and
+  // stripes elsewhere in the target do not pull the shift.
+  std::vector<Eigen::Vector3f> stripe, other;
+  for (float x = 0; x <= 4.5f; x += 0.05f) {
+    stripe.emplace_back(x, 0.2f * x, 1.5f);
+    other.emplace_back(x + 0.4f, 0.2f * x, 1.5f);
+  }
+  const auto m = outlineShift(stripe, other);
+  EXPECT_EQ(m.cells, 0u);
+  EXPECT_EQ(m.shift, Eigen::Vector2f::Zero());
+  EXPECT_EQ(outlineShift({}, other).cells, 0u);
 }

@@ -405,6 +405,10 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
     groupMembers();
     return rules.has_left(std::vector<uint32_t>(members[v].begin(), members[v].end()));
   };
+  const auto measuredMoving = [&](uint32_t v) {
+    groupMembers();
+    return rules.measured(std::vector<uint32_t>(members[v].begin(), members[v].end()));
+  };
   const bool few_are_noise = rules.few_points_are_noise;
   bool body_check = false;  // a component turned static holds enough moving points for a body
   for (uint32_t v = 0; v < voxels.size(); ++v) {
@@ -437,6 +441,15 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
       ++st.moving_objects;
       ++st.persisted;
       ++st.left_place;
+    } else if (rules.measured && vehicle_sized && c.moving < c.n && c.n >= rules.measured_points &&
+               static_cast<double>(c.moving) < p.moving_fraction * static_cast<double>(c.n) &&
+               measuredMoving(v)) {
+      // Rule 7: its outline moved between the scans half a window before and after it.
+      turn[v] = 1;
+      if (all_parts.empty()) all_parts.assign(voxels.size(), 0);
+      all_parts[v] = 1;
+      ++st.moving_objects;
+      ++st.measured;
     } else if (vehicle_sized && c.moving > 0 && (cc.piece.empty() || !cc.piece[v]) &&
                ((few_are_noise && static_cast<int>(c.moving) < p.min_moving) ||
                 static_cast<double>(c.moving) < p.static_fraction * static_cast<double>(c.n))) {

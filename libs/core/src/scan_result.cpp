@@ -53,6 +53,7 @@ ScanStats& ScanStats::operator+=(const ScanStats& o) {
   consensus_still_part_left += o.consensus_still_part_left;
   objects_persisted += o.objects_persisted;
   objects_left_place += o.objects_left_place;
+  objects_measured += o.objects_measured;
   objects_carried_back += o.objects_carried_back;
   carried_back_points += o.carried_back_points;
   empty += o.empty;

@@ -130,6 +130,8 @@ std::map<std::string, Key> table(PipelineParams& p) {
       {"object.feet", Key{[&p](double v) { p.object.feet = v != 0; },
                           [&p] { return p.object.feet ? 1.0 : 0.0; }, true}},
       {"object.ring_pool", d(p.object.ring_pool)},
+      {"object.measure", Key{[&p](double v) { p.object.measure = v != 0; },
+                             [&p] { return p.object.measure ? 1.0 : 0.0; }, true}},
       {"registration.min_range", d(p.registration.min_range)},
       {"registration.max_range", d(p.registration.max_range)},
       {"registration.voxel", d(p.registration.voxel)},

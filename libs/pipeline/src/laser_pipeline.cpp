@@ -2,6 +2,7 @@
 #include "cleanmap/pipeline/laser_pipeline.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <condition_variable>
 #include <deque>
@@ -22,6 +23,7 @@
 #include "cleanmap/core/median.h"
 #include "cleanmap/core/mover_feet.h"
 #include "cleanmap/core/object_consensus.h"
+#include "cleanmap/core/object_shift.h"
 #include "cleanmap/core/octree_sampling.h"
 #include "cleanmap/core/parallel.h"
 #include "cleanmap/core/stopwatch.h"
@@ -37,6 +39,17 @@ constexpr float kMovedMatch = 0.9f;
 // over the half window around it, static under 0.2 m, neither between (../shared/data/README.md:
 // over +-5 scans). The middle of that band allows for the error of our estimate.
 constexpr double kMovedDistance = 0.35;
+// Rule 4 backwards: the two scans that found an object show it at sizes within this fraction.
+constexpr float kSeedSize = 0.15f;
+// Rule 7's outline match (doc/OBJECTS.md, "Measured"): the grid, the other scans' points in
+// columns of this side (m), up to this far above the object's top (m), and the least gain in
+// matched cells (or 5 % of the outline's) for a shift to count.
+constexpr ShiftParams kShift{};
+constexpr double kShiftColumn = 2.0;
+constexpr double kShiftAbove = 0.3;
+constexpr std::size_t kShiftMinGain = 5;
+constexpr std::size_t kShiftMinCells = 20;          // outline cells: 3 m of a vertical face
+constexpr double kShiftView = 15.0 * M_PI / 180.0;  // rad
 
 // Rule 4's "not smaller than 1 - tolerance of it" (horizontal diagonal, height) of an extent e
 // against an object's extent x, and with `at_most`, not larger than x / (1 - tolerance) across.
@@ -107,6 +120,7 @@ struct LaserPipeline::Held {
   std::vector<uint32_t> original;             // ... their indices as read ...
   std::vector<uint8_t> moving, relabelled;    // ... and their decisions (Work)
   std::vector<PointXYZI> whole;               // its objects moved whole (remember()) ...
+  std::vector<uint8_t> whole_measured;        // ... per point: rule 7 measured it ...
   std::optional<WholeObjects> whole_objects;  // ... grouped once it is first asked
   Eigen::Isometry3d world_to_sensor = Eigen::Isometry3d::Identity();
   double density = 1, ring_gap = 0;
@@ -137,6 +151,7 @@ struct LaserPipeline::Work {
     relabelled.clear();
     whole.clear();
     held.clear();
+    measured.clear();
     grouped = false;
   }
   std::vector<Eigen::Vector3d> world;  // candidates' world coordinates (others left zero)
@@ -150,9 +165,10 @@ struct LaserPipeline::Work {
   std::vector<uint8_t> moving;                 // per scan point, the final decision
   std::vector<uint8_t> relabelled;  // per scan point: moving, relabelled static by the camera
   std::vector<uint8_t> whole;       // per scan point: in a vehicle-sized object moving as a whole
-  std::vector<uint8_t> held;  // per scan point: in an object rule 4 held (the camera leaves it)
-  ObjectComponents groups;    // the candidates' components (doc/OBJECTS.md rule 1) ...
-  bool grouped = false;       // ... where the object consensus ran
+  std::vector<uint8_t> held;      // per scan point: in an object rule 4 held (the camera leaves it)
+  std::vector<uint8_t> measured;  // per scan point: in an object rule 7 measured moving
+  ObjectComponents groups;        // the candidates' components (doc/OBJECTS.md rule 1) ...
+  bool grouped = false;           // ... where the object consensus ran
 };
 
 LaserPipeline::LaserPipeline(const PipelineParams& params, Sink sink)
@@ -378,6 +394,7 @@ std::unique_ptr<LaserPipeline> LaserPipeline::clone(Sink sink) const {
   c->prev_index_ = prev_index_;
   c->prev_moving_cells_ = prev_moving_cells_;
   c->prev_whole_ = prev_whole_;
+  c->prev_whole_measured_ = prev_whole_measured_;
   c->prev_pose_inverse_ = prev_pose_inverse_;
   c->held_results_ = held_results_;
   c->epoch_ = epoch_;
@@ -931,6 +948,12 @@ std::vector<WindowScan> LaserPipeline::windowAround(std::size_t pos, std::size_t
   return window;
 }
 
+std::optional<WindowScan> LaserPipeline::windowScan(std::size_t pos, std::size_t j) const {
+  for (const WindowScan& s : windowAround(pos, j > pos ? j - pos : 0, j < pos ? pos - j : 0))
+    if (s.beams == &buf_[j]->beams) return s;
+  return std::nullopt;
+}
+
 // DESIGN §2.3: duplicates of the recent static map are static, neither tested nor inserted. The
 // candidates' world coordinates are computed here, once for every later stage.
 void LaserPipeline::findDuplicates(Prepared& s, Work& w) const {
@@ -1050,6 +1073,7 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
   std::vector<Eigen::Vector3f> pieces_at;  // the scan's grouped points in the previous frame
   const WindowScan own = s.own();
   w.held.assign(s.scan.size(), 0);
+  w.measured.assign(s.scan.size(), 0);
   std::function<bool(const std::vector<uint32_t>&)> left_place;
   if (!near_prev.empty()) {
     left_place = [&](const std::vector<uint32_t>& idx) {
@@ -1182,6 +1206,106 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
       return true;
     };
   }
+  // Rule 7 (doc/OBJECTS.md, "Measured"): the candidates of the scans half a window (H scans)
+  // before and after this one, in the world frame, in columns of kShiftColumn; built on first
+  // use. Both must be there (not in a run's first and last H scans).
+  const std::size_t half = (k_ + 1) / 2;
+  const Held* earlier = nullptr;
+  for (const Held& h : held_results_)
+    if (h.r.index + half == s.index) earlier = &h;
+  const Prepared* later = pos + half < buf_.size() ? buf_[pos + half].get() : nullptr;
+  if (later && (later->index != s.index + half || later->points_released)) later = nullptr;
+  std::optional<std::array<CellMap<std::vector<Eigen::Vector3f>>, 2>> columns;
+  const float inv_column = static_cast<float>(1.0 / kShiftColumn);
+  const auto columnOf = [&](float x, float y) {
+    return cellKey(floorToCell(x, inv_column), floorToCell(y, inv_column), 0);
+  };
+  std::vector<Eigen::Vector3f> outline, target;
+  std::optional<WindowScan> seen_earlier, seen_later;  // their beams
+  if (earlier && later && p_.object.measure && pos >= half &&
+      buf_[pos - half]->index + half == s.index) {
+    seen_earlier = windowScan(pos, pos - half);
+    seen_later = windowScan(pos, pos + half);
+  }
+  if (seen_earlier && seen_later) {
+    rules.measured = [&, earlier, later](const std::vector<uint32_t>& idx) {
+      if (!columns) {
+        columns.emplace();
+        const Eigen::Isometry3f to_world_a = earlier->world_to_sensor.inverse().cast<float>();
+        for (const PointXYZI& q : earlier->points) {
+          const Eigen::Vector3f x = to_world_a * q.xyz();
+          (*columns)[0].get(columnOf(x.x(), x.y())).push_back(x);
+        }
+        const Eigen::Isometry3f to_world_b = later->world_to_sensor.inverse().cast<float>();
+        for (uint32_t i = 0; i < later->scan.size(); ++i)
+          if (later->candidate[i]) {
+            const Eigen::Vector3f x = to_world_b * later->scan.points[i].xyz();
+            (*columns)[1].get(columnOf(x.x(), x.y())).push_back(x);
+          }
+      }
+      // Its points above its foot (a sidewalk it touches is not its outline), seen from above.
+      double z_lo = 1e30, z_hi = -1e30;
+      for (const uint32_t i : idx) {
+        z_lo = std::min(z_lo, w.world[i].z());
+        z_hi = std::max(z_hi, w.world[i].z());
+      }
+      const double z_from = z_lo + op.foot_height;
+      outline.clear();
+      Eigen::Vector2f lo = Eigen::Vector2f::Constant(1e30f), hi = -lo;
+      for (const uint32_t i : idx)
+        if (w.world[i].z() >= z_from) {
+          outline.push_back(w.world[i].cast<float>());
+          lo = lo.cwiseMin(outline.back().head<2>());
+          hi = hi.cwiseMax(outline.back().head<2>());
+        }
+      if (outline.size() < rules.measured_points / 2) return false;
+      const float grow = static_cast<float>(kShift.reach + 2 * kShift.cell);
+      Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+      for (const Eigen::Vector3f& q : outline) centre += q.cast<double>();
+      centre /= static_cast<double>(outline.size());
+      const Eigen::Vector3d here = s.world_to_sensor.inverse().translation();
+      const auto shiftIn = [&](const CellMap<std::vector<Eigen::Vector3f>>& cols,
+                               const WindowScan& seen) {
+        // Seen from about the same side: a sensor that drove past sees other faces, and the
+        // parts each view holds match best shifted (horizontal bearings within kShiftView).
+        const Eigen::Vector3d there = seen.world_to_sensor.inverse().translation();
+        const Eigen::Vector2d a = (centre - here).head<2>(), b = (centre - there).head<2>();
+        if (a.dot(b) < std::cos(kShiftView) * a.norm() * b.norm())
+          return Eigen::Vector2f(Eigen::Vector2f::Zero());
+        target.clear();
+        for (int64_t cy = floorToCell(lo.y() - grow, inv_column);
+             cy <= floorToCell(hi.y() + grow, inv_column); ++cy)
+          for (int64_t cx = floorToCell(lo.x() - grow, inv_column);
+               cx <= floorToCell(hi.x() + grow, inv_column); ++cx)
+            if (const auto* col = cols.find(cellKey(cx, cy, 0)))
+              for (const Eigen::Vector3f& x : *col)
+                if (x.z() >= z_from && x.z() <= z_hi + kShiftAbove) target.push_back(x);
+        const OutlineShift m = outlineShift(outline, target, kShift);
+        // Found there (half of its outline matches), and the cells facing the shift match
+        // shifted, not where they are.
+        const bool matched =
+            m.cells >= kShiftMinCells && 2 * m.at_shift >= m.cells && m.facing >= kShiftMinGain &&
+            m.facing_at_shift >= m.facing_at_rest + std::max(kShiftMinGain, m.facing / 2);
+        if (!matched) return Eigen::Vector2f(Eigen::Vector2f::Zero());
+        // Where it stood in one scan and not in the other, the other scan sees empty space (a
+        // static object that scan did not see matches the same way, shifted onto another).
+        std::size_t empty = 0;
+        const std::size_t need = std::max(kShiftMinGain, m.evidence.size() / 3);
+        for (std::size_t k = 0; k < m.evidence.size() && empty < need; ++k)
+          empty += ds::isMoving(
+              test_.scanMass(outline[m.evidence[k]].cast<double>(), seen, nullptr, nullptr));
+        return empty >= need ? m.shift : Eigen::Vector2f(Eigen::Vector2f::Zero());
+      };
+      // Moving by the labels' measure (as rule 4 backwards): more than kMovedDistance between
+      // half a window before and half a window after.
+      const bool moved =
+          (shiftIn((*columns)[1], *seen_later) - shiftIn((*columns)[0], *seen_earlier)).norm() >
+          kMovedDistance;
+      if (moved)
+        for (const uint32_t i : idx) w.measured[i] = 1;
+      return moved;
+    };
+  }
   // Grouped here so that a held scan keeps its components for rule 4 backwards (hold()).
   groupObjects(s.scan.points, s.candidate, op.voxel, w.groups, rules.reach);
   w.grouped = true;
@@ -1190,6 +1314,7 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
                                             rules, &w.groups);
   s.stats.objects_persisted = oc.persisted;
   s.stats.objects_left_place = oc.left_place;
+  s.stats.objects_measured = oc.measured;
   s.stats.objects_moving = oc.moving_objects;
   s.stats.consensus_points = oc.points_added;
   s.stats.consensus_removed = oc.points_removed;
@@ -1464,13 +1589,16 @@ void LaserPipeline::remember(const ScanResult& r, long index, const Prepared& s,
   dup_.insert(inserted, index);
   prev_moving_cells_.clear();
   prev_whole_.clear();
+  prev_whole_measured_.clear();
   if (!p_.object.enabled || p_.object.persist_radius <= 0) return;
   persistCells(r.moving, nullptr, p_.object.persist_radius, prev_moving_cells_);
   // The objects moved whole (all their points, foot included), unless the camera relabelled them,
   // in the sensor frame (where the consensus found them) with the pose.
   for (std::size_t i = 0; i < w.whole.size(); ++i)
-    if (w.whole[i] && (w.relabelled.empty() || !w.relabelled[i]))
+    if (w.whole[i] && (w.relabelled.empty() || !w.relabelled[i])) {
       prev_whole_.push_back(s.scan.points[i]);
+      prev_whole_measured_.push_back(w.measured[i]);
+    }
   prev_pose_inverse_ = s.world_to_sensor;
 }
 
@@ -1493,6 +1621,7 @@ void LaserPipeline::hold(ScanResult&& r, const Prepared& s, const Work& w) {
     orderByComponent(root, h.order, h.ends);
   }
   h.whole = prev_whole_;
+  h.whole_measured = prev_whole_measured_;
   h.world_to_sensor = s.world_to_sensor;
   h.density = s.density;
   h.ring_gap = s.ring_gap;
@@ -1629,11 +1758,22 @@ void LaserPipeline::carryBack() {
     const double dt = static_cast<double>(b.r.index) - static_cast<double>(a.r.index);
     std::vector<Eigen::Vector3f> q;
     for (std::size_t o = 0; o < members.size(); ++o) {
+      // Not an object rule 7 measured in the older scan: it measured the half windows around
+      // it (the scans before were measured too), and its component is not what rule 4 takes on
+      // in the next scan (all parts: a standing car's centroid moved 0.6 m with the kerb).
+      std::size_t measured = 0;
+      for (const uint32_t k : members[o]) measured += a.whole_measured[k];
+      if (2 * measured >= members[o].size()) continue;
       q.clear();
       for (const uint32_t k : members[o])
         q.push_back((a_to_b * a.whole[k].xyz().cast<double>()).cast<float>());
       const std::optional<WholeMatch> m = matchWholeObject(q, ob, op.voxel, kMovedMatch);
       if (!m || dt <= 0) continue;
+      // The same size in both (horizontal diagonal, within kSeedSize): a step of the centroids
+      // between two sizes is what the two components hold, not the object's motion (a car that
+      // stands, with the kerb joined in one of the two scans: a "velocity" of 0.9 m a scan).
+      const float ea = oa.extent[o].head<2>().norm(), eb = ob.extent[m->object].head<2>().norm();
+      if (std::abs(ea - eb) > kSeedSize * std::max(ea, eb)) continue;
       Track t;
       t.at.push_back({double(a.r.index), worldCentroid(a, oa.centroid[o])});
       t.at.push_back({double(b.r.index), worldCentroid(b, ob.centroid[m->object])});
@@ -1700,7 +1840,9 @@ void LaserPipeline::carryBack() {
             return true;
         return false;
       };
-      if (static_cast<int>(n) >= op.min_moving && moving < n &&
+      // One moving in every point (rule 7 found a car before it pulls away) turns nothing but
+      // carries the object on to the scan before.
+      if (static_cast<int>(n) >= op.min_moving &&
           vehicleSized(lo, hi, op.max_length, op.max_height) && within_reach()) {
         q.clear();
         for (std::size_t k = from; k < to; ++k)
@@ -1747,7 +1889,7 @@ void LaserPipeline::carryBack() {
         const double moved = (track.where(t + half) - before).norm();
         if (!part.empty() && sizedAs(hi - lo, next.extent[m.object], tolerance, true) &&
             moved > kMovedDistance) {
-          ++h.r.stats.objects_carried_back;
+          h.r.stats.objects_carried_back += moving < n;
           track.at.push_front({t, here});
           // Its foot stays (rule 2): it goes on in the chain, as the objects moved whole keep
           // theirs, but does not turn.

@@ -33,6 +33,7 @@ struct ObjectConsensusStats {
   /// Of persisted, objects under static_fraction kept because they left their place
   /// (ConsensusRules::has_left).
   std::size_t left_place = 0;
+  std::size_t measured = 0;  ///< of moving_objects, those rule 7 measured moving
 };
 
 /// Rule 5's objects of one scan (ConsensusRules::whole_objects): each voxel (ObjectParams::voxel)
@@ -105,6 +106,12 @@ struct ConsensusRules {
   /// see it leave (at least min_moving of its moving points, or half of all its points for the
   /// far half of them) or are too few to see that. Empty: such an object is static.
   std::function<bool(const std::vector<uint32_t>&)> has_left;
+  /// Rule 7 (doc/OBJECTS.md, "Measured"): a vehicle-sized object not all moving that the rules
+  /// above leave moving in none of its points or too few, of at least `measured_points` points,
+  /// moves as a whole, all of its parts, if measured(its points' indices) says its outline moved
+  /// (the caller's measure). Empty: no such rule.
+  std::function<bool(const std::vector<uint32_t>&)> measured;
+  std::size_t measured_points = 100;
 };
 
 /// The 26-connected components of a set of member points' voxels (and those a sparse lidar's rings

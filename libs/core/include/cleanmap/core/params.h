@@ -129,6 +129,10 @@ struct ObjectParams {
   /// most this wide (horizontal diagonal: a walker's) joins the slices of its column up to 1.25
   /// ring steps above and below it. 0 = off (every lidar's objects are 26-connected voxels).
   double ring_pool = 1.0;
+  /// Rule 7 (doc/OBJECTS.md, "Measured"): a vehicle-sized object the rules above leave static
+  /// moves as a whole where its outline moved more than 0.35 m between the scans half a window
+  /// before and after it (ConsensusRules::measured; the pipeline's measure).
+  bool measure = true;
 };
 
 /// DESIGN §2.1: GICP scan-to-map odometry (used with --poses gicp / refine, or when the input has

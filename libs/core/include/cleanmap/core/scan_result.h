@@ -49,6 +49,7 @@ struct ScanStats {
   std::size_t objects_persisted = 0;  ///< of objects_moving, kept moving by the hysteresis
   /// of objects_persisted, under static_fraction (leaving or arriving)
   std::size_t objects_left_place = 0;
+  std::size_t objects_measured = 0;  ///< of objects_moving, those rule 7 measured moving
   /// Rule 4 at the start: objects the next scan moved whole, turned moving, and their points
   /// turned moving (doc/OBJECTS.md).
   std::size_t objects_carried_back = 0, carried_back_points = 0;

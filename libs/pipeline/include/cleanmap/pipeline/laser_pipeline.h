@@ -113,6 +113,8 @@ class LaserPipeline {
   // before it (rule 4 under static_fraction, doc/OBJECTS.md).
   std::vector<WindowScan> windowAround(std::size_t pos, std::size_t from = 0,
                                        std::size_t before = 0) const;
+  // The window scan of buf_[j] as the scan at `pos` compares with it; nullopt if it is not one.
+  std::optional<WindowScan> windowScan(std::size_t pos, std::size_t j) const;
   // DESIGN §3 "Camera poses": each buffered scan's pose as the scan at `pos` sees it, through the
   // corrected relative poses between neighbours; nullopt where no correction lies between them.
   std::vector<std::optional<Eigen::Isometry3d>> posesAround(std::size_t pos) const;
@@ -158,6 +160,7 @@ class LaserPipeline {
   CellMap<uint8_t> prev_moving_cells_;  // last decided scan's moving cells, dilated
   // The last decided scan's objects moved whole (its sensor frame) and its world-to-sensor pose.
   std::vector<PointXYZI> prev_whole_;
+  std::vector<uint8_t> prev_whole_measured_;  // per point of prev_whole_: rule 7's (carryBack)
   Eigen::Isometry3d prev_pose_inverse_ = Eigen::Isometry3d::Identity();
   // doc/OBJECTS.md rule 4 backwards: the last ceil(K / 2) decided scans, held so that an object
   // a later scan moved whole is carried back to them, then handed on in scan order.

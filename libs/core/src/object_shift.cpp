@@ -1,0 +1,141 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#include "cleanmap/core/object_shift.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace cleanmap {
+
+namespace {
+
+// Per grid cell, the lowest and highest point in it; `span` says which cells reach min_span.
+struct Heights {
+  std::vector<float> lo, hi;
+  void reset(std::size_t n) {
+    lo.assign(n, std::numeric_limits<float>::infinity());
+    hi.assign(n, -std::numeric_limits<float>::infinity());
+  }
+  void add(std::size_t c, float z) {
+    lo[c] = std::min(lo[c], z);
+    hi[c] = std::max(hi[c], z);
+  }
+  bool span(std::size_t c, float min_span) const { return hi[c] - lo[c] >= min_span; }
+};
+
+}  // namespace
+
+OutlineShift outlineShift(const std::vector<Eigen::Vector3f>& object,
+                          const std::vector<Eigen::Vector3f>& target, const ShiftParams& p) {
+  OutlineShift out;
+  if (object.empty()) return out;
+  Eigen::Vector2f lo = object.front().head<2>(), hi = lo;
+  for (const auto& q : object) lo = lo.cwiseMin(q.head<2>()), hi = hi.cwiseMax(q.head<2>());
+  const float cell = static_cast<float>(p.cell), min_span = static_cast<float>(p.min_span);
+  const int reach = std::max(1, static_cast<int>(std::lround(p.reach / p.cell)));
+  const int margin = reach + 2;  // the shifted outline and its 3 x 3 stay inside the grid
+  const Eigen::Vector2f origin = lo - Eigen::Vector2f::Constant(margin * cell);
+  const int w = static_cast<int>((hi.x() - lo.x()) / cell) + 2 * margin + 1;
+  const int h = static_cast<int>((hi.y() - lo.y()) / cell) + 2 * margin + 1;
+  const std::size_t size = static_cast<std::size_t>(w) * h;
+  const auto at = [&](const Eigen::Vector3f& q, int& x, int& y) {
+    x = static_cast<int>(std::floor((q.x() - origin.x()) / cell));
+    y = static_cast<int>(std::floor((q.y() - origin.y()) / cell));
+    return x >= 1 && y >= 1 && x < w - 1 && y < h - 1;
+  };
+  Heights z;
+  // The target's outline cells, each with the 8 around it: "within a cell of a target point".
+  z.reset(size);
+  std::vector<int> filled;
+  for (const auto& q : target) {
+    int x, y;
+    if (!at(q, x, y)) continue;
+    const int c = y * w + x;
+    if (z.hi[c] < z.lo[c]) filled.push_back(c);
+    z.add(c, q.z());
+  }
+  std::vector<uint8_t> near(size, 0);
+  for (const int c : filled)
+    if (z.span(c, min_span))
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx) near[c + dy * w + dx] = 1;
+  // The object's outline cells, once each.
+  z.reset(size);
+  filled.clear();
+  for (const auto& q : object) {
+    int x, y;
+    if (!at(q, x, y)) continue;
+    const int c = y * w + x;
+    if (z.hi[c] < z.lo[c]) filled.push_back(c);
+    z.add(c, q.z());
+  }
+  std::vector<uint8_t> mine(size, 0);
+  std::vector<int> cells;
+  for (const int c : filled)
+    if (z.span(c, min_span)) mine[c] = 1, cells.push_back(c);
+  std::sort(cells.begin(), cells.end());
+  out.cells = cells.size();
+  const auto count = [&](int dx, int dy) {
+    std::size_t n = 0;
+    const int d = dy * w + dx;
+    for (const int c : cells) n += near[c + d];
+    return n;
+  };
+  out.at_rest = count(0, 0);
+  // Best: most cells matched, then the nearest to zero, then the first in scan order.
+  std::size_t best = out.at_rest;
+  int bx = 0, by = 0;
+  const auto consider = [&](int dx, int dy) {
+    if (std::abs(dx) > reach || std::abs(dy) > reach) return;
+    const std::size_t n = count(dx, dy);
+    if (n > best || (n == best && dx * dx + dy * dy < bx * bx + by * by))
+      best = n, bx = dx, by = dy;
+  };
+  const int step = std::max(1, p.coarse_step);
+  for (int dy = -(reach / step) * step; dy <= reach; dy += step)
+    for (int dx = -(reach / step) * step; dx <= reach; dx += step) consider(dx, dy);
+  const int cx = bx, cy = by;
+  for (int dy = cy - 2; dy <= cy + 2; ++dy)
+    for (int dx = cx - 2; dx <= cx + 2; ++dx) consider(dx, dy);
+  out.at_shift = best;
+  out.shift = Eigen::Vector2f(bx * cell, by * cell);
+  if (bx == 0 && by == 0) return out;
+  // The cells facing the shift: the outline around each (5 x 5 cells) is a line across it.
+  const Eigen::Vector2f u = Eigen::Vector2f(bx, by).normalized();
+  const int moved = by * w + bx;
+  std::vector<uint8_t>& evidence = mine;  // reused: 1 outline, 2 evidence
+  for (const int c : cells) {
+    const int x = c % w, y = c / w;
+    double n = 0, sx = 0, sy = 0, sxx = 0, syy = 0, sxy = 0;
+    for (int dy = -2; dy <= 2; ++dy)
+      for (int dx = -2; dx <= 2; ++dx) {
+        const int xx = x + dx, yy = y + dy;
+        if (xx < 0 || yy < 0 || xx >= w || yy >= h || !mine[static_cast<std::size_t>(yy) * w + xx])
+          continue;
+        n += 1, sx += dx, sy += dy, sxx += dx * dx, syy += dy * dy, sxy += dx * dy;
+      }
+    if (n < 3) continue;
+    const double a = sxx / n - (sx / n) * (sx / n), d = syy / n - (sy / n) * (sy / n);
+    const double b = sxy / n - (sx / n) * (sy / n);
+    const double mid = 0.5 * (a + d), r = std::sqrt(0.25 * (a - d) * (a - d) + b * b);
+    const double along = mid + r, across = mid - r;
+    if (!(across < 0.2 * along)) continue;  // not a line: a roof's fill, a corner, a blob
+    // The line's normal: the eigenvector of the smaller eigenvalue.
+    Eigen::Vector2d nrm = std::abs(b) > 1e-12
+                              ? Eigen::Vector2d(b, across - a)
+                              : (a <= d ? Eigen::Vector2d(1, 0) : Eigen::Vector2d(0, 1));
+    nrm.normalize();
+    if (std::abs(nrm.x() * u.x() + nrm.y() * u.y()) < std::sqrt(0.5)) continue;
+    ++out.facing;
+    out.facing_at_rest += near[c];
+    out.facing_at_shift += near[c + moved];
+    if (!near[c] && near[c + moved]) evidence[c] = 2;
+  }
+  for (uint32_t i = 0; i < object.size(); ++i) {
+    int x, y;
+    if (at(object[i], x, y) && evidence[y * w + x] == 2) out.evidence.push_back(i);
+  }
+  return out;
+}
+
+}  // namespace cleanmap
