@@ -43,36 +43,31 @@ OutlineShift outlineShift(const std::vector<Eigen::Vector3f>& object,
     y = static_cast<int>(std::floor((q.y() - origin.y()) / cell));
     return x >= 1 && y >= 1 && x < w - 1 && y < h - 1;
   };
+  // The outline cells of a cloud (those spanning min_span), each once, in the order first met.
   Heights z;
-  // The target's outline cells, each with the 8 around it: "within a cell of a target point".
-  z.reset(size);
-  std::vector<int> filled;
-  for (const auto& q : target) {
-    int x, y;
-    if (!at(q, x, y)) continue;
-    const int c = y * w + x;
-    if (z.hi[c] < z.lo[c]) filled.push_back(c);
-    z.add(c, q.z());
-  }
+  const auto outlineOf = [&](const std::vector<Eigen::Vector3f>& points) {
+    z.reset(size);
+    std::vector<int> filled, outline;
+    for (const auto& q : points) {
+      int x, y;
+      if (!at(q, x, y)) continue;
+      const int c = y * w + x;
+      if (z.hi[c] < z.lo[c]) filled.push_back(c);
+      z.add(c, q.z());
+    }
+    for (const int c : filled)
+      if (z.span(c, min_span)) outline.push_back(c);
+    return outline;
+  };
+  // The target's, each with the 8 around it: "within a cell of a target point".
   std::vector<uint8_t> near(size, 0);
-  for (const int c : filled)
-    if (z.span(c, min_span))
-      for (int dy = -1; dy <= 1; ++dy)
-        for (int dx = -1; dx <= 1; ++dx) near[c + dy * w + dx] = 1;
-  // The object's outline cells, once each.
-  z.reset(size);
-  filled.clear();
-  for (const auto& q : object) {
-    int x, y;
-    if (!at(q, x, y)) continue;
-    const int c = y * w + x;
-    if (z.hi[c] < z.lo[c]) filled.push_back(c);
-    z.add(c, q.z());
-  }
+  for (const int c : outlineOf(target))
+    for (int dy = -1; dy <= 1; ++dy)
+      for (int dx = -1; dx <= 1; ++dx) near[c + dy * w + dx] = 1;
+  // The object's.
   std::vector<uint8_t> mine(size, 0);
-  std::vector<int> cells;
-  for (const int c : filled)
-    if (z.span(c, min_span)) mine[c] = 1, cells.push_back(c);
+  std::vector<int> cells = outlineOf(object);
+  for (const int c : cells) mine[c] = 1;
   std::sort(cells.begin(), cells.end());
   out.cells = cells.size();
   const auto count = [&](int dx, int dy) {

@@ -1580,6 +1580,7 @@ void LaserPipeline::startEpoch(long index) {
   dup_ = DuplicateFilter(p_.filter);
   prev_moving_cells_.clear();
   prev_whole_.clear();
+  prev_whole_measured_.clear();
 }
 
 void LaserPipeline::remember(const ScanResult& r, long index, const Prepared& s, const Work& w) {
