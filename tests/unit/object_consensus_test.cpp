@@ -987,10 +987,32 @@ TEST(OutlineShift, ACarThatMovedAlongItsSideIsFoundByItsRear) {
 
 TEST(OutlineShift, ASideAloneShowsNoShift) {
   // The same side seen over another stretch (a sensor further on): it matches best shifted
-  // along itself, but no cell faces that shift.
+  // along itself, but no cell faces that shift. Its outline alone cannot tell it from a side
+  // sliding along itself (below): the end it showed is end evidence, which only the other scan
+  // seeing that place empty confirms (the pipeline's rule 7; there it was not seen at all).
   const auto m = outlineShift(carFaces(0.0f, false, 0.0f, 3.5f), carFaces(0.0f, false, 1.0f, 4.5f));
   EXPECT_EQ(m.facing, 0u);
   EXPECT_TRUE(m.evidence.empty());
+  EXPECT_FALSE(m.end_evidence.empty());
+}
+
+TEST(OutlineShift, ASideSlidingAlongItselfShowsItsEnds) {
+  // A truck's side alone (its ends face away from the sensor), 0.6 m further on in the target:
+  // no cell faces the shift; the side's cells lie along it, and those that match only shifted
+  // are its rear end's, where the truck stood and no longer stands.
+  const auto object = carFaces(0.0f, false, 0.0f, 12.0f);
+  const auto m = outlineShift(object, carFaces(0.6f, false, 0.0f, 12.0f));
+  EXPECT_NEAR(m.shift.x(), 0.6f, 0.16f);
+  EXPECT_EQ(m.facing, 0u);
+  EXPECT_TRUE(m.evidence.empty());
+  EXPECT_GE(m.along, 70u);  // 12 m of side in 0.15 m cells
+  EXPECT_GT(m.along_at_shift, m.along_at_rest);
+  ASSERT_FALSE(m.end_evidence.empty());
+  for (const uint32_t i : m.end_evidence) EXPECT_LT(object[i].x(), 0.75f) << i;
+  // Standing, nothing matches only shifted.
+  const auto still = outlineShift(object, carFaces(0.0f, false, 0.0f, 12.0f));
+  EXPECT_EQ(still.shift, Eigen::Vector2f::Zero());
+  EXPECT_TRUE(still.end_evidence.empty());
 }
 
 TEST(OutlineShift, AStandingCarMatchesWhereItIs) {

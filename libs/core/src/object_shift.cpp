@@ -98,6 +98,11 @@ OutlineShift outlineShift(const std::vector<Eigen::Vector3f>& object,
   // The cells facing the shift: the outline around each (5 x 5 cells) is a line across it.
   const Eigen::Vector2f u = Eigen::Vector2f(bx, by).normalized();
   const int moved = by * w + bx;
+  // A side's trailing end along the shift: within the shift (and a cell) of its last cell.
+  const auto along_u = [&](int c) { return (c % w) * u.x() + (c / w) * u.y(); };
+  float trailing = std::numeric_limits<float>::infinity();
+  for (const int c : cells) trailing = std::min(trailing, along_u(c));
+  trailing += std::hypot(static_cast<float>(bx), static_cast<float>(by)) + 1.0f;
   std::vector<uint8_t>& evidence = mine;  // reused: 1 outline, 2 evidence
   for (const int c : cells) {
     const int x = c % w, y = c / w;
@@ -120,7 +125,14 @@ OutlineShift outlineShift(const std::vector<Eigen::Vector3f>& object,
                               ? Eigen::Vector2d(b, across - a)
                               : (a <= d ? Eigen::Vector2d(1, 0) : Eigen::Vector2d(0, 1));
     nrm.normalize();
-    if (std::abs(nrm.x() * u.x() + nrm.y() * u.y()) < std::sqrt(0.5)) continue;
+    if (std::abs(nrm.x() * u.x() + nrm.y() * u.y()) < std::sqrt(0.5)) {
+      // A side along the shift: its cells that match only shifted are its ends.
+      ++out.along;
+      out.along_at_rest += near[c];
+      out.along_at_shift += near[c + moved];
+      if (!near[c] && near[c + moved] && along_u(c) <= trailing) evidence[c] = 3;
+      continue;
+    }
     ++out.facing;
     out.facing_at_rest += near[c];
     out.facing_at_shift += near[c + moved];
@@ -128,7 +140,9 @@ OutlineShift outlineShift(const std::vector<Eigen::Vector3f>& object,
   }
   for (uint32_t i = 0; i < object.size(); ++i) {
     int x, y;
-    if (at(object[i], x, y) && evidence[y * w + x] == 2) out.evidence.push_back(i);
+    if (!at(object[i], x, y)) continue;
+    if (evidence[y * w + x] == 2) out.evidence.push_back(i);
+    if (evidence[y * w + x] == 3) out.end_evidence.push_back(i);
   }
   return out;
 }

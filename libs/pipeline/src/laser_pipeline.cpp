@@ -41,6 +41,8 @@ constexpr float kMovedMatch = 0.9f;
 constexpr double kMovedDistance = 0.35;
 // Rule 4 backwards: the two scans that found an object show it at sizes within this fraction.
 constexpr float kSeedSize = 0.15f;
+// Rule 4's leaving and arriving tests ask at most about this many of an object's points.
+constexpr std::size_t kRule4Sample = 2000;
 // Rule 7's outline match (doc/OBJECTS.md, "Measured"): the grid, the other scans' points in
 // columns of this side (m), up to this far above the object's top (m), and the least gain in
 // matched cells (or 5 % of the outline's) for a shift to count.
@@ -48,7 +50,8 @@ constexpr ShiftParams kShift{};
 constexpr double kShiftColumn = 2.0;
 constexpr double kShiftAbove = 0.3;
 constexpr std::size_t kShiftMinGain = 5;
-constexpr std::size_t kShiftMinCells = 20;          // outline cells: 3 m of a vertical face
+constexpr std::size_t kShiftMinCells = 20;  // outline cells: 3 m of a vertical face
+constexpr std::size_t kShiftEndGain = 2;    // a side's cells matching only shifted: its end, 0.3 m
 constexpr double kShiftView = 15.0 * M_PI / 180.0;  // rad
 
 // Rule 4's "not smaller than 1 - tolerance of it" (horizontal diagonal, height) of an extent e
@@ -1181,9 +1184,14 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
         if (w.moving[i] && (left += test_.isMoving(w.world[i], *after, nullptr,
                                                    edgeBits(s, i, own))) >= op.min_moving)
           return true;
+      // The two tests of all its points below ask every stride-th point of a large object, each
+      // standing for stride points (a truck 2 m off holds 30,000 returns; issue #16).
+      const std::size_t stride =
+          std::max<std::size_t>(1, (idx.size() + kRule4Sample - 1) / kRule4Sample);
       std::size_t gone = 0, asked = 0;
-      const std::size_t n = idx.size();
-      for (uint32_t i : idx) {
+      const std::size_t n = (idx.size() + stride - 1) / stride;
+      for (std::size_t k = 0; k < idx.size(); k += stride) {
+        const uint32_t i = idx[k];
         gone += test_.isMoving(w.world[i], *far, nullptr, edgeBits(s, i, own));
         ++asked;
         if (2 * gone >= n) return true;
@@ -1194,9 +1202,10 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
       // towards the sensor shows only its front, which the scans after it see inside it; one that
       // stopped moved within the last K / 2 scans: moving, as the labels' +-0.5 s count it.
       int arrived = 0;
-      for (uint32_t i : idx)
-        if ((arrived += test_.isMoving(w.world[i], *just_before, nullptr, edgeBits(s, i, own))) >=
-            op.min_moving)
+      for (std::size_t k = 0; k < idx.size(); k += stride)  // each asked point stands for stride
+        if ((arrived +=
+             static_cast<int>(stride) * test_.isMoving(w.world[idx[k]], *just_before, nullptr,
+                                                       edgeBits(s, idx[k], own))) >= op.min_moving)
           return true;
       return false;
     };
@@ -1283,17 +1292,26 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
         const OutlineShift m = outlineShift(outline, target, kShift);
         // Found there (half of its outline matches), and the cells facing the shift match
         // shifted, not where they are.
-        const bool matched =
-            m.cells >= kShiftMinCells && 2 * m.at_shift >= m.cells && m.facing >= kShiftMinGain &&
+        const bool found = m.cells >= kShiftMinCells && 2 * m.at_shift >= m.cells;
+        const bool faces =
+            found && m.facing >= kShiftMinGain &&
             m.facing_at_shift >= m.facing_at_rest + std::max(kShiftMinGain, m.facing / 2);
-        if (!matched) return Eigen::Vector2f(Eigen::Vector2f::Zero());
+        // Or, no face across in view, a side along the shift: all but a tenth of the outline
+        // matches shifted, and more of it than in place (its ends; a side seen over another
+        // stretch matches so too, and its end's place is not seen empty, below).
+        const bool side = found && m.facing < kShiftMinGain && m.along >= kShiftMinCells &&
+                          10 * m.at_shift >= 9 * m.cells &&
+                          m.along_at_shift >= m.along_at_rest + kShiftEndGain;
+        if (!faces && !side) return Eigen::Vector2f(Eigen::Vector2f::Zero());
         // Where it stood in one scan and not in the other, the other scan sees empty space (a
-        // static object that scan did not see matches the same way, shifted onto another).
+        // static object that scan did not see matches the same way, shifted onto another): a
+        // third of the facing evidence, half of a side's trailing end.
+        const std::vector<uint32_t>& ev = faces ? m.evidence : m.end_evidence;
         std::size_t empty = 0;
-        const std::size_t need = std::max(kShiftMinGain, m.evidence.size() / 3);
-        for (std::size_t k = 0; k < m.evidence.size() && empty < need; ++k)
-          empty += ds::isMoving(
-              test_.scanMass(outline[m.evidence[k]].cast<double>(), seen, nullptr, nullptr));
+        const std::size_t need = std::max(kShiftMinGain, ev.size() / (faces ? 3 : 2));
+        for (std::size_t k = 0; k < ev.size() && empty < need; ++k)
+          empty +=
+              ds::isMoving(test_.scanMass(outline[ev[k]].cast<double>(), seen, nullptr, nullptr));
         return empty >= need ? m.shift : Eigen::Vector2f(Eigen::Vector2f::Zero());
       };
       // Moving by the labels' measure (as rule 4 backwards): more than kMovedDistance between

@@ -4,7 +4,7 @@
 // space empties; one sliding along its own side at walking pace (a queue creeping past, a car
 // pulling away beside the sensor) keeps its side occupied, and its ends move less than the beam
 // model's margin in a few scans. Its outline, matched against another scan's, shows the shift
-// where its ends are in view; a side alone shows none (it matches anywhere along itself).
+// where its ends are in view: across the shift, or a side's trailing end along it.
 #pragma once
 #include <Eigen/Core>
 #include <cstddef>
@@ -33,12 +33,18 @@ struct ShiftParams {
 /// `facing_at_rest` and `facing_at_shift` match. `evidence`: the object's points in facing cells
 /// that match only shifted (indices into the object): where the object stood in one scan and not in
 /// the other, which that other scan should see empty (a static object it did not see there matches
-/// the same way, only shifted onto its neighbour).
+/// the same way, only shifted onto its neighbour). The other cells on a line lie *along* the
+/// shift (a side sliding along itself): `along`, `along_at_rest`, `along_at_shift`, and
+/// `end_evidence`, the object's points in those that match only shifted at its trailing end
+/// (within the shift and a cell of its rearmost outline cell, going along the shift): where a side
+/// that slid on stood, or the end of a side the target saw over another stretch (not empty there).
 struct OutlineShift {
   Eigen::Vector2f shift = Eigen::Vector2f::Zero();
   std::size_t cells = 0, at_rest = 0, at_shift = 0;
   std::size_t facing = 0, facing_at_rest = 0, facing_at_shift = 0;
   std::vector<uint32_t> evidence;
+  std::size_t along = 0, along_at_rest = 0, along_at_shift = 0;
+  std::vector<uint32_t> end_evidence;
 };
 
 /// Matches the outline of `object` (its points, any frame with z up) against that of `target`
