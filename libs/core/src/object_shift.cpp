@@ -98,12 +98,12 @@ OutlineShift outlineShift(const std::vector<Eigen::Vector3f>& object,
   // The cells facing the shift: the outline around each (5 x 5 cells) is a line across it.
   const Eigen::Vector2f u = Eigen::Vector2f(bx, by).normalized();
   const int moved = by * w + bx;
-  // A side's trailing end along the shift: within the shift (and a cell) of its last cell.
+  // A side's trailing end: within the shift (and a cell) of its rearmost cell along the shift.
   const auto along_u = [&](int c) { return (c % w) * u.x() + (c / w) * u.y(); };
   float trailing = std::numeric_limits<float>::infinity();
   for (const int c : cells) trailing = std::min(trailing, along_u(c));
   trailing += std::hypot(static_cast<float>(bx), static_cast<float>(by)) + 1.0f;
-  std::vector<uint8_t>& evidence = mine;  // reused: 1 outline, 2 evidence
+  std::vector<uint8_t>& evidence = mine;  // reused: 1 outline, 2 evidence, 3 end evidence
   for (const int c : cells) {
     const int x = c % w, y = c / w;
     double n = 0, sx = 0, sy = 0, sxx = 0, syy = 0, sxy = 0;
