@@ -985,7 +985,7 @@ TEST(OutlineShift, ACarThatMovedAlongItsSideIsFoundByItsRear) {
   for (const uint32_t i : m.evidence) EXPECT_LT(object[i].x(), 0.3f) << i;
 }
 
-TEST(OutlineShift, ASideAloneShowsNoShift) {
+TEST(OutlineShift, ASideSeenOverAnotherStretchFacesNoShift) {
   // The same side seen over another stretch (a sensor further on): it matches best shifted
   // along itself, but no cell faces that shift. Its outline alone cannot tell it from a side
   // sliding along itself (below): the end it showed is end evidence, which only the other scan
