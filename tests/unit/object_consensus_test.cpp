@@ -985,6 +985,28 @@ TEST(OutlineShift, ACarThatMovedAlongItsSideIsFoundByItsRear) {
   for (const uint32_t i : m.evidence) EXPECT_LT(object[i].x(), 0.3f) << i;
 }
 
+TEST(OutlineShift, ACarDrivingAwayLeftItsOldRearInTheTarget) {
+  // The target scan saw the car 1 m back. Its rear now stands where the target scan saw the
+  // inside of its body (that scan cannot see it empty); the target's rear stands where this scan
+  // sees the road behind the car: the old evidence, the target's rear points (but at its corner
+  // cells, which are no line facing the shift) and no other.
+  const auto target = carFaces(0.0f);
+  const auto m = outlineShift(carFaces(1.0f), target);
+  EXPECT_NEAR(m.shift.x(), -1.0f, 0.16f);
+  EXPECT_EQ(m.facing_at_shift, m.facing);
+  ASSERT_FALSE(m.old_evidence.empty());
+  std::size_t rear = 0;
+  for (const uint32_t i : m.old_evidence) {
+    EXPECT_LT(target[i].x(), 0.35f) << i;  // the rear, and the side's cell beside it
+    rear += target[i].x() < 0.01f;
+  }
+  std::size_t target_rear = 0;
+  for (const auto& q : target) target_rear += q.x() < 0.01f;
+  EXPECT_GE(10 * rear, 9 * target_rear);
+  // Standing, no place is the target's alone.
+  EXPECT_TRUE(outlineShift(carFaces(0.0f), target).old_evidence.empty());
+}
+
 TEST(OutlineShift, ASideSeenOverAnotherStretchFacesNoShift) {
   // The same side seen over another stretch (a sensor further on): it matches best shifted
   // along itself, but no cell faces that shift. Its outline alone cannot tell it from a side

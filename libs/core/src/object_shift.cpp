@@ -60,14 +60,20 @@ OutlineShift outlineShift(const std::vector<Eigen::Vector3f>& object,
     return outline;
   };
   // The target's, each with the 8 around it: "within a cell of a target point".
-  std::vector<uint8_t> near(size, 0);
-  for (const int c : outlineOf(target))
+  std::vector<uint8_t> near(size, 0), theirs(size, 0);
+  for (const int c : outlineOf(target)) {
+    theirs[c] = 1;
     for (int dy = -1; dy <= 1; ++dy)
       for (int dx = -1; dx <= 1; ++dx) near[c + dy * w + dx] = 1;
-  // The object's.
-  std::vector<uint8_t> mine(size, 0);
+  }
+  // The object's, and the cells within a cell of them.
+  std::vector<uint8_t> mine(size, 0), near_mine(size, 0);
   std::vector<int> cells = outlineOf(object);
-  for (const int c : cells) mine[c] = 1;
+  for (const int c : cells) {
+    mine[c] = 1;
+    for (int dy = -1; dy <= 1; ++dy)
+      for (int dx = -1; dx <= 1; ++dx) near_mine[c + dy * w + dx] = 1;
+  }
   std::sort(cells.begin(), cells.end());
   out.cells = cells.size();
   const auto count = [&](int dx, int dy) {
@@ -138,11 +144,27 @@ OutlineShift outlineShift(const std::vector<Eigen::Vector3f>& object,
     out.facing_at_shift += near[c + moved];
     if (!near[c] && near[c + moved]) evidence[c] = 2;
   }
+  // The target's side of the evidence: its outline cells that a facing evidence cell matches
+  // shifted and no cell of the object matches in place (where it stood in the target's alone).
+  std::vector<uint8_t>& old_place = theirs;  // reused: 1 outline, 2 old evidence
+  for (const int c : cells) {
+    if (evidence[c] != 2) continue;
+    for (int dy = -1; dy <= 1; ++dy)
+      for (int dx = -1; dx <= 1; ++dx) {
+        const int t = c + moved + dy * w + dx;
+        if (old_place[t] == 1 && !near_mine[t]) old_place[t] = 2;
+      }
+  }
   for (uint32_t i = 0; i < object.size(); ++i) {
     int x, y;
     if (!at(object[i], x, y)) continue;
     if (evidence[y * w + x] == 2) out.evidence.push_back(i);
     if (evidence[y * w + x] == 3) out.end_evidence.push_back(i);
+  }
+  for (uint32_t i = 0; i < target.size(); ++i) {
+    int x, y;
+    if (!at(target[i], x, y)) continue;
+    if (old_place[y * w + x] == 2) out.old_evidence.push_back(i);
   }
   return out;
 }

@@ -1231,6 +1231,13 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
   };
   std::vector<Eigen::Vector3f> outline, target;
   std::optional<WindowScan> seen_earlier, seen_later;  // their beams
+  WindowScan seen_now = s.own();                       // and this scan's, in the world
+  seen_now.world_to_sensor = s.world_to_sensor;
+  const auto seenNow = [&seen_now](const WindowScan& other) {  // at the other's pose error
+    WindowScan by = seen_now;
+    by.pose_noise2 = other.pose_noise2;
+    return by;
+  };
   if (earlier && later && p_.object.measure && pos >= half &&
       buf_[pos - half]->index + half == s.index) {
     seen_earlier = windowScan(pos, pos - half);
@@ -1240,12 +1247,13 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
     rules.measured = [&, earlier, later](const std::vector<uint32_t>& idx) {
       if (!columns) {
         columns.emplace();
-        const Eigen::Isometry3f to_world_a = earlier->world_to_sensor.inverse().cast<float>();
+        // At the poses the test used (the cameras' corrections, DESIGN §3 "Camera poses").
+        const Eigen::Isometry3f to_world_a = seen_earlier->world_to_sensor.inverse().cast<float>();
         for (const PointXYZI& q : earlier->points) {
           const Eigen::Vector3f x = to_world_a * q.xyz();
           (*columns)[0].get(columnOf(x.x(), x.y())).push_back(x);
         }
-        const Eigen::Isometry3f to_world_b = later->world_to_sensor.inverse().cast<float>();
+        const Eigen::Isometry3f to_world_b = seen_later->world_to_sensor.inverse().cast<float>();
         for (uint32_t i = 0; i < later->scan.size(); ++i)
           if (later->candidate[i]) {
             const Eigen::Vector3f x = to_world_b * later->scan.points[i].xyz();
@@ -1305,14 +1313,22 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
         if (!faces && !side) return Eigen::Vector2f(Eigen::Vector2f::Zero());
         // Where it stood in one scan and not in the other, the other scan sees empty space (a
         // static object that scan did not see matches the same way, shifted onto another): a
-        // third of the facing evidence, half of a side's trailing end.
-        const std::vector<uint32_t>& ev = faces ? m.evidence : m.end_evidence;
-        std::size_t empty = 0;
-        const std::size_t need = std::max(kShiftMinGain, ev.size() / (faces ? 3 : 2));
-        for (std::size_t k = 0; k < ev.size() && empty < need; ++k)
-          empty +=
-              ds::isMoving(test_.scanMass(outline[ev[k]].cast<double>(), seen, nullptr, nullptr));
-        return empty >= need ? m.shift : Eigen::Vector2f(Eigen::Vector2f::Zero());
+        // third of the facing evidence, half of a side's trailing end: this scan's places seen by
+        // the other scan. Or, facing, the other scan's seen by this one: a vehicle driving away
+        // from the sensor hid its new place behind its old one from the earlier scan.
+        const auto emptyIn = [&](const std::vector<Eigen::Vector3f>& points,
+                                 const std::vector<uint32_t>& ev, const WindowScan& by) {
+          std::size_t empty = 0;
+          const std::size_t need = std::max(kShiftMinGain, ev.size() / (faces ? 3 : 2));
+          for (std::size_t k = 0; k < ev.size() && empty < need; ++k)
+            empty +=
+                ds::isMoving(test_.scanMass(points[ev[k]].cast<double>(), by, nullptr, nullptr));
+          return empty >= need;
+        };
+        const bool gone =
+            emptyIn(outline, faces ? m.evidence : m.end_evidence, seen) ||
+            (faces && seen_now.beams && emptyIn(target, m.old_evidence, seenNow(seen)));
+        return gone ? m.shift : Eigen::Vector2f(Eigen::Vector2f::Zero());
       };
       // Moving by the labels' measure (as rule 4 backwards): more than kMovedDistance between
       // half a window before and half a window after.

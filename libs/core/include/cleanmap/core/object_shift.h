@@ -38,11 +38,15 @@ struct ShiftParams {
 /// `end_evidence`, the object's points in those that match only shifted at its trailing end
 /// (within the shift and a cell of its rearmost outline cell, going along the shift): where a side
 /// that slid on stood, or the end of a side the target saw over another stretch (not empty there).
+/// `old_evidence`, the other half of `evidence` (indices into the target): the target's points
+/// in the outline cells the evidence cells match shifted, where no cell of the object matches in
+/// place. Where the object stood in the target's scan alone, which the object's scan should see
+/// empty (a vehicle driving away hides its new place behind its old one from the target's scan).
 struct OutlineShift {
   Eigen::Vector2f shift = Eigen::Vector2f::Zero();
   std::size_t cells = 0, at_rest = 0, at_shift = 0;
   std::size_t facing = 0, facing_at_rest = 0, facing_at_shift = 0;
-  std::vector<uint32_t> evidence;
+  std::vector<uint32_t> evidence, old_evidence;
   std::size_t along = 0, along_at_rest = 0, along_at_shift = 0;
   std::vector<uint32_t> end_evidence;
 };
