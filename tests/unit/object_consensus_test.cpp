@@ -953,6 +953,60 @@ TEST(MoverFeet, AWallsFootBehindAWalkerStaysGround) {
   for (uint32_t i : s.foot) EXPECT_FALSE(contains(feet, i)) << "wall's foot " << i;
 }
 
+// Rule 6 at a sparse lidar (doc/OBJECTS.md): a VLP-16 (2 degrees between rings, level, 1.73 m
+// up) following 7.7 m ahead of a 1.5 m tall car: its front face's top ring (-3 degrees) at 1.33 m,
+// the next one (-1 degree) passes over its bonnet and lands on its roof's rear edge 4.3 m on.
+namespace {
+
+constexpr double kVlp16Gap = 2.0 * M_PI / 180.0;
+
+struct RoofScene {
+  std::vector<PointXYZI> pts;
+  std::vector<uint8_t> moving, whole;
+  std::vector<uint32_t> stripe;
+  // The face (x = -7.7, rings -11 .. -3 degrees), moving whole where `face_moving`; a stripe of
+  // the -1 degree ring at range `at`, `half_width` to either side.
+  RoofScene(bool face_moving, float at = 12.0f, float half_width = 0.9f) {
+    for (int el = -11; el <= -3; el += 2)
+      for (float y = -0.9f; y <= 0.9f + 1e-4f; y += 0.05f)
+        add(-7.7f, y, 7.7f * static_cast<float>(std::tan(el * M_PI / 180.0)), face_moving);
+    const float z = at * static_cast<float>(std::tan(-M_PI / 180.0));
+    for (float y = -half_width; y <= half_width + 1e-4f; y += 0.05f) {
+      stripe.push_back(static_cast<uint32_t>(pts.size()));
+      add(-at, y, z, false);  // the sensor looks back (x < 0)
+    }
+  }
+  void add(float x, float y, float z, bool m) {
+    pts.push_back({x, y, z, 0.0f});
+    moving.push_back(m);
+    whole.push_back(m);
+  }
+  std::vector<uint32_t> roofs(double ring_gap = kVlp16Gap) const {
+    ObjectComponents cc;
+    groupObjects(pts, std::vector<uint8_t>(pts.size(), 1), 0.3, cc);
+    MoverRoofParams p;
+    p.ring_gap = ring_gap;
+    return moverRoofs(pts, Eigen::Isometry3d::Identity(), cc, moving, whole, p);
+  }
+};
+
+}  // namespace
+
+TEST(MoverRoofs, ARoofStripeBehindAMovingFaceGoesWithIt) {
+  const RoofScene s(true);
+  EXPECT_EQ(s.roofs(), s.stripe);
+  // A dense lidar's rings lie within a voxel there: nothing falls apart, nothing to do.
+  EXPECT_TRUE(s.roofs(0.0).empty());
+}
+
+TEST(MoverRoofs, WhatIsNotAMovingVehiclesRoofStays) {
+  EXPECT_TRUE(RoofScene(false).roofs().empty());  // the face stands: its roof stays
+  // A stripe wider than the face's azimuths (a hedge's top behind it) is not its roof.
+  EXPECT_TRUE(RoofScene(true, 12.0f, 2.5f).roofs().empty());
+  // Beyond a car's length from its face (a roof or a wall top 9 m further on).
+  EXPECT_TRUE(RoofScene(true, 17.0f).roofs().empty());
+}
+
 // Rule 7 (doc/OBJECTS.md, "Measured"): an object's outline matched against another scan's.
 namespace {
 

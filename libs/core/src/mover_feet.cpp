@@ -190,4 +190,114 @@ std::vector<uint32_t> moverFeet(const std::vector<PointXYZI>& points, const Eige
   return feet;
 }
 
+std::vector<uint32_t> moverRoofs(const std::vector<PointXYZI>& points,
+                                 const Eigen::Isometry3d& pose, const ObjectComponents& cc,
+                                 const std::vector<uint8_t>& moving,
+                                 const std::vector<uint8_t>& whole, const MoverRoofParams& p) {
+  std::vector<uint32_t> out;
+  if (p.ring_gap <= 0 || cc.voxels.empty()) return out;
+  const Eigen::Matrix3d R = pose.linear();  // levelled: heights and horizontal ranges
+  const auto rootOf = [&](uint32_t i) {
+    return i < cc.point_voxel.size() && cc.point_voxel[i] != UINT32_MAX
+               ? cc.root_of[cc.point_voxel[i]]
+               : UINT32_MAX;
+  };
+  // Per component (by its root voxel): points, moving, moving whole; its elevations (sensor).
+  struct Component {
+    uint32_t n = 0, moving = 0, whole = 0;
+    float el_lo = std::numeric_limits<float>::infinity(), el_hi = -el_lo;
+  };
+  std::vector<Component> comp(cc.voxels.size());
+  for (uint32_t i = 0; i < points.size(); ++i) {
+    const uint32_t r = rootOf(i);
+    if (r == UINT32_MAX) continue;
+    Component& c = comp[r];
+    ++c.n;
+    c.moving += moving[i] != 0;
+    c.whole += moving[i] && whole[i];
+  }
+  if (std::none_of(comp.begin(), comp.end(),
+                   [](const Component& c) { return c.n > 0 && 10 * c.whole >= 9 * c.n; }))
+    return out;
+  for (uint32_t i = 0; i < points.size(); ++i) {
+    const uint32_t r = rootOf(i);
+    if (r == UINT32_MAX || comp[r].moving > 0 || comp[r].n < 3) continue;
+    const float el = std::atan2(points[i].z, std::hypot(points[i].x, points[i].y));
+    comp[r].el_lo = std::min(comp[r].el_lo, el);
+    comp[r].el_hi = std::max(comp[r].el_hi, el);
+  }
+  // The vehicles (moving whole), and the stripes: static, on one ring.
+  struct Vehicle {
+    double sx = 0, sy = 0, r_lo = 1e30, r_hi = 0, top = -1e30, az_lo = 1e30, az_hi = -1e30;
+  };
+  std::vector<int32_t> vehicle_of(cc.voxels.size(), -1);
+  std::vector<Vehicle> vehicles;
+  const float half_step = static_cast<float>(0.5 * p.ring_gap);
+  std::vector<uint32_t> stripe_points;
+  for (uint32_t i = 0; i < points.size(); ++i) {
+    const uint32_t r = rootOf(i);
+    if (r == UINT32_MAX) continue;
+    const Component& c = comp[r];
+    if (c.moving == 0 && c.n >= 3 && c.el_hi - c.el_lo <= half_step) {
+      stripe_points.push_back(i);
+      continue;
+    }
+    if (10 * c.whole < 9 * c.n) continue;
+    if (vehicle_of[r] < 0) {
+      vehicle_of[r] = static_cast<int32_t>(vehicles.size());
+      vehicles.emplace_back();
+    }
+    Vehicle& v = vehicles[static_cast<std::size_t>(vehicle_of[r])];
+    const Eigen::Vector3d q = R * points[i].xyz().cast<double>();
+    const double range = std::hypot(q.x(), q.y());
+    v.sx += q.x() / std::max(range, 1e-6);
+    v.sy += q.y() / std::max(range, 1e-6);
+    v.r_lo = std::min(v.r_lo, range);
+    v.r_hi = std::max(v.r_hi, range);
+    v.top = std::max(v.top, q.z());
+  }
+  if (vehicles.empty() || stripe_points.empty()) return out;
+  const auto relative = [](double az, double mean) {
+    double d = az - mean;
+    if (d > M_PI) d -= 2.0 * M_PI;
+    if (d < -M_PI) d += 2.0 * M_PI;
+    return d;
+  };
+  std::vector<double> mean(vehicles.size());
+  for (std::size_t k = 0; k < vehicles.size(); ++k)
+    mean[k] = std::atan2(vehicles[k].sy, vehicles[k].sx);
+  for (uint32_t i = 0; i < points.size(); ++i) {
+    const uint32_t r = rootOf(i);
+    if (r == UINT32_MAX || vehicle_of[r] < 0) continue;
+    const std::size_t k = static_cast<std::size_t>(vehicle_of[r]);
+    const Eigen::Vector3d q = R * points[i].xyz().cast<double>();
+    const double d = relative(std::atan2(q.y(), q.x()), mean[k]);
+    vehicles[k].az_lo = std::min(vehicles[k].az_lo, d);
+    vehicles[k].az_hi = std::max(vehicles[k].az_hi, d);
+  }
+  // A stripe is a roof where every point of it lies in one vehicle's shadow.
+  std::vector<uint32_t> inside(cc.voxels.size(), 0);
+  std::vector<uint8_t> taken(cc.voxels.size(), 0);
+  for (std::size_t k = 0; k < vehicles.size(); ++k) {
+    const Vehicle& v = vehicles[k];
+    const double z_hi = v.top + kRingReach * v.r_hi * p.ring_gap, z_lo = v.top - p.voxel;
+    std::fill(inside.begin(), inside.end(), 0u);
+    for (const uint32_t i : stripe_points) {
+      const Eigen::Vector3d q = R * points[i].xyz().cast<double>();
+      const double range = std::hypot(q.x(), q.y());
+      if (range <= v.r_lo || range > v.r_hi + p.length || q.z() < z_lo || q.z() > z_hi) continue;
+      const double d = relative(std::atan2(q.y(), q.x()), mean[k]), margin = p.voxel / range;
+      if (d < v.az_lo - margin || d > v.az_hi + margin) continue;
+      ++inside[rootOf(i)];
+    }
+    for (const uint32_t i : stripe_points) {
+      const uint32_t r = rootOf(i);
+      if (inside[r] == comp[r].n) taken[r] = 1;
+    }
+  }
+  for (const uint32_t i : stripe_points)
+    if (taken[rootOf(i)]) out.push_back(i);
+  return out;
+}
+
 }  // namespace cleanmap

@@ -50,6 +50,7 @@ ScanStats& ScanStats::operator+=(const ScanStats& o) {
   consensus_body_kept += o.consensus_body_kept;
   consensus_foot_left += o.consensus_foot_left;
   mover_feet += o.mover_feet;
+  mover_roofs += o.mover_roofs;
   consensus_still_part_left += o.consensus_still_part_left;
   objects_persisted += o.objects_persisted;
   objects_left_place += o.objects_left_place;

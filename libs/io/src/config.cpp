@@ -129,6 +129,8 @@ std::map<std::string, Key> table(PipelineParams& p) {
       {"object.foot_height", d(p.object.foot_height)},
       {"object.feet", Key{[&p](double v) { p.object.feet = v != 0; },
                           [&p] { return p.object.feet ? 1.0 : 0.0; }, true}},
+      {"object.roofs", Key{[&p](double v) { p.object.roofs = v != 0; },
+                           [&p] { return p.object.roofs ? 1.0 : 0.0; }, true}},
       {"object.ring_pool", d(p.object.ring_pool)},
       {"object.measure", Key{[&p](double v) { p.object.measure = v != 0; },
                              [&p] { return p.object.measure ? 1.0 : 0.0; }, true}},

@@ -495,6 +495,7 @@ void OutputWriter::finish(double wall_s, const FreeSpaceMap* free_space) {
                  {"consensus_foot_points_left", total.consensus_foot_left},
                  {"consensus_still_part_points_left", total.consensus_still_part_left},
                  {"mover_feet_points", total.mover_feet},
+                 {"mover_roof_points", total.mover_roofs},
                  {"no_evidence_points", total.no_evidence},
                  {"test_scans_visited", total.scans_visited},
                  {"test_beams_evaluated", total.beams},

@@ -899,6 +899,7 @@ void LaserPipeline::decide(std::size_t pos) {
   objectConsensus(pos, s, w);              // doc/OBJECTS.md
   validateImages(pos, s, w);               // §3
   moverFeet(s, w);                         // doc/OBJECTS.md rule 6
+  moverRoofs(s, w);                        // and a sparse lidar's roofs
   ScanResult r = collect(s, w);            // §2.7: labels, static map, dynamic layer
   remember(r, static_cast<long>(s.index), s, w);
   if (source_ == PoseSource::kGicp || source_ == PoseSource::kRefine)  // movers leave GICP's map
@@ -1529,6 +1530,21 @@ void LaserPipeline::moverFeet(Prepared& s, Work& w) const {
     w.world[i] = s.scan.pose * pts[i].xyz().cast<double>();
     ++s.stats.mover_feet;
     --s.stats.ground;  // in the crop, as every foot: counted moving now
+  }
+  s.stats.ms.objects += msSince(t0);
+}
+
+// doc/OBJECTS.md rule 6 at a sparse lidar: the roof stripes behind a vehicle moving whole.
+void LaserPipeline::moverRoofs(Prepared& s, Work& w) const {
+  if (!p_.object.enabled || !p_.object.roofs || s.ring_gap <= 0 || !w.grouped) return;
+  const auto t0 = Clock::now();
+  MoverRoofParams rp;
+  rp.ring_gap = s.ring_gap;
+  rp.voxel = p_.object.voxel;
+  for (uint32_t i :
+       cleanmap::moverRoofs(s.scan.points, s.scan.pose, w.groups, w.moving, w.whole, rp)) {
+    w.moving[i] = 1;
+    ++s.stats.mover_roofs;
   }
   s.stats.ms.objects += msSince(t0);
 }

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "cleanmap/core/ground.h"
+#include "cleanmap/core/object_consensus.h"
 #include "cleanmap/core/types.h"
 
 namespace cleanmap {
@@ -38,5 +39,28 @@ std::vector<uint32_t> moverFeet(const std::vector<PointXYZI>& points, const Eige
                                 const std::vector<uint8_t>& ground,
                                 const std::vector<uint8_t>& moving,
                                 const std::vector<uint8_t>& in_crop, const MoverFeetParams& p);
+
+/// doc/OBJECTS.md rule 6, a sparse lidar's roofs. The ring just above a vehicle's near face
+/// passes over its top and lands on its roof, metres further on (a car followed 7.7 m back by a
+/// VLP-16: its front face's top ring at 1.33 m, the next one 4.3 m further on its roof's rear
+/// edge): a one-ring stripe, not joined to the face in the grouping's voxels. With the face
+/// moving, the stripe stays static and behind, a trail of roofs in the map.
+struct MoverRoofParams {
+  double ring_gap = 0;  ///< rad between the lidar's rings (0: dense, no roof falls apart)
+  double voxel = 0.3;   ///< m; the grouping's voxel (ObjectParams::voxel): the margins
+  double length = 6.0;  ///< m; how far beyond its near face a roof below the sensor may reach
+};
+
+/// Indices of roof stripes among `points` (sensor frame; `pose` gives heights): the points of the
+/// static components of `cc` (no point moving) that lie on one ring (elevations within half a
+/// ring step), at least 3 of them, all within the shadow of a moving vehicle, a component moving
+/// whole (`whole` and `moving` for nine in ten of its points): within its azimuths (and a voxel),
+/// beyond its nearest return by at most its range span and `length`, and at most a voxel below
+/// its top and 1.25 ring steps (at its farthest return) above it, under the next ring over its
+/// top. Ascending order; empty where `p.ring_gap` is 0.
+std::vector<uint32_t> moverRoofs(const std::vector<PointXYZI>& points,
+                                 const Eigen::Isometry3d& pose, const ObjectComponents& cc,
+                                 const std::vector<uint8_t>& moving,
+                                 const std::vector<uint8_t>& whole, const MoverRoofParams& p);
 
 }  // namespace cleanmap

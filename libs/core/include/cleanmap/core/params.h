@@ -125,6 +125,9 @@ struct ObjectParams {
   /// Rule 6: a moving object's returns refined to ground under it, raised over the road around
   /// them (its lowest face, tyres, shoes), go with it (MoverFeetParams; doc/OBJECTS.md).
   bool feet = true;
+  /// Rule 6 at a sparse lidar: a one-ring stripe on a moving vehicle's roof, beyond its near
+  /// face, goes with it (MoverRoofParams; doc/OBJECTS.md).
+  bool roofs = true;
   /// m; rule 1 for sparse lidars (RingReach, doc/OBJECTS.md): a ring's slice of an object at
   /// most this wide (horizontal diagonal: a walker's) joins the slices of its column up to 1.25
   /// ring steps above and below it. 0 = off (every lidar's objects are 26-connected voxels).

@@ -128,6 +128,7 @@ class LaserPipeline {
   ScanResult collect(Prepared& s, const Work& w) const;
   static std::vector<uint8_t> overlayKinds(const Prepared& s, const Work& w);
   void moverFeet(Prepared& s, Work& w) const;
+  void moverRoofs(Prepared& s, Work& w) const;
   void remember(const ScanResult& r, long index, const Prepared& s, const Work& w);
   void startEpoch(long index);
 
