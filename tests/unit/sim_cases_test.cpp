@@ -949,10 +949,14 @@ TEST(SimSensors, SparseLidarsFindSmallMoversBetweenTheirRings) {
     return sc;
   };
   const auto hdl32 = [&](const char* name) { return seen_by(name, SensorModel::kHdl32); };
-  // The ring vote alone (object.ring_pool off, below).
+  // The ring vote alone (object.ring_pool off, below; rule 6's roofs off too: without the pool
+  // the walker comes one slice per ring, and a slice wholly over his moving one goes with it,
+  // poles_drift 0.63 -> 0.67 here, 0.47 -> 0.58 without the ring vote).
   PipelineParams no_pool, off;
   no_pool.object.ring_pool = 0;
+  no_pool.object.roofs = false;
   off.object.ring_pool = 0;
+  off.object.roofs = false;
   off.ds.ring_vote = false;
   const auto poles = runCase(hdl32("poles_drift"), no_pool),
              poles_off = runCase(hdl32("poles_drift"), off);
