@@ -117,8 +117,15 @@ CaseResult runCase(const sim::Scenario& sc, const PipelineParams& params = {},
 
 TEST(SimCases, DefaultScenarioIoUAtLeast0_8) {
   const auto r = runCase(sim::defaultScenario());
-  EXPECT_GE(r.all.iou(), 0.8);  // issue #4 bar; measured 0.90
+  EXPECT_GE(r.all.iou(), 0.8);  // issue #4 bar; measured 0.985 (0.949 before kCarryMatch)
   EXPECT_GE(r.all.precision(), 0.95);
+  // The overtaking car waits 0.5 s, then drives off at 10 m/s: the labels call it moving from
+  // scan 1 (it moves over the next 0.5 s), the test finds it from scan 6. Rule 4 backwards
+  // carries it back to its start (doc/OBJECTS.md); it moves 1 m a scan there, beyond rule 4's
+  // 0.9 m, and until kCarryMatch (1.5 m) it was not carried at all (recall 0.06 in scans 1-5).
+  MosCounts start;
+  for (std::size_t k = 1; k < 6; ++k) start += r.per_frame.at(k);
+  EXPECT_GE(start.recall(), 0.85);  // measured 0.92 (the other movers' misses included)
 }
 
 TEST(SimCases, CarFollowingTheEgoAtTheSameSpeed) {

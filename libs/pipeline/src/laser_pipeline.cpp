@@ -39,6 +39,9 @@ constexpr float kMovedMatch = 0.9f;
 // over the half window around it, static under 0.2 m, neither between (../shared/data/README.md:
 // over +-5 scans). The middle of that band allows for the error of our estimate.
 constexpr double kMovedDistance = 0.35;
+// Rule 4 backwards: m, how far an object carried back may have moved between two scans (a car at
+// 15 m/s at 10 Hz; one that waited and drove off at 10 m/s moved 1 m a scan from its start).
+constexpr float kCarryMatch = 1.5f;
 // Rule 4 backwards: the two scans that found an object show it at sizes within this fraction.
 constexpr float kSeedSize = 0.15f;
 // Rule 4's leaving and arriving tests ask at most about this many of an object's points.
@@ -1818,7 +1821,7 @@ void LaserPipeline::carryBack() {
       q.clear();
       for (const uint32_t k : members[o])
         q.push_back((a_to_b * a.whole[k].xyz().cast<double>()).cast<float>());
-      const std::optional<WholeMatch> m = matchWholeObject(q, ob, op.voxel, kMovedMatch);
+      const std::optional<WholeMatch> m = matchWholeObject(q, ob, op.voxel, kCarryMatch);
       if (!m || dt <= 0) continue;
       // The same size in both (horizontal diagonal, within kSeedSize): a step of the centroids
       // between two sizes is what the two components hold, not the object's motion (a car that
@@ -1880,14 +1883,14 @@ void LaserPipeline::carryBack() {
       std::optional<WholeMatch> match;
       // Only a component that can reach an object: its box and the object's overlap (the one
       // holding half of its points in the other's voxels, a voxel's quantisation aside), or do
-      // once shifted by at most kMovedMatch; two points of overlapping boxes lie at most their
+      // once shifted by at most kCarryMatch; two points of overlapping boxes lie at most their
       // diagonals apart.
       const auto within_reach = [&] {
         const Eigen::Vector3f c = (to_next * (sum / float(n)).cast<double>()).cast<float>();
         const float own = (hi - lo).head<2>().norm() + static_cast<float>(2 * op.voxel);
         for (std::size_t o = 0; o < next.extent.size(); ++o)
           if ((c - next.centroid[o]).head<2>().norm() <=
-              kMovedMatch + own + next.extent[o].head<2>().norm())
+              kCarryMatch + own + next.extent[o].head<2>().norm())
             return true;
         return false;
       };
@@ -1898,7 +1901,7 @@ void LaserPipeline::carryBack() {
         q.clear();
         for (std::size_t k = from; k < to; ++k)
           q.push_back((to_next * h.points[h.order[k]].xyz().cast<double>()).cast<float>());
-        match = matchWholeObject(q, next, op.voxel, kMovedMatch);
+        match = matchWholeObject(q, next, op.voxel, kCarryMatch);
       }
       if (match && track_of[match->object] != UINT32_MAX) {
         // Its points turn whole where it is that object's size; where it is larger (it holds

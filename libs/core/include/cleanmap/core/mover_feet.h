@@ -55,7 +55,7 @@ struct MoverRoofParams {
 /// static components of `cc` (no point moving) that lie on one ring (elevations within half a
 /// ring step), at least 3 of them, all within the shadow of a moving vehicle, a component moving
 /// whole (`whole` and `moving` for nine in ten of its points): within its azimuths (and a voxel),
-/// beyond its nearest return by at most its range span and `length`, and at most a voxel below
+/// beyond its nearest return and at most `length` beyond its farthest, and at most a voxel below
 /// its top and 1.25 ring steps (at its farthest return) above it, under the next ring over its
 /// top. Ascending order; empty where `p.ring_gap` is 0.
 std::vector<uint32_t> moverRoofs(const std::vector<PointXYZI>& points,
