@@ -275,6 +275,12 @@ std::vector<uint32_t> moverRoofs(const std::vector<PointXYZI>& points,
     vehicles[k].az_lo = std::min(vehicles[k].az_lo, d);
     vehicles[k].az_hi = std::max(vehicles[k].az_hi, d);
   }
+  // The stripes' points levelled once: horizontal range, height, azimuth.
+  std::vector<Eigen::Vector3d> polar(stripe_points.size());
+  for (std::size_t j = 0; j < stripe_points.size(); ++j) {
+    const Eigen::Vector3d q = R * points[stripe_points[j]].xyz().cast<double>();
+    polar[j] = {std::hypot(q.x(), q.y()), q.z(), std::atan2(q.y(), q.x())};
+  }
   // A stripe is a roof where every point of it lies in one vehicle's shadow.
   std::vector<uint32_t> inside(cc.voxels.size(), 0);
   std::vector<uint8_t> taken(cc.voxels.size(), 0);
@@ -282,13 +288,12 @@ std::vector<uint32_t> moverRoofs(const std::vector<PointXYZI>& points,
     const Vehicle& v = vehicles[k];
     const double z_hi = v.top + kRingReach * v.r_hi * p.ring_gap, z_lo = v.top - p.voxel;
     std::fill(inside.begin(), inside.end(), 0u);
-    for (const uint32_t i : stripe_points) {
-      const Eigen::Vector3d q = R * points[i].xyz().cast<double>();
-      const double range = std::hypot(q.x(), q.y());
-      if (range <= v.r_lo || range > v.r_hi + p.length || q.z() < z_lo || q.z() > z_hi) continue;
-      const double d = relative(std::atan2(q.y(), q.x()), mean[k]), margin = p.voxel / range;
+    for (std::size_t j = 0; j < stripe_points.size(); ++j) {
+      const double range = polar[j].x(), z = polar[j].y(), az = polar[j].z();
+      if (range <= v.r_lo || range > v.r_hi + p.length || z < z_lo || z > z_hi) continue;
+      const double d = relative(az, mean[k]), margin = p.voxel / range;
       if (d < v.az_lo - margin || d > v.az_hi + margin) continue;
-      ++inside[rootOf(i)];
+      ++inside[rootOf(stripe_points[j])];
     }
     for (const uint32_t i : stripe_points) {
       const uint32_t r = rootOf(i);
