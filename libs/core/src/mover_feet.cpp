@@ -193,7 +193,8 @@ std::vector<uint32_t> moverFeet(const std::vector<PointXYZI>& points, const Eige
 std::vector<uint32_t> moverRoofs(const std::vector<PointXYZI>& points,
                                  const Eigen::Isometry3d& pose, const ObjectComponents& cc,
                                  const std::vector<uint8_t>& moving,
-                                 const std::vector<uint8_t>& whole, const MoverRoofParams& p) {
+                                 const std::vector<uint8_t>& whole,
+                                 const std::vector<uint8_t>& ground, const MoverRoofParams& p) {
   std::vector<uint32_t> out;
   if (p.ring_gap <= 0 || cc.voxels.empty()) return out;
   const Eigen::Matrix3d R = pose.linear();  // levelled: heights and horizontal ranges
@@ -221,14 +222,15 @@ std::vector<uint32_t> moverRoofs(const std::vector<PointXYZI>& points,
     return out;
   for (uint32_t i = 0; i < points.size(); ++i) {
     const uint32_t r = rootOf(i);
-    if (r == UINT32_MAX || comp[r].moving > 0 || comp[r].n < 3) continue;
+    if (r == UINT32_MAX || comp[r].moving == comp[r].n || comp[r].n < 3) continue;
     const float el = std::atan2(points[i].z, std::hypot(points[i].x, points[i].y));
     comp[r].el_lo = std::min(comp[r].el_lo, el);
     comp[r].el_hi = std::max(comp[r].el_hi, el);
   }
-  // The vehicles (moving whole), and the stripes: static, on one ring.
+  // The vehicles (moving whole), and the stripes: on one ring, not moving in every point.
   struct Vehicle {
-    double sx = 0, sy = 0, r_lo = 1e30, r_hi = 0, top = -1e30, az_lo = 1e30, az_hi = -1e30;
+    double sx = 0, sy = 0, r_lo = 1e30, r_hi = 0, top = -1e30, bottom = 1e30, az_lo = 1e30,
+           az_hi = -1e30;
   };
   std::vector<int32_t> vehicle_of(cc.voxels.size(), -1);
   std::vector<Vehicle> vehicles;
@@ -238,11 +240,10 @@ std::vector<uint32_t> moverRoofs(const std::vector<PointXYZI>& points,
     const uint32_t r = rootOf(i);
     if (r == UINT32_MAX) continue;
     const Component& c = comp[r];
-    if (c.moving == 0 && c.n >= 3 && c.el_hi - c.el_lo <= half_step) {
-      stripe_points.push_back(i);
+    if (10 * c.whole < 9 * c.n) {
+      if (c.moving < c.n && c.n >= 3 && c.el_hi - c.el_lo <= half_step) stripe_points.push_back(i);
       continue;
     }
-    if (10 * c.whole < 9 * c.n) continue;
     if (vehicle_of[r] < 0) {
       vehicle_of[r] = static_cast<int32_t>(vehicles.size());
       vehicles.emplace_back();
@@ -255,6 +256,7 @@ std::vector<uint32_t> moverRoofs(const std::vector<PointXYZI>& points,
     v.r_lo = std::min(v.r_lo, range);
     v.r_hi = std::max(v.r_hi, range);
     v.top = std::max(v.top, q.z());
+    v.bottom = std::min(v.bottom, q.z());
   }
   if (vehicles.empty() || stripe_points.empty()) return out;
   const auto relative = [](double az, double mean) {
@@ -281,27 +283,93 @@ std::vector<uint32_t> moverRoofs(const std::vector<PointXYZI>& points,
     const Eigen::Vector3d q = R * points[stripe_points[j]].xyz().cast<double>();
     polar[j] = {std::hypot(q.x(), q.y()), q.z(), std::atan2(q.y(), q.x())};
   }
-  // A stripe is a roof where every point of it lies in one vehicle's shadow.
-  std::vector<uint32_t> inside(cc.voxels.size(), 0);
+  // Per stripe: its lowest and highest return.
+  std::vector<float> z_min(cc.voxels.size(), std::numeric_limits<float>::infinity()),
+      z_max(cc.voxels.size(), -std::numeric_limits<float>::infinity());
+  for (std::size_t j = 0; j < stripe_points.size(); ++j) {
+    const uint32_t r = rootOf(stripe_points[j]);
+    z_min[r] = std::min(z_min[r], static_cast<float>(polar[j].y()));
+    z_max[r] = std::max(z_max[r], static_cast<float>(polar[j].y()));
+  }
+  // A stripe is a roof where every point of it lies in one vehicle's shadow. One on its faces
+  // (its lowest ring's slice, or a partly flagged one joined to neither) is a part of it: the
+  // vehicle reaches that low or high for the next one (a sparse lidar's car 19 m off in three
+  // slices: the top one moving whole, the middle one 48 of 73, the lowest 7 of 67).
+  std::vector<uint32_t> inside(cc.voxels.size(), 0), on_faces(cc.voxels.size(), 0),
+      under_it(cc.voxels.size(), 0);
   std::vector<uint8_t> taken(cc.voxels.size(), 0);
-  for (std::size_t k = 0; k < vehicles.size(); ++k) {
-    const Vehicle& v = vehicles[k];
-    const double z_hi = v.top + kRingReach * v.r_hi * p.ring_gap, z_lo = v.top - p.voxel;
-    std::fill(inside.begin(), inside.end(), 0u);
-    for (std::size_t j = 0; j < stripe_points.size(); ++j) {
-      const double range = polar[j].x(), z = polar[j].y(), az = polar[j].z();
-      if (range <= v.r_lo || range > v.r_hi + p.length || z < z_lo || z > z_hi) continue;
-      const double d = relative(az, mean[k]), margin = p.voxel / range;
-      if (d < v.az_lo - margin || d > v.az_hi + margin) continue;
-      ++inside[rootOf(stripe_points[j])];
+  // Whether a stripe under a vehicle lies within `step` of the road: the median height of the
+  // ground returns before it and under it (its azimuths and a voxel, from 3 m nearer to a voxel
+  // beyond), at least 5 of them (once a stripe, on first use). A face reaching the road has its
+  // lowest ring within a ring step of it; a hedge under a tree's crown does not.
+  constexpr double kUnknown = -std::numeric_limits<double>::infinity();
+  std::vector<double> road_at(cc.voxels.size(), kUnknown);  // NaN: too few ground returns
+  std::vector<double> road;
+  const auto lowEnough = [&](uint32_t r, double step) {
+    if (road_at[r] != kUnknown) return z_max[r] <= road_at[r] + step;
+    double r_lo = 1e30, r_hi = 0, az_mid = 0;
+    for (std::size_t j = 0; j < stripe_points.size(); ++j)
+      if (rootOf(stripe_points[j]) == r) {
+        r_lo = std::min(r_lo, polar[j].x());
+        r_hi = std::max(r_hi, polar[j].x());
+        az_mid = polar[j].z();
+      }
+    double az_lo = 0, az_hi = 0;
+    for (std::size_t j = 0; j < stripe_points.size(); ++j)
+      if (rootOf(stripe_points[j]) == r) {
+        az_lo = std::min(az_lo, relative(polar[j].z(), az_mid));
+        az_hi = std::max(az_hi, relative(polar[j].z(), az_mid));
+      }
+    const double margin = p.voxel / r_lo;
+    road.clear();
+    for (uint32_t i = 0; i < points.size(); ++i) {
+      if (i >= ground.size() || !ground[i]) continue;
+      const Eigen::Vector3d q = R * points[i].xyz().cast<double>();
+      const double range = std::hypot(q.x(), q.y());
+      if (range < r_lo - 3.0 || range > r_hi + p.voxel) continue;
+      const double d = relative(std::atan2(q.y(), q.x()), az_mid);
+      if (d >= az_lo - margin && d <= az_hi + margin) road.push_back(q.z());
     }
-    for (const uint32_t i : stripe_points) {
-      const uint32_t r = rootOf(i);
-      if (inside[r] == comp[r].n) taken[r] = 1;
+    road_at[r] = road.size() >= 5 ? median(road) : std::numeric_limits<double>::quiet_NaN();
+    return z_max[r] <= road_at[r] + step;  // false where NaN
+  };
+  for (std::size_t k = 0; k < vehicles.size(); ++k) {
+    Vehicle v = vehicles[k];
+    const double step = kRingReach * v.r_hi * p.ring_gap;  // a ring step at its far end
+    for (bool grew = true; grew;) {
+      grew = false;
+      const double z_hi = v.top + step, z_lo = v.top - p.voxel;
+      std::fill(inside.begin(), inside.end(), 0u);
+      std::fill(on_faces.begin(), on_faces.end(), 0u);
+      std::fill(under_it.begin(), under_it.end(), 0u);
+      for (std::size_t j = 0; j < stripe_points.size(); ++j) {
+        const double range = polar[j].x(), z = polar[j].y(), az = polar[j].z();
+        if (range < v.r_lo - p.voxel) continue;
+        const bool faces = range <= v.r_hi + p.voxel;  // on its faces, not behind them
+        const bool roof = range <= v.r_hi + p.length && z >= z_lo && z <= z_hi;
+        const bool under = faces && z < v.bottom && z >= v.bottom - step;  // a ring step under
+        if (!roof && !under) continue;
+        const double d = relative(az, mean[k]), margin = p.voxel / range;
+        if (d < v.az_lo - margin || d > v.az_hi + margin) continue;
+        const uint32_t r = rootOf(stripe_points[j]);
+        ++inside[r];
+        on_faces[r] += faces;
+        under_it[r] += !roof;
+      }
+      for (const uint32_t i : stripe_points) {
+        const uint32_t r = rootOf(i);
+        if (taken[r] || inside[r] < comp[r].n) continue;
+        if (under_it[r] > 0 && !lowEnough(r, step)) continue;  // the lowest ring: near the road
+        taken[r] = 1;
+        if (on_faces[r] < comp[r].n) continue;
+        grew = grew || z_min[r] < v.bottom || z_max[r] > v.top;
+        v.bottom = std::min(v.bottom, static_cast<double>(z_min[r]));
+        v.top = std::max(v.top, static_cast<double>(z_max[r]));
+      }
     }
   }
   for (const uint32_t i : stripe_points)
-    if (taken[rootOf(i)]) out.push_back(i);
+    if (taken[rootOf(i)] && !moving[i]) out.push_back(i);
   return out;
 }
 

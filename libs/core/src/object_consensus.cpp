@@ -289,14 +289,23 @@ std::optional<WholeMatch> matchWholeObject(const std::vector<Eigen::Vector3f>& q
     return WholeMatch{static_cast<std::size_t>(best - in.begin()), Eigen::Vector3f::Zero()};
   // Found moved (a car moving about a voxel a scan no longer lies in its previous voxels; the
   // map's rule 5, DESIGN §2e).
+  // A vehicle moves along the road: the centroids' height differs by what each scan's rings
+  // hold (a sparse lidar's roof stripe joined in one scan and not the other), so the shift is
+  // also tried level.
   c /= static_cast<float>(q.size());
-  for (std::size_t a = 0; a < objects.extent.size(); ++a) {
-    const Eigen::Vector3f shift = objects.centroid[a] - c;
-    if (shift.squaredNorm() > max_shift * max_shift) continue;
+  const auto holds = [&](std::size_t a, const Eigen::Vector3f& shift) {
     std::size_t n = 0;
     for (const Eigen::Vector3f& x : q)
       if (const uint32_t* b = voxelOf(x + shift)) n += *b == a;
-    if (2 * n >= q.size()) return WholeMatch{a, shift};
+    return 2 * n >= q.size();
+  };
+  for (std::size_t a = 0; a < objects.extent.size(); ++a) {
+    const Eigen::Vector3f shift = objects.centroid[a] - c;
+    const Eigen::Vector3f level(shift.x(), shift.y(), 0.0f);
+    if (level.squaredNorm() > max_shift * max_shift) continue;
+    if (shift.squaredNorm() <= max_shift * max_shift && holds(a, shift))
+      return WholeMatch{a, shift};
+    if (shift.z() != 0.0f && holds(a, level)) return WholeMatch{a, level};
   }
   return std::nullopt;
 }

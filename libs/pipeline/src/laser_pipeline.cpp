@@ -1544,8 +1544,8 @@ void LaserPipeline::moverRoofs(Prepared& s, Work& w) const {
   MoverRoofParams rp;
   rp.ring_gap = s.ring_gap;
   rp.voxel = p_.object.voxel;
-  for (uint32_t i :
-       cleanmap::moverRoofs(s.scan.points, s.scan.pose, w.groups, w.moving, w.whole, rp)) {
+  for (uint32_t i : cleanmap::moverRoofs(s.scan.points, s.scan.pose, w.groups, w.moving, w.whole,
+                                         s.ground, rp)) {
     w.moving[i] = 1;
     ++s.stats.mover_roofs;
   }

@@ -51,16 +51,21 @@ struct MoverRoofParams {
   double length = 6.0;  ///< m; how far beyond its near face a roof below the sensor may reach
 };
 
-/// Indices of roof stripes among `points` (sensor frame; `pose` gives heights): the points of the
-/// static components of `cc` (no point moving) that lie on one ring (elevations within half a
-/// ring step), at least 3 of them, all within the shadow of a moving vehicle, a component moving
-/// whole (`whole` and `moving` for nine in ten of its points): within its azimuths (and a voxel),
-/// beyond its nearest return and at most `length` beyond its farthest, and at most a voxel below
-/// its top and 1.25 ring steps (at its farthest return) above it, under the next ring over its
-/// top. Ascending order; empty where `p.ring_gap` is 0.
+/// Indices of roof stripes among `points` (sensor frame; `pose` gives heights): the static points
+/// of the components of `cc` not moving in every point that lie on one ring (elevations within
+/// half a ring step), at least 3 of them, all within the shadow of a moving vehicle, a component
+/// moving whole (`whole` and `moving` for nine in ten of its points): within its azimuths (and a
+/// voxel), no nearer than a voxel before its nearest return (a ring grazing its face's top edge)
+/// and at most `length` beyond its farthest, and at most a voxel below its top and 1.25 ring
+/// steps (at its farthest return) above it, under the next ring over its top; or, its lowest
+/// ring's slice, on its faces (at most a voxel beyond its farthest return), under its lowest
+/// return by at most those 1.25 ring steps and within them of the road (the median height of the
+/// `ground` returns before it and under it, at least 5). A stripe taken on its faces extends the
+/// vehicle for the next one. Ascending order; empty where `p.ring_gap` is 0.
 std::vector<uint32_t> moverRoofs(const std::vector<PointXYZI>& points,
                                  const Eigen::Isometry3d& pose, const ObjectComponents& cc,
                                  const std::vector<uint8_t>& moving,
-                                 const std::vector<uint8_t>& whole, const MoverRoofParams& p);
+                                 const std::vector<uint8_t>& whole,
+                                 const std::vector<uint8_t>& ground, const MoverRoofParams& p);
 
 }  // namespace cleanmap

@@ -200,8 +200,10 @@ bool vehicleSized(const Eigen::Vector3f& lo, const Eigen::Vector3f& hi, double m
 /// Rule 4's "the same object" (doc/OBJECTS.md): the object of `objects` (voxels of side `side`)
 /// holding at least half of `q` (an object's points in the frame of `objects`) as they are, the
 /// one holding most of them; or, failing that, *found moved*: the first object whose centroid
-/// lies within `max_shift` of theirs holding half of them shifted by the difference. `object`
-/// is its index, `shift` the shift that found it (zero as they are); nullopt: none.
+/// lies within `max_shift` of theirs holding half of them shifted by the difference, or by its
+/// horizontal part alone (a sparse lidar's rings: a stripe joined in one scan and not the other
+/// moves the centroid up or down, not the vehicle). `object` is its index, `shift` the shift that
+/// found it (zero as they are); nullopt: none.
 struct WholeMatch {
   std::size_t object = 0;
   Eigen::Vector3f shift = Eigen::Vector3f::Zero();
