@@ -1134,6 +1134,17 @@ TEST(MoverRoofs, TheRingUnderAMovingFaceGoesWithIt) {
   SparseCarScene high(-3.0f);
   high.addSlice(-13.0f, z);
   EXPECT_TRUE(high.roofs().empty());
+  // As high, but the test flags a fifth of it or more (rule 2's share): one of the car's slices.
+  SparseCarScene flagged(-3.0f);
+  flagged.addSlice(-13.0f, z);
+  std::vector<uint32_t> rest;
+  for (std::size_t k = 0; k < flagged.slice.size(); ++k) {
+    if (k % 4 == 0)
+      flagged.moving[flagged.slice[k]] = 1;
+    else
+      rest.push_back(flagged.slice[k]);
+  }
+  EXPECT_EQ(flagged.roofs(), rest);
   // No road seen before it or under it: nothing says where the road is; it stays.
   SparseCarScene no_road(-1.73f, false);
   no_road.addSlice(-13.0f, z);
@@ -1177,6 +1188,44 @@ TEST(MoverRoofs, AVehicleInSlicesGoesSliceBySlice) {
   p.ring_gap = kVlp16Gap;
   EXPECT_EQ(moverRoofs(pts, Eigen::Isometry3d::Identity(), cc, moving, moving, ground, p),
             expected);
+}
+
+TEST(MoverRoofs, SlicesFlaggedInPartStackIntoOneObject) {
+  // A VLP-16's car 15 m back, turning: no slice moves whole. Its three rings' slices (-3, -5 and
+  // -7 degrees, 0.52 m apart) each have half of their returns flagged; one over another, over
+  // the same azimuths and ranges, they are one object and their other returns go.
+  const auto scene = [](float length, float second_x, int flagged_every) {
+    std::vector<PointXYZI> pts;
+    std::vector<uint8_t> moving;
+    std::vector<uint32_t> rest;
+    for (const int el : {-3, -5, -7}) {
+      const float z = 15.0f * static_cast<float>(std::tan(el * M_PI / 180.0));
+      const float x = el == -5 ? second_x : 15.0f;
+      int k = 0;  // an arc at range x, `length` long (one ring: one elevation)
+      for (float a = -0.5f * length; a <= 0.5f * length + 1e-4f; a += 0.05f, ++k) {
+        const bool m = k % flagged_every == 0;
+        if (!m) rest.push_back(static_cast<uint32_t>(pts.size()));
+        pts.push_back({-x * std::cos(a / x), x * std::sin(a / x), z, 0.0f});
+        moving.push_back(m);
+      }
+    }
+    ObjectComponents cc;
+    groupObjects(pts, std::vector<uint8_t>(pts.size(), 1), 0.3, cc);
+    MoverRoofParams p;
+    p.ring_gap = kVlp16Gap;
+    const auto out = moverRoofs(pts, Eigen::Isometry3d::Identity(), cc, moving, moving,
+                                std::vector<uint8_t>(pts.size(), kNotGround), p);
+    return std::pair(out, rest);
+  };
+  const auto [car, car_rest] = scene(4.5f, 15.0f, 2);
+  EXPECT_EQ(car, car_rest);
+  // A tenth flagged (under rule 2's fifth): rule 2 left them static, and so do the stacks.
+  EXPECT_TRUE(scene(4.5f, 15.0f, 10).first.empty());
+  // Its middle slice 2 m further (a wall behind it): what remains is no stack of slices, but the
+  // two that still lie one over another 1.05 m apart (over 1.25 ring steps, 0.65 m) do not join.
+  EXPECT_TRUE(scene(4.5f, 17.0f, 2).first.empty());
+  // 32 m long (a wall's slices under drifting poses, 27 m across): a structure, left alone.
+  EXPECT_TRUE(scene(32.0f, 15.0f, 2).first.empty());
 }
 
 TEST(MoverRoofs, AStripeGrazingTheFacesTopEdgeGoesWithIt) {

@@ -1544,6 +1544,9 @@ void LaserPipeline::moverRoofs(Prepared& s, Work& w) const {
   MoverRoofParams rp;
   rp.ring_gap = s.ring_gap;
   rp.voxel = p_.object.voxel;
+  rp.flagged = p_.object.moving_fraction;
+  rp.max_length = p_.object.max_length;
+  rp.max_height = p_.object.max_height;
   for (uint32_t i : cleanmap::moverRoofs(s.scan.points, s.scan.pose, w.groups, w.moving, w.whole,
                                          s.ground, rp)) {
     w.moving[i] = 1;

@@ -49,6 +49,11 @@ struct MoverRoofParams {
   double ring_gap = 0;  ///< rad between the lidar's rings (0: dense, no roof falls apart)
   double voxel = 0.3;   ///< m; the grouping's voxel (ObjectParams::voxel): the margins
   double length = 6.0;  ///< m; how far beyond its near face a roof below the sensor may reach
+  /// A slice under the vehicle with this share of it flagged moving is one of its slices however
+  /// high over the road, and slices so flagged stack (ObjectParams::moving_fraction, rule 2's).
+  double flagged = 0.2;
+  double max_length = 25.0;  ///< m; a stack is vehicle-sized (ObjectParams::max_length)
+  double max_height = 5.0;   ///< m (ObjectParams::max_height)
 };
 
 /// Indices of roof stripes among `points` (sensor frame; `pose` gives heights): the static points
@@ -60,8 +65,11 @@ struct MoverRoofParams {
 /// steps (at its farthest return) above it, under the next ring over its top; or, its lowest
 /// ring's slice, on its faces (at most a voxel beyond its farthest return), under its lowest
 /// return by at most those 1.25 ring steps and within them of the road (the median height of the
-/// `ground` returns before it and under it, at least 5). A stripe taken on its faces extends the
-/// vehicle for the next one. Ascending order; empty where `p.ring_gap` is 0.
+/// `ground` returns before it and under it, at least 5) unless `flagged` of it is moving. A stripe
+/// taken on its faces extends the vehicle for the next one. And the static points of stacks: two
+/// or more one-ring slices, each with `flagged` of it moving (not all), one over another (within
+/// 1.25 ring steps, over half of the narrower one's azimuths, ranges within a voxel), vehicle-sized
+/// together. Ascending order; empty where `p.ring_gap` is 0.
 std::vector<uint32_t> moverRoofs(const std::vector<PointXYZI>& points,
                                  const Eigen::Isometry3d& pose, const ObjectComponents& cc,
                                  const std::vector<uint8_t>& moving,
