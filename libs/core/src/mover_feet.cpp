@@ -288,14 +288,35 @@ std::vector<uint32_t> moverRoofs(const std::vector<PointXYZI>& points,
     const Eigen::Vector3d q = R * points[stripe_points[j]].xyz().cast<double>();
     polar[j] = {std::hypot(q.x(), q.y()), q.z(), std::atan2(q.y(), q.x())};
   }
-  // Per stripe: its lowest and highest return.
-  std::vector<float> z_min(cc.voxels.size(), std::numeric_limits<float>::infinity()),
-      z_max(cc.voxels.size(), -std::numeric_limits<float>::infinity());
+  // Per stripe (its root's entry in `stripe_of`): its azimuths relative to its first return's,
+  // its ranges, and its levelled box (z: its lowest and highest return).
+  struct Stripe {
+    uint32_t root;
+    double az0, az_lo = 0, az_hi = 0, r_lo = 1e30, r_hi = 0;
+    Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e30), hi = Eigen::Vector3d::Constant(-1e30);
+  };
+  std::vector<Stripe> stripes;
+  std::vector<int32_t> stripe_of(cc.voxels.size(), -1);
   for (std::size_t j = 0; j < stripe_points.size(); ++j) {
     const uint32_t r = rootOf(stripe_points[j]);
-    z_min[r] = std::min(z_min[r], static_cast<float>(polar[j].y()));
-    z_max[r] = std::max(z_max[r], static_cast<float>(polar[j].y()));
+    if (stripe_of[r] < 0) {
+      stripe_of[r] = static_cast<int32_t>(stripes.size());
+      stripes.push_back({r, polar[j].z()});
+    }
+    Stripe& x = stripes[static_cast<std::size_t>(stripe_of[r])];
+    const double d = relative(polar[j].z(), x.az0);
+    x.az_lo = std::min(x.az_lo, d);
+    x.az_hi = std::max(x.az_hi, d);
+    x.r_lo = std::min(x.r_lo, polar[j].x());
+    x.r_hi = std::max(x.r_hi, polar[j].x());
+    const Eigen::Vector3d q(polar[j].x() * std::cos(polar[j].z()),
+                            polar[j].x() * std::sin(polar[j].z()), polar[j].y());
+    x.lo = x.lo.cwiseMin(q);
+    x.hi = x.hi.cwiseMax(q);
   }
+  const auto stripeOf = [&](uint32_t r) -> const Stripe& {
+    return stripes[static_cast<std::size_t>(stripe_of[r])];
+  };
   // A stripe is a roof where every point of it lies in one vehicle's shadow. One on its faces
   // (its lowest ring's slice, or a partly flagged one joined to neither) is a part of it: the
   // vehicle reaches that low or high for the next one (a sparse lidar's car 19 m off in three
@@ -311,32 +332,20 @@ std::vector<uint32_t> moverRoofs(const std::vector<PointXYZI>& points,
   std::vector<double> road_at(cc.voxels.size(), kUnknown);  // NaN: too few ground returns
   std::vector<double> road;
   const auto lowEnough = [&](uint32_t r, double step) {
-    if (road_at[r] != kUnknown) return z_max[r] <= road_at[r] + step;
-    double r_lo = 1e30, r_hi = 0, az_mid = 0;
-    for (std::size_t j = 0; j < stripe_points.size(); ++j)
-      if (rootOf(stripe_points[j]) == r) {
-        r_lo = std::min(r_lo, polar[j].x());
-        r_hi = std::max(r_hi, polar[j].x());
-        az_mid = polar[j].z();
-      }
-    double az_lo = 0, az_hi = 0;
-    for (std::size_t j = 0; j < stripe_points.size(); ++j)
-      if (rootOf(stripe_points[j]) == r) {
-        az_lo = std::min(az_lo, relative(polar[j].z(), az_mid));
-        az_hi = std::max(az_hi, relative(polar[j].z(), az_mid));
-      }
-    const double margin = p.voxel / r_lo;
+    const Stripe& x = stripeOf(r);
+    if (road_at[r] != kUnknown) return x.hi.z() <= road_at[r] + step;
+    const double margin = p.voxel / x.r_lo;
     road.clear();
     for (uint32_t i = 0; i < points.size(); ++i) {
       if (i >= ground.size() || !ground[i]) continue;
       const Eigen::Vector3d q = R * points[i].xyz().cast<double>();
       const double range = std::hypot(q.x(), q.y());
-      if (range < r_lo - 3.0 || range > r_hi + p.voxel) continue;
-      const double d = relative(std::atan2(q.y(), q.x()), az_mid);
-      if (d >= az_lo - margin && d <= az_hi + margin) road.push_back(q.z());
+      if (range < x.r_lo - 3.0 || range > x.r_hi + p.voxel) continue;
+      const double d = relative(std::atan2(q.y(), q.x()), x.az0);
+      if (d >= x.az_lo - margin && d <= x.az_hi + margin) road.push_back(q.z());
     }
     road_at[r] = road.size() >= 5 ? median(road) : std::numeric_limits<double>::quiet_NaN();
-    return z_max[r] <= road_at[r] + step;  // false where NaN
+    return x.hi.z() <= road_at[r] + step;  // false where NaN
   };
   for (std::size_t k = 0; k < vehicles.size(); ++k) {
     Vehicle v = vehicles[k];
@@ -369,9 +378,10 @@ std::vector<uint32_t> moverRoofs(const std::vector<PointXYZI>& points,
           continue;
         taken[r] = 1;
         if (on_faces[r] < comp[r].n) continue;
-        grew = grew || z_min[r] < v.bottom || z_max[r] > v.top;
-        v.bottom = std::min(v.bottom, static_cast<double>(z_min[r]));
-        v.top = std::max(v.top, static_cast<double>(z_max[r]));
+        const Stripe& x = stripeOf(r);
+        grew = grew || x.lo.z() < v.bottom || x.hi.z() > v.top;
+        v.bottom = std::min(v.bottom, x.lo.z());
+        v.top = std::max(v.top, x.hi.z());
       }
     }
   }
@@ -380,31 +390,9 @@ std::vector<uint32_t> moverRoofs(const std::vector<PointXYZI>& points,
   // ranges (a voxel). Two or more of them, vehicle-sized together, are one object: each alone is
   // all its own foot to rule 2, which turned it but moved only its flagged returns (a VLP-16's
   // car turning 14 m off: three slices, 49 of 88 returns flagged in each).
-  struct Slice {
-    uint32_t root;
-    double az0, az_lo = 0, az_hi = 0, r_lo = 1e30, r_hi = 0;
-    Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e30), hi = Eigen::Vector3d::Constant(-1e30);
-  };
-  std::vector<Slice> slices;
-  std::vector<int32_t> slice_of(cc.voxels.size(), -1);
-  for (std::size_t j = 0; j < stripe_points.size(); ++j) {
-    const uint32_t r = rootOf(stripe_points[j]);
-    if (taken[r] || !flaggedInPart(comp[r])) continue;
-    if (slice_of[r] < 0) {
-      slice_of[r] = static_cast<int32_t>(slices.size());
-      slices.push_back({r, polar[j].z()});
-    }
-    Slice& x = slices[static_cast<std::size_t>(slice_of[r])];
-    const double d = relative(polar[j].z(), x.az0);
-    x.az_lo = std::min(x.az_lo, d);
-    x.az_hi = std::max(x.az_hi, d);
-    x.r_lo = std::min(x.r_lo, polar[j].x());
-    x.r_hi = std::max(x.r_hi, polar[j].x());
-    const Eigen::Vector3d q(polar[j].x() * std::cos(polar[j].z()),
-                            polar[j].x() * std::sin(polar[j].z()), polar[j].y());
-    x.lo = x.lo.cwiseMin(q);
-    x.hi = x.hi.cwiseMax(q);
-  }
+  std::vector<const Stripe*> slices;
+  for (const Stripe& x : stripes)
+    if (!taken[x.root] && flaggedInPart(comp[x.root])) slices.push_back(&x);
   std::vector<std::size_t> stack(slices.size());
   for (std::size_t a = 0; a < slices.size(); ++a) stack[a] = a;
   const auto find = [&](std::size_t a) {
@@ -413,12 +401,12 @@ std::vector<uint32_t> moverRoofs(const std::vector<PointXYZI>& points,
   };
   for (std::size_t a = 0; a < slices.size(); ++a)
     for (std::size_t b = a + 1; b < slices.size(); ++b) {
-      const Slice &A = slices[a], &B = slices[b];
+      const Stripe &A = *slices[a], &B = *slices[b];
       const double off = relative(B.az0, A.az0);
       const double overlap = std::min(A.az_hi, B.az_hi + off) - std::max(A.az_lo, B.az_lo + off);
       if (overlap < 0.5 * std::min(A.az_hi - A.az_lo, B.az_hi - B.az_lo)) continue;
       if (A.r_lo > B.r_hi + p.voxel || B.r_lo > A.r_hi + p.voxel) continue;
-      const double gap = std::max(z_min[A.root] - z_max[B.root], z_min[B.root] - z_max[A.root]);
+      const double gap = std::max(A.lo.z() - B.hi.z(), B.lo.z() - A.hi.z());
       if (gap > kRingReach * std::max(A.r_hi, B.r_hi) * p.ring_gap) continue;
       const std::size_t ra = find(a), rb = find(b);
       stack[std::max(ra, rb)] = std::min(ra, rb);
@@ -429,14 +417,14 @@ std::vector<uint32_t> moverRoofs(const std::vector<PointXYZI>& points,
   for (std::size_t a = 0; a < slices.size(); ++a) {
     const std::size_t g = find(a);
     ++count[g];
-    lo[g] = lo[g].cwiseMin(slices[a].lo);
-    hi[g] = hi[g].cwiseMax(slices[a].hi);
+    lo[g] = lo[g].cwiseMin(slices[a]->lo);
+    hi[g] = hi[g].cwiseMax(slices[a]->hi);
   }
   for (std::size_t a = 0; a < slices.size(); ++a) {
     const std::size_t g = find(a);
     if (count[g] >= 2 && (hi[g] - lo[g]).head<2>().norm() <= p.max_length &&
         hi[g].z() - lo[g].z() <= p.max_height)
-      taken[slices[a].root] = 1;
+      taken[slices[a]->root] = 1;
   }
   for (const uint32_t i : stripe_points)
     if (taken[rootOf(i)] && !moving[i]) out.push_back(i);
