@@ -281,7 +281,9 @@ std::optional<WholeMatch> matchWholeObject(const std::vector<Eigen::Vector3f>& q
   Eigen::Vector3f c = Eigen::Vector3f::Zero();
   for (const Eigen::Vector3f& x : q) {
     c += x;
-    if (const uint32_t* a = voxelOf(x)) ++in[*a];
+    if (const uint32_t* a = voxelOf(x))
+      if (2 * std::size_t(++in[*a]) > q.size())  // more than half: no other object can tie it
+        return WholeMatch{*a, Eigen::Vector3f::Zero()};
   }
   const auto best = std::max_element(in.begin(), in.end());
   if (best == in.end()) return std::nullopt;
@@ -294,9 +296,13 @@ std::optional<WholeMatch> matchWholeObject(const std::vector<Eigen::Vector3f>& q
   // also tried level.
   c /= static_cast<float>(q.size());
   const auto holds = [&](std::size_t a, const Eigen::Vector3f& shift) {
-    std::size_t n = 0;
-    for (const Eigen::Vector3f& x : q)
+    std::size_t n = 0, left = q.size();  // stops once half is reached or out of reach
+    for (const Eigen::Vector3f& x : q) {
+      if (2 * n >= q.size()) return true;
+      if (2 * (n + left) < q.size()) return false;
+      --left;
       if (const uint32_t* b = voxelOf(x + shift)) n += *b == a;
+    }
     return 2 * n >= q.size();
   };
   for (std::size_t a = 0; a < objects.extent.size(); ++a) {

@@ -133,6 +133,30 @@ struct LaserPipeline::Held {
   // The candidates' components as the object consensus grouped them (grouped again if it did
   // not run): their positions in component order and where each component ends in it.
   std::vector<uint32_t> order, ends;
+  std::vector<Eigen::Vector3f> lo, hi, sum;  // per component: its box and its points' sum
+  // Its candidates in component order in the next held scan's sensor frame, per component on
+  // first use (at_next_done): carryBack asks the same ones at each decision while it is held.
+  std::vector<Eigen::Vector3f> at_next;
+  std::vector<uint8_t> at_next_done;
+  void summarise() {  // the components' boxes and sums, once (carryBack asks them every scan)
+    lo.clear();
+    hi.clear();
+    sum.clear();
+    std::size_t from = 0;
+    for (const std::size_t to : ends) {
+      Eigen::Vector3f l = Eigen::Vector3f::Constant(1e30f), u = -l, t = Eigen::Vector3f::Zero();
+      for (std::size_t k = from; k < to; ++k) {
+        const Eigen::Vector3f x = points[order[k]].xyz();
+        l = l.cwiseMin(x);
+        u = u.cwiseMax(x);
+        t += x;
+      }
+      lo.push_back(l);
+      hi.push_back(u);
+      sum.push_back(t);
+      from = to;
+    }
+  }
   // --save-overlays: the camera view, every point of the scan, its colour (collect()) and the
   // candidates' positions among them.
   std::optional<vision::CameraView> view;
@@ -1676,6 +1700,7 @@ void LaserPipeline::hold(ScanResult&& r, const Prepared& s, const Work& w) {
     for (uint32_t i = 0; i < s.scan.size(); ++i)
       if (s.candidate[i]) root.push_back(w.groups.root_of[w.groups.point_voxel[i]]);
     orderByComponent(root, h.order, h.ends);
+    h.summarise();
   }
   h.whole = prev_whole_;
   h.whole_measured = prev_whole_measured_;
@@ -1856,6 +1881,7 @@ void LaserPipeline::carryBack() {
       std::vector<uint32_t> root(h.points.size());
       for (uint32_t k = 0; k < h.points.size(); ++k) root[k] = cc.root_of[cc.point_voxel[k]];
       orderByComponent(root, h.order, h.ends);
+      h.summarise();
     }
     WholeObjects next;
     wholeObjectsOf(next_whole, std::vector<uint8_t>(next_whole.size(), 1), op.voxel, next, reach);
@@ -1871,18 +1897,11 @@ void LaserPipeline::carryBack() {
     // scan's sensor frame.
     const Eigen::Isometry3d to_next = next_world_to_sensor * h.r.pose;
     std::size_t from = 0;
-    for (const std::size_t to : h.ends) {
+    for (std::size_t c_at = 0; c_at < h.ends.size(); ++c_at) {
+      const std::size_t to = h.ends[c_at];
       const std::size_t n = to - from;
-      std::size_t moving = 0;
-      Eigen::Vector3f lo = Eigen::Vector3f::Constant(1e30f), hi = -lo,
-                      sum = Eigen::Vector3f::Zero();
-      for (std::size_t k = from; k < to; ++k) {
-        const uint32_t i = h.order[k];
-        moving += h.moving[i] != 0;
-        lo = lo.cwiseMin(h.points[i].xyz());
-        hi = hi.cwiseMax(h.points[i].xyz());
-        sum += h.points[i].xyz();
-      }
+      Eigen::Vector3f lo = h.lo[c_at], hi = h.hi[c_at];
+      const Eigen::Vector3f& sum = h.sum[c_at];
       std::optional<WholeMatch> match;
       // Only a component that can reach an object: its box and the object's overlap (the one
       // holding half of its points in the other's voxels, a voxel's quantisation aside), or do
@@ -1901,9 +1920,17 @@ void LaserPipeline::carryBack() {
       // carries the object on to the scan before.
       if (static_cast<int>(n) >= op.min_moving &&
           vehicleSized(lo, hi, op.max_length, op.max_height) && within_reach()) {
-        q.clear();
-        for (std::size_t k = from; k < to; ++k)
-          q.push_back((to_next * h.points[h.order[k]].xyz().cast<double>()).cast<float>());
+        if (h.at_next_done.empty()) {
+          h.at_next.resize(h.order.size());
+          h.at_next_done.assign(h.ends.size(), 0);
+        }
+        if (!h.at_next_done[c_at]) {  // the next held scan, hence to_next, is always the same
+          for (std::size_t k = from; k < to; ++k)
+            h.at_next[k] = (to_next * h.points[h.order[k]].xyz().cast<double>()).cast<float>();
+          h.at_next_done[c_at] = 1;
+        }
+        q.assign(h.at_next.begin() + static_cast<std::ptrdiff_t>(from),
+                 h.at_next.begin() + static_cast<std::ptrdiff_t>(to));
         match = matchWholeObject(q, next, op.voxel, kCarryMatch);
       }
       if (match && track_of[match->object] != UINT32_MAX) {
@@ -1946,6 +1973,8 @@ void LaserPipeline::carryBack() {
         const double moved = (track.where(t + half) - before).norm();
         if (!part.empty() && sizedAs(hi - lo, next.extent[m.object], tolerance, true) &&
             moved > kMovedDistance) {
+          std::size_t moving = 0;
+          for (std::size_t k = from; k < to; ++k) moving += h.moving[h.order[k]] != 0;
           h.r.stats.objects_carried_back += moving < n;
           track.at.push_front({t, here});
           // Its foot stays (rule 2): it goes on in the chain, as the objects moved whole keep
