@@ -238,10 +238,12 @@ void wholeObjectsOf(const std::vector<PointXYZI>& points, const std::vector<uint
   out.voxel.clear();
   out.extent.clear();
   out.centroid.clear();
+  out.lo.clear();
+  out.hi.clear();
   ObjectComponents cc;
   groupObjects(points, mask, side, cc, reach);
   std::vector<uint32_t> id(cc.voxels.size(), UINT32_MAX), n;
-  std::vector<Eigen::Vector3f> lo, hi;
+  std::vector<Eigen::Vector3f>&lo = out.lo, &hi = out.hi;
   for (std::size_t i = 0; i < points.size(); ++i) {
     if (cc.point_voxel[i] == UINT32_MAX) continue;
     const uint32_t root = cc.root_of[cc.point_voxel[i]];
@@ -278,12 +280,32 @@ std::optional<WholeMatch> matchWholeObject(const std::vector<Eigen::Vector3f>& q
         cellKey(floorToCell(x.x(), inv), floorToCell(x.y(), inv), floorToCell(x.z(), inv)));
   };
   std::vector<uint32_t> in(objects.extent.size(), 0);
-  Eigen::Vector3f c = Eigen::Vector3f::Zero();
+  Eigen::Vector3f c = Eigen::Vector3f::Zero(), lo = Eigen::Vector3f::Constant(1e30f), hi = -lo;
   for (const Eigen::Vector3f& x : q) {
     c += x;
-    if (const uint32_t* a = voxelOf(x))
-      if (2 * std::size_t(++in[*a]) > q.size())  // more than half: no other object can tie it
-        return WholeMatch{*a, Eigen::Vector3f::Zero()};
+    lo = lo.cwiseMin(x);
+    hi = hi.cwiseMax(x);
+  }
+  // A point in an object's voxel lies within a voxel of its box: where no box is that near, none
+  // of them is in one (issue #16: most components asked lie near no object).
+  const float margin = static_cast<float>(side) * 1.01f + 1e-3f;
+  bool near = objects.lo.size() != objects.extent.size();  // boxes not given: ask every point
+  for (std::size_t a = 0; a < objects.lo.size() && !near; ++a)
+    near = (lo.array() <= objects.hi[a].array() + margin).all() &&
+           (hi.array() >= objects.lo[a].array() - margin).all();
+  if (near) {
+    uint64_t last_key = CellMap<uint32_t>::kEmpty;  // neighbouring returns mostly share a voxel
+    const uint32_t* last = nullptr;
+    for (const Eigen::Vector3f& x : q) {
+      const uint64_t key =
+          cellKey(floorToCell(x.x(), inv), floorToCell(x.y(), inv), floorToCell(x.z(), inv));
+      if (key != last_key) {
+        last = objects.voxel.find(key);
+        last_key = key;
+      }
+      if (last && 2 * std::size_t(++in[*last]) > q.size())  // more than half: none can tie it
+        return WholeMatch{*last, Eigen::Vector3f::Zero()};
+    }
   }
   const auto best = std::max_element(in.begin(), in.end());
   if (best == in.end()) return std::nullopt;

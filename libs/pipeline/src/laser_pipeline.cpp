@@ -57,6 +57,56 @@ constexpr std::size_t kShiftMinCells = 20;  // outline cells: 3 m of a vertical 
 constexpr std::size_t kShiftEndGain = 2;    // a side's cells matching only shifted: its end, 0.3 m
 constexpr double kShiftView = 15.0 * M_PI / 180.0;  // rad
 
+// Rule 7's points in vertical columns of kShiftColumn, each column's points in one run in the
+// order they were added: one table, not an allocation per column (issue #16).
+class ColumnTable {
+ public:
+  // Adds x(i) for i in [0, n), then puts them in their columns.
+  template <class Point>
+  void build(std::size_t n, Point&& x) {
+    run_.clear();
+    start_.assign(1, 0);  // first each run's count at [r + 1], then where it starts
+    at_.resize(n);
+    std::vector<uint32_t> of(n);
+    uint64_t last_key = CellMap<uint32_t>::kEmpty;  // a ring's next return mostly shares it
+    uint32_t last = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+      at_[i] = x(i);
+      const uint64_t key = keyOf(at_[i].x(), at_[i].y());
+      if (key != last_key) {
+        bool fresh = false;
+        uint32_t& r = run_.get(key, &fresh);
+        if (fresh) {
+          r = static_cast<uint32_t>(start_.size() - 1);
+          start_.push_back(0);
+        }
+        last_key = key;
+        last = r;
+      }
+      of[i] = last;
+      ++start_[last + 1];
+    }
+    for (std::size_t r = 1; r < start_.size(); ++r) start_[r] += start_[r - 1];
+    points_.resize(n);
+    std::vector<uint32_t> fill(start_.begin(), start_.end() - 1);
+    for (std::size_t i = 0; i < n; ++i) points_[fill[of[i]]++] = at_[i];
+  }
+  static int64_t cell(float v) { return floorToCell(v, kInv); }
+  // Calls f(x) for each point of column (cx, cy), in the order they were added.
+  template <class F>
+  void forEach(int64_t cx, int64_t cy, F&& f) const {
+    if (const uint32_t* r = run_.find(cellKey(cx, cy, 0)))
+      for (uint32_t k = start_[*r]; k < start_[*r + 1]; ++k) f(points_[k]);
+  }
+
+ private:
+  static constexpr float kInv = static_cast<float>(1.0 / kShiftColumn);
+  static uint64_t keyOf(float x, float y) { return cellKey(cell(x), cell(y), 0); }
+  CellMap<uint32_t> run_;
+  std::vector<uint32_t> start_;
+  std::vector<Eigen::Vector3f> points_, at_;
+};
+
 // Rule 4's "not smaller than 1 - tolerance of it" (horizontal diagonal, height) of an extent e
 // against an object's extent x, and with `at_most`, not larger than x / (1 - tolerance) across.
 bool sizedAs(const Eigen::Vector3f& e, const Eigen::Vector3f& x, double tolerance, bool at_most) {
@@ -1252,11 +1302,7 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
     if (h.r.index + half == s.index) earlier = &h;
   const Prepared* later = pos + half < buf_.size() ? buf_[pos + half].get() : nullptr;
   if (later && (later->index != s.index + half || later->points_released)) later = nullptr;
-  std::optional<std::array<CellMap<std::vector<Eigen::Vector3f>>, 2>> columns;
-  const float inv_column = static_cast<float>(1.0 / kShiftColumn);
-  const auto columnOf = [&](float x, float y) {
-    return cellKey(floorToCell(x, inv_column), floorToCell(y, inv_column), 0);
-  };
+  std::optional<std::array<ColumnTable, 2>> columns;
   std::vector<Eigen::Vector3f> outline, target;
   std::optional<WindowScan> seen_earlier, seen_later;  // their beams
   WindowScan seen_now = s.own();                       // and this scan's, in the world
@@ -1277,16 +1323,16 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
         columns.emplace();
         // At the poses the test used (the cameras' corrections, DESIGN §3 "Camera poses").
         const Eigen::Isometry3f to_world_a = seen_earlier->world_to_sensor.inverse().cast<float>();
-        for (const PointXYZI& q : earlier->points) {
-          const Eigen::Vector3f x = to_world_a * q.xyz();
-          (*columns)[0].get(columnOf(x.x(), x.y())).push_back(x);
-        }
+        (*columns)[0].build(earlier->points.size(), [&](std::size_t i) -> Eigen::Vector3f {
+          return to_world_a * earlier->points[i].xyz();
+        });
         const Eigen::Isometry3f to_world_b = seen_later->world_to_sensor.inverse().cast<float>();
+        std::vector<uint32_t> cand;
         for (uint32_t i = 0; i < later->scan.size(); ++i)
-          if (later->candidate[i]) {
-            const Eigen::Vector3f x = to_world_b * later->scan.points[i].xyz();
-            (*columns)[1].get(columnOf(x.x(), x.y())).push_back(x);
-          }
+          if (later->candidate[i]) cand.push_back(i);
+        (*columns)[1].build(cand.size(), [&](std::size_t k) -> Eigen::Vector3f {
+          return to_world_b * later->scan.points[cand[k]].xyz();
+        });
       }
       // Its points above its foot (a sidewalk it touches is not its outline), seen from above.
       double z_lo = 1e30, z_hi = -1e30;
@@ -1309,8 +1355,7 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
       for (const Eigen::Vector3f& q : outline) centre += q.cast<double>();
       centre /= static_cast<double>(outline.size());
       const Eigen::Vector3d here = s.world_to_sensor.inverse().translation();
-      const auto shiftIn = [&](const CellMap<std::vector<Eigen::Vector3f>>& cols,
-                               const WindowScan& seen) {
+      const auto shiftIn = [&](const ColumnTable& cols, const WindowScan& seen) {
         // Seen from about the same side: a sensor that drove past sees other faces, and the
         // parts each view holds match best shifted (horizontal bearings within kShiftView).
         const Eigen::Vector3d there = seen.world_to_sensor.inverse().translation();
@@ -1318,13 +1363,13 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
         if (a.dot(b) < std::cos(kShiftView) * a.norm() * b.norm())
           return Eigen::Vector2f(Eigen::Vector2f::Zero());
         target.clear();
-        for (int64_t cy = floorToCell(lo.y() - grow, inv_column);
-             cy <= floorToCell(hi.y() + grow, inv_column); ++cy)
-          for (int64_t cx = floorToCell(lo.x() - grow, inv_column);
-               cx <= floorToCell(hi.x() + grow, inv_column); ++cx)
-            if (const auto* col = cols.find(cellKey(cx, cy, 0)))
-              for (const Eigen::Vector3f& x : *col)
-                if (x.z() >= z_from && x.z() <= z_hi + kShiftAbove) target.push_back(x);
+        for (int64_t cy = ColumnTable::cell(lo.y() - grow); cy <= ColumnTable::cell(hi.y() + grow);
+             ++cy)
+          for (int64_t cx = ColumnTable::cell(lo.x() - grow);
+               cx <= ColumnTable::cell(hi.x() + grow); ++cx)
+            cols.forEach(cx, cy, [&](const Eigen::Vector3f& x) {
+              if (x.z() >= z_from && x.z() <= z_hi + kShiftAbove) target.push_back(x);
+            });
         const OutlineShift m = outlineShift(outline, target, kShift);
         // Found there (half of its outline matches), and the cells facing the shift match
         // shifted, not where they are.

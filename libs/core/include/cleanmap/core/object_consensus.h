@@ -37,10 +37,11 @@ struct ObjectConsensusStats {
 };
 
 /// Rule 5's objects of one scan (ConsensusRules::whole_objects): each voxel (ObjectParams::voxel)
-/// of an object removed whole -> the object, and per object its extent (hi - lo) and centroid.
+/// of an object removed whole -> the object, and per object its extent (hi - lo), centroid and
+/// box (lo, hi).
 struct WholeObjects {
   CellMap<uint32_t> voxel;
-  std::vector<Eigen::Vector3f> extent, centroid;
+  std::vector<Eigen::Vector3f> extent, centroid, lo, hi;
   bool empty() const { return extent.empty(); }
 };
 
