@@ -177,7 +177,8 @@ struct LaserPipeline::Held {
   std::vector<uint8_t> moving, relabelled;    // ... and their decisions (Work)
   std::vector<PointXYZI> whole;               // its objects moved whole (remember()) ...
   std::vector<uint8_t> whole_measured;        // ... per point: rule 7 measured it ...
-  std::optional<WholeObjects> whole_objects;  // ... grouped once it is first asked
+  std::optional<WholeObjects> whole_objects;  // ... grouped once it is first asked ...
+  RingReach whole_reach;                      // ... with its rings' reach
   Eigen::Isometry3d world_to_sensor = Eigen::Isometry3d::Identity();
   double density = 1, ring_gap = 0;
   // The candidates' components as the object consensus grouped them (grouped again if it did
@@ -1146,7 +1147,9 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
   // still moving.
   ConsensusRules rules;
   rules.reach = ringReach(op, s.ring_gap);  // a sparse lidar's rings (sensor frame; OBJECTS.md)
-  WholeObjects prev;  // the previous scan's objects moved whole, built on the first call
+  // The previous scan's objects moved whole, built (or found held) on the first call.
+  WholeObjects prev_own;
+  const WholeObjects* prev_objects = &prev_own;
   bool prev_built = false;
   // The scans after it, the far half of them and the near half before it, built on first use.
   std::optional<std::vector<WindowScan>> after, far, just_before;
@@ -1162,10 +1165,17 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
       // whole (in that scan's sensor frame, where its consensus found it), and not smaller than
       // 1 - extent_tolerance of it (two solids do not share their space; the map's rule 5).
       if (!prev_built) {
-        wholeObjectsOf(prev_whole_, std::vector<uint8_t>(prev_whole_.size(), 1), op.voxel, prev,
-                       rules.reach);
+        // Rule 4 backwards grouped them already where the previous scan is held (the same points).
+        const Held* last = held_results_.empty() ? nullptr : &held_results_.back();
+        if (last && last->r.index + 1 == s.index && last->whole_objects &&
+            last->whole_reach == rules.reach && last->whole.size() == prev_whole_.size())
+          prev_objects = &*last->whole_objects;
+        else
+          wholeObjectsOf(prev_whole_, std::vector<uint8_t>(prev_whole_.size(), 1), op.voxel,
+                         prev_own, rules.reach);
         prev_built = true;
       }
+      const WholeObjects& prev = *prev_objects;
       const float inv = static_cast<float>(1.0 / op.voxel);
       Eigen::Vector3f lo = Eigen::Vector3f::Constant(1e30f), hi = -lo;
       q_prev.resize(idx.size());
@@ -1873,8 +1883,9 @@ void LaserPipeline::carryBack() {
     for (Held* x : {&a, &b})
       if (!x->whole_objects) {
         x->whole_objects.emplace();
+        x->whole_reach = paramsOf(*x).second;
         wholeObjectsOf(x->whole, std::vector<uint8_t>(x->whole.size(), 1), op.voxel,
-                       *x->whole_objects, paramsOf(*x).second);
+                       *x->whole_objects, x->whole_reach);
       }
     const WholeObjects &oa = *a.whole_objects, &ob = *b.whole_objects;
     if (oa.empty() || ob.empty()) return;
