@@ -61,11 +61,14 @@ class FlatLists {
 std::vector<uint32_t> moverFeet(const std::vector<PointXYZI>& points, const Eigen::Isometry3d& pose,
                                 const std::vector<uint8_t>& ground,
                                 const std::vector<uint8_t>& moving,
-                                const std::vector<uint8_t>& in_crop, const MoverFeetParams& p) {
+                                const std::vector<uint8_t>& in_crop, const MoverFeetParams& p,
+                                const std::vector<Eigen::Vector3d>* known) {
   const std::size_t n = points.size();
   auto world = [&](std::size_t i) -> Eigen::Vector3d {
     return pose * points[i].xyz().cast<double>();
   };
+  // A non-ground point in the crop: as the caller computed it, where it did (the same bits).
+  auto raised = [&](std::size_t i) -> Eigen::Vector3d { return known ? (*known)[i] : world(i); };
   // The refined ground points in the crop, and how high over them a mover can be to stand on
   // them: only the movers up to there are indexed (a truck's lowest metre, not its side).
   struct Candidate {
@@ -89,7 +92,7 @@ std::vector<uint32_t> moverFeet(const std::vector<PointXYZI>& points, const Eige
   Eigen::AlignedBox2d mov_box;
   for (std::size_t i = 0; i < n; ++i)
     if (moving[i] && !ground[i] && in_crop[i]) {
-      const Eigen::Vector3d q = world(i);
+      const Eigen::Vector3d q = raised(i);
       if (q.z() > reach) continue;
       above.push_back(q);
       above_moving.push_back(1);
@@ -103,7 +106,7 @@ std::vector<uint32_t> moverFeet(const std::vector<PointXYZI>& points, const Eige
                                     mov_box.max().array() + 2 * p.radius);
   for (std::size_t i = 0; i < n; ++i)
     if (!moving[i] && !ground[i] && in_crop[i]) {
-      const Eigen::Vector3d q = world(i);
+      const Eigen::Vector3d q = raised(i);
       if (q.z() > reach || !indexed.contains(q.head<2>())) continue;
       above.push_back(q);
       above_moving.push_back(0);

@@ -1606,7 +1606,9 @@ void LaserPipeline::moverFeet(Prepared& s, Work& w) const {
   fp.cell = p_.ground.cell;
   if (s.ring_gap > 0) fp.ring_gap = s.ring_gap;
   const auto& pts = s.scan.points;
-  for (uint32_t i : cleanmap::moverFeet(pts, s.scan.pose, s.ground, w.moving, s.in_crop, fp)) {
+  // Work::world holds the candidates (in the crop, not ground) as the feet compute them.
+  for (uint32_t i :
+       cleanmap::moverFeet(pts, s.scan.pose, s.ground, w.moving, s.in_crop, fp, &w.world)) {
     s.ground[i] = kNotGround;
     w.moving[i] = 1;
     w.world[i] = s.scan.pose * pts[i].xyz().cast<double>();

@@ -34,11 +34,14 @@ struct MoverFeetParams {
 /// (`moving`), and that lie more than `rise` over the road around them. A static surface
 /// straight above one (a wall's foot behind a walker's legs) keeps it. `pose` (sensor to world,
 /// z up) gives the heights and horizontal distances. Every other ground point (any flag) is the
-/// road's sample. Ascending order.
+/// road's sample. Ascending order. `world` (optional): pose * point, as computed in double,
+/// already known for the non-ground points in the crop (the pipeline's candidates); the others
+/// are computed here.
 std::vector<uint32_t> moverFeet(const std::vector<PointXYZI>& points, const Eigen::Isometry3d& pose,
                                 const std::vector<uint8_t>& ground,
                                 const std::vector<uint8_t>& moving,
-                                const std::vector<uint8_t>& in_crop, const MoverFeetParams& p);
+                                const std::vector<uint8_t>& in_crop, const MoverFeetParams& p,
+                                const std::vector<Eigen::Vector3d>* world = nullptr);
 
 /// doc/OBJECTS.md rule 6, a sparse lidar's roofs. The ring just above a vehicle's near face
 /// passes over its top and lands on its roof, metres further on (a car followed 7.7 m back by a
