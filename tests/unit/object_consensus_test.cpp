@@ -1060,6 +1060,25 @@ TEST(MoverFeet, AMovingFacesReturnsRaisedOverTheRoadGoWithIt) {
   EXPECT_EQ(far.feet(), feet);
 }
 
+TEST(MoverFeet, TheCallersWorldCoordinatesGiveTheSameFeet) {
+  // The pipeline hands the candidates' world coordinates its duplicate filter computed (pose *
+  // point in double): the feet are those it finds computing them itself, under a pose turned and
+  // moved; a list of another length is a clear error.
+  const FeetScene s(true);
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  pose.rotate(Eigen::AngleAxisd(0.7, Eigen::Vector3d::UnitZ()));
+  pose.pretranslate(Eigen::Vector3d(512.25, -73.5, 3.0));
+  std::vector<Eigen::Vector3d> world(s.pts.size(), Eigen::Vector3d::Zero());
+  for (std::size_t i = 0; i < s.pts.size(); ++i)
+    if (s.in_crop[i] && !s.ground[i]) world[i] = pose * s.pts[i].xyz().cast<double>();
+  const auto own = moverFeet(s.pts, pose, s.ground, s.moving, s.in_crop, {});
+  EXPECT_EQ(own.size(), s.foot.size());
+  EXPECT_EQ(moverFeet(s.pts, pose, s.ground, s.moving, s.in_crop, {}, &world), own);
+  world.pop_back();
+  EXPECT_THROW(moverFeet(s.pts, pose, s.ground, s.moving, s.in_crop, {}, &world),
+               std::invalid_argument);
+}
+
 TEST(MoverFeet, AStaticFaceKeepsItsFeet) {
   EXPECT_TRUE(FeetScene(false).feet().empty());
 }

@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <stdexcept>
+#include <string>
 
 #include "cleanmap/core/median.h"
 
@@ -64,6 +66,9 @@ std::vector<uint32_t> moverFeet(const std::vector<PointXYZI>& points, const Eige
                                 const std::vector<uint8_t>& in_crop, const MoverFeetParams& p,
                                 const std::vector<Eigen::Vector3d>* known) {
   const std::size_t n = points.size();
+  if (known && known->size() != n)
+    throw std::invalid_argument("moverFeet: " + std::to_string(known->size()) +
+                                " world coordinates given for " + std::to_string(n) + " points");
   auto world = [&](std::size_t i) -> Eigen::Vector3d {
     return pose * points[i].xyz().cast<double>();
   };
