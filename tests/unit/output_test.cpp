@@ -4,10 +4,14 @@
 #include <gtest/gtest.h>
 
 #include <chrono>
+#include <cmath>
 #include <nlohmann/json.hpp>
+#include <random>
 #include <thread>
 
+#include "cleanmap/core/error.h"
 #include "cleanmap/io/files.h"
+#include "cleanmap/io/grouping_spool.h"
 #include "cleanmap/io/output.h"
 #include "test_data.h"
 
@@ -147,4 +151,101 @@ TEST(Output, RefusedAlignmentsAreCountedByReason) {
   EXPECT_NE(md.find("3 of 8 scans aligned or first"), std::string::npos) << md;
   EXPECT_NE(md.find("| too few correspondences, the map started again | 1 |"), std::string::npos)
       << md;
+}
+
+TEST(MapSpool, AGroupingReadBackIsTheGroupingWrittenAndDecidesTheSame) {
+  // The map's forward pass spools each scan's grouping for the backward pass (DESIGN §2e,
+  // "Objects"). A street in the world frame, jittered with a seed: a sidewalk joining two walls
+  // and a walker (pieces of a structure), a sparse lidar's rings on a walker 25 m from the sensor
+  // (pooled slices), ground points outside the objects.
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> jitter(-0.03f, 0.03f);
+  std::vector<PointXYZI> pts;
+  std::vector<uint8_t> member;
+  const auto add = [&](float x, float y, float z, bool m) {
+    pts.push_back({x + jitter(rng), y + jitter(rng), z + jitter(rng), 0});
+    member.push_back(m);
+  };
+  for (float x = 0; x <= 40; x += 0.2f) {
+    for (float y = -10; y < -6.1f; y += 0.2f) add(x, y, 0.12f, true);  // sidewalk
+    for (float y = -6; y < 6; y += 0.5f) add(x, y, 0.0f, false);       // the road: ground
+    if (x > 20 && x < 22) continue;
+    for (float z = 0.12f; z <= 2.5f; z += 0.2f) add(x, -10.1f, z, true);  // two walls
+  }
+  for (float x = 10; x <= 10.5f; x += 0.1f)
+    for (float z = 0.2f; z <= 1.8f; z += 0.1f) add(x, -9.6f, z, true);  // the walker
+  for (const float z : {-1.28f, -0.70f, -0.12f})                        // rings at 25 m
+    for (int j = 0; j < 7; ++j) add(-25.0f, 3.0f + 0.08f * float(j), z, true);
+  ObjectParams p;
+  p.ring_pool = 2.5;
+  const RingReach reach = ringReach(p, 1.33 * M_PI / 180.0);
+  ObjectComponents own, back;
+  groupObjects(pts, member, p.voxel, own, reach);
+  ASSERT_FALSE(own.piece.empty());
+  ASSERT_FALSE(own.pooled.empty());
+  std::vector<unsigned char> bytes{1, 2, 3};  // appended after what is there
+  io::appendGrouping(own, bytes);
+  io::readGrouping(bytes.data() + 3, bytes.size() - 3, pts.size(), reach, "spool", back);
+  EXPECT_EQ(back.side, own.side);
+  EXPECT_TRUE(back.reach == own.reach);
+  EXPECT_EQ(back.voxels, own.voxels);
+  EXPECT_EQ(back.point_voxel, own.point_voxel);
+  EXPECT_EQ(back.root_of, own.root_of);
+  EXPECT_EQ(back.pooled, own.pooled);
+  EXPECT_EQ(back.piece, own.piece);
+  ASSERT_EQ(back.voxel_of.size(), own.voxel_of.size());
+  for (uint32_t v = 0; v < own.voxels.size(); ++v) {
+    const Eigen::Vector3i& c = own.voxels[v];
+    const uint32_t* found = back.voxel_of.find(cellKey(c.x(), c.y(), c.z()));
+    ASSERT_NE(found, nullptr);
+    EXPECT_EQ(*found, v);
+    EXPECT_EQ(back.voxel_of.find(cellKey(c.x(), c.y(), c.z() + 100)), nullptr);
+  }
+  // The same decision from either grouping: a third of the walker's and the rings' points moving.
+  std::vector<uint8_t> moving(pts.size(), 0);
+  for (std::size_t i = 0; i < pts.size(); ++i)
+    moving[i] = member[i] && (pts[i].x < -20 || (pts[i].y > -9.7f && pts[i].y < -9.5f)) && i % 3;
+  ConsensusRules rules;
+  rules.reach = reach;
+  auto by_own = moving, by_back = moving;
+  objectConsensus(pts, member, by_own, p, nullptr, nullptr, rules, &own);
+  objectConsensus(pts, member, by_back, p, nullptr, nullptr, rules, &back);
+  EXPECT_NE(by_own, moving);  // the rules changed something
+  EXPECT_EQ(by_back, by_own);
+  // No members: an empty grouping round-trips too.
+  std::vector<uint8_t> none(pts.size(), 0);
+  groupObjects(pts, none, p.voxel, own, reach);
+  bytes.clear();
+  io::appendGrouping(own, bytes);
+  io::readGrouping(bytes.data(), bytes.size(), pts.size(), reach, "spool", back);
+  EXPECT_TRUE(back.voxels.empty());
+  EXPECT_EQ(back.point_voxel, std::vector<uint32_t>(pts.size(), UINT32_MAX));
+}
+
+TEST(MapSpool, AGroupingOfOtherSizesIsAClearError) {
+  std::vector<PointXYZI> pts;
+  for (int i = 0; i < 50; ++i) pts.push_back({0.1f * float(i), 0, 1, 0});
+  const std::vector<uint8_t> member(pts.size(), 1);
+  ObjectComponents cc, back;
+  groupObjects(pts, member, 0.3, cc);
+  std::vector<unsigned char> bytes;
+  io::appendGrouping(cc, bytes);
+  const auto fails = [&](std::size_t n, std::size_t points, const std::string& what) {
+    try {
+      io::readGrouping(bytes.data(), n, points, {}, "/tmp/run/.map_groupings", back);
+      ADD_FAILURE() << "no error for " << what;
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("/tmp/run/.map_groupings: "), std::string::npos)
+          << e.what();
+      EXPECT_NE(std::string(e.what()).find(what), std::string::npos) << e.what();
+    }
+  };
+  fails(bytes.size() - 1, pts.size(), "bytes where its counts need");
+  fails(10, pts.size(), "(short)");
+  fails(bytes.size(), pts.size() + 1, "for a scan of 51");
+  // A point's voxel past the voxels (a spool overwritten) is refused, not followed.
+  auto* first_point = reinterpret_cast<uint32_t*>(bytes.data() + 32);
+  ASSERT_EQ(*first_point, 0u);
+  *first_point = 1000;
+  fails(bytes.size(), pts.size(), "past its voxels");
 }

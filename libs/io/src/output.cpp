@@ -24,6 +24,7 @@
 #include "cleanmap/io/config.h"
 #include "cleanmap/io/direct_file.h"
 #include "cleanmap/io/files.h"
+#include "cleanmap/io/grouping_spool.h"
 #include "cleanmap/io/kitti.h"
 #include "cleanmap/io/ply.h"
 
@@ -250,7 +251,8 @@ void OutputWriter::writeMaps(const FreeSpaceMap* free_space, const MapScanSink& 
     std::vector<SpoolPoint> pts, moving;
     std::vector<PointXYZI> objects;
     std::vector<uint8_t> member, gone;
-    ObjectComponents groups;  // the objects' grouping, made ahead in the backward pass
+    ObjectComponents groups;           // the objects' grouping, spooled by the forward pass
+    std::vector<unsigned char> bytes;  // its bytes in the spool
   };
   // Rules 4 and 5 both ways (DESIGN §2e "Objects"): a first pass decides the objects and keeps
   // its decisions per point (.map_decisions, a byte each); a second goes from the last scan to
@@ -311,34 +313,47 @@ void OutputWriter::writeMaps(const FreeSpaceMap* free_space, const MapScanSink& 
   const auto reachOf = [&](const SpoolHeader& h) {  // its lidar's rings (doc/OBJECTS.md rule 1)
     return ringReach(params_.object, h.ring_gap, Eigen::Vector2d(h.x, h.y));
   };
-  const auto decideObjects = [&](Spooled& b) {
+  const auto decideObjects = [&](Spooled& b, const ObjectComponents* grouped) {
     const auto st = consensus.decide(b.h.index, b.h.density, reachOf(b.h), b.objects, b.member,
-                                     b.gone, b.pts.size());
+                                     b.gone, b.pts.size(), grouped);
     map_object_points_ += st.points_added;
     map_object_kept_ += st.points_removed;
     map_objects_ += st.moving_objects;
   };
   const std::string decisions_path = staging_ + "/.map_decisions";
+  const std::string groupings_path = staging_ + "/.map_groupings";
   if (both_ways) {
     std::vector<uint8_t> had_whole(stems_.size(), 0);
     std::vector<std::uint64_t> decided_at(stems_.size() + 1, 0);  // offsets in .map_decisions
+    std::vector<std::uint64_t> grouped_at(stems_.size() + 1, 0);  // and in .map_groupings
     std::vector<int64_t> scan_index(stems_.size(), 0);
     {
-      DirectFile decisions(decisions_path, std::size_t(1) << 20);
+      // Each scan's grouping is spooled for the backward pass, which would otherwise group the
+      // same points again (issue #16; about 0.7 MB a scan of kitti_highway, deleted at the end).
+      DirectFile decisions(decisions_path, std::size_t(1) << 20),
+          groupings(groupings_path, std::size_t(1) << 20);
+      std::vector<unsigned char> bytes;
       forEachScan([&](std::size_t s, Spooled& b) {
-        decideObjects(b);
+        consensus.group(b.objects, b.member, reachOf(b.h), b.groups);
+        decideObjects(b, &b.groups);
         decisions.write(b.gone.data(), b.pts.size());
+        bytes.clear();
+        appendGrouping(b.groups, bytes);
+        groupings.write(bytes.data(), bytes.size());
         had_whole[s] = consensus.hadWholeObjects();
         decided_at[s + 1] = decided_at[s] + b.pts.size();
+        grouped_at[s + 1] = grouped_at[s] + bytes.size();
         scan_index[s] = b.h.index;
       });
       decisions.close();
+      groupings.close();
     }
     // From the last scan to the first: a scan without whole objects, after one without either,
     // has nothing the backward rules could change or pass on. With two threads the scan before
-    // is read and grouped beside this one's decision (issue #16), and dropped if not needed;
-    // the files are only ever used by one thread at a time.
-    PositionalFile spool(spool_path_, false), decisions_rw(decisions_path, true);
+    // is read beside this one's decision (issue #16), and dropped if not needed; the files are
+    // only ever used by one thread at a time.
+    PositionalFile spool(spool_path_, false), decisions_rw(decisions_path, true),
+        groupings_in(groupings_path, false);
     const auto load = [&](std::size_t s, Spooled& b) {
       spool.readAt(spool_offsets_[s], &b.h, sizeof b.h);
       b.pts.resize(b.h.full);
@@ -350,7 +365,10 @@ void OutputWriter::writeMaps(const FreeSpaceMap* free_space, const MapScanSink& 
       b.gone.resize(b.pts.size());
       decisions_rw.readAt(decided_at[s], b.gone.data(), b.gone.size());
       assemble(b);
-      consensus.group(b.objects, b.member, reachOf(b.h), b.groups);
+      b.bytes.resize(grouped_at[s + 1] - grouped_at[s]);
+      groupings_in.readAt(grouped_at[s], b.bytes.data(), b.bytes.size());
+      readGrouping(b.bytes.data(), b.bytes.size(), b.objects.size(), reachOf(b.h), groupings_path,
+                   b.groups);
     };
     Spooled cur, next;
     bool loaded = false;  // cur holds scan s
@@ -390,7 +408,7 @@ void OutputWriter::writeMaps(const FreeSpaceMap* free_space, const MapScanSink& 
       gone.resize(pts.size());
       decisions->read(gone.data(), gone.size());
     } else if (by_objects) {
-      decideObjects(cur);
+      decideObjects(cur, nullptr);
     }
     for (std::size_t i = 0; i < pts.size(); ++i) {
       const auto& q = pts[i];
@@ -418,7 +436,10 @@ void OutputWriter::writeMaps(const FreeSpaceMap* free_space, const MapScanSink& 
   decisions.reset();
   std::error_code ec;
   fs::remove(spool_path_, ec);
-  if (both_ways) fs::remove(decisions_path, ec);
+  if (both_ways) {
+    fs::remove(decisions_path, ec);
+    fs::remove(groupings_path, ec);
+  }
   map_ms_ =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 }
