@@ -35,16 +35,21 @@ struct UnionFind {
   }
 };
 
+// Each voxel's 26-neighbours that come after it (forEachNeighbour13), in CSR form, and the one
+// above it (UINT32_MAX: none).
+struct VoxelLinks {
+  std::vector<uint32_t> start, after, up;
+};
+
 // Low surfaces (doc/OBJECTS.md rule 1): a structure (a component larger than an object) joined
 // only through low voxels (a sidewalk that is not ground, 0.12 m up, between a parked car, a pole
 // and a wall) falls apart into the objects standing on them. A voxel is raised if it holds a
 // point at least `foot` above the lowest member of its 3 x 3 column. Raised voxels link among
 // themselves; a low voxel right under a raised one is part of it (a car's lowest band); the other
 // low voxels link among themselves, and such a cluster that touches one object only is its part.
-// `find(key)` is the voxel table's lookup (behind groupObjects' occupancy bits).
-template <class Find>
+// `links`: each voxel's 26-neighbours, as groupObjects found them (no voxel table probed again).
 void splitOnLowSurfaces(const std::vector<PointXYZI>& points, ObjectComponents& cc,
-                        const RingReach& reach, Find&& find) {
+                        const RingReach& reach, const VoxelLinks& links) {
   const std::size_t nv = cc.voxels.size();
   if (nv == 0) return;
   std::vector<Eigen::Vector3f> lo(nv, Eigen::Vector3f::Constant(1e30f)),
@@ -93,35 +98,42 @@ void splitOnLowSurfaces(const std::vector<PointXYZI>& points, ObjectComponents& 
   UnionFind uf(nv);
   for (uint32_t v = 0; v < nv; ++v) {
     if (!structure[v] || kind[v] == 0) continue;
-    const Eigen::Vector3i& c = cc.voxels[v];
-    const uint32_t* n = find(cellKey(c.x(), c.y(), c.z() + 1));
-    if (n && kind[*n] == 0 && cc.root_of[*n] == cc.root_of[v]) {
+    const uint32_t n = links.up[v];
+    if (n != UINT32_MAX && kind[n] == 0 && cc.root_of[n] == cc.root_of[v]) {
       kind[v] = 1;
-      uf.unite(v, *n);
+      uf.unite(v, n);
     }
   }
   for (uint32_t v = 0; v < nv; ++v) {
     if (!structure[v] || kind[v] == 1) continue;
-    const Eigen::Vector3i& c = cc.voxels[v];
-    forEachNeighbour13([&](int dx, int dy, int dz) {
-      const uint32_t* n = find(cellKey(c.x() + dx, c.y() + dy, c.z() + dz));
-      if (n && kind[*n] == kind[v] && cc.root_of[*n] == cc.root_of[v]) uf.unite(v, *n);
-    });
+    for (uint32_t j = links.start[v]; j < links.start[v + 1]; ++j) {
+      const uint32_t n = links.after[j];
+      if (kind[n] == kind[v] && cc.root_of[n] == cc.root_of[v]) uf.unite(v, n);
+    }
+  }
+  // Each low voxel's 26 neighbours: those after it (links.after) and those before it (the
+  // voxels that have it among theirs); the union-find's answers do not depend on the order.
+  std::vector<uint32_t> before_start(nv + 1, 0), before(links.after.size());
+  for (const uint32_t n : links.after) ++before_start[n + 1];
+  for (uint32_t v = 0; v < nv; ++v) before_start[v + 1] += before_start[v];
+  {
+    std::vector<uint32_t> at(before_start.begin(), before_start.end() - 1);
+    for (uint32_t v = 0; v < nv; ++v)
+      for (uint32_t j = links.start[v]; j < links.start[v + 1]; ++j)
+        before[at[links.after[j]]++] = v;
   }
   constexpr uint32_t kNone = UINT32_MAX, kMany = UINT32_MAX - 1;
   std::vector<uint32_t> touches(nv, kNone);  // per low cluster: the one object it touches
   for (uint32_t v = 0; v < nv; ++v) {
     if (!structure[v] || kind[v] != 2) continue;
-    const Eigen::Vector3i& c = cc.voxels[v];
     uint32_t& t = touches[uf.find(v)];
-    for (int dx = -1; dx <= 1; ++dx)
-      for (int dy = -1; dy <= 1; ++dy)
-        for (int dz = -1; dz <= 1; ++dz) {
-          const uint32_t* n = find(cellKey(c.x() + dx, c.y() + dy, c.z() + dz));
-          if (!n || kind[*n] == 2 || cc.root_of[*n] != cc.root_of[v]) continue;
-          const uint32_t obj = uf.find(*n);
-          t = t == kNone || t == obj ? obj : kMany;
-        }
+    const auto touch = [&](uint32_t n) {
+      if (kind[n] == 2 || cc.root_of[n] != cc.root_of[v]) return;
+      const uint32_t obj = uf.find(n);
+      t = t == kNone || t == obj ? obj : kMany;
+    };
+    for (uint32_t j = links.start[v]; j < links.start[v + 1]; ++j) touch(links.after[j]);
+    for (uint32_t j = before_start[v]; j < before_start[v + 1]; ++j) touch(before[j]);
   }
   for (uint32_t v = 0; v < nv; ++v)
     if (structure[v] && kind[v] == 2 && uf.find(v) == v && touches[v] != kNone &&
@@ -182,18 +194,30 @@ void groupObjects(const std::vector<PointXYZI>& points, const std::vector<uint8_
     occupied[b >> 6] |= uint64_t(1) << (b & 63);
   }
   // Each pair of neighbours met once (the root is the smallest voxel whatever the order of the
-  // unions).
+  // unions). The links found are kept for the low surfaces' split, which asks the same.
+  const bool split = reach.foot > 0;
+  VoxelLinks links;
+  if (split) {
+    links.start.resize(cc.voxels.size() + 1);
+    links.up.assign(cc.voxels.size(), UINT32_MAX);
+  }
   UnionFind uf(cc.voxels.size());
   for (uint32_t v = 0; v < cc.voxels.size(); ++v) {
     const Eigen::Vector3i& c = cc.voxels[v];
+    if (split) links.start[v] = static_cast<uint32_t>(links.after.size());
     forEachNeighbour13([&](int dx, int dy, int dz) {
       const uint64_t key = cellKey(c.x() + dx, c.y() + dy, c.z() + dz);
       const std::size_t b = bit(key);
       if (!((occupied[b >> 6] >> (b & 63)) & 1u)) return;
       const uint32_t* n = cc.voxel_of.find(key);
-      if (n) uf.unite(v, *n);
+      if (!n) return;
+      uf.unite(v, *n);
+      if (!split) return;
+      links.after.push_back(*n);
+      if (dx == 0 && dy == 0) links.up[v] = *n;  // (0, 0, 1): the only forward offset in-column
     });
   }
+  if (split) links.start[cc.voxels.size()] = static_cast<uint32_t>(links.after.size());
   // A sparse lidar's slices (the components so far) at most reach.pool across join those of
   // their column across rings (RingReach).
   cc.pooled.clear();
@@ -217,11 +241,7 @@ void groupObjects(const std::vector<PointXYZI>& points, const std::vector<uint8_
   cc.root_of.resize(cc.voxels.size());  // each voxel's component, found once
   for (uint32_t v = 0; v < cc.voxels.size(); ++v) cc.root_of[v] = uf.find(v);
   cc.piece.clear();
-  if (reach.foot > 0)
-    splitOnLowSurfaces(points, cc, reach, [&](uint64_t key) -> const uint32_t* {
-      const std::size_t b = bit(key);
-      return (occupied[b >> 6] >> (b & 63)) & 1u ? cc.voxel_of.find(key) : nullptr;
-    });
+  if (split) splitOnLowSurfaces(points, cc, reach, links);
 }
 
 namespace {
