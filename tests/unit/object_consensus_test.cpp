@@ -167,6 +167,36 @@ TEST(ObjectConsensus, ACarPullingOutBesideASidewalkIsNotPartOfTheStreet) {
   EXPECT_EQ(joined, before);
 }
 
+TEST(ObjectConsensus, ALowStepTouchingOneObjectGoesWithItOnEitherSide) {
+  // doc/OBJECTS.md rule 1, "Low surfaces": a wall and a car joined by a sidewalk (0.12 m up) are
+  // one structure; a low step (a car's ramp, 0.12 m up) beyond the car touches the car alone, so
+  // it is the car's part, whichever side of the car it lies on (the split looks at a voxel's 26
+  // neighbours both before and after it; each mirror image needs one of the two).
+  for (const float side : {1.0f, -1.0f}) {
+    std::vector<PointXYZI> pts;
+    const auto at = [&](float x, float y, float z) { pts.push_back({side * x, y, z, 0}); };
+    for (float x = -30; x <= -10; x += 0.2f)
+      for (float z = 0.12f; z <= 2.5f; z += 0.2f) at(x, 0, z);  // wall
+    for (float x = -10; x < 0; x += 0.2f)
+      for (float y = -1; y <= 1; y += 0.2f) at(x, y, 0.12f);  // sidewalk
+    const std::size_t car = pts.size();
+    for (float x = 0; x <= 4; x += 0.1f)
+      for (float y = -0.9f; y <= 0.9f; y += 0.3f)
+        for (float z = 0.1f; z <= 1.5f; z += 0.2f) at(x, y, z);
+    const std::size_t step = pts.size();
+    for (float x = 4.35f; x <= 5.5f; x += 0.1f)
+      for (float y = -0.9f; y <= 0.9f; y += 0.3f) at(x, y, 0.12f);
+    const std::vector<uint8_t> member(pts.size(), 1);
+    ObjectParams p;
+    ObjectComponents cc;
+    groupObjects(pts, member, p.voxel, cc, ringReach(p, 0.0));
+    const uint32_t car_root = cc.root_of[cc.point_voxel[car]];
+    EXPECT_NE(cc.root_of[cc.point_voxel[0]], car_root) << "side " << side;  // the wall apart
+    for (std::size_t i = step; i < pts.size(); ++i)
+      ASSERT_EQ(cc.root_of[cc.point_voxel[i]], car_root) << "side " << side << ", point " << i;
+  }
+}
+
 TEST(ObjectConsensus, AWalkerAgainstAPieceOfTheStreetKeepsHisMovingPoints) {
   // The same sidewalk with two walls standing on it, 20 m and 18 m long: apart above it, each wall
   // is vehicle-sized. A slow walker against the first has 30 of his returns tested moving, under
