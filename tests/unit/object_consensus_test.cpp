@@ -1217,6 +1217,20 @@ struct RoofScene {
   }
 };
 
+// Flags every n-th of `points` moving (the windowed test's scattered returns on a stripe or a
+// slice) and returns the rest, which the roofs' rule is to add.
+std::vector<uint32_t> flagEveryNth(const std::vector<uint32_t>& points, std::size_t n,
+                                   std::vector<uint8_t>& moving) {
+  std::vector<uint32_t> rest;
+  for (std::size_t k = 0; k < points.size(); ++k) {
+    if (k % n == 0)
+      moving[points[k]] = 1;
+    else
+      rest.push_back(points[k]);
+  }
+  return rest;
+}
+
 }  // namespace
 
 TEST(MoverRoofs, ARoofStripeBehindAMovingFaceGoesWithIt) {
@@ -1231,14 +1245,7 @@ TEST(MoverRoofs, AStripeTheTestFlaggedInPartGoesWithIt) {
   // the road behind): the rest is the roof all the same and goes; the flagged ones are moving
   // already. Behind a standing face, such a stripe stays as the test had it.
   RoofScene s(true);
-  std::vector<uint32_t> rest;
-  for (std::size_t k = 0; k < s.stripe.size(); ++k) {
-    if (k % 5 == 0)
-      s.moving[s.stripe[k]] = 1;
-    else
-      rest.push_back(s.stripe[k]);
-  }
-  EXPECT_EQ(s.roofs(), rest);
+  EXPECT_EQ(s.roofs(), flagEveryNth(s.stripe, 5, s.moving));
   RoofScene standing(false);
   for (std::size_t k = 0; k < standing.stripe.size(); k += 5)
     standing.moving[standing.stripe[k]] = 1;
@@ -1313,14 +1320,7 @@ TEST(MoverRoofs, TheRingUnderAMovingFaceGoesWithIt) {
   // As high, but the test flags a fifth of it or more (rule 2's share): one of the car's slices.
   SparseCarScene flagged(-3.0f);
   flagged.addSlice(-13.0f, z);
-  std::vector<uint32_t> rest;
-  for (std::size_t k = 0; k < flagged.slice.size(); ++k) {
-    if (k % 4 == 0)
-      flagged.moving[flagged.slice[k]] = 1;
-    else
-      rest.push_back(flagged.slice[k]);
-  }
-  EXPECT_EQ(flagged.roofs(), rest);
+  EXPECT_EQ(flagged.roofs(), flagEveryNth(flagged.slice, 4, flagged.moving));
   // No road seen before it or under it: nothing says where the road is; it stays.
   SparseCarScene no_road(-1.73f, false);
   no_road.addSlice(-13.0f, z);
