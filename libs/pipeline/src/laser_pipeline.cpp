@@ -1650,6 +1650,22 @@ ScanResult LaserPipeline::collect(Prepared& s, const Work& w) const {
   r.ring_gap = s.ring_gap;
   r.labels.assign(s.stats.points, kUnclassified);
   const auto& pts = s.scan.points;
+  // The lists' sizes first: grown by push_back they would hold up to twice their points, copied
+  // on each growth, for as long as the scan is held and spooled (issue #16).
+  std::size_t n_full = 0, n_moving = 0, n_compact = 0;
+  for (uint32_t i = 0; i < pts.size(); ++i) {
+    if (!s.far[i] && !s.in_crop[i]) continue;
+    const bool moving = !s.far[i] && !s.ground[i] && w.moving[i];
+    n_moving += moving;
+    n_full += !moving;
+    n_compact += !s.far[i] && !s.ground[i] && !moving && !w.duplicate[i];
+  }
+  r.static_full.reserve(n_full);
+  r.static_full_index.reserve(n_full);
+  r.static_full_kind.reserve(n_full);
+  r.moving.reserve(n_moving);
+  r.moving_index.reserve(n_moving);
+  r.static_compact.reserve(n_compact);
   for (uint32_t i = 0; i < pts.size(); ++i) {
     if (s.far[i]) {  // DESIGN §2e: beyond the crop, in the map; its label stays unclassified
       const Eigen::Vector3d wd = s.scan.pose * pts[i].xyz().cast<double>();
@@ -1743,6 +1759,12 @@ void LaserPipeline::remember(const ScanResult& r, long index, const Prepared& s,
 void LaserPipeline::hold(ScanResult&& r, const Prepared& s, const Work& w) {
   Held h;
   h.r = std::move(r);
+  const auto n = static_cast<std::size_t>(
+      std::count_if(s.candidate.begin(), s.candidate.end(), [](uint8_t c) { return c != 0; }));
+  h.points.reserve(n);
+  h.original.reserve(n);
+  h.moving.reserve(n);
+  h.relabelled.reserve(n);
   for (uint32_t i = 0; i < s.scan.size(); ++i) {
     if (!s.candidate[i]) continue;
     h.points.push_back(s.scan.points[i]);
