@@ -10,6 +10,7 @@
 #include <thread>
 
 #include "cleanmap/core/error.h"
+#include "cleanmap/core/free_space.h"
 #include "cleanmap/io/files.h"
 #include "cleanmap/io/grouping_spool.h"
 #include "cleanmap/io/output.h"
@@ -116,6 +117,35 @@ TEST(Output, TheSteadyIntervalLeavesOutTheScansDecidedAfterTheInput) {
   const auto& t = j.at("timing_per_scan").at("interval");
   EXPECT_GE(t.at("median_ms").get<double>(), 30.0);
   EXPECT_GE(t.at("mean_ms").get<double>(), 30.0);
+}
+
+// report.json `map.clean_passes_ms`: the map's decision pass by pass (DESIGN §2e, "Objects"). With
+// the objects decided both ways the three passes run, each a part of `clean_ms`; one way (the
+// objects off), the writing pass is the whole decision.
+TEST(Output, TheMapsPassesArePartsOfItsDecision) {
+  const auto dir = test::scratchDir("output_passes");
+  for (const bool objects : {true, false}) {
+    PipelineParams params;
+    params.map.objects = objects;
+    const auto out = dir / (objects ? "both" : "one");
+    {
+      io::OutputWriter w(out.string(), "input", params);
+      for (std::size_t i = 0; i < 6; ++i) w.write(result(i, 50), std::nullopt);
+      const FreeSpaceMap free_space(params.map);
+      w.finish(0.1, &free_space);
+    }
+    const auto j = nlohmann::json::parse(io::readTextFile((out / "report.json").string()));
+    const auto& m = j.at("map");
+    const auto& p = m.at("clean_passes_ms");
+    const double f = p.at("forward"), b = p.at("backward"), wr = p.at("write");
+    EXPECT_GE(b, 0.0);
+    EXPECT_GT(wr, 0.0);
+    EXPECT_LE(f + b + wr, m.at("clean_ms").get<double>()) << p.dump();
+    if (objects)
+      EXPECT_GT(f, 0.0) << p.dump();
+    else
+      EXPECT_EQ(f + b, 0.0) << p.dump();
+  }
 }
 
 // DESIGN §2.1 step 4: the refused alignments counted by reason, for the app's warning line and

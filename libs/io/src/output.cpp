@@ -239,6 +239,9 @@ void OutputWriter::writeMaps(const FreeSpaceMap* free_space, const MapScanSink& 
   if (maps_written_) throw Error(staging_, "the maps were already written (writeMaps twice)");
   maps_written_ = true;
   const auto t0 = std::chrono::steady_clock::now();
+  const auto elapsedMs = [](std::chrono::steady_clock::time_point t) {
+    return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t).count();
+  };
   spool_->close();
   std::vector<PointXYZI> full, compact, removed;
   const bool by_objects = free_space && params_.map.clean && params_.map.objects;
@@ -329,7 +332,7 @@ void OutputWriter::writeMaps(const FreeSpaceMap* free_space, const MapScanSink& 
     std::vector<int64_t> scan_index(stems_.size(), 0);
     {
       // Each scan's grouping is spooled for the backward pass, which would otherwise group the
-      // same points again (issue #16; about 0.7 MB a scan of kitti_highway, deleted at the end).
+      // same points again (issue #16; about 0.6 MB a scan of kitti_highway, deleted at the end).
       DirectFile decisions(decisions_path, std::size_t(1) << 20),
           groupings(groupings_path, std::size_t(1) << 20);
       std::vector<unsigned char> bytes;
@@ -348,6 +351,8 @@ void OutputWriter::writeMaps(const FreeSpaceMap* free_space, const MapScanSink& 
       decisions.close();
       groupings.close();
     }
+    map_forward_ms_ = elapsedMs(t0);
+    const auto t_back = std::chrono::steady_clock::now();
     // From the last scan to the first: a scan without whole objects, after one without either,
     // has nothing the backward rules could change or pass on. With two threads the scan before
     // is read beside this one's decision (issue #16), and dropped if not needed; the files are
@@ -393,7 +398,9 @@ void OutputWriter::writeMaps(const FreeSpaceMap* free_space, const MapScanSink& 
       if (loaded) std::swap(cur, next);
     }
     decide = false;
+    map_backward_ms_ = elapsedMs(t_back);
   }
+  const auto t_write = std::chrono::steady_clock::now();
   std::optional<DirectReader> decisions;
   if (both_ways) decisions.emplace(decisions_path);
   forEachScan([&](std::size_t s, Spooled& cur) {
@@ -440,8 +447,8 @@ void OutputWriter::writeMaps(const FreeSpaceMap* free_space, const MapScanSink& 
     fs::remove(decisions_path, ec);
     fs::remove(groupings_path, ec);
   }
-  map_ms_ =
-      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  map_write_ms_ = elapsedMs(t_write);
+  map_ms_ = elapsedMs(t0);
 }
 
 void OutputWriter::publish() {
@@ -530,21 +537,26 @@ void OutputWriter::finish(double wall_s, const FreeSpaceMap* free_space) {
                  {"map_removed_points", map_removed_}};
   {
     const auto& m = params_.map;
-    j["map"] = {{"radius_m", m.radius},
-                {"clean", m.clean && free_space != nullptr},
-                {"policy", m.policy == MapPolicy::kMoving ? "moving" : "transient"},
-                {"removed_points", map_removed_},
-                // DESIGN §2e, "Objects": of those, the points removed with their objects
-                {"objects", m.clean && m.objects && free_space != nullptr},
-                {"object_points", map_object_points_},
-                {"object_points_kept", map_object_kept_},
-                {"objects_removed", map_objects_},
-                {"clean_ms", map_ms_},
-                {"free_space_mib", free_space ? double(free_space->bytes()) / (1 << 20) : 0.0},
-                // DESIGN §2e: the walk's azimuth bins, the lidar's own step where it is wider
-                {"free_space_azimuth_bin_rad",
-                 {{"min", free_space ? free_space->azimuthBinMin() : 0.0},
-                  {"max", free_space ? free_space->azimuthBinMax() : 0.0}}}};
+    j["map"] = {
+        {"radius_m", m.radius},
+        {"clean", m.clean && free_space != nullptr},
+        {"policy", m.policy == MapPolicy::kMoving ? "moving" : "transient"},
+        {"removed_points", map_removed_},
+        // DESIGN §2e, "Objects": of those, the points removed with their objects
+        {"objects", m.clean && m.objects && free_space != nullptr},
+        {"object_points", map_object_points_},
+        {"object_points_kept", map_object_kept_},
+        {"objects_removed", map_objects_},
+        {"clean_ms", map_ms_},
+        // its passes (DESIGN §2e, "Objects"): forwards and backwards deciding the objects
+        // (0 where they are decided in the writing pass, one way), then the writing one
+        {"clean_passes_ms",
+         {{"forward", map_forward_ms_}, {"backward", map_backward_ms_}, {"write", map_write_ms_}}},
+        {"free_space_mib", free_space ? double(free_space->bytes()) / (1 << 20) : 0.0},
+        // DESIGN §2e: the walk's azimuth bins, the lidar's own step where it is wider
+        {"free_space_azimuth_bin_rad",
+         {{"min", free_space ? free_space->azimuthBinMin() : 0.0},
+          {"max", free_space ? free_space->azimuthBinMax() : 0.0}}}};
   }
   // DESIGN §2.0: the de-skew
   j["deskew"] = {{"mode", params_.sensor.deskew == DeskewMode::kAuto ? "auto"

@@ -120,6 +120,7 @@ class OutputWriter {
   std::size_t map_removed_ = 0, map_far_kept_ = 0;
   std::size_t map_object_points_ = 0, map_object_kept_ = 0, map_objects_ = 0;  // §2e, "Objects"
   double map_ms_ = 0;
+  double map_forward_ms_ = 0, map_backward_ms_ = 0, map_write_ms_ = 0;  // its passes (§2e)
   std::vector<Eigen::Isometry3d> poses_;
   std::vector<std::chrono::steady_clock::time_point> written_at_;         // of each write()
   std::size_t input_ended_at_ = std::numeric_limits<std::size_t>::max();  // writes before
