@@ -1245,7 +1245,8 @@ TEST(MoverRoofs, AStripeTheTestFlaggedInPartGoesWithIt) {
   // the road behind): the rest is the roof all the same and goes; the flagged ones are moving
   // already. Behind a standing face, such a stripe stays as the test had it.
   RoofScene s(true);
-  EXPECT_EQ(s.roofs(), flagEveryNth(s.stripe, 5, s.moving));
+  const std::vector<uint32_t> rest = flagEveryNth(s.stripe, 5, s.moving);  // before roofs()
+  EXPECT_EQ(s.roofs(), rest);
   RoofScene standing(false);
   for (std::size_t k = 0; k < standing.stripe.size(); k += 5)
     standing.moving[standing.stripe[k]] = 1;
@@ -1320,7 +1321,8 @@ TEST(MoverRoofs, TheRingUnderAMovingFaceGoesWithIt) {
   // As high, but the test flags a fifth of it or more (rule 2's share): one of the car's slices.
   SparseCarScene flagged(-3.0f);
   flagged.addSlice(-13.0f, z);
-  EXPECT_EQ(flagged.roofs(), flagEveryNth(flagged.slice, 4, flagged.moving));
+  const std::vector<uint32_t> rest = flagEveryNth(flagged.slice, 4, flagged.moving);
+  EXPECT_EQ(flagged.roofs(), rest);
   // No road seen before it or under it: nothing says where the road is; it stays.
   SparseCarScene no_road(-1.73f, false);
   no_road.addSlice(-13.0f, z);

@@ -18,6 +18,7 @@ struct GroupingHeader {
 
 template <class T>
 void put(const std::vector<T>& v, std::vector<unsigned char>& out) {
+  if (v.empty()) return;  // its data() may be null
   const auto* p = reinterpret_cast<const unsigned char*>(v.data());
   out.insert(out.end(), p, p + v.size() * sizeof(T));
 }
@@ -57,6 +58,7 @@ void readGrouping(const unsigned char* bytes, std::size_t n, std::size_t points,
   std::size_t at = sizeof h;
   const auto get = [&](auto& v, std::size_t count) {
     v.resize(count);
+    if (count == 0) return;  // an empty vector's data() may be null
     std::memcpy(static_cast<void*>(v.data()), bytes + at, count * sizeof(v[0]));
     at += count * sizeof(v[0]);
   };
