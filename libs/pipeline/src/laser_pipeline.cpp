@@ -1650,15 +1650,23 @@ ScanResult LaserPipeline::collect(Prepared& s, const Work& w) const {
   r.ring_gap = s.ring_gap;
   r.labels.assign(s.stats.points, kUnclassified);
   const auto& pts = s.scan.points;
+  // Where each point goes, for the count and the fill below alike.
+  enum class Dest : uint8_t { kNone, kFar, kGround, kMoving, kStatic, kDuplicate };
+  auto dest = [&](uint32_t i) {
+    if (s.far[i]) return Dest::kFar;  // DESIGN §2e: beyond the crop, in the map, unclassified
+    if (!s.in_crop[i]) return Dest::kNone;
+    if (s.ground[i]) return Dest::kGround;
+    if (w.moving[i]) return Dest::kMoving;
+    return w.duplicate[i] ? Dest::kDuplicate : Dest::kStatic;
+  };
   // The lists' sizes first: grown by push_back they would hold up to twice their points, copied
   // on each growth, for as long as the scan is held and spooled (issue #16).
   std::size_t n_full = 0, n_moving = 0, n_compact = 0;
   for (uint32_t i = 0; i < pts.size(); ++i) {
-    if (!s.far[i] && !s.in_crop[i]) continue;
-    const bool moving = !s.far[i] && !s.ground[i] && w.moving[i];
-    n_moving += moving;
-    n_full += !moving;
-    n_compact += !s.far[i] && !s.ground[i] && !moving && !w.duplicate[i];
+    const Dest d = dest(i);
+    n_moving += d == Dest::kMoving;
+    n_full += d != Dest::kNone && d != Dest::kMoving;
+    n_compact += d == Dest::kStatic;
   }
   r.static_full.reserve(n_full);
   r.static_full_index.reserve(n_full);
@@ -1667,27 +1675,29 @@ ScanResult LaserPipeline::collect(Prepared& s, const Work& w) const {
   r.moving_index.reserve(n_moving);
   r.static_compact.reserve(n_compact);
   for (uint32_t i = 0; i < pts.size(); ++i) {
-    if (s.far[i]) {  // DESIGN §2e: beyond the crop, in the map; its label stays unclassified
+    const Dest d = dest(i);
+    if (d == Dest::kNone) continue;
+    const uint32_t orig = s.scan.originalIndex(i);
+    if (d == Dest::kFar) {  // its label stays unclassified
       const Eigen::Vector3d wd = s.scan.pose * pts[i].xyz().cast<double>();
       r.static_full.push_back({static_cast<float>(wd.x()), static_cast<float>(wd.y()),
                                static_cast<float>(wd.z()), pts[i].intensity});
-      r.static_full_index.push_back(s.scan.originalIndex(i));
+      r.static_full_index.push_back(orig);
       r.static_full_kind.push_back(s.ground[i] ? kMapFarGround : kMapFar);
       continue;
     }
-    if (!s.in_crop[i]) continue;
-    const uint32_t orig = s.scan.originalIndex(i);
     // Ground points were never transformed by the stages above.
-    const Eigen::Vector3d wd =
-        s.ground[i] ? Eigen::Vector3d(s.scan.pose * pts[i].xyz().cast<double>()) : w.world[i];
+    const Eigen::Vector3d wd = d == Dest::kGround
+                                   ? Eigen::Vector3d(s.scan.pose * pts[i].xyz().cast<double>())
+                                   : w.world[i];
     const PointXYZI p{static_cast<float>(wd.x()), static_cast<float>(wd.y()),
                       static_cast<float>(wd.z()), pts[i].intensity};
-    if (s.ground[i]) {
+    if (d == Dest::kGround) {
       r.labels[orig] = kGround;
       r.static_full.push_back(p);
       r.static_full_index.push_back(orig);
       r.static_full_kind.push_back(kMapGround);
-    } else if (w.moving[i]) {
+    } else if (d == Dest::kMoving) {
       r.labels[orig] = kMoving;
       r.moving.push_back(p);
       r.moving_index.push_back(orig);
@@ -1696,9 +1706,9 @@ ScanResult LaserPipeline::collect(Prepared& s, const Work& w) const {
       r.labels[orig] = kStatic;
       r.static_full.push_back(p);
       r.static_full_index.push_back(orig);
-      r.static_full_kind.push_back(w.duplicate[i] ? kMapDuplicate : kMapStatic);
+      r.static_full_kind.push_back(d == Dest::kDuplicate ? kMapDuplicate : kMapStatic);
       ++s.stats.static_points;
-      if (!w.duplicate[i]) r.static_compact.push_back(p);
+      if (d == Dest::kStatic) r.static_compact.push_back(p);
     }
   }
   if (!w.relabelled.empty())
