@@ -84,13 +84,16 @@ VoxelMap::Match VoxelMap::nearest(const Eigen::Vector3d& p, double max_dist,
   const Eigen::Vector3d f = (u - cell) * voxel_;  // position inside the voxel, metres
   const uint64_t c = cellKey(static_cast<int64_t>(cell.x()), static_cast<int64_t>(cell.y()),
                              static_cast<int64_t>(cell.z()));
+  // Entries are in scan order: those of scans after newest_scan are at the end. Where no entry is
+  // that new, their origins are not read (a cache miss per voxel, issue #16).
+  const bool trim = newest_scan < last_scan_;
   auto scan = [&](uint64_t key) {
     const Voxel* found = grid_.find(key);
     if (!found) return;
     const Voxel& v = *found;
-    // Entries are in scan order: those of scans after newest_scan are at the end.
     std::size_t n = v.p.size();
-    while (n > 0 && v.origin[n - 1].first > newest_scan) --n;
+    if (trim)
+      while (n > 0 && v.origin[n - 1].first > newest_scan) --n;
     for (std::size_t e = 0; e < n; ++e) {
       const double d2 = (v.p[e] - p).squaredNorm();
       if (d2 < best2) best2 = d2, best = Match{&v.p[e], &v.cov[e]};
