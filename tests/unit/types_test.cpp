@@ -6,7 +6,14 @@
 #include <numeric>
 #include <random>
 #include <set>
+#include <stdexcept>
+#include <string>
+#include <thread>
 #include <unordered_map>
+#include <vector>
+
+#include <sys/syscall.h>
+#include <unistd.h>
 
 #include <cmath>
 #include <limits>
@@ -115,6 +122,81 @@ TEST(ParallelFor, EveryIndexOnceWorkersInRange) {
   parallelFor(
       10000, 4, [&](std::size_t i, int w) { acc[std::size_t(w)] += long(i); }, 64);
   EXPECT_EQ(std::accumulate(acc.begin(), acc.end(), 0L), 10000L * 9999L / 2);
+}
+
+// The helpers are kept from one loop to the next (issue #16): every loop of a thread runs its
+// worker 1 on the same kernel thread, and a wider loop adds helpers without losing the first.
+// Each index waits for the loop's other indices to start, so each worker takes exactly one.
+TEST(ParallelFor, KeepsItsHelperThreadsBetweenLoops) {
+  auto tid = [] { return static_cast<long>(::syscall(SYS_gettid)); };
+  auto loop = [&](int width) {
+    std::vector<long> by_worker(std::size_t(width), 0);
+    std::atomic<int> started{0};
+    parallelFor(
+        std::size_t(width), width,
+        [&](std::size_t, int w) {
+          ++started;
+          while (started.load() < width) std::this_thread::yield();
+          by_worker[std::size_t(w)] = tid();
+        },
+        1);
+    return by_worker;
+  };
+  std::thread([&] {  // a fresh calling thread: its helpers start with its first loop
+    std::set<long> helper;
+    for (int k = 0; k < 100; ++k) {
+      const auto w = loop(2);
+      EXPECT_EQ(w[0], tid());
+      helper.insert(w[1]);
+    }
+    EXPECT_EQ(helper.size(), 1u);  // a thread started per loop would be 100 kernel threads
+    const auto w = loop(4);
+    EXPECT_EQ(w[0], tid());
+    EXPECT_EQ(w[1], *helper.begin());
+    EXPECT_EQ(std::set<long>(w.begin(), w.end()).size(), 4u);
+  })
+      .join();
+}
+
+// An exception thrown by an index reaches the caller once every worker is done, and the loop
+// can be used again; loops nested in a worker and loops of other threads get their own workers.
+TEST(ParallelFor, RethrowsAndNestsAndRunsFromSeveralThreads) {
+  for (int thrower : {0, 1, 2})
+    for (int round = 0; round < 2; ++round) {
+      std::atomic<int> done{0};
+      try {
+        parallelFor(
+            3, 3,
+            [&](std::size_t i, int) {
+              if (int(i) == thrower) throw std::runtime_error("index " + std::to_string(i));
+              ++done;
+            },
+            1);
+        ADD_FAILURE() << "no exception from index " << thrower;
+      } catch (const std::runtime_error& e) {
+        EXPECT_EQ(std::string(e.what()), "index " + std::to_string(thrower));
+      }
+      EXPECT_EQ(done.load(), 2);  // the other indices ran
+    }
+  auto sum_squares = [](std::size_t n, int threads) {
+    std::vector<long> acc(std::size_t(threads), 0);
+    parallelFor(
+        n, threads, [&](std::size_t i, int w) { acc[std::size_t(w)] += long(i * i); }, 16);
+    return std::accumulate(acc.begin(), acc.end(), 0L);
+  };
+  const long expect = sum_squares(1000, 1);
+  std::vector<long> nested(8, 0);
+  parallelFor(
+      8, 2, [&](std::size_t i, int) { nested[i] = sum_squares(1000, 2); }, 1);
+  for (const long v : nested) EXPECT_EQ(v, expect);
+  std::vector<long> from_threads(4, 0);
+  std::vector<std::thread> callers;
+  for (std::size_t c = 0; c < from_threads.size(); ++c)
+    callers.emplace_back([&, c] {
+      for (int k = 0; k < 50; ++k) from_threads[c] += sum_squares(1000, 3);
+    });
+  for (auto& t : callers) t.join();
+  for (const long v : from_threads) EXPECT_EQ(v, 50 * expect);
 }
 
 TEST(CellKey, FloorNeighboursAndShift) {

@@ -7,14 +7,22 @@
 #include <algorithm>
 #include <atomic>
 #include <cstddef>
-#include <thread>
+#include <functional>
 #include <type_traits>
-#include <vector>
 
 namespace cleanmap {
+namespace detail {
+/// Calls work(w) for every w in [0, t): w = 0 on the calling thread, the others on helper
+/// threads that the calling thread keeps from one call to the next (issue #16: starting a thread
+/// costs 45-80 us in this VM, a fresh stack's page faults included, and GICP asks for two an
+/// iteration). Returns when every call has returned, then rethrows the first exception one threw.
+/// A call made from inside work(0) (the caller's helpers are then busy), or in a fork's child,
+/// starts threads of its own.
+void runOnWorkers(int t, const std::function<void(int)>& work);
+}  // namespace detail
 
 /// Runs f(i) or f(i, worker) for every i in [0, n), worker in [0, threads). Serial (worker 0) when
-/// threads <= 1 or n <= chunk.
+/// threads <= 1 or n <= chunk. An exception thrown by f is rethrown here once every worker is done.
 template <class F>
 void parallelFor(std::size_t n, int threads, F&& f, std::size_t chunk = 512) {
   auto call = [&f](std::size_t i, int worker) {
@@ -31,15 +39,10 @@ void parallelFor(std::size_t n, int threads, F&& f, std::size_t chunk = 512) {
     return;
   }
   std::atomic<std::size_t> next{0};
-  auto work = [&](int worker) {
+  detail::runOnWorkers(t, [&](int worker) {
     for (std::size_t b; (b = next.fetch_add(chunk)) < n;)
       for (std::size_t i = b, e = std::min(n, b + chunk); i < e; ++i) call(i, worker);
-  };
-  std::vector<std::thread> pool;
-  pool.reserve(static_cast<std::size_t>(t - 1));
-  for (int w = 1; w < t; ++w) pool.emplace_back(work, w);
-  work(0);
-  for (auto& th : pool) th.join();
+  });
 }
 
 }  // namespace cleanmap
