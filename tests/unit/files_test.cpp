@@ -8,6 +8,7 @@
 #include <limits>
 
 #include "cleanmap/core/error.h"
+#include "cleanmap/io/background_files.h"
 #include "cleanmap/io/direct_file.h"
 #include "cleanmap/io/files.h"
 #include "test_data.h"
@@ -198,6 +199,48 @@ TEST(DirectFile, ErrorsNameTheFile) {
   EXPECT_EQ(files, 1u);
   const std::string under_file = (dir / "a.label" / "x.label").string();  // a file as a folder
   test::expectError([&] { io::writeLabels(under_file, labels); }, "a.label", "cannot");
+}
+
+// Issue #16: label files written on a thread of their own. Every file queued is there, whole,
+// once wait() returns (or the writer is destroyed); a failed write is rethrown by the next call
+// naming its file, and a queued removal removes.
+TEST(BackgroundFiles, WritesEveryFileWholeAndRethrowsAFailureByName) {
+  const auto dir = test::scratchDir("background_files");
+  std::vector<Labels> written;
+  {
+    io::BackgroundFiles files(2);
+    for (uint32_t k = 0; k < 12; ++k) {
+      Labels l(1000 + 517 * k);
+      for (std::size_t i = 0; i < l.size(); ++i) l[i] = uint32_t(i * 7 + k) % 260;
+      written.push_back(l);
+      files.writeLabels((dir / (std::to_string(k) + ".label")).string(), std::move(l));
+    }
+    files.wait();
+    for (uint32_t k = 0; k < 12; ++k)
+      EXPECT_EQ(io::readLabels((dir / (std::to_string(k) + ".label")).string()), written[k]);
+    writeRaw(dir / "spent", "x", 1);
+    files.remove((dir / "spent").string());
+    files.remove((dir / "never_there").string());  // no error
+    files.wait();
+    EXPECT_FALSE(fs::exists(dir / "spent"));
+    files.writeLabels((dir / "last.label").string(), written[3]);
+  }  // destroyed with a job queued: it is done first
+  EXPECT_EQ(io::readLabels((dir / "last.label").string()), written[3]);
+  std::size_t files_left = 0;  // no temporaries
+  for (const auto& e : fs::directory_iterator(dir)) files_left += e.is_regular_file();
+  EXPECT_EQ(files_left, 13u);
+
+  io::BackgroundFiles files(2);
+  const std::string under_file = (dir / "last.label" / "x.label").string();  // a file as a folder
+  files.writeLabels(under_file, written[0]);
+  test::expectError([&] { files.wait(); }, "last.label", "cannot");
+  files.writeLabels(under_file, written[0]);
+  test::expectError(
+      [&] {
+        for (int k = 0; k < 4; ++k) files.writeLabels(under_file, written[0]);
+      },
+      "last.label", "cannot");
+  // Destroyed with failing jobs queued: they run, their errors dropped.
 }
 
 TEST(PositionalFile, ReadsAndPatchesAtOffsets) {

@@ -21,6 +21,7 @@
 #include "cleanmap/core/error.h"
 #include "cleanmap/core/median.h"
 #include "cleanmap/core/object_consensus.h"
+#include "cleanmap/io/background_files.h"
 #include "cleanmap/io/config.h"
 #include "cleanmap/io/direct_file.h"
 #include "cleanmap/io/files.h"
@@ -92,6 +93,7 @@ OutputWriter::OutputWriter(const std::string& outdir, const std::string& input,
   checkOutputFolder(dir_, opts);
   staged_ = std::make_unique<StagedFolder>(dir_, "cleanmap");
   staging_ = staged_->path();
+  files_ = std::make_unique<BackgroundFiles>();
   std::error_code ec;
   fs::create_directories(fs::path(staging_) / "labels", ec);
   if (ec) throw Error(staging_, "cannot create labels/: " + ec.message());
@@ -116,6 +118,7 @@ OutputWriter::OutputWriter(const std::string& outdir, const std::string& input,
 }
 
 OutputWriter::~OutputWriter() {
+  files_.reset();    // the queued files are done before their folder goes
   compact_.reset();  // closes and removes the temporaries first
   full_.reset();
   moving_.reset();
@@ -153,7 +156,7 @@ std::optional<double> OutputWriter::measuredSensorHeight() const {
 
 void OutputWriter::write(const ScanResult& r, const std::optional<MosCounts>& eval) {
   written_at_.push_back(std::chrono::steady_clock::now());
-  writeLabels(staging_ + "/labels/" + r.stem + ".label", r.labels);
+  files_->writeLabels(staging_ + "/labels/" + r.stem + ".label", r.labels);
   if (!r.overlay.empty()) {  // --save-overlays (DESIGN §3)
     std::vector<uchar> png;
     if (!cv::imencode(".png", r.overlay, png))
@@ -436,27 +439,28 @@ void OutputWriter::writeMaps(const FreeSpaceMap* free_space, const MapScanSink& 
     full_->append(full, h.z);
     compact_->append(compact, h.z);
     removed_->append(removed, h.z);
-    writeLabels(staging_ + "/map_labels/" + stems_[s] + ".label", map_labels);
+    files_->writeLabels(staging_ + "/map_labels/" + stems_[s] + ".label", map_labels);
     if (sink) sink(MapScan{h.index, stems_[s], map_labels, full, removed});
   });
   spool_.reset();
   decisions.reset();
-  std::error_code ec;
-  fs::remove(spool_path_, ec);
+  files_->remove(spool_path_);  // hundreds of MB: the file system frees them beside what follows
   if (both_ways) {
-    fs::remove(decisions_path, ec);
-    fs::remove(groupings_path, ec);
+    files_->remove(decisions_path);
+    files_->remove(groupings_path);
   }
   map_write_ms_ = elapsedMs(t_write);
   map_ms_ = elapsedMs(t0);
 }
 
 void OutputWriter::publish() {
+  files_->wait();
   staged_->publish();
 }
 
 void OutputWriter::finish(double wall_s, const FreeSpaceMap* free_space) {
   if (!maps_written_) writeMaps(free_space);
+  files_->wait();  // a label file's error before the report
   compact_->close();
   full_->close();
   moving_->close();

@@ -23,6 +23,7 @@ class StagedFolder;  // files.h
 
 class PlyStreamWriter;
 class DirectFile;
+class BackgroundFiles;  // background_files.h
 
 struct OutputOptions {
   /// Replace OUTDIR even if it is a non-empty folder that holds no cleanmap run.
@@ -111,6 +112,7 @@ class OutputWriter {
 
   std::string dir_, staging_, input_;
   std::unique_ptr<StagedFolder> staged_;
+  std::unique_ptr<BackgroundFiles> files_;  // label files and spent spools, off this thread
   PipelineParams params_;
   void spoolScan(const ScanResult& r);
   bool maps_written_ = false;
