@@ -8,8 +8,10 @@
 #include <unordered_map>
 
 #include "cleanmap/core/cell_key.h"
+#include "cleanmap/io/kitti.h"
 #include "cleanmap/registration/gicp.h"
 #include "cleanmap/registration/odometry.h"
+#include "test_data.h"
 
 using namespace cleanmap;
 using namespace cleanmap::reg;
@@ -238,6 +240,28 @@ TEST(Odometry, TracksAConstantMotionAndRefusesJumps) {
 // model's guess, and the model goes on from those guesses: the sensor keeps its velocity through
 // the stretch (it stopped 5 steps in when only accepted scans fed the model), and the street
 // after it is aligned from a guess near the truth.
+// DESIGN §2.1 "Starting at speed" on kitti_highway's first two scans, the first anchored at its
+// given pose: the second's standstill fits too few surfaces facing the forward axis, so the 20
+// guesses run, each screened with 8 GICP iterations, and only the best goes on (issue #16;
+// unscreened they ran 471 iterations). The pose kept is the given one within centimetres.
+TEST(Odometry, ScreensItsStartGuessesOnARealStart) {
+  CLEANMAP_REQUIRE_DATASET("kitti_highway");
+  auto seq = io::KittiSequence::open(test::dataDir() + "/kitti_highway");
+  RegistrationParams rp;
+  Odometry odo(rp, 2);
+  const Frame f0 = seq.frame(0), f1 = seq.frame(1);
+  ASSERT_TRUE(f0.scan.has_pose && f1.scan.has_pose);
+  EXPECT_TRUE(odo.track(f0.scan.points, f0.scan.timestamp, 0, f0.scan.pose).accepted);
+  const OdometryStep s = odo.track(f1.scan.points, f1.scan.timestamp, 1);
+  EXPECT_EQ(s.start_guesses, 20);
+  EXPECT_LE(s.guess_iterations, 8 * s.start_guesses + rp.max_iterations);
+  EXPECT_TRUE(s.accepted) << s.status;
+  const double error = (s.pose.translation() - f1.scan.pose.translation()).norm();
+  std::printf("  kitti_highway scan 1: %d guesses, %d iterations, %.4f m from the given pose\n",
+              s.start_guesses, s.guess_iterations, error);
+  EXPECT_LT(error, 0.05);
+}
+
 TEST(Odometry, KeepsItsVelocityThroughScansItCannotAlign) {
   RegistrationParams rp;
   Odometry odo(rp, 2);

@@ -639,10 +639,15 @@ TEST(SimCases, GicpLocksOnWhenTheRecordingStartsAtSpeed) {
   const StartAtSpeed r = startAtSpeed(sim::defaultScenario(), 14);
   ASSERT_EQ(r.info.size(), 30u);
   EXPECT_GT(r.info[1].start_guesses, 0);
+  // Each guess is screened with 8 GICP iterations, and only the best runs on (issue #16).
+  EXPECT_LE(r.info[1].guess_iterations, 8 * r.info[1].start_guesses + 30);
   std::vector<double> dt = r.step_error;
   std::sort(dt.begin(), dt.end());
-  std::printf("  start at 14 m/s: RPE median %.4f m, max %.4f m; end error %.3f m over %.1f m\n",
-              dt[dt.size() / 2], dt.back(), r.end, r.dist);
+  std::printf(
+      "  start at 14 m/s: RPE median %.4f m, max %.4f m; end error %.3f m over %.1f m; %d guesses, "
+      "%d iterations\n",
+      dt[dt.size() / 2], dt.back(), r.end, r.dist, r.info[1].start_guesses,
+      r.info[1].guess_iterations);
   EXPECT_LE(dt[dt.size() / 2], 0.02);
   EXPECT_LE(dt.back(), 0.1);
   EXPECT_LE(r.end, 0.01 * r.dist);

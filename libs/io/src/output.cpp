@@ -624,7 +624,10 @@ void OutputWriter::finish(double wall_s, const FreeSpaceMap* free_space) {
                      {"iterations", p.iterations},
                      {"fitness", p.fitness},
                      {"rmse_m", p.rmse}});
-      if (p.start_guesses > 0) per.back()["start_guesses"] = p.start_guesses;
+      if (p.start_guesses > 0) {
+        per.back()["start_guesses"] = p.start_guesses;
+        per.back()["guess_iterations"] = p.guess_iterations;
+      }
     }
     std::vector<double> down, cov, align, map;
     for (const PoseInfo& p : pose_info_)

@@ -560,6 +560,7 @@ PoseInfo LaserPipeline::registerFrame(Frame& f) {
   info.reason = step.reason;
   info.map_restarts = step.map_restarts;
   info.start_guesses = step.start_guesses;
+  info.guess_iterations = step.guess_iterations;
   info.accepted = step.accepted;
   info.iterations = step.gicp.iterations;
   info.fitness = step.gicp.fitness;

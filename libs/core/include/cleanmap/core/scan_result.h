@@ -86,6 +86,7 @@ struct PoseInfo {
   std::string reason;            ///< a refusal's reason without its figures ("" when accepted)
   bool map_restarts = false;     ///< refused for want of overlap: GICP's map started again
   int start_guesses = 0;         ///< DESIGN §2.1 "Starting at speed": guesses tried along the axis
+  int guess_iterations = 0;      ///< and their GICP iterations
   std::string guess = "none";    ///< GICP's initial guess: "constant velocity", "odometry", "given"
   int iterations = 0;
   double fitness = 0;  ///< share of aligned points with a correspondence

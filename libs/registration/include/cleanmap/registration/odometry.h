@@ -28,6 +28,7 @@ struct OdometryStep {
   std::string reason;     ///< a refusal's reason without its figures ("" when accepted)
   bool map_restarts = false;  ///< refused for want of overlap: the map starts again next scan
   int start_guesses = 0;      ///< guesses tried after a standstill's was refused (DESIGN §2.1)
+  int guess_iterations = 0;   ///< their GICP iterations, the best one's run on included
   /// Wall time of each step, ms: range crop + downsampling (and de-skew), covariances, GICP,
   /// map update.
   double ms_downsample = 0, ms_covariances = 0, ms_align = 0, ms_map = 0;
