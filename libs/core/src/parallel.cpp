@@ -38,12 +38,13 @@ class Workers {
   bool usable() const { return !busy_ && ::getpid() == pid_; }
 
   void run(int t, const std::function<void(int)>& work) {
-    busy_ = true;
-    // Only this thread writes gen_: a new helper starts from the generation it was made in.
+    // Only this thread writes gen_: a new helper starts from the generation it was made in. (A
+    // thread that cannot start throws here, before anything is marked busy.)
     while (static_cast<int>(threads_.size()) < t - 1) {
       const int w = static_cast<int>(threads_.size()) + 1;
       threads_.emplace_back([this, w, g = gen_] { loop(w, g); });
     }
+    busy_ = true;
     {
       std::lock_guard<std::mutex> l(m_);
       work_ = &work;
