@@ -194,14 +194,23 @@ ds::Mass MovingTest::scanMassAt(const Eigen::Vector3d& pl, double d, const Windo
       model_.massesFast(r_b, t2_b, n, e_b, o_b);
     else
       model_.massesReference(r_b, t2_b, n, e_b, o_b);
+    // In registers: the products are chains from beam to beam, and through memory (the
+    // captures) each step waited for a store (issue #16). Same order, same bits.
+    double pe = qe, po = qo, pu = qu;
+    float em = e_max, om = o_max;
     for (int k = 0; k < n; ++k) {
-      e_max = std::max(e_max, e_b[k]);
-      if (r_b[k] <= band) o_max = std::max(o_max, o_b[k]);  // a return at P's range
+      em = std::max(em, e_b[k]);
+      if (r_b[k] <= band) om = std::max(om, o_b[k]);  // a return at P's range
       const double e = e_b[k], o = o_b[k];
-      qe *= 1.0 - o;
-      qo *= 1.0 - e;
-      qu *= 1.0 - e - o;
+      pe *= 1.0 - o;
+      po *= 1.0 - e;
+      pu *= 1.0 - e - o;
     }
+    qe = pe;
+    qo = po;
+    qu = pu;
+    e_max = em;
+    o_max = om;
     beams += static_cast<std::size_t>(n);
     n = 0;
   };
@@ -308,12 +317,35 @@ ds::Mass MovingTest::scanMassAt(const Eigen::Vector3d& pl, double d, const Windo
     const double wide =
         p_.search_lambdas * std::sqrt(p_.lambda_theta * p_.lambda_theta + s.pose_noise2 / (d * d));
     const float r2w = static_cast<float>(wide * wide);
-    s.beams->forEachNear(dir, wide, [&](const BeamIndex::Beam& q) {
-      float theta2, r;
-      geometry(q, theta2, r);
-      if (theta2 <= r2w && dir.dot(q.dir) > 0.0f && std::abs(r) <= band)
-        o_max = std::max(o_max, static_cast<float>(model_.beamFloat(r, theta2).o));
-    });
+    if (math_ == BeamMath::kFast) {
+      // The same beams through filterBeams (r <= band there, r >= -band here), kRun at a time,
+      // until the conflict is found: o_max only grows, so the rest cannot change the outcome.
+      constexpr int kRun = 32;
+      alignas(64) float r_run[kRun], t2_run[kRun];
+      alignas(64) int32_t keep_run[kRun];
+      bool found = false;
+      s.beams->forEachRunNear(
+          dir, wide, [&](const BeamIndex::PackedBeam* q, const BeamIndex::PackedBeam* last) {
+            while (!found && q < last) {
+              const int run = static_cast<int>(std::min<std::ptrdiff_t>(last - q, kRun));
+              detail::filterBeams(q, run, index.rangeUnit(), dir.x(), dir.y(), dir.z(), df, r2w,
+                                  band, r_run, t2_run, keep_run);
+              for (int k = 0; k < run; ++k)
+                if (keep_run[k] && r_run[k] >= -band)
+                  o_max =
+                      std::max(o_max, static_cast<float>(model_.beamFloat(r_run[k], t2_run[k]).o));
+              found = static_cast<double>(e_max) * o_max >= p_.scan_conflict;
+              q += run;
+            }
+          });
+    } else {
+      s.beams->forEachNear(dir, wide, [&](const BeamIndex::Beam& q) {
+        float theta2, r;
+        geometry(q, theta2, r);
+        if (theta2 <= r2w && dir.dot(q.dir) > 0.0f && std::abs(r) <= band)
+          o_max = std::max(o_max, static_cast<float>(model_.beamFloat(r, theta2).o));
+      });
+    }
   }
   // Issue #15: a sparse lidar's rings lie further apart than the cone, so a beam that passes just
   // over an object's top edge (or under a bumper) has no neighbour in the cone that returns from
