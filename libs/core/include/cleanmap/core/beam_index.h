@@ -148,7 +148,23 @@ void BeamIndex::forEachRunInBox(const Eigen::Vector3f& dir, double az_radius, do
   const int lo = std::max(e0, 0), hi = std::min(e1, n_el_ - 1);
   // Azimuth-major: an azimuth bin's elevations lo .. hi are one range of beams_, and the ranges
   // of neighbouring bins join where they span every elevation.
+  // The runs are gathered a few at a time and their beams prefetched before f reads them: each
+  // run lies in another azimuth column, far from the last one in memory (issue #16).
   const PackedBeam* b = beams_.data();
+  constexpr int kRuns = 8;
+  uint32_t run_first[kRuns], run_last[kRuns];
+  int runs = 0;
+  const auto flush = [&] {
+    for (int j = 0; j < runs; ++j) f(b + run_first[j], b + run_last[j]);
+    runs = 0;
+  };
+  const auto add = [&](uint32_t from, uint32_t to) {
+    __builtin_prefetch(b + from);
+    __builtin_prefetch(b + to - 1);
+    run_first[runs] = from;
+    run_last[runs] = to;
+    if (++runs == kRuns) flush();
+  };
   uint32_t first = 0, last = 0;
   for (int k = 0; k <= span; ++k) {
     const int a = a_first + k < n_az_ ? a_first + k : a_first + k - n_az_;
@@ -158,11 +174,12 @@ void BeamIndex::forEachRunInBox(const Eigen::Vector3f& dir, double az_radius, do
       last = to;
       continue;
     }
-    if (first < last) f(b + first, b + last);
+    if (first < last) add(first, last);
     first = from;
     last = to;
   }
-  if (first < last) f(b + first, b + last);
+  if (first < last) add(first, last);
+  flush();
 }
 
 }  // namespace cleanmap
