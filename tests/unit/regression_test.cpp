@@ -10,8 +10,11 @@
 #include <map>
 #include <string>
 
+#include <nlohmann/json.hpp>
+
 #include "cleanmap/core/metrics.h"
 #include "cleanmap/eval/evaluate.h"
+#include "cleanmap/io/files.h"
 #include "cleanmap/io/kitti.h"
 #include "cleanmap/io/output.h"
 #include "cleanmap/pipeline/laser_pipeline.h"
@@ -424,6 +427,44 @@ TEST(Regression, CameraRunIsTheSameWithOneOrTwoThreads) {
     tested += static_cast<std::size_t>(r.second[1]);
   }
   EXPECT_GT(tested, 50u);  // the camera check ran (199 objects over all 30 scans)
+}
+
+// Issue #16: with two threads the map's decision (OutputWriter::writeMaps) reads, looks up and
+// groups the next scan beside this one's objects; the map, its removals and every scan's map
+// labels are those of one thread, byte for byte. kitti_city's first 14 scans.
+TEST(Regression, CleanMapIsTheSameWithOneOrTwoThreads) {
+  CLEANMAP_REQUIRE_DATASET("kitti_city");
+  const std::string gt = test::dataDir() + "/kitti_city";
+  auto seq = io::KittiSequence::open(gt);
+  const auto dir = test::scratchDir("clean_map_threads");
+  const auto run = [&](int threads) {
+    PipelineParams params;
+    params.threads = threads;
+    const auto out = dir / ("threads" + std::to_string(threads));
+    io::OutputOptions opts;
+    opts.force = true;
+    io::OutputWriter writer(out.string(), gt, params, opts);
+    LaserPipeline pl(params, [&](ScanResult&& r) { writer.write(r, std::nullopt); });
+    for (std::size_t i = 0; i < 14; ++i) pl.push(seq.frame(i));
+    pl.finish();
+    writer.finish(0.0, pl.freeSpace());
+    return out;
+  };
+  const auto one = run(1), two = run(2);
+  std::size_t files = 0;
+  for (const auto& e : std::filesystem::directory_iterator(one / "map_labels")) {
+    const auto name = e.path().filename();
+    EXPECT_TRUE(io::readTextFile(e.path().string()) ==
+                io::readTextFile((two / "map_labels" / name).string()))
+        << name << " differs";
+    ++files;
+  }
+  EXPECT_EQ(files, 14u);
+  for (const char* f : {"static_map_full.ply", "static_map.ply", "map_removed.ply"})
+    EXPECT_TRUE(io::readTextFile((one / f).string()) == io::readTextFile((two / f).string()))
+        << f << " differs";
+  const auto report = nlohmann::json::parse(io::readTextFile((two / "report.json").string()));
+  EXPECT_GT(report.at("map").at("objects_removed").get<int>(), 0);  // the objects decided some
 }
 
 // Issue #12's bar: the clean map's AA (ground truth within 50 m) strictly above DUFOMap's

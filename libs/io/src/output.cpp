@@ -296,22 +296,27 @@ void OutputWriter::writeMaps(const FreeSpaceMap* free_space, const MapScanSink& 
     }
     if (by_objects) assemble(b);
   };
-  // The spool's scans in order. With two threads the next scan is read and looked up beside this
-  // one's work (issue #16); the reader and the lookup are only ever used by one of them at a time.
-  const auto forEachScan = [&](const std::function<void(std::size_t, Spooled&)>& work) {
+  // The spool's scans in order. With two threads the next scan is read and looked up (and given
+  // `prepare`, which must not touch what `work` does) beside this one's work (issue #16); the
+  // reader and the lookup are only ever used by one of them at a time.
+  const auto forEachScan = [&](const std::function<void(std::size_t, Spooled&)>& work,
+                               const std::function<void(Spooled&)>& prepare = nullptr) {
     DirectReader spool(spool_path_);
+    const auto load = [&](Spooled& b) {
+      read(spool, b);
+      if (prepare) prepare(b);
+    };
     Spooled cur, next;
-    if (!stems_.empty()) read(spool, cur);
+    if (!stems_.empty()) load(cur);
     for (std::size_t s = 0; s < stems_.size(); ++s) {
       std::future<void> ahead;
       const bool more = s + 1 < stems_.size();
-      if (more && params_.threads > 1)
-        ahead = std::async(std::launch::async, read, std::ref(spool), std::ref(next));
+      if (more && params_.threads > 1) ahead = std::async(std::launch::async, load, std::ref(next));
       work(s, cur);
       if (ahead.valid())
         ahead.get();
       else if (more)
-        read(spool, next);
+        load(next);
       std::swap(cur, next);
     }
   };
@@ -339,18 +344,24 @@ void OutputWriter::writeMaps(const FreeSpaceMap* free_space, const MapScanSink& 
       DirectFile decisions(decisions_path, std::size_t(1) << 20),
           groupings(groupings_path, std::size_t(1) << 20);
       std::vector<unsigned char> bytes;
-      forEachScan([&](std::size_t s, Spooled& b) {
+      // A scan's grouping (a third of the pass) reads only the parameters: made beside the scan
+      // before's decision, which holds the objects' memory (issue #16).
+      const auto group = [&](Spooled& b) {
         consensus.group(b.objects, b.member, reachOf(b.h), b.groups);
-        decideObjects(b, &b.groups);
-        decisions.write(b.gone.data(), b.pts.size());
-        bytes.clear();
-        appendGrouping(b.groups, bytes);
-        groupings.write(bytes.data(), bytes.size());
-        had_whole[s] = consensus.hadWholeObjects();
-        decided_at[s + 1] = decided_at[s] + b.pts.size();
-        grouped_at[s + 1] = grouped_at[s] + bytes.size();
-        scan_index[s] = b.h.index;
-      });
+      };
+      forEachScan(
+          [&](std::size_t s, Spooled& b) {
+            decideObjects(b, &b.groups);
+            decisions.write(b.gone.data(), b.pts.size());
+            bytes.clear();
+            appendGrouping(b.groups, bytes);
+            groupings.write(bytes.data(), bytes.size());
+            had_whole[s] = consensus.hadWholeObjects();
+            decided_at[s + 1] = decided_at[s] + b.pts.size();
+            grouped_at[s + 1] = grouped_at[s] + bytes.size();
+            scan_index[s] = b.h.index;
+          },
+          group);
       decisions.close();
       groupings.close();
     }
