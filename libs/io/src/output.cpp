@@ -279,6 +279,16 @@ void OutputWriter::writeMaps(const FreeSpaceMap* free_space, const MapScanSink& 
     b.member.resize(b.objects.size(), 1);
     b.gone.resize(b.objects.size(), 1);
   };
+  // The free space's decision per point (then the moving points, removed, for the objects).
+  const auto lookUp = [&](Spooled& b) {
+    b.gone.clear();
+    for (const auto& q : b.pts) {
+      const bool ground = isGroundKind(static_cast<uint8_t>(q.kind));
+      b.gone.push_back(free_space && !ground &&
+                       removedByPolicy((*lookup)(q.p.xyz()), b.h.index, params_.map));
+    }
+    if (by_objects) b.gone.resize(b.objects.size(), 1);
+  };
   const auto read = [&](DirectReader& spool, Spooled& b) {
     spool.read(&b.h, sizeof b.h);
     b.pts.resize(b.h.full);
@@ -286,15 +296,9 @@ void OutputWriter::writeMaps(const FreeSpaceMap* free_space, const MapScanSink& 
     spool.read(b.pts.data(), b.pts.size() * sizeof(SpoolPoint));
     spool.read(b.moving.data(), b.moving.size() * sizeof(SpoolPoint));
     if (!decide) return;
-    b.objects.clear();
-    b.member.clear();
-    b.gone.clear();
-    for (const auto& q : b.pts) {
-      const bool ground = isGroundKind(static_cast<uint8_t>(q.kind));
-      b.gone.push_back(free_space && !ground &&
-                       removedByPolicy((*lookup)(q.p.xyz()), b.h.index, params_.map));
-    }
     if (by_objects) assemble(b);
+    if (!both_ways)
+      lookUp(b);  // else the forward pass's work does, beside the next scan's grouping
   };
   // The spool's scans in order. With two threads the next scan is read and looked up (and given
   // `prepare`, which must not touch what `work` does) beside this one's work (issue #16); the
@@ -344,13 +348,15 @@ void OutputWriter::writeMaps(const FreeSpaceMap* free_space, const MapScanSink& 
       DirectFile decisions(decisions_path, std::size_t(1) << 20),
           groupings(groupings_path, std::size_t(1) << 20);
       std::vector<unsigned char> bytes;
-      // A scan's grouping (a third of the pass) reads only the parameters: made beside the scan
-      // before's decision, which holds the objects' memory (issue #16).
+      // A scan's grouping reads only the parameters: the next scan's is made with its read beside
+      // this one's lookup and decision, which holds the objects' memory (issue #16; the three
+      // take about a third of the pass each, the read a fifth).
       const auto group = [&](Spooled& b) {
         consensus.group(b.objects, b.member, reachOf(b.h), b.groups);
       };
       forEachScan(
           [&](std::size_t s, Spooled& b) {
+            lookUp(b);
             decideObjects(b, &b.groups);
             decisions.write(b.gone.data(), b.pts.size());
             bytes.clear();
