@@ -429,9 +429,9 @@ TEST(Regression, CameraRunIsTheSameWithOneOrTwoThreads) {
   EXPECT_GT(tested, 50u);  // the camera check ran (199 objects over all 30 scans)
 }
 
-// Issue #16: with two threads the map's decision (OutputWriter::writeMaps) reads, looks up and
-// groups the next scan beside this one's objects; the map, its removals and every scan's map
-// labels are those of one thread, byte for byte. kitti_city's first 14 scans.
+// Issue #16: with two threads the map's decision (OutputWriter::writeMaps) reads and groups the
+// next scan beside this one's free-space lookup and objects; the map, its removals and every
+// scan's map labels are those of one thread, byte for byte. kitti_city's first 14 scans.
 TEST(Regression, CleanMapIsTheSameWithOneOrTwoThreads) {
   CLEANMAP_REQUIRE_DATASET("kitti_city");
   const std::string gt = test::dataDir() + "/kitti_city";

@@ -300,9 +300,9 @@ void OutputWriter::writeMaps(const FreeSpaceMap* free_space, const MapScanSink& 
     if (!both_ways)
       lookUp(b);  // else the forward pass's work does, beside the next scan's grouping
   };
-  // The spool's scans in order. With two threads the next scan is read and looked up (and given
-  // `prepare`, which must not touch what `work` does) beside this one's work (issue #16); the
-  // reader and the lookup are only ever used by one of them at a time.
+  // The spool's scans in order. With two threads the next scan is read (looked up where read()
+  // does so, and given `prepare`, which must not touch what `work` does) beside this one's work
+  // (issue #16); the reader and the lookup are only ever used by one of them at a time.
   const auto forEachScan = [&](const std::function<void(std::size_t, Spooled&)>& work,
                                const std::function<void(Spooled&)>& prepare = nullptr) {
     DirectReader spool(spool_path_);
