@@ -6,6 +6,7 @@
 #include <cmath>
 #include <optional>
 #include <tuple>
+#include <type_traits>
 
 #include "cleanmap/core/beam_filter.h"
 #include "cleanmap/core/fast_math.h"
@@ -86,6 +87,30 @@ void forEachInBand(const BeamIndex& beams, const Eigen::Vector3f& dir, const Eig
       return;
     f(q, el);
   });
+}
+
+// The beams of `index` within `radius` of `dir` through detail::filterBeams, kRun at a time:
+// chunk(first, run, r, theta2, keep) per piece of a run; one returning bool stops at false.
+template <class Chunk>
+void forEachFilteredRun(const BeamIndex& index, const Eigen::Vector3f& dir, double radius, float df,
+                        float r2max, float r_far, Chunk&& chunk) {
+  constexpr int kRun = 32;
+  alignas(64) float r[kRun], theta2[kRun];
+  alignas(64) int32_t keep[kRun];
+  bool more = true;
+  index.forEachRunNear(
+      dir, radius, [&](const BeamIndex::PackedBeam* q, const BeamIndex::PackedBeam* last) {
+        while (more && q < last) {
+          const int run = static_cast<int>(std::min<std::ptrdiff_t>(last - q, kRun));
+          detail::filterBeams(q, run, index.rangeUnit(), dir.x(), dir.y(), dir.z(), df, r2max,
+                              r_far, r, theta2, keep);
+          if constexpr (std::is_same_v<decltype(chunk(q, run, r, theta2, keep)), bool>)
+            more = chunk(q, run, r, theta2, keep);
+          else
+            chunk(q, run, r, theta2, keep);
+          q += run;
+        }
+      });
 }
 
 }  // namespace
@@ -249,31 +274,24 @@ ds::Mass MovingTest::scanMassAt(const Eigen::Vector3d& pl, double d, const Windo
     if (n == kBatch) flush();
   };
   if (math_ == BeamMath::kFast) {
-    // The same filter over each run of beams, kRun at a time, in vector lanes (beam_filter.cpp,
-    // the same bits); the kept ones are then gathered in order by a count, as above.
-    constexpr int kRun = 32;
-    alignas(64) float r_run[kRun], t2_run[kRun];
-    alignas(64) int32_t keep_run[kRun];
-    index.forEachRunNear(
-        dir, radius, [&](const BeamIndex::PackedBeam* q, const BeamIndex::PackedBeam* last) {
-          while (q < last) {
-            const int run = static_cast<int>(std::min<std::ptrdiff_t>(last - q, kRun));
-            detail::filterBeams(q, run, index.rangeUnit(), dir.x(), dir.y(), dir.z(), df, r2max,
-                                r_far, r_run, t2_run, keep_run);
-            if (edges)
-              for (int k = 0; k < run; ++k)
-                keep_run[k] &= open_side(index.decode(q[k]).dir) ? 0 : 1;
-            if (graze)
-              for (int k = 0; k < run; ++k) keep_run[k] &= grazes(q + k, r_run[k]) ? 0 : 1;
-            for (int k = 0; k < run; ++k) {
-              r_b[n] = r_run[k];
-              t2_b[n] = t2_run[k];
-              n += keep_run[k];
-              if (n == kBatch) flush();
-            }
-            q += run;
-          }
-        });
+    // The same filter in vector lanes (beam_filter.cpp, the same bits); the kept ones are then
+    // gathered in order by a count, as above.
+    forEachFilteredRun(index, dir, radius, df, r2max, r_far,
+                       [&](const BeamIndex::PackedBeam* q, int run, const float* r_run,
+                           const float* t2_run, int32_t* keep_run) {
+                         if (edges)
+                           for (int k = 0; k < run; ++k)
+                             keep_run[k] &= open_side(index.decode(q[k]).dir) ? 0 : 1;
+                         if (graze)
+                           for (int k = 0; k < run; ++k)
+                             keep_run[k] &= grazes(q + k, r_run[k]) ? 0 : 1;
+                         for (int k = 0; k < run; ++k) {
+                           r_b[n] = r_run[k];
+                           t2_b[n] = t2_run[k];
+                           n += keep_run[k];
+                           if (n == kBatch) flush();
+                         }
+                       });
   } else {
     index.forEachRunNear(dir, radius,
                          [&](const BeamIndex::PackedBeam* q, const BeamIndex::PackedBeam* last) {
@@ -318,25 +336,17 @@ ds::Mass MovingTest::scanMassAt(const Eigen::Vector3d& pl, double d, const Windo
         p_.search_lambdas * std::sqrt(p_.lambda_theta * p_.lambda_theta + s.pose_noise2 / (d * d));
     const float r2w = static_cast<float>(wide * wide);
     if (math_ == BeamMath::kFast) {
-      // The same beams through filterBeams (r <= band there, r >= -band here), kRun at a time,
-      // until the conflict is found: o_max only grows, so the rest cannot change the outcome.
-      constexpr int kRun = 32;
-      alignas(64) float r_run[kRun], t2_run[kRun];
-      alignas(64) int32_t keep_run[kRun];
-      bool found = false;
-      s.beams->forEachRunNear(
-          dir, wide, [&](const BeamIndex::PackedBeam* q, const BeamIndex::PackedBeam* last) {
-            while (!found && q < last) {
-              const int run = static_cast<int>(std::min<std::ptrdiff_t>(last - q, kRun));
-              detail::filterBeams(q, run, index.rangeUnit(), dir.x(), dir.y(), dir.z(), df, r2w,
-                                  band, r_run, t2_run, keep_run);
-              for (int k = 0; k < run; ++k)
-                if (keep_run[k] && r_run[k] >= -band)
-                  o_max =
-                      std::max(o_max, static_cast<float>(model_.beamFloat(r_run[k], t2_run[k]).o));
-              found = static_cast<double>(e_max) * o_max >= p_.scan_conflict;
-              q += run;
-            }
+      // The same beams through filterBeams (r <= band there, r >= -band here), until the
+      // conflict is found: o_max only grows, so the rest cannot change the outcome.
+      forEachFilteredRun(
+          index, dir, wide, df, r2w, band,
+          [&](const BeamIndex::PackedBeam*, int run, const float* r_run, const float* t2_run,
+              const int32_t* keep_run) {
+            for (int k = 0; k < run; ++k)
+              if (keep_run[k] && r_run[k] >= -band)
+                o_max =
+                    std::max(o_max, static_cast<float>(model_.beamFloat(r_run[k], t2_run[k]).o));
+            return static_cast<double>(e_max) * o_max < p_.scan_conflict;
           });
     } else {
       s.beams->forEachNear(dir, wide, [&](const BeamIndex::Beam& q) {
