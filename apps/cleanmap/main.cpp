@@ -45,18 +45,19 @@ void checkSignal() {
 }
 
 #if defined(__has_feature)
-#if __has_feature(address_sanitizer)
-#define CLEANMAP_ASAN 1
+#if __has_feature(address_sanitizer) || __has_feature(thread_sanitizer)
+#define CLEANMAP_SANITIZED 1
 #endif
 #endif
-#if defined(__SANITIZE_ADDRESS__)
-#define CLEANMAP_ASAN 1
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+#define CLEANMAP_SANITIZED 1
 #endif
 
 // Ends the process once its outputs are published: streams flushed, no destructors, no library
-// finalizers. Under AddressSanitizer the process returns normally, so its leak check still runs.
+// finalizers. Under AddressSanitizer or ThreadSanitizer the process returns normally, so the leak
+// check runs, the threads' joins are checked, and a race reported sets the exit status.
 void exitNow(int code) {
-#ifndef CLEANMAP_ASAN
+#ifndef CLEANMAP_SANITIZED
   std::cout.flush();
   std::fflush(nullptr);
   std::_Exit(code);
