@@ -234,13 +234,19 @@ TEST(BackgroundFiles, WritesEveryFileWholeAndRethrowsAFailureByName) {
   const std::string under_file = (dir / "last.label" / "x.label").string();  // a file as a folder
   files.writeLabels(under_file, written[0]);
   test::expectError([&] { files.wait(); }, "last.label", "cannot");
-  files.writeLabels(under_file, written[0]);
+  // The error stays: every later call rethrows it and queues nothing (a run never ends with a
+  // label file missing unseen).
+  const std::string after = (dir / "after.label").string();
+  test::expectError([&] { files.writeLabels(after, written[0]); }, "last.label", "cannot");
+  test::expectError([&] { files.wait(); }, "last.label", "cannot");
+  EXPECT_FALSE(fs::exists(after));
+  io::BackgroundFiles more(2);
   test::expectError(
       [&] {
-        for (int k = 0; k < 4; ++k) files.writeLabels(under_file, written[0]);
+        for (int k = 0; k < 4; ++k) more.writeLabels(under_file, written[0]);
       },
       "last.label", "cannot");
-  // Destroyed with failing jobs queued: they run, their errors dropped.
+  // Destroyed after a failure: the error is dropped.
 }
 
 TEST(PositionalFile, ReadsAndPatchesAtOffsets) {

@@ -3,6 +3,8 @@
 
 #include <array>
 #include <atomic>
+#include <condition_variable>
+#include <mutex>
 #include <numeric>
 #include <random>
 #include <set>
@@ -21,6 +23,7 @@
 #include "cleanmap/core/cell_key.h"
 #include "cleanmap/core/cell_map.h"
 #include "cleanmap/core/parallel.h"
+#include "cleanmap/core/serial_worker.h"
 #include "cleanmap/core/types.h"
 
 using namespace cleanmap;
@@ -156,6 +159,120 @@ TEST(ParallelFor, KeepsItsHelperThreadsBetweenLoops) {
     EXPECT_EQ(std::set<long>(w.begin(), w.end()).size(), 4u);
   })
       .join();
+}
+
+// A gate the jobs of a test wait at until the test opens it.
+struct Gate {
+  std::mutex mu;
+  std::condition_variable cv;
+  bool open = false;
+  void pass() {
+    std::unique_lock<std::mutex> lock(mu);
+    cv.wait(lock, [&] { return open; });
+  }
+  void openIt() {
+    {
+      std::lock_guard<std::mutex> lock(mu);
+      open = true;
+    }
+    cv.notify_all();
+  }
+};
+
+// The free-space insertions, the label files and the MRPT outputs run through one SerialWorker:
+// jobs in the order pushed on one thread, at most max_pending at a time, waits by tag, and the
+// first error kept: the jobs queued behind it dropped, every later call rethrowing it.
+TEST(SerialWorker, RunsInOrderBoundedWaitsByTagAndKeepsTheFirstError) {
+  std::vector<int> ran;  // written by the worker only; read after wait()
+  std::set<std::thread::id> threads;
+  std::atomic<int> running{0}, most{0};
+  Gate gate;
+  SerialWorker<int> w(
+      [&](int& v) {
+        const int now = ++running;
+        most = std::max(most.load(), now);
+        if (v == 0) gate.pass();
+        if (v < 0) throw std::runtime_error("job " + std::to_string(v));
+        ran.push_back(v);
+        threads.insert(std::this_thread::get_id());
+        --running;
+      },
+      2);
+  w.push(0, 0);  // held at the gate
+  w.push(1, 1);
+  EXPECT_FALSE(w.doneThrough(0));
+  EXPECT_FALSE(w.doneThrough(1));
+  std::atomic<bool> third_queued{false};
+  std::thread pusher([&] {
+    w.push(2, 2);  // waits: two pending already
+    third_queued = true;
+  });
+  std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  EXPECT_FALSE(third_queued.load());
+  gate.openIt();
+  pusher.join();
+  w.waitThrough(1);
+  EXPECT_TRUE(w.doneThrough(1));
+  for (int v = 3; v < 40; ++v) w.push(int(v), v);
+  w.wait();
+  EXPECT_TRUE(w.doneThrough(1000));
+  ASSERT_EQ(ran.size(), 40u);
+  for (int v = 0; v < 40; ++v) EXPECT_EQ(ran[std::size_t(v)], v);
+  EXPECT_EQ(threads.size(), 1u);
+  EXPECT_EQ(most.load(), 1);
+  EXPECT_GE(w.takeMs(), 0.0);
+  EXPECT_EQ(w.takeMs(), 0.0);  // taken
+
+  // The first error: the jobs behind it are dropped, and every later call rethrows it.
+  Gate hold;
+  SerialWorker<int> f([&](int& v) {
+    if (v == 100) hold.pass();
+    if (v < 0) throw std::runtime_error("job " + std::to_string(v));
+    ran.push_back(v);
+  });
+  f.push(100, 0);
+  f.push(-1, 1);
+  f.push(-2, 2);
+  f.push(101, 3);
+  hold.openIt();
+  f.waitThrough(3);
+  for (int k = 0; k < 2; ++k) {
+    try {
+      f.wait();
+      ADD_FAILURE() << "no error";
+    } catch (const std::runtime_error& e) {
+      EXPECT_EQ(std::string(e.what()), "job -1");
+    }
+  }
+  EXPECT_THROW(f.takeMs(), std::runtime_error);
+  EXPECT_THROW(f.push(102, 4), std::runtime_error);
+  EXPECT_EQ(ran.back(), 100);  // 101 and 102 never ran
+
+  // stop() drops the queued jobs and waits for the running one.
+  Gate last;
+  std::atomic<int> count{0};
+  std::atomic<bool> started{false};
+  SerialWorker<int> s([&](int& v) {
+    if (v == 0) {
+      started = true;
+      last.pass();
+    }
+    ++count;
+  });
+  s.push(0);
+  s.push(1);
+  s.push(2);
+  while (!started) std::this_thread::yield();  // job 0 is running: 1 and 2 are queued
+  std::thread opener([&] {
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    last.openIt();
+  });
+  s.stop();
+  opener.join();
+  EXPECT_EQ(count.load(), 1);
+  s.push(3);  // starts again
+  s.wait();
+  EXPECT_EQ(count.load(), 2);
 }
 
 // An exception thrown by an index reaches the caller once every worker is done, and the loop

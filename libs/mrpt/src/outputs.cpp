@@ -5,16 +5,12 @@
 #include <unistd.h>
 
 #include <cerrno>
-#include <condition_variable>
 #include <cstdio>
 #include <cstring>
-#include <deque>
 #include <exception>
 #include <filesystem>
 #include <fstream>
-#include <mutex>
 #include <stdexcept>
-#include <thread>
 
 #include <mrpt/io/CFileGZOutputStream.h>
 #include <mrpt/io/CStream.h>
@@ -34,6 +30,7 @@
 #include "cleanmap/core/cell_key.h"
 #include "cleanmap/core/cell_map.h"
 #include "cleanmap/core/error.h"
+#include "cleanmap/core/serial_worker.h"
 #include "cleanmap/core/stopwatch.h"
 #include "cleanmap/io/direct_file.h"
 #include "cleanmap/io/ply.h"
@@ -199,18 +196,11 @@ struct MrptOutputWriter::Impl {
   ::mrpt::maps::CPointsMapXYZI::Ptr moving_map = ::mrpt::maps::CPointsMapXYZI::Create();
   std::size_t simplemap_count = 0;
   std::size_t simplemap_count_offset = 0;
-  // The worker thread and its queue (MrptOutputOptions::background).
-  std::thread worker;
-  std::mutex mu;
-  std::condition_variable cv;
-  std::deque<Job> queue;
-  bool closing = false;
   // map_decisions: the scans wait in a spool until the map decides them (writeMapScan).
   std::unique_ptr<io::DirectFile> spool;
   std::unique_ptr<io::DirectReader> spool_in;  // from the map's first decision on
   std::string spool_path;
   std::size_t spooled = 0, decided = 0;
-  std::exception_ptr error;
   // Scene: voxel-decimated points and the trajectory.
   CellSet static_cells, moving_cells;  // the scene's voxel filter
   std::vector<PointXYZI> scene_static, scene_moving;
@@ -413,6 +403,10 @@ struct MrptOutputWriter::Impl {
       throw Error(path, "cannot move into place: " + ec.message());
     }
   }
+
+  // MrptOutputOptions::background: the jobs run on a thread of their own, at most two queued
+  // besides the one running. Last, so its thread stops before the members its jobs use go.
+  std::unique_ptr<SerialWorker<Job>> worker;
 };
 
 MrptOutputWriter::MrptOutputWriter(const std::string& folder, const MrptOutputOptions& opts)
@@ -428,11 +422,12 @@ MrptOutputWriter::MrptOutputWriter(const std::string& folder, const MrptOutputOp
       impl_->spool = std::make_unique<io::DirectFile>(impl_->spool_path);
     }
   }
-  if (opts_.background) impl_->worker = std::thread([this] { work(); });
+  if (opts_.background)
+    impl_->worker = std::make_unique<SerialWorker<Job>>([this](Job& j) { run(j); }, 3);
 }
 
 MrptOutputWriter::~MrptOutputWriter() {
-  stopWorker(false);  // an error or a signal: stop now
+  impl_->worker.reset();  // an error or a signal: the queued jobs are dropped
   impl_->closeSpool();
 }
 
@@ -454,49 +449,8 @@ void MrptOutputWriter::run(const Job& j) {
 }
 
 void MrptOutputWriter::enqueue(Job&& j) {
-  auto& I = *impl_;
   if (!opts_.background) return run(j);
-  std::unique_lock<std::mutex> lock(I.mu);
-  I.cv.wait(lock, [&] { return I.queue.size() < 2 || I.error; });
-  if (I.error) std::rethrow_exception(I.error);
-  I.queue.push_back(std::move(j));
-  I.cv.notify_all();
-}
-
-void MrptOutputWriter::work() {
-  auto& I = *impl_;
-  for (;;) {
-    Job j;
-    {
-      std::unique_lock<std::mutex> lock(I.mu);
-      I.cv.wait(lock, [&] { return !I.queue.empty() || I.closing; });
-      if (I.queue.empty()) return;
-      j = std::move(I.queue.front());
-      I.queue.pop_front();
-      I.cv.notify_all();
-    }
-    try {
-      run(j);
-    } catch (...) {
-      std::lock_guard<std::mutex> lock(I.mu);
-      I.error = std::current_exception();
-      I.queue.clear();
-      I.cv.notify_all();
-      return;
-    }
-  }
-}
-
-void MrptOutputWriter::stopWorker(bool drain) {
-  auto& I = *impl_;
-  if (!I.worker.joinable()) return;
-  {
-    std::lock_guard<std::mutex> lock(I.mu);
-    if (!drain) I.queue.clear();
-    I.closing = true;
-    I.cv.notify_all();
-  }
-  I.worker.join();
+  impl_->worker->push(std::move(j));  // rethrows an earlier job's error
 }
 
 void MrptOutputWriter::writeNow(const ScanResult& r) {
@@ -618,9 +572,11 @@ void MrptOutputWriter::writeMapScan(int64_t index, const Labels& map_labels,
 }
 
 void MrptOutputWriter::finish() {
-  stopWorker(true);
   auto& I = *impl_;
-  if (I.error) std::rethrow_exception(I.error);
+  if (I.worker) {
+    I.worker->wait();  // rethrows a job's error
+    I.worker.reset();
+  }
   if (I.decided < I.spooled)
     throw Error(I.folder, std::to_string(I.spooled - I.decided) + " of " +
                               std::to_string(I.spooled) +

@@ -4,15 +4,12 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <condition_variable>
 #include <deque>
 #include <exception>
 #include <future>
 #include <limits>
-#include <mutex>
 #include <numeric>
 #include <random>
-#include <thread>
 
 #include "cleanmap/core/beam_index.h"
 #include "cleanmap/core/cell_key.h"
@@ -26,6 +23,7 @@
 #include "cleanmap/core/object_shift.h"
 #include "cleanmap/core/octree_sampling.h"
 #include "cleanmap/core/parallel.h"
+#include "cleanmap/core/serial_worker.h"
 #include "cleanmap/core/stopwatch.h"
 #include "cleanmap/registration/odometry.h"
 #include "cleanmap/vision/alignment.h"
@@ -279,102 +277,20 @@ void LaserPipeline::resolveWindow() {
 }
 
 // DESIGN §2e: the free-space insertions of the decided scans, one at a time in scan order, on a
-// thread of their own. A job reads its scan in the pipeline's buffer, which keeps the scan until
-// its job is done (waitThrough).
+// thread of their own (tagged by scan index). A job reads its scan in the pipeline's buffer, which
+// keeps the scan until its job is done (waitThrough).
 struct LaserPipeline::FreeQueue {
-  static constexpr long kNone = std::numeric_limits<long>::min();
   struct Job {
     const Prepared* scan = nullptr;
-    long index = 0;
     std::vector<uint8_t> mask;  // its returns that are not inflated (moving, ground)
+    long index = 0;
   };
-  explicit FreeQueue(FreeSpaceMap& m) : map(m) {}
-  ~FreeQueue() { stop(); }
-  void push(Job&& j) {
-    {
-      std::lock_guard<std::mutex> lock(mu);
-      if (!worker.joinable()) worker = std::thread([this] { run(); });
-      jobs.push_back(std::move(j));
-    }
-    cv.notify_all();
-  }
-  // True when no job of a scan up to `index` is queued or running (does not wait).
-  bool doneThrough(long index) {
-    std::lock_guard<std::mutex> lock(mu);
-    return (jobs.empty() || jobs.front().index > index) && (busy == kNone || busy > index);
-  }
-  // Waits until no job of a scan up to `index` is queued or running.
-  void waitThrough(long index) {
-    std::unique_lock<std::mutex> lock(mu);
-    cv.wait(lock, [&] {
-      return (jobs.empty() || jobs.front().index > index) && (busy == kNone || busy > index);
-    });
-  }
-  // The time of the insertions finished since the last call; rethrows an insertion's error.
-  double take() {
-    std::lock_guard<std::mutex> lock(mu);
-    if (error) {
-      auto e = error;
-      error = nullptr;
-      std::rethrow_exception(e);
-    }
-    const double t = ms;
-    ms = 0;
-    return t;
-  }
-  // Drops the queued jobs and waits for the running one.
-  void stop() {
-    {
-      std::lock_guard<std::mutex> lock(mu);
-      closing = true;
-      jobs.clear();
-    }
-    cv.notify_all();
-    if (worker.joinable()) worker.join();
-  }
-  void run() {
-    for (;;) {
-      Job j;
-      {
-        std::unique_lock<std::mutex> lock(mu);
-        cv.wait(lock, [&] { return closing || !jobs.empty(); });
-        if (jobs.empty()) return;
-        j = std::move(jobs.front());
-        jobs.pop_front();
-        busy = j.index;
-      }
-      double t_ms = 0;
-      std::exception_ptr e;
-      try {
-        const auto t = Clock::now();
-        map.insertScan(j.scan->scan.points, j.scan->scan.pose, static_cast<int64_t>(j.index),
-                       &j.mask, j.scan->grazing());
-        t_ms = msSince(t);
-      } catch (...) {
-        e = std::current_exception();
-      }
-      {
-        std::lock_guard<std::mutex> lock(mu);
-        busy = kNone;
-        ms += t_ms;
-        if (e && !error) {
-          error = e;
-          jobs.clear();  // the map is no longer the sequence's: nothing more goes in
-        }
-      }
-      cv.notify_all();
-    }
-  }
-
-  FreeSpaceMap& map;
-  std::mutex mu;
-  std::condition_variable cv;
-  std::deque<Job> jobs;
-  long busy = kNone;  // the scan being inserted
-  bool closing = false;
-  double ms = 0;
-  std::exception_ptr error;
-  std::thread worker;
+  explicit FreeQueue(FreeSpaceMap& map)
+      : worker([&map](Job& j) {
+          map.insertScan(j.scan->scan.points, j.scan->scan.pose, static_cast<int64_t>(j.index),
+                         &j.mask, j.scan->grazing());
+        }) {}
+  SerialWorker<Job> worker;
 };
 
 // Issue #16 (registerAhead): a pushed frame's registration on a thread of its own, one at a time,
@@ -382,29 +298,15 @@ struct LaserPipeline::FreeQueue {
 // (odo_, prev_odometry_, prev_pose_) while a frame is in flight; the pipeline's thread reads it
 // again only after wait().
 struct LaserPipeline::RegQueue {
-  explicit RegQueue(LaserPipeline& p) : pipe(p) {}
-  ~RegQueue() {
-    {
-      std::lock_guard<std::mutex> lock(mu);
-      closing = true;
-    }
-    cv.notify_all();
-    if (worker.joinable()) worker.join();  // a registration in progress finishes first
-  }
+  explicit RegQueue(LaserPipeline& p) : worker([&p, this](int&) { p.registerScan(*slot); }) {}
   void start(Registered&& r) {
-    {
-      std::lock_guard<std::mutex> lock(mu);
-      if (!worker.joinable()) worker = std::thread([this] { run(); });
-      slot = std::move(r);
-      done = false;
-    }
+    slot = std::move(r);  // the worker is idle: the last frame was waited for
     in_flight = true;
-    cv.notify_all();
+    worker.push(0);
   }
   // Waits for the frame started last; it stays in the slot.
   const Registered& wait() {
-    std::unique_lock<std::mutex> lock(mu);
-    cv.wait(lock, [&] { return done; });
+    worker.wait();
     return *slot;
   }
   Registered take() {
@@ -414,29 +316,10 @@ struct LaserPipeline::RegQueue {
     slot.reset();
     return r;
   }
-  void run() {
-    for (;;) {
-      {
-        std::unique_lock<std::mutex> lock(mu);
-        cv.wait(lock, [&] { return closing || !done; });
-        if (closing) return;
-      }
-      pipe.registerScan(*slot);  // the pipeline's thread leaves the slot alone until done
-      {
-        std::lock_guard<std::mutex> lock(mu);
-        done = true;
-      }
-      cv.notify_all();
-    }
-  }
 
-  LaserPipeline& pipe;
-  std::mutex mu;
-  std::condition_variable cv;
-  std::optional<Registered> slot;
-  bool done = true, closing = false;
-  bool in_flight = false;  // the pipeline's thread's own flag: a frame started, not yet taken
-  std::thread worker;
+  std::optional<Registered> slot;  // the pipeline's thread leaves it alone until wait()
+  bool in_flight = false;    // the pipeline's thread's own flag: a frame started, not yet taken
+  SerialWorker<int> worker;  // last: its thread stops before the slot goes
 };
 
 LaserPipeline::~LaserPipeline() {
@@ -823,8 +706,8 @@ double LaserPipeline::insertFreeSpace(const Prepared& s, const Work& w) {
   for (std::size_t i = 0; i < mask.size(); ++i) mask[i] = w.moving[i] || s.ground[i];
   if (p_.threads > 1) {
     if (!free_queue_) free_queue_ = std::make_unique<FreeQueue>(*free_);
-    const double finished_ms = free_queue_->take();   // rethrows an earlier insertion's error
-    free_queue_->push({&s, index, std::move(mask)});  // `s` stays buffered until it is done
+    const double finished_ms = free_queue_->worker.takeMs();        // rethrows an insertion's error
+    free_queue_->worker.push({&s, std::move(mask), index}, index);  // `s` stays buffered
     return finished_ms;
   }
   const auto t = Clock::now();
@@ -834,8 +717,8 @@ double LaserPipeline::insertFreeSpace(const Prepared& s, const Work& w) {
 
 void LaserPipeline::joinFreeSpace() const {
   if (!free_queue_) return;
-  free_queue_->waitThrough(std::numeric_limits<long>::max());
-  free_queue_->take();  // rethrows its error
+  free_queue_->worker.waitThrough(std::numeric_limits<long>::max());
+  free_queue_->worker.takeMs();  // rethrows its error
 }
 
 // DESIGN §2.0: a scan's point times, where it is de-skewed (sensor.deskew): the input's, or
@@ -927,7 +810,7 @@ void LaserPipeline::decideReady(std::size_t future) {
     ++next_;
     releasePoints();
     while (next_ > K) {
-      if (free_queue_) free_queue_->waitThrough(static_cast<long>(buf_.front()->index));
+      if (free_queue_) free_queue_->worker.waitThrough(static_cast<long>(buf_.front()->index));
       buf_.pop_front();
       --next_;
     }
@@ -949,7 +832,7 @@ void LaserPipeline::releasePoints() {
   for (std::size_t j = 0; j + 1 < buf_.size() && j < next_; ++j) {
     Prepared& s = *buf_[j];
     if (s.points_released) continue;
-    if (free_queue_ && !free_queue_->doneThrough(static_cast<long>(s.index))) break;
+    if (free_queue_ && !free_queue_->worker.doneThrough(static_cast<long>(s.index))) break;
     s.points_released = true;
     for (auto* v : {&s.in_crop, &s.ground, &s.far, &s.candidate, &s.flat})
       std::vector<uint8_t>().swap(*v);

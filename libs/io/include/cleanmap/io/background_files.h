@@ -3,15 +3,11 @@
 // label file goes past the page cache (O_DIRECT, files.h), so its write waits for the device,
 // and removing a large spool waits for the file system; the pipeline's thread should do neither.
 #pragma once
-#include <condition_variable>
 #include <cstddef>
-#include <deque>
-#include <exception>
 #include <functional>
-#include <mutex>
 #include <string>
-#include <thread>
 
+#include "cleanmap/core/serial_worker.h"
 #include "cleanmap/core/types.h"
 
 namespace cleanmap::io {
@@ -34,15 +30,7 @@ class BackgroundFiles {
   void wait();
 
  private:
-  void push(std::function<void()> job);
-  void run();
-  std::mutex m_;
-  std::condition_variable cv_;  // a job queued, a job done, closing
-  std::deque<std::function<void()>> jobs_;
-  std::size_t max_pending_, running_ = 0;
-  std::exception_ptr error_;
-  bool closing_ = false;
-  std::thread worker_;  // started with the first job
+  SerialWorker<std::function<void()>> worker_;
 };
 
 }  // namespace cleanmap::io

@@ -80,8 +80,6 @@ class MrptOutputWriter {
   void writeMapNow(const Job& j);
   void run(const Job& j);
   void enqueue(Job&& j);
-  void work();
-  void stopWorker(bool drain);
 
   struct Impl;
   std::unique_ptr<Impl> impl_;
