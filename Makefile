@@ -58,7 +58,7 @@ test-asan:
 
 # Not part of `make test`: the unit tests (the app's runs included) under ThreadSanitizer, clang,
 # only cleanmap's code instrumented; cmake/tsan.supp names the Debian libraries' own reports.
-# About 5 minutes to build and 8 to run on two cores; TSAN_LABELS='unit|regression|sim' for more.
+# About 2 minutes to build and 8.5 to run on two cores; TSAN_LABELS='unit|regression|sim' for more.
 TSAN_LABELS ?= unit
 test-tsan:
 	@./cmake/install-deps.sh sanitize
