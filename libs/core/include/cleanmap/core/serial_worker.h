@@ -1,8 +1,9 @@
 // SPDX-License-Identifier: BSD-3-Clause
 // One thread of its own that runs the jobs given to it, one at a time, in the order given (issue
-// #16: the free-space insertions, the label files, the MRPT outputs; DESIGN §2e). The first job
-// that throws keeps its error: the jobs queued after it are dropped, none is taken any more, and
-// the caller's next push(), wait() or takeMs() rethrows it (every later one too).
+// #16: the free-space insertions, the registration ahead, the label files, the MRPT outputs;
+// DESIGN §4, "Threads"). The first job that throws keeps its error: the jobs queued after it are
+// dropped, none is taken any more, and the caller's next push(), wait() or takeMs() rethrows it
+// (every later one too).
 #pragma once
 #include <chrono>
 #include <condition_variable>
