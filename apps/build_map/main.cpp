@@ -2,7 +2,6 @@
 // cleanmap-build-map: builds the maps of an MRPT ini (ours and MRPT's own) from a posed rawlog,
 // KITTI folder or .simplemap, as MRPT's observations2map would if it loaded plugins
 // (DESIGN §4b, doc/MRPT.md).
-#include <unistd.h>
 
 #include <cstdio>
 #include <filesystem>
@@ -42,9 +41,11 @@ INPUT               a posed MRPT rawlog (CObservationRobotPose + lidar observati
                     cleanmap-kitti2rawlog or cleanmap's cleaned.rawlog), a KITTI folder with
                     poses, or a .simplemap (pose + sensory frame pairs)
 -c, --config FILE   MRPT ini with the map list (checked: unknown maps, sections, keys are errors)
--o, --output DIR    written atomically; an existing non-empty DIR is refused without --force
+-o, --output DIR    written as a whole (an error leaves it as it was); an earlier build there is
+                    replaced, another non-empty folder refused without --force. Never the
+                    input, a folder holding it, or a non-empty folder inside it
 --map-section NAME  the section listing the maps (default: MappingApplication, map, MetricMap)
---force             replace DIR
+--force             replace DIR even if it is a non-empty folder that holds no build
 Writes into DIR:
   maps.bin          the CMultiMetricMap, serialized (mrpt::serialization::archiveFrom(file) >> map;
                     load libcleanmap_maps.so first)
@@ -97,17 +98,23 @@ int main(int argc, char** argv) {
   if (input.empty() || outdir.empty() || config.empty())
     args.fail("need INPUT, -c CONFIG and -o OUTDIR");
 
-  fs::path staging;
   try {
     cleanmap_maps::registerMaps();
     cleanmap::mrpt::registerClasses();
     const auto mc = cleanmap_maps::parseMapConfig(cleanmap::io::readTextFile(config), config,
                                                   section, /*require_moving=*/false);
-    {
+    // An earlier build (maps.bin and maps.3Dscene) is replaced; another folder only with
+    // --force, and never one that would take the input with it.
+    const auto isBuild = [](const std::string& d) {
       std::error_code ec;
-      if (fs::exists(outdir, ec) && !fs::is_empty(outdir, ec) && !force)
-        throw cleanmap::Error(outdir, "exists and is not empty; use --force to replace it");
-    }
+      return fs::is_regular_file(fs::path(d) / "maps.bin", ec) &&
+             fs::is_regular_file(fs::path(d) / "maps.3Dscene", ec);
+    };
+    cleanmap::io::requireOutsideInput(outdir, input, isBuild, "-o");
+    cleanmap::io::requireReplaceableFolder(
+        outdir, [&](const std::string& d) { return force || isBuild(d); },
+        "cleanmap-build-map maps (no maps.bin)", "-o",
+        ", or pass --force to replace it and everything in it");
     ::mrpt::maps::CMultiMetricMap maps;
     maps.setListOfMaps(mc.maps);
 
@@ -145,12 +152,9 @@ int main(int argc, char** argv) {
     for (const auto& m : maps.maps)
       if (auto mv = std::dynamic_pointer_cast<cleanmap_maps::CMovingObjectsMap>(m)) mv->flush();
 
-    // Written beside DIR, then moved into place.
-    const fs::path out(outdir);
-    staging = out.parent_path().empty() ? fs::path(".") : out.parent_path();
-    staging /= "." + out.filename().string() + ".build-map-" + std::to_string(::getpid());
-    fs::remove_all(staging);
-    fs::create_directories(staging);
+    // Written beside DIR, then moved into place as a whole (io::StagedFolder).
+    cleanmap::io::StagedFolder staged(outdir, "cleanmap-build-map");
+    const fs::path staging(staged.path());
     {
       ::mrpt::io::CFileOutputStream f((staging / "maps.bin").string());
       ::mrpt::serialization::archiveFrom(f) << maps;
@@ -162,15 +166,14 @@ int main(int argc, char** argv) {
     if (!scene.saveToFile((staging / "maps.3Dscene").string()))
       throw cleanmap::Error((staging / "maps.3Dscene").string(), "cannot be written");
     maps.saveMetricMapRepresentationToFile((staging / "map").string());
-    std::error_code ec;
-    fs::remove_all(out, ec);
-    fs::rename(staging, out);
+    staged.publish();
     std::printf("cleanmap-build-map: %zu scans into %zu maps; results in %s\n", scans,
                 maps.maps.size(), outdir.c_str());
   } catch (const std::exception& e) {
-    std::error_code ec;
-    if (!staging.empty()) fs::remove_all(staging, ec);
-    std::cerr << "cleanmap-build-map: error: " << cleanmap::cli::errorLine(e) << '\n';
+    std::cerr << "cleanmap-build-map: error: "
+              << cleanmap::io::messageWithoutStaging(cleanmap::cli::errorLine(e), outdir,
+                                                     "cleanmap-build-map")
+              << '\n';
     return 1;
   }
   return 0;

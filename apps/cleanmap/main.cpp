@@ -195,11 +195,9 @@ int main(int argc, char** argv) {
   std::signal(SIGINT, onSignal);
   std::signal(SIGTERM, onSignal);
   try {
-    {  // never write into the input: its labels/ would be replaced by ours
-      std::error_code ec;
-      if (std::filesystem::exists(outdir, ec) && std::filesystem::equivalent(outdir, input, ec))
-        throw cleanmap::Error(outdir, "the output folder is the input folder; choose another -o");
-    }
+    // Never replace the input (its labels/ by ours), a folder holding it, or one inside it that
+    // is no earlier run, --force or not.
+    cleanmap::io::requireOutsideInput(outdir, input, cleanmap::io::isCleanmapRun, "-o");
     // The maps, through MRPT's factory from the ini (DESIGN §4b): the same sections work in a
     // user's CMultiMetricMap. A flat params.ini (a run's) declares the two maps implicitly.
     cleanmap_maps::registerMaps();

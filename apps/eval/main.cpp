@@ -114,10 +114,12 @@ int runRoc(int argc, char** argv) {
   cleanmap::PipelineParams base;
   if (!config.empty()) base = cleanmap_maps::loadPipelineParams(config);  // MRPT or flat ini
   if (threads > 0) base.threads = static_cast<int>(threads);
-  cleanmap::io::requireReplaceableFolder(
-      out,
-      [](const std::string& d) { return firstLineStarts(fs::path(d) / "roc.md", "# ROC sweep"); },
-      "ROC sweep of cleanmap-eval (no roc.md)", "-o");
+  const auto isRoc = [](const std::string& d) {
+    return firstLineStarts(fs::path(d) / "roc.md", "# ROC sweep");
+  };
+  cleanmap::io::requireOutsideInput(out, gt, isRoc, "-o");
+  cleanmap::io::requireReplaceableFolder(out, isRoc, "ROC sweep of cleanmap-eval (no roc.md)",
+                                         "-o");
   cleanmap::io::StagedFolder staged(out, kStagingTag);
   g_staged = out;
   const auto res = cleanmap::eval::rocSweep(gt, base, opt, [](std::size_t d, std::size_t t) {
@@ -180,12 +182,13 @@ int runEval(int argc, char** argv) {
   const auto in = cleanmap::eval::ResultInput::fromPath(result, labels);
   std::unique_ptr<cleanmap::io::StagedFolder> staged;
   if (!report.empty()) {
+    const auto isReport = [](const std::string& d) {
+      return firstLineStarts(fs::path(d) / "report.md", "# cleanmap evaluation");
+    };
+    for (const std::string& read : {gt, result, labels.value_or("")})
+      cleanmap::io::requireOutsideInput(report, read, isReport, "--report");
     cleanmap::io::requireReplaceableFolder(
-        report,
-        [](const std::string& d) {
-          return firstLineStarts(fs::path(d) / "report.md", "# cleanmap evaluation");
-        },
-        "report of cleanmap-eval (no report.md of one)", "--report");
+        report, isReport, "report of cleanmap-eval (no report.md of one)", "--report");
     staged = std::make_unique<cleanmap::io::StagedFolder>(report, kStagingTag);
     g_staged = report;
     opt.pictures_dir = staged->path();

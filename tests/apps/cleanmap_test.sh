@@ -88,6 +88,14 @@ expect_error 1 "holds no cleanmap run" "$bin/cleanmap" "$seq" -o "$scratch/mine"
 [[ -f $scratch/mine/notes.txt ]] || fail "a refused folder was modified"
 "$bin/cleanmap" "$seq" -o "$scratch/mine" --last 2 --force --quiet >/dev/null || fail "--force failed"
 [[ ! -e $scratch/mine/notes.txt && -f $scratch/mine/report.json ]] || fail "--force did not replace the folder"
+# --force never takes the input with it: not a folder that holds it (here through a link to it),
+# not a non-empty folder inside it. An output folder inside it is fine.
+mkdir -p "$scratch/holder" && ln -s "$seq" "$scratch/holder/seq"
+expect_error 1 "holds the input" "$bin/cleanmap" "$scratch/holder/seq" -o "$scratch/holder" --force --last 2
+expect_error 1 "lies inside the input folder" "$bin/cleanmap" "$seq" -o "$seq/velodyne" --force --last 2
+[[ -L $scratch/holder/seq && $(ls "$seq/velodyne" | wc -l) -eq 24 ]] || fail "a refused run touched its input"
+"$bin/cleanmap" "$seq" -o "$seq/cleaned" --last 2 --quiet >/dev/null || fail "a run into the input's own subfolder failed"
+rm -rf "$seq/cleaned"
 
 # Empty scans: one rule in every app. A 0-byte scan (and its 0-entry label file) and an all-NaN
 # scan are kept, counted, labelled 0 per original point.

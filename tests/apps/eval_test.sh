@@ -35,8 +35,15 @@ expect_error 1 "$scratch/report/map_overview.png: write failed" \
 [[ $(cd "$scratch/report" && md5sum -- *) == "$before" ]] || fail "a failed report changed the earlier one"
 ls -a "$scratch" | grep -q staging && fail "a failed report left its staging folder"
 run_report=$(md5sum <"$scratch/run/report.json")
-expect_error 1 "holds no report of cleanmap-eval" "$bin/cleanmap-eval" "$city" "$scratch/run" --report "$scratch/run"
+expect_error 1 "the output folder is the input folder" "$bin/cleanmap-eval" "$city" "$scratch/run" --report "$scratch/run"
 [[ $(md5sum <"$scratch/run/report.json") == "$run_report" ]] || fail "--report into the run changed its report.json"
+mkdir -p "$scratch/mine" && echo keep >"$scratch/mine/notes.txt"
+expect_error 1 "holds no report of cleanmap-eval" "$bin/cleanmap-eval" "$city" "$scratch/run" --report "$scratch/mine"
+# An earlier report is replaced, but not when it holds what is scored.
+cp -r "$scratch/run" "$scratch/report/run"
+expect_error 1 "holds the input" "$bin/cleanmap-eval" "$city" "$scratch/report/run" --report "$scratch/report"
+[[ -f $scratch/report/run/report.json ]] || fail "a refused report touched the result inside it"
+rm -rf "$scratch/report/run"
 expect_error 1 "holds no ROC sweep" "$bin/cleanmap-eval" roc "$city" -o "$scratch/run" --first 9 --last 11
 printf '%s\n' "$json" >"$scratch/a.json"
 "$bin/cleanmap-eval" summary "$scratch/a.json" "$scratch/a.json" | grep -q "all (summed counts)" ||

@@ -47,7 +47,17 @@ expect_error 1 "unknown map 'cleanmap_movng'" "$bin/cleanmap-icp-slam" "$scratch
 [[ -s $scratch/built/maps.bin && -s $scratch/built/maps.3Dscene ]] || fail "no maps.bin / maps.3Dscene"
 "$bin/cleanmap-build-map" "$scratch/slam/_finalmap_.simplemap" -c "$config/cleanmap.ini" -o "$scratch/fromsm" >/dev/null ||
   fail "cleanmap-build-map on a simplemap failed"
-expect_error 1 "exists and is not empty" "$bin/cleanmap-build-map" "$scratch/city.rawlog" -c "$config/cleanmap.ini" -o "$scratch/built"
+# An earlier build is replaced as a whole (a trailing / too); another folder only with --force,
+# and never one that holds the input.
+touch "$scratch/built/stale.txt"
+"$bin/cleanmap-build-map" "$scratch/city.rawlog" -c "$config/cleanmap.ini" -o "$scratch/built/" >/dev/null ||
+  fail "cleanmap-build-map over its earlier build failed"
+[[ -s $scratch/built/maps.bin && ! -e $scratch/built/stale.txt ]] || fail "the earlier build was not replaced as a whole"
+mkdir -p "$scratch/mine" && echo keep >"$scratch/mine/notes.txt"
+expect_error 1 "holds no cleanmap-build-map maps" "$bin/cleanmap-build-map" "$scratch/city.rawlog" -c "$config/cleanmap.ini" -o "$scratch/mine"
+[[ -f $scratch/mine/notes.txt ]] || fail "a refused build touched the folder"
+expect_error 1 "holds the input" "$bin/cleanmap-build-map" "$scratch/city.rawlog" -c "$config/cleanmap.ini" -o "$scratch" --force
+ls -a "$scratch" | grep -q staging && fail "the builder left a staging folder"
 expect_error 1 "unknown map 'cleanmap_movng'" "$bin/cleanmap-build-map" "$scratch/city.rawlog" -c "$scratch/typo.ini" -o "$scratch/x"
 [[ -e $scratch/x ]] && fail "a refused build left an output folder"
 

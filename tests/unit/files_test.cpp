@@ -134,6 +134,49 @@ TEST(StagedFolder, PublishesAsAWholeAndLeavesNothingUnpublished) {
   EXPECT_EQ(entries, 1u) << "a staging folder was left";
 }
 
+// An output folder never takes its input with it, whatever option asked for the replacement: not
+// the input itself, not a folder holding it (as written, through "..", through a symbolic link),
+// not a non-empty folder inside it that is no earlier output (its velodyne/). A folder beside it
+// whose name starts alike, an empty one or an earlier output inside it, and a missing one are fine.
+TEST(RequireOutsideInput, RefusesWhatWouldDeleteTheInput) {
+  const auto root = test::scratchDir("outside_input");
+  const auto seq = root / "data" / "seq";
+  fs::create_directories(seq / "velodyne");
+  test::writeText(seq / "velodyne" / "000000.bin", "");
+  test::writeText(root / "data" / "run.rawlog", "");
+  fs::create_directory_symlink(root / "data", root / "link");
+  const auto never = [](const std::string&) { return false; };
+  const auto check = [&](const fs::path& dir, const fs::path& input) {
+    io::requireOutsideInput(dir.string(), input.string(), never, "-o");
+  };
+  test::expectError([&] { check(seq, seq); }, seq.string(),
+                    "the output folder is the input folder");
+  test::expectError([&] { check(seq.string() + "/", seq); }, seq.string() + "/",
+                    "the output folder is the input folder");
+  test::expectError([&] { check(root / "data", seq); }, (root / "data").string(),
+                    "holds the input " + seq.string());
+  test::expectError([&] { check(seq / "..", seq.string() + "/"); }, (seq / "..").string(),
+                    "holds the input");
+  test::expectError([&] { check(root / "link", seq); }, (root / "link").string(),
+                    "holds the input");
+  test::expectError([&] { check(root, root / "link" / "run.rawlog"); }, root.string(),
+                    "holds the input");
+  test::expectError([&] { check(seq / "velodyne", seq); }, (seq / "velodyne").string(),
+                    "lies inside the input folder " + seq.string());
+  // Fine: beside it, a name that starts alike, a missing or empty folder inside it, an earlier
+  // output inside it, and no input.
+  EXPECT_NO_THROW(check(root / "data" / "seq2", seq));
+  EXPECT_NO_THROW(check(root / "data" / "out", root / "data" / "run.rawlog"));
+  EXPECT_NO_THROW(check(seq / "out", seq));
+  fs::create_directory(seq / "out");
+  EXPECT_NO_THROW(check(seq / "out", seq));
+  test::writeText(seq / "out" / "report.json", "{}");
+  EXPECT_NO_THROW(io::requireOutsideInput((seq / "out").string(), seq.string(),
+                                          [](const std::string&) { return true; }, "-o"));
+  EXPECT_THROW(check(seq / "out", seq), Error);
+  EXPECT_NO_THROW(check(seq, ""));
+}
+
 TEST(Directories, MissingDirectoryIsAnError) {
   test::expectError([] { io::requireDirectory("/nonexistent/seq"); }, "/nonexistent/seq",
                     "directory does not exist");

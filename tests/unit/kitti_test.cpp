@@ -131,6 +131,18 @@ TEST(KittiOdometry, TimesCountMismatchIsAnError) {
                     "has 2 timestamps but the sequence has 3 scans");
 }
 
+// Times may repeat (placeholders) but never go back: the window in seconds and the sweeps' motion
+// read their differences.
+TEST(KittiOdometry, TimesThatGoBackAreAnError) {
+  CLEANMAP_REQUIRE_DATASET("kitti_city");
+  const auto dir = miniOdometry("times_back", "", "");
+  test::writeText(dir / "times.txt", "0.0\n0.0\n0.1\n");
+  EXPECT_EQ(io::KittiSequence::open(dir.string()).timestamps()[2], 0.1);
+  test::writeText(dir / "times.txt", "0.0\n0.2\n0.1\n");
+  test::expectError([&] { io::KittiSequence::open(dir.string()); }, "times.txt",
+                    "the time of scan 000002 (0.1) is earlier than that of the scan before (0.2)");
+}
+
 TEST(KittiOdometry, MissingOrWrongDirectoryIsAnError) {
   test::expectError([] { io::KittiSequence::open("/nonexistent/seq"); }, "/nonexistent/seq",
                     "directory does not exist");
@@ -266,6 +278,14 @@ TEST(KittiRaw, OxtsPosesFollowTheDrivenPath) {
   EXPECT_EQ(cam->height, 375);
   EXPECT_TRUE(cam->project({20, 0, 0}).has_value());
   EXPECT_EQ(seq.loadScan(1).size(), 2u);
+}
+
+TEST(KittiRaw, TimestampsThatGoBackAreAnError) {
+  const auto drive = rawDrive("raw_back", 0, 1.0);
+  test::writeText(drive / "velodyne_points/timestamps.txt",
+                  "2011-09-26 13:02:25.1\n2011-09-26 13:02:25.3\n2011-09-26 13:02:25.2\n");
+  test::expectError([&] { io::KittiSequence::open(drive.string()); }, "timestamps.txt",
+                    "the time of scan 0000000002");
 }
 
 // DESIGN §2.0: a raw drive's scans are not de-skewed (KITTI's readme), so each point carries its

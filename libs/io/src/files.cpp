@@ -181,6 +181,53 @@ void requireReplaceableFolder(const std::string& dir,
                        alternative);
 }
 
+namespace {
+
+// `p` absolute and normal, without a trailing separator; with `resolve`, its symbolic links
+// resolved as far as it exists.
+fs::path comparablePath(const std::string& p, bool resolve) {
+  std::error_code ec;
+  fs::path a = resolve ? fs::weakly_canonical(p, ec) : fs::path();
+  if (!resolve || ec) a = fs::absolute(p, ec).lexically_normal();
+  while (a.has_relative_path() && a.filename().empty()) a = a.parent_path();
+  return a;
+}
+
+// True if `inner` is `outer` or lies below it (whole components).
+bool isWithin(const fs::path& inner, const fs::path& outer) {
+  auto i = inner.begin();
+  for (auto o = outer.begin(); o != outer.end(); ++o, ++i)
+    if (i == inner.end() || *i != *o) return false;
+  return true;
+}
+
+}  // namespace
+
+void requireOutsideInput(const std::string& dir, const std::string& input,
+                         const std::function<bool(const std::string&)>& isOurs,
+                         const std::string& option) {
+  if (input.empty()) return;
+  std::error_code ec;
+  const bool input_is_folder = fs::is_directory(input, ec);
+  for (const bool resolve : {false, true}) {
+    const fs::path d = comparablePath(dir, resolve), in = comparablePath(input, resolve);
+    if (d == in)
+      throw Error(dir, std::string("the output folder is the input ") +
+                           (input_is_folder ? "folder" : "file") + "; choose another " + option);
+    if (isWithin(in, d))
+      throw Error(dir, "holds the input " + input +
+                           ", which replacing it would delete; choose "
+                           "another " +
+                           option);
+    if (input_is_folder && isWithin(d, in) && fs::is_directory(dir, ec) && !fs::is_empty(dir, ec) &&
+        !isOurs(dir))
+      throw Error(dir, "lies inside the input folder " + input +
+                           " and holds files that may be "
+                           "the input's; choose another " +
+                           option + " (no option replaces it)");
+  }
+}
+
 StagedFolder::StagedFolder(const std::string& dir, const std::string& tag)
     : dir_(trimmedFolder(dir)) {
   const fs::path out(dir_);

@@ -15,6 +15,7 @@
 #include "cleanmap/core/error.h"
 #include "cleanmap/core/params.h"
 #include "cleanmap/io/calib.h"
+#include "cleanmap/io/config.h"
 #include "cleanmap/io/image.h"
 
 namespace fs = std::filesystem;
@@ -43,6 +44,17 @@ void requireCount(const std::string& path, const std::string& what, std::size_t 
   if (n != scans)
     throw Error(path, "has " + std::to_string(n) + " " + what + " but the sequence has " +
                           std::to_string(scans) + " scans");
+}
+
+// The scans' times may repeat (placeholders) but never go back: the window in seconds (DESIGN
+// §2b), the sweeps' motion (§2.0) and the camera's depth correction (§3) read differences of them.
+void requireTimeOrder(const std::string& path, const std::vector<double>& t,
+                      const std::vector<std::string>& stems) {
+  for (std::size_t i = 1; i < t.size() && i < stems.size(); ++i)
+    if (t[i] < t[i - 1])
+      throw Error(path, "the time of scan " + stems[i] + " (" + shortestDouble(t[i]) +
+                            ") is earlier than that of the scan before (" +
+                            shortestDouble(t[i - 1]) + "); the scans must be in time order");
 }
 
 // Lines of numbers, one value per line (times.txt).
@@ -208,6 +220,7 @@ void KittiSequence::openOdometry() {
     const std::string path = (d / "times.txt").string();
     times_ = readNumberLines(path);
     requireCount(path, "timestamps", times_.size(), n);
+    requireTimeOrder(path, times_, stems_);
   } else {
     for (std::size_t i = 0; i < n; ++i) times_.push_back(0.1 * static_cast<double>(i));
   }
@@ -246,6 +259,7 @@ void KittiSequence::openRaw() {
     const std::string path = (velo / "timestamps.txt").string();
     times_ = readTimestampLines(path);
     requireCount(path, "timestamps", times_.size(), n);
+    requireTimeOrder(path, times_, stems_);
   } else {
     for (std::size_t i = 0; i < n; ++i) times_.push_back(0.1 * static_cast<double>(i));
   }

@@ -68,6 +68,16 @@ void requireReplaceableFolder(const std::string& dir,
                               const std::string& what, const std::string& option,
                               const std::string& alternative = "");
 
+/// Before a folder made from `input` (a file or a folder) replaces `dir`: throws cleanmap::Error
+/// naming `dir` if replacing it could delete what the run reads, whatever option asked for the
+/// replacement (--force): `dir` is `input` or holds it, or `input` is a folder and `dir` a
+/// non-empty folder inside it that `isOurs` does not recognise as this tool's earlier output (its
+/// files may be the input's own, as velodyne/). Paths are compared as written and with their
+/// symbolic links resolved. An empty `input` checks nothing.
+void requireOutsideInput(const std::string& dir, const std::string& input,
+                         const std::function<bool(const std::string&)>& isOurs,
+                         const std::string& option);
+
 /// An error message as the user should read it: paths inside this process's staging folder for
 /// `dir` (StagedFolder with `tag`) named as they will be in `dir`, and the temporaries' suffixes
 /// (".tmp.<pid>", ".part.<pid>", ".head.<pid>") dropped.
