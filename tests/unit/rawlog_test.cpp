@@ -166,7 +166,18 @@ TEST(RawlogSource, MissingEmptyAndGarbageFilesAreErrors) {
   const auto dir = test::scratchDir("rawlog_bad");
   std::ofstream(dir / "empty.rawlog").close();
   test::expectError([&] { cleanmap::mrpt::RawlogSource((dir / "empty.rawlog").string()); },
-                    "empty.rawlog", "holds no point-cloud observations");
+                    "empty.rawlog", "is empty (0 bytes)");
+  // A gzip-compressed rawlog cut before its first deflate block ends decompresses to nothing.
+  {
+    ::mrpt::io::CFileGZOutputStream out((dir / "whole.rawlog").string());
+    auto ar = ::mrpt::serialization::archiveFrom(out);
+    auto pc = ::mrpt::obs::CObservationPointCloud::Create();
+    ar << *pc;
+  }
+  fs::copy_file(dir / "whole.rawlog", dir / "cut.rawlog");
+  fs::resize_file(dir / "cut.rawlog", 10);  // the gzip header alone
+  test::expectError([&] { cleanmap::mrpt::RawlogSource((dir / "cut.rawlog").string()); },
+                    "cut.rawlog", "holds no complete MRPT object (cut short, or not a rawlog)");
   std::ofstream(dir / "text.rawlog") << "this is not a rawlog, just some text that goes on\n";
   test::expectError([&] { cleanmap::mrpt::RawlogSource((dir / "text.rawlog").string()); },
                     "text.rawlog", "is not an MRPT rawlog");

@@ -287,6 +287,10 @@ RawlogSource::RawlogSource(const std::string& path, const RawlogReadOptions& opt
   if (!impl_->in.open(path)) throw Error(path, "cannot open for reading");
   while (!impl_->findScan(0) && impl_->readEntry()) {
   }
+  if (impl_->entry == 0)  // a compressed file cut inside its first block reads as a clean end
+    throw Error(path, fs::file_size(path, ec) == 0
+                          ? "is empty (0 bytes)"
+                          : "holds no complete MRPT object (cut short, or not a rawlog)");
   if (!impl_->findScan(0) && !impl_->other_lidars.empty())
     throw Error(path, "holds no scans of lidar '" + impl_->lidar +
                           "'; its lidars: " + labelCounts(impl_->other_lidars));
