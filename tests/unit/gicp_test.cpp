@@ -3,7 +3,10 @@
 // synthetic street sampled twice with different point sets; degenerate scenes refused clearly.
 #include <gtest/gtest.h>
 
+#include <chrono>
+#include <cstdlib>
 #include <functional>
+#include <future>
 #include <random>
 #include <unordered_map>
 
@@ -12,6 +15,8 @@
 #include "cleanmap/registration/gicp.h"
 #include "cleanmap/registration/odometry.h"
 #include "test_data.h"
+
+#include "../../libs/registration/src/flat_key_map.h"  // header-only, internal to the library
 
 using namespace cleanmap;
 using namespace cleanmap::reg;
@@ -482,6 +487,52 @@ TEST(Odometry, MapLagKeepsTrafficMovingWithTheSensorFromDraggingIt) {
   std::printf("  15 scans, %.2f m: map_lag 1 %.3f m, map_lag 0 %.3f m\n", truth, lagged, every);
   EXPECT_NEAR(lagged, truth, 0.03 * truth);  // measured 2.2 % short
   EXPECT_LT(every, 0.96 * truth);            // the drag map_lag removes (measured 4.9 % short)
+}
+
+// The per-scan voxel table grows past what reset() was told to expect: the odometry sizes it for
+// a scan's points / 8 voxels, and a registration.voxel below the points' spacing gives about one
+// voxel a point. It used to fill up, and emplace() then probed forever (a run that never ended).
+TEST(FlatKeyMap, GrowsPastItsExpectedSizeAndKeepsEveryFirstValue) {
+  auto fill = std::async(std::launch::async, [] {
+    FlatKeyMap m(10);
+    std::vector<std::size_t> sizes;
+    for (const std::size_t n : {std::size_t(5000), std::size_t(300)}) {  // the second reuses it
+      m.reset(n / 8);
+      for (uint32_t k = 0; k < n; ++k) {
+        const uint64_t key = uint64_t(k) * 7919u + 3;
+        EXPECT_TRUE(m.emplace(key, k).second);
+        EXPECT_FALSE(m.emplace(key, k + 1).second);  // present: the first value stays
+      }
+      for (uint32_t k = 0; k < n; ++k) {
+        const uint32_t* v = m.find(uint64_t(k) * 7919u + 3);
+        EXPECT_TRUE(v && *v == k) << k;
+      }
+      EXPECT_EQ(m.find(1), nullptr);
+      EXPECT_GE(m.capacity(), 2 * m.size());
+      sizes.push_back(m.size());
+    }
+    return sizes;
+  });
+  if (fill.wait_for(std::chrono::seconds(60)) != std::future_status::ready) {
+    ADD_FAILURE() << "FlatKeyMap::emplace did not return (a full table)";
+    std::_Exit(1);  // the stuck thread cannot be joined
+  }
+  EXPECT_EQ(fill.get(), (std::vector<std::size_t>{5000, 300}));
+}
+
+// The same through the odometry: a 5 cm voxel keeps nearly every point of the street (about one
+// a 0.17 m square on the road), and two scans are still aligned.
+TEST(Odometry, TracksWithAVoxelBelowThePointSpacing) {
+  RegistrationParams rp;
+  rp.voxel = 0.15;
+  Odometry odo(rp, 2);
+  const auto world = street(9);
+  for (int k = 0; k < 2; ++k) {
+    const Eigen::Isometry3d truth = pose(0.8 * k, 0, 0, 0.01 * k, 0, 0);
+    const OdometryStep s = odo.track(scanFrom(world, truth, 200 + uint64_t(k)), 0.1 * k, k);
+    EXPECT_TRUE(s.accepted) << s.status;
+    EXPECT_LE((truth.inverse() * s.pose).translation().norm(), 0.02) << "scan " << k;
+  }
 }
 
 // The local map against a brute-force search over the entries it should still hold, after a
