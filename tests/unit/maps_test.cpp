@@ -161,6 +161,15 @@ TEST(MapConfig, MistakesAreOneLineErrors) {
       "[map]\ncleanmap_moving_count = 1\ncleanmap_ground_count = 1\n"
       "[map_cleanmap_ground_00_insertOpts]\nstepp = 0.1\n",
       "unknown key 'stepp'; did you mean 'step'?");
+  // The ground map's grid: a cell far below the lidar's noise, or one too small for its extent.
+  const std::string ground = "[map]\ncleanmap_moving_count = 1\ncleanmap_ground_count = 1\n";
+  expect(ground + "[map_cleanmap_ground_00_creationOpts]\ncell = 1e-7\n",
+         "cell must be in [0.05, 10] m");
+  expect(ground + "[map_cleanmap_ground_00_insertOpts]\nextent = 1e9\n",
+         "extent must be in (0, 1000] m");
+  expect(ground + "[map_cleanmap_ground_00_creationOpts]\ncell = 0.05\n" +
+             "[map_cleanmap_ground_00_insertOpts]\nextent = 400\n",
+         "cell is too small for the grid: extent / cell = 8000 cells each side, at most 2500");
   test::expectError([] { cleanmap_maps::loadMapConfig("/nonexistent/x.ini"); },
                     "/nonexistent/x.ini", "");
   EXPECT_TRUE(cleanmap_maps::isMapConfig(kMinimal));

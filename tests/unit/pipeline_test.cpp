@@ -6,6 +6,7 @@
 #include <array>
 #include <cmath>
 #include <cstring>
+#include <functional>
 #include <limits>
 #include <map>
 #include <random>
@@ -355,7 +356,40 @@ TEST(Pipeline, DegenerateInputs) {
     bad = p;
     bad.octree.leaf = -1;
     test::expectError([&] { LaserPipeline(bad, [](ScanResult&&) {}); }, "parameters",
-                      "octree.leaf must be > 0");
+                      "octree.leaf must be in [0.02, 10] m");
+    // Lengths that size grids: these overflowed the ground grid (a crash), filled the
+    // registration's voxel table (a run that never ended) or wrapped its cell keys.
+    const std::vector<std::pair<std::function<void(PipelineParams&)>, std::string>> grids = {
+        {[](PipelineParams& q) { q.ground.cell = 1e-7; }, "ground.cell must be in [0.05, 10] m"},
+        {[](PipelineParams& q) {
+           q.ground.cell = 0.05;
+           q.map.radius = 200;
+         },
+         "max(filter.crop_tau, static_map.radius) / ground.cell = 4000 cells each side, at most "
+         "2500"},
+        {[](PipelineParams& q) { q.map.radius = 1e12; },
+         "static_map.radius must be in [0, 1000] m"},
+        {[](PipelineParams& q) { q.filter.crop_tau = 1e6; },
+         "filter.crop_tau must be in (0, 1000] m"},
+        {[](PipelineParams& q) { q.registration.voxel = 1e-7; },
+         "need 0.02 <= registration.voxel <= align_voxel <= 20 m"},
+        {[](PipelineParams& q) { q.registration.max_correspondence = 1e-7; },
+         "registration.max_correspondence must be in [0.05, 20] m"},
+        {[](PipelineParams& q) { q.object.voxel = 1e-7; }, "object.voxel must be in [0.02, 10] m"},
+        {[](PipelineParams& q) { q.image.cell = 20; }, "image.cell must be in [0.02, 10] m"},
+        {[](PipelineParams& q) { q.filter.dup_distance = 1e-7; },
+         "filter.dup_distance must be in [0.01, 5] m"},
+    };
+    for (const auto& [set, what] : grids) {
+      bad = p;
+      set(bad);
+      test::expectError([&] { LaserPipeline(bad, [](ScanResult&&) {}); }, "parameters", what);
+    }
+    bad = p;  // 0.05 m cells are fine over a 50 m map: 1000 cells each side
+    bad.ground.cell = 0.05;
+    bad.map.radius = 50;
+    bad.filter.crop_tau = 30;
+    EXPECT_NO_THROW(validate(bad, "parameters"));
   }
   {  // windows with no overlap: scans 1 km apart see nothing of each other
     out.clear();

@@ -12,12 +12,17 @@ void validate(const PipelineParams& p, const std::string& name) {
   auto require = [&](bool ok, const std::string& what) {
     if (!ok) throw Error(name, what);
   };
-  require(p.filter.crop_tau > 0, "filter.crop_tau must be > 0");
+  // Lengths that size a grid have physical bounds: a cell far below a lidar's noise, or a range
+  // far beyond its reach, is a typo, and would overflow a grid or its 21-bit cell keys
+  // (cell_key.h) rather than fail clearly.
+  require(p.filter.crop_tau > 0 && p.filter.crop_tau <= 1000,
+          "filter.crop_tau must be in (0, 1000] m");
   require(p.filter.dup_window >= 0, "filter.dup_window must be >= 0");
-  require(p.filter.dup_distance > 0, "filter.dup_distance must be > 0");
+  require(p.filter.dup_distance >= 0.01 && p.filter.dup_distance <= 5,
+          "filter.dup_distance must be in [0.01, 5] m");
   require(p.sensor.height == 0 || (p.sensor.height >= 0.1 && p.sensor.height <= 10),
           "sensor.height must be auto or in [0.1, 10] m above the ground");
-  require(p.ground.cell > 0, "ground.cell must be > 0");
+  require(p.ground.cell >= 0.05 && p.ground.cell <= 10, "ground.cell must be in [0.05, 10] m");
   require(p.ground.step > 0, "ground.step must be > 0");
   require(p.ds.sigma_m >= 0 && p.ds.sigma_r >= 0 && p.ds.sigma_m + p.ds.sigma_r > 0,
           "ds.sigma_m and ds.sigma_r must be >= 0, not both 0");
@@ -33,10 +38,10 @@ void validate(const PipelineParams& p, const std::string& name) {
           "ds.window_stride must be auto or in [1, " + std::to_string(kMaxWindowK) + "] scans");
   require(p.ds.scan_conflict > 0 && p.ds.scan_conflict <= 1,
           "ds.scan_conflict must be in (0, 1] (1 = off)");
-  require(p.octree.leaf > 0, "octree.leaf must be > 0");
+  require(p.octree.leaf >= 0.02 && p.octree.leaf <= 10, "octree.leaf must be in [0.02, 10] m");
   require(p.octree.tau_np >= 1, "octree.tau_np must be >= 1");
   require(p.octree.fraction > 0 && p.octree.fraction <= 1, "octree.fraction must be in (0, 1]");
-  require(p.object.voxel > 0, "object.voxel must be > 0");
+  require(p.object.voxel >= 0.02 && p.object.voxel <= 10, "object.voxel must be in [0.02, 10] m");
   require(0 <= p.object.static_fraction && p.object.static_fraction <= p.object.moving_fraction &&
               p.object.moving_fraction <= 1,
           "need 0 <= object.static_fraction <= object.moving_fraction <= 1");
@@ -52,14 +57,16 @@ void validate(const PipelineParams& p, const std::string& name) {
   const auto& r = p.registration;
   require(0 <= r.min_range && r.min_range < r.max_range,
           "need 0 <= registration.min_range < max_range");
-  require(r.voxel > 0 && r.align_voxel >= r.voxel, "need 0 < registration.voxel <= align_voxel");
+  require(r.voxel >= 0.02 && r.voxel <= r.align_voxel && r.align_voxel <= 20,
+          "need 0.02 <= registration.voxel <= align_voxel <= 20 m");
   require(r.knn >= 5, "registration.knn must be >= 5");
   require(r.relative_error >= 0 && r.relative_error <= 1,
           "registration.relative_error must be in [0, 1] (a fraction of the path)");
   require(r.plane_epsilon > 0 && r.plane_epsilon < 1,
           "registration.plane_epsilon must be in (0, 1)");
-  require(r.max_correspondence > 0 && r.kernel > 0,
-          "registration.max_correspondence and kernel must be > 0");
+  require(r.max_correspondence >= 0.05 && r.max_correspondence <= 20,
+          "registration.max_correspondence must be in [0.05, 20] m (it is also the map's voxel)");
+  require(r.kernel > 0, "registration.kernel must be > 0");
   require(r.max_iterations >= 1 && r.map_points_per_voxel >= 1,
           "registration.max_iterations and map_points_per_voxel must be >= 1");
   require(r.map_radius > r.max_correspondence,
@@ -76,7 +83,14 @@ void validate(const PipelineParams& p, const std::string& name) {
   require(p.threads >= 1, "run.threads must be >= 1");
   require(p.epoch >= 0, "run.epoch must be >= 0 (0: the whole run is one epoch)");
   const auto& m = p.map;
-  require(m.radius >= 0, "static_map.radius must be >= 0 (0: the map holds the crop only)");
+  require(m.radius >= 0 && m.radius <= 1000,
+          "static_map.radius must be in [0, 1000] m (0: the map holds the crop only)");
+  const double extent = std::max(p.filter.crop_tau, p.map.radius);  // what the ground grid spans
+  require(extent / p.ground.cell <= kMaxGroundHalfCells,
+          "ground.cell is too small for the ground grid: max(filter.crop_tau, static_map.radius) / "
+          "ground.cell = " +
+              std::to_string(static_cast<long long>(extent / p.ground.cell)) +
+              " cells each side, at most " + std::to_string(static_cast<int>(kMaxGroundHalfCells)));
   require(m.voxel >= 0.02 && m.voxel <= 5, "static_map.voxel must be in [0.02, 5] m");
   require(m.min_free_scans >= 1, "static_map.min_free_scans must be >= 1");
   require(m.vacated_scans >= 0 && m.vacated_scans <= 255,
@@ -106,7 +120,7 @@ void validate(const PipelineParams& p, const std::string& name) {
   require(im.dilation_radius >= 0 && im.dilation_radius <= 20,
           "image.dilation_radius must be in [0, 20] px");
   require(im.occlusion > 0, "image.occlusion must be > 0");
-  require(im.cell > 0, "image.cell must be > 0");
+  require(im.cell >= 0.02 && im.cell <= 10, "image.cell must be in [0.02, 10] m");
   require(im.min_views >= 1, "image.min_views must be >= 1");
   require(im.changed_fraction >= 0 && im.changed_fraction < 1,
           "image.changed_fraction must be in [0, 1)");

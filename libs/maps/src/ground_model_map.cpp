@@ -70,9 +70,13 @@ void insertOptionKeys(OptionTable& t, CGroundModelMap::TInsertionOptions& o) {
 void checkOptions(double cell, const CGroundModelMap::TInsertionOptions& o,
                   const std::string& where) {
   auto bad = [&](const std::string& what) { throw cleanmap::Error(where, what); };
-  if (!(cell > 0)) bad("cell must be > 0");
+  if (!(cell >= 0.05 && cell <= 10)) bad("cell must be in [0.05, 10] m");
   if (!(o.step > 0)) bad("step must be > 0");
-  if (!(o.extent > 0)) bad("extent must be > 0");
+  if (!(o.extent > 0 && o.extent <= 1000)) bad("extent must be in (0, 1000] m");
+  if (o.extent / cell > cleanmap::kMaxGroundHalfCells)  // the grid segmented per scan (ground.h)
+    bad("cell is too small for the grid: extent / cell = " +
+        std::to_string(static_cast<long long>(o.extent / cell)) + " cells each side, at most " +
+        std::to_string(static_cast<int>(cleanmap::kMaxGroundHalfCells)));
   if (o.max_gap_cells < 1) bad("max_gap_cells must be >= 1");
   if (!(o.height == 0 || (o.height >= 0.1 && o.height <= 10)))
     bad("height must be auto or in [0.1, 10] m above the ground");
@@ -81,7 +85,8 @@ void checkOptions(double cell, const CGroundModelMap::TInsertionOptions& o,
 }  // namespace
 
 CGroundModelMap::CGroundModelMap(double cell) : cell_(cell) {
-  if (!(cell > 0)) throw cleanmap::Error("cleanmap_ground", "cell must be > 0");
+  if (!(cell >= 0.05 && cell <= 10))
+    throw cleanmap::Error("cleanmap_ground", "cell must be in [0.05, 10] m");
 }
 
 cleanmap::GroundParams CGroundModelMap::groundParams() const {

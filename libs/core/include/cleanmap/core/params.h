@@ -60,6 +60,10 @@ struct GroundParams {
   /// the paper's rule). 10 cells = 4 m, the HDL-64E blind zone on a 22 % slope.
   int max_gap_cells = 10;
 };
+/// The ground grid is dense, (2 n + 1)^2 cells for n = half extent / cell: at most this n
+/// (5001^2 cells, about 0.5 GB of scratch), so that a small cell over a wide crop is a clear error
+/// rather than an overflow.
+constexpr double kMaxGroundHalfCells = 2500;
 
 /// DESIGN §2b: Dempster-Shafer beam model and window.
 struct DsParams {
