@@ -215,16 +215,12 @@ void requireOutsideInput(const std::string& dir, const std::string& input,
       throw Error(dir, std::string("the output folder is the input ") +
                            (input_is_folder ? "folder" : "file") + "; choose another " + option);
     if (isWithin(in, d))
-      throw Error(dir, "holds the input " + input +
-                           ", which replacing it would delete; choose "
-                           "another " +
-                           option);
+      throw Error(dir, "holds the input " + input + ", which replacing it would delete; " +
+                           "choose another " + option);
     if (input_is_folder && isWithin(d, in) && fs::is_directory(dir, ec) && !fs::is_empty(dir, ec) &&
         !isOurs(dir))
-      throw Error(dir, "lies inside the input folder " + input +
-                           " and holds files that may be "
-                           "the input's; choose another " +
-                           option + " (no option replaces it)");
+      throw Error(dir, "lies inside the input folder " + input + " and holds files that may be " +
+                           "the input's; choose another " + option + " (no option replaces it)");
   }
 }
 

@@ -73,7 +73,7 @@ void checkOptions(double cell, const CGroundModelMap::TInsertionOptions& o,
   if (!(cell >= 0.05 && cell <= 10)) bad("cell must be in [0.05, 10] m");
   if (!(o.step > 0)) bad("step must be > 0");
   if (!(o.extent > 0 && o.extent <= 1000)) bad("extent must be in (0, 1000] m");
-  if (o.extent / cell > cleanmap::kMaxGroundHalfCells)  // the grid segmented per scan (ground.h)
+  if (o.extent / cell > cleanmap::kMaxGroundHalfCells)  // the grid segmented per scan (params.h)
     bad("cell is too small for the grid: extent / cell = " +
         std::to_string(static_cast<long long>(o.extent / cell)) + " cells each side, at most " +
         std::to_string(static_cast<int>(cleanmap::kMaxGroundHalfCells)));
