@@ -74,7 +74,7 @@ TEST(SimScenario, BadFilesAreOneLineErrorsWithTheLine) {
   test::expectError([] { sim::parseScenario("[mover]\nspeed = 3\n", "s.ini"); }, "s.ini",
                     "no path");
   test::expectError([] { sim::parseScenario("[ground]\nslope = 0.5\n", "s.ini"); }, "s.ini:2",
-                    "outside");
+                    "slope = 0.5 is outside [-0.3, 0.3]");
   test::expectError([] { sim::parseScenario("[ego]\npose_drift = 0.5\n", "s.ini"); }, "s.ini:2",
                     "outside");
   test::expectError([] { sim::loadScenario("/nonexistent/x.ini"); }, "x.ini", "");

@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "cleanmap/core/error.h"
+#include "cleanmap/io/config.h"
 #include "cleanmap/io/files.h"
 #include "cleanmap/io/ini.h"
 
@@ -44,8 +45,8 @@ struct Reader {
   double number(const std::string& key, const std::string& v, double lo, double hi) const {
     const double x = numbers(key, v, 1, 1)[0];
     if (x < lo || x > hi)
-      fail(key + " = " + v + " is outside [" + std::to_string(lo) + ", " + std::to_string(hi) +
-           "]");
+      fail(key + " = " + v + " is outside [" + io::shortestDouble(lo) + ", " +
+           io::shortestDouble(hi) + "]");
     return x;
   }
   bool boolean(const std::string& key, const std::string& v) const {
