@@ -119,6 +119,7 @@ int main(int argc, char** argv) {
     maps.setListOfMaps(mc.maps);
 
     std::size_t scans = 0;
+    std::unique_ptr<cleanmap::FrameSource> src_read;  // a KITTI folder or a rawlog
     if (fs::path(input).extension() == ".simplemap") {
       ::mrpt::maps::CSimpleMap sm;
       if (!sm.loadFromFile(input)) throw cleanmap::Error(input, "cannot be read as a CSimpleMap");
@@ -134,8 +135,8 @@ int main(int argc, char** argv) {
       cleanmap::mrpt::InputOptions in;
       in.allow_empty_scans = true;
       in.load_images = false;
-      auto src = cleanmap::mrpt::openInput(input, in);
-      while (auto f = src->next()) {
+      src_read = cleanmap::mrpt::openInput(input, in);
+      while (auto f = src_read->next()) {
         if (!f->scan.has_pose)
           throw cleanmap::Error(f->source,
                                 "has no pose: cleanmap-build-map needs posed scans "
@@ -149,6 +150,9 @@ int main(int argc, char** argv) {
       }
     }
     if (scans == 0) throw cleanmap::Error(input, "holds no scans");
+    if (const auto* r = dynamic_cast<const cleanmap::mrpt::RawlogSource*>(src_read.get()))
+      if (const auto w = cleanmap::mrpt::timedBackWarning(*r); !w.empty())
+        std::fprintf(stderr, "cleanmap-build-map: warning: %s\n", w.c_str());
     for (const auto& m : maps.maps)
       if (auto mv = std::dynamic_pointer_cast<cleanmap_maps::CMovingObjectsMap>(m)) mv->flush();
 

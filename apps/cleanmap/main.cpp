@@ -364,7 +364,7 @@ int main(int argc, char** argv) {
     const auto inner = prefetching->release();  // the reading thread has stopped
     if (rawlog)
       out.setSensors({rawlog->lidarLabel(), rawlog->cameraLabel(), rawlog->otherLidars(),
-                      rawlog->otherCameras()});
+                      rawlog->otherCameras(), rawlog->scansTimedBack()});
     moving->flush();
     checkSignal();
     if (images == "on" && moving->totals().image_scans == 0)
@@ -418,6 +418,8 @@ int main(int argc, char** argv) {
                      "skipped: %s; choose one with --camera LABEL\n",
                      input.c_str(), rawlog->cameraLabel().c_str(),
                      cleanmap::mrpt::labelCounts(rawlog->otherCameras()).c_str());
+      if (const auto w = cleanmap::mrpt::timedBackWarning(*rawlog); !w.empty())
+        std::fprintf(stderr, "cleanmap: warning: %s (report.json: rawlog_sensors)\n", w.c_str());
     }
     if (empty)
       std::fprintf(stderr,

@@ -104,6 +104,8 @@ int main(int argc, char** argv) {
       if (!r->cameraLabel().empty())
         line += "; " + sensor("camera", r->cameraLabel(), r->otherCameras());
       std::printf("%s\n", line.c_str());
+      if (const auto w = cleanmap::mrpt::timedBackWarning(*r); !w.empty())
+        std::printf("times:   %s\n", w.c_str());
     }
     if (labelled)
       std::printf("labels:  %zu points, %zu moving (%.2f %%)\n", labelled, moving,

@@ -119,6 +119,18 @@ out=$("$bin/cleanmap-kitti2rawlog" "$scratch/holes" "$scratch/holes.rawlog") || 
 "$bin/cleanmap" "$scratch/holes.rawlog" -o "$scratch/holes_rl" --quiet --last 6 >/dev/null 2>&1 || fail "empty scans stopped cleanmap on a rawlog"
 "$bin/cleanmap-eval" "$scratch/holes" "$scratch/holes_out" --last 6 --json >/dev/null || fail "cleanmap-eval failed on empty scans"
 
+# A rawlog whose scans go back in time (here the sequence joined to itself) is read in file order,
+# with one warning line, counted in report.json; cleanmap-info says so too.
+(gzip -dc "$seq/sequence.rawlog"; gzip -dc "$seq/sequence.rawlog") | gzip -1 >"$scratch/twice.rawlog"
+"$bin/cleanmap" "$scratch/twice.rawlog" -o "$scratch/twice" --quiet --first 20 --last 27 --no-mrpt-outputs >/dev/null 2>"$scratch/e" ||
+  fail "a rawlog timed back stopped cleanmap: $(cat "$scratch/e")"
+grep -q "warning: 1 scan is timed earlier than the scan before (the first: .*twice.rawlog entry .*, 2.300 s before" "$scratch/e" ||
+  fail "no warning for the scans timed back: $(cat "$scratch/e")"
+[[ $(ls "$scratch/twice/labels" | wc -l) -eq 8 ]] || fail "a rawlog timed back: expected 8 label files"
+grep -q '"scans_timed_back": 1' "$scratch/twice/report.json" || fail "report.json does not count the scan timed back"
+grep -q '"scans_timed_back": 0' "$scratch/rawwin/report.json" || fail "report.json counts scans timed back in an ordered rawlog"
+grep -q "^times: *1 scan is timed earlier" <<<"$("$bin/cleanmap-info" "$scratch/twice.rawlog")" || fail "cleanmap-info does not say the scans go back"
+
 # Bad inputs: one line naming what is wrong.
 expect_error 1 "--first 40 is beyond the end: the input has 24 scans (0..23)" "$bin/cleanmap" "$seq" -o "$scratch/x" --first 40
 head -c 20000 /dev/urandom >"$scratch/random.rawlog"

@@ -250,6 +250,42 @@ TEST(RawlogSource, EmptyScanIsAnErrorUnlessAllowed) {
   EXPECT_TRUE(f->scan.empty());
 }
 
+// A lidar's scans timed earlier than the scan before them (a glitch, rawlogs joined out of order)
+// are read in file order and counted; a repeated time is no step back.
+TEST(RawlogSource, ScansTimedBackAreTakenInFileOrderAndCounted) {
+  const auto dir = test::scratchDir("rawlog_timed_back");
+  const std::string path = (dir / "back.rawlog").string();
+  const std::vector<double> times = {1.0, 1.1, 0.5, 0.6, 0.6, 0.45, 0.7};
+  {
+    cleanmap::mrpt::RawlogWriter w(path);
+    for (std::size_t k = 0; k < times.size(); ++k) {
+      Frame f;
+      f.index = k;
+      f.scan.timestamp = times[k];
+      f.scan.points = {PointXYZI{float(k), 0, -1, 0}, PointXYZI{float(k), 1, -1, 0}};
+      w.write(f, std::nullopt);
+    }
+    w.close();
+  }
+  cleanmap::mrpt::RawlogSource src(path);
+  std::vector<float> order;
+  while (auto f = src.next()) {
+    order.push_back(f->scan.points.at(0).x);
+    if (order.size() == 2) {
+      EXPECT_EQ(src.scansTimedBack(), 0u);
+    }
+  }
+  EXPECT_EQ(order, (std::vector<float>{0, 1, 2, 3, 4, 5, 6}));
+  EXPECT_EQ(src.scansTimedBack(), 2u);  // 0.5 after 1.1 and 0.45 after 0.6
+  const std::string first = src.firstTimedBack();
+  EXPECT_NE(first.find("back.rawlog entry "), std::string::npos) << first;
+  EXPECT_NE(first.find(", 0.600 s before the scan before"), std::string::npos) << first;
+  EXPECT_EQ(cleanmap::mrpt::timedBackWarning(src).rfind(
+                "2 scans are timed earlier than the scan before (the first: " + first + ")", 0),
+            0u)
+      << cleanmap::mrpt::timedBackWarning(src);
+}
+
 namespace {
 
 // The VLP-16 sweep of mrpt-common, as MRPT's own packets decode it (with calibration).

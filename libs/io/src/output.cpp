@@ -689,7 +689,8 @@ void OutputWriter::finish(double wall_s, const FreeSpaceMap* free_space) {
     j["rawlog_sensors"] = {{"lidar", sensors_->lidar},
                            {"camera", sensors_->camera},
                            {"other_lidars", sensors_->other_lidars},
-                           {"other_cameras", sensors_->other_cameras}};
+                           {"other_cameras", sensors_->other_cameras},
+                           {"scans_timed_back", sensors_->scans_timed_back}};
   j["wall_s"] = wall_s;
   if (!output_ms_.empty()) j["output_ms"] = output_ms_;
   j["threads"] = params_.threads;

@@ -88,6 +88,9 @@ struct RawlogSource::Impl {
   std::string lidar, cam;                          // the sensorLabels read
   std::map<std::string, std::size_t> other_lidars, other_cameras;
   std::map<std::string, std::size_t> skipped_classes;  // observations not read, by class
+  std::optional<double> last_scan_t;                   // the time of the scan read before
+  std::size_t timed_back = 0;                          // scans timed before the one before
+  std::string first_timed_back;
 
   // One lidar and one camera per run (opts.lidar_label / camera_label, else the first seen).
   static bool ours(std::string& chosen, const std::string& wanted, const std::string& label,
@@ -329,6 +332,13 @@ std::optional<Frame> RawlogSource::next() {
   f.source = I.path + " entry " + std::to_string(cur.entry);
   f.scan = std::move(cur.scan);
   f.scan.timestamp = cur.t;
+  if (I.last_scan_t && cur.t < *I.last_scan_t && !I.timed_back++) {
+    char when[96];
+    std::snprintf(when, sizeof when, ": t = %.6f s, %.3f s before the scan before", cur.t,
+                  *I.last_scan_t - cur.t);
+    I.first_timed_back = f.source + when;
+  }
+  I.last_scan_t = cur.t;
   f.mount = toIsometry(cur.sensor_pose);  // issue #15: a tilted lidar is levelled by its mount
   if (!f.mount->matrix().allFinite()) throw Error(f.source, "the scan's sensorPose is not finite");
   if (f.scan.empty() && !I.opts.allow_empty_scans)
@@ -381,6 +391,22 @@ const std::map<std::string, std::size_t>& RawlogSource::otherLidars() const {
 
 const std::map<std::string, std::size_t>& RawlogSource::otherCameras() const {
   return impl_->other_cameras;
+}
+
+std::size_t RawlogSource::scansTimedBack() const {
+  return impl_->timed_back;
+}
+
+const std::string& RawlogSource::firstTimedBack() const {
+  return impl_->first_timed_back;
+}
+
+std::string timedBackWarning(const RawlogSource& rawlog) {
+  const std::size_t n = rawlog.scansTimedBack();
+  if (n == 0) return {};
+  return std::to_string(n) + (n == 1 ? " scan is" : " scans are") +
+         " timed earlier than the scan before (the first: " + rawlog.firstTimedBack() +
+         "); the scans are taken in file order, and such a scan is not de-skewed";
 }
 
 std::string labelCounts(const std::map<std::string, std::size_t>& counts) {

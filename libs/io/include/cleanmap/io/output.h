@@ -76,10 +76,12 @@ class OutputWriter {
     has_relabel_truth_ = true;
   }
   /// A rawlog's sensors (report.json `rawlog_sensors`): the sensorLabel of the lidar and camera
-  /// read, and per label the scans / images of the other lidars / cameras, skipped.
+  /// read, per label the scans / images of the other lidars / cameras, skipped, and the lidar's
+  /// scans timed earlier than the scan before them.
   struct Sensors {
     std::string lidar, camera;
     std::map<std::string, std::size_t> other_lidars, other_cameras;
+    std::size_t scans_timed_back = 0;
   };
   void setSensors(Sensors s) { sensors_ = std::move(s); }
   /// Cleans the maps with the sequence's free space (DESIGN §2e; null: no cleaning), writes

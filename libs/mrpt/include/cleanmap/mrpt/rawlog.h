@@ -94,6 +94,12 @@ class RawlogSource : public FrameSource {
   /// Per sensorLabel, the scans / images of other lidars / cameras skipped so far.
   const std::map<std::string, std::size_t>& otherLidars() const;
   const std::map<std::string, std::size_t>& otherCameras() const;
+  /// The scans read so far that are timed earlier than the scan before them (a glitch in the
+  /// recording, or rawlogs joined out of order), and the first of them ("<path> entry N: t =
+  /// ... s, ... s before the scan before"; "" while there is none). They are read all the same:
+  /// the window counts scans in file order, and such a scan is not de-skewed (DESIGN §2.0).
+  std::size_t scansTimedBack() const;
+  const std::string& firstTimedBack() const;
 
  private:
   struct Impl;
@@ -102,5 +108,9 @@ class RawlogSource : public FrameSource {
 
 /// Per-sensorLabel counts as the messages give them: 'FRONT' (3), 'LIDAR' (24).
 std::string labelCounts(const std::map<std::string, std::size_t>& counts);
+
+/// The apps' warning about the scans timed back (scansTimedBack), without the "prog: warning: "
+/// prefix; "" when there is none.
+std::string timedBackWarning(const RawlogSource& rawlog);
 
 }  // namespace cleanmap::mrpt
