@@ -385,6 +385,32 @@ TEST(CellMap, HoldsWhatStdUnorderedMapHolds) {
   EXPECT_EQ(none.find(cellKey(0, 0, 0)), nullptr);
 }
 
+TEST(CellMap, ClearedAndRefilledPastItsReserveKeepsEveryFirstValue) {
+  // A per-scan grid (the registration's voxels): reserved for fewer keys than come, cleared and
+  // filled again; the first value given to a key stays, and no key of the scan before is left.
+  CellMap<uint32_t> m;
+  for (const uint32_t n : {5000u, 300u}) {
+    m.clear();
+    m.reserve(n / 8);
+    for (uint32_t k = 0; k < n; ++k) {
+      const uint64_t key = uint64_t(k) * 7919u + 3;
+      bool fresh = false;
+      uint32_t& v = m.get(key, &fresh);
+      ASSERT_TRUE(fresh) << k;
+      v = k;
+      EXPECT_FALSE(m.insert(key));  // present: the value stays
+    }
+    EXPECT_EQ(m.size(), n);
+    EXPECT_LE(2 * m.size(), m.capacity());
+    for (uint32_t k = 0; k < n; ++k) {
+      const uint32_t* v = m.find(uint64_t(k) * 7919u + 3);
+      ASSERT_TRUE(v && *v == k) << k;
+    }
+    EXPECT_EQ(m.find(1), nullptr);
+  }
+  EXPECT_EQ(m.find(uint64_t(4000) * 7919u + 3), nullptr);  // the first fill's, cleared
+}
+
 TEST(CellSet, AnswersAsASetOfCellKeys) {
   // The scene's blocked voxel filter against a CellMap of cellKey: walks (consecutive cells
   // near each other, as points of a scan) and random jumps, negative coordinates, block edges,

@@ -7,18 +7,19 @@
 #include <numeric>
 
 #include "cleanmap/core/cell_key.h"
+#include "cleanmap/core/cell_map.h"
 #include "cleanmap/core/parallel.h"
-#include "flat_key_map.h"
 
 namespace cleanmap::reg {
 
 std::vector<uint32_t> voxelDownsample(const std::vector<Eigen::Vector3d>& points, double voxel) {
   const double inv = 1.0 / voxel;
-  FlatKeyMap first(points.size());
+  CellMap<uint8_t> taken;  // the voxels that have their first point
+  taken.reserve(points.size());
   std::vector<uint32_t> out;
   for (uint32_t i = 0; i < points.size(); ++i) {
     const auto& p = points[i];
-    if (first.emplace(cellKeyOf(p.x(), p.y(), p.z(), inv), i).second) out.push_back(i);
+    if (taken.insert(cellKeyOf(p.x(), p.y(), p.z(), inv))) out.push_back(i);
   }
   return out;
 }
@@ -35,10 +36,13 @@ std::vector<Eigen::Matrix3d> planeCovariances(const std::vector<Eigen::Vector3d>
   std::iota(order.begin(), order.end(), 0u);
   std::sort(order.begin(), order.end(),
             [&](uint32_t a, uint32_t b) { return key[a] != key[b] ? key[a] < key[b] : a < b; });
-  FlatKeyMap begin_of(points.size());
+  CellMap<uint32_t> begin_of;
+  begin_of.reserve(points.size());
   std::vector<uint32_t> cell_end(points.size() + 1, 0);  // by begin position
   for (uint32_t k = 0; k < order.size(); ++k) {
-    const auto [b, fresh] = begin_of.emplace(key[order[k]], k);
+    bool fresh = false;
+    uint32_t& b = begin_of.get(key[order[k]], &fresh);
+    if (fresh) b = k;
     cell_end[b] = k + 1;
   }
   std::vector<Eigen::Matrix3d> covs(points.size());

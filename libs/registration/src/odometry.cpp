@@ -2,16 +2,16 @@
 #include "cleanmap/registration/odometry.h"
 
 #include "cleanmap/core/cell_key.h"
+#include "cleanmap/core/cell_map.h"
 #include "cleanmap/core/deskew.h"
 #include "cleanmap/core/stopwatch.h"
-#include "flat_key_map.h"
 
 #include <cmath>
 
 namespace cleanmap::reg {
 
 struct Odometry::Scratch {
-  FlatKeyMap voxels;
+  CellMap<uint8_t> voxels;  // the voxels that have their point, reused scan after scan
 };
 
 Odometry::~Odometry() = default;
@@ -82,8 +82,9 @@ OdometryStep Odometry::track(const std::vector<PointXYZI>& points_in, double t, 
   }
   const std::vector<PointXYZI>& points = deskewed.empty() ? points_in : deskewed;
   CovCloud cloud;
-  FlatKeyMap& voxels = scratch_->voxels;
-  voxels.reset(points.size() / 8);
+  CellMap<uint8_t>& voxels = scratch_->voxels;
+  voxels.clear();  // keeps its slots: it grows (at half full) only while scans get denser
+  voxels.reserve(points.size() / 8);
   const double inv = 1.0 / p_.voxel;
   uint64_t last = ~uint64_t(0);  // neighbours along a ring mostly share a voxel: no lookup then
   for (uint32_t i = 0; i < points.size(); ++i) {
@@ -93,7 +94,7 @@ OdometryStep Odometry::track(const std::vector<PointXYZI>& points_in, double t, 
     const uint64_t key = cellKeyOf(q.x(), q.y(), q.z(), inv);
     if (key == last) continue;  // the voxel of the point before: already taken
     last = key;
-    if (!voxels.emplace(key, i).second) continue;
+    if (!voxels.insert(key)) continue;
     cloud.points.push_back(q);
     cloud.source.push_back(i);
   }
