@@ -86,11 +86,11 @@ void validate(const PipelineParams& p, const std::string& name) {
   require(m.radius >= 0 && m.radius <= 1000,
           "static_map.radius must be in [0, 1000] m (0: the map holds the crop only)");
   const double extent = std::max(p.filter.crop_tau, p.map.radius);  // what the ground grid spans
-  require(extent / p.ground.cell <= kMaxGroundHalfCells,
+  const std::string excess = groundGridExcess(extent, p.ground.cell);
+  require(excess.empty(),
           "ground.cell is too small for the ground grid: max(filter.crop_tau, static_map.radius) / "
           "ground.cell = " +
-              std::to_string(static_cast<long long>(extent / p.ground.cell)) +
-              " cells each side, at most " + std::to_string(static_cast<int>(kMaxGroundHalfCells)));
+              excess);
   require(m.voxel >= 0.02 && m.voxel <= 5, "static_map.voxel must be in [0.02, 5] m");
   require(m.min_free_scans >= 1, "static_map.min_free_scans must be >= 1");
   require(m.vacated_scans >= 0 && m.vacated_scans <= 255,
@@ -131,6 +131,12 @@ void validate(const PipelineParams& p, const std::string& name) {
           "image.align_max_shift must be in (0, 5] m");
   require(im.align_small_shift > 0 && im.align_small_shift <= 5,
           "image.align_small_shift must be in (0, 5] m");
+}
+
+std::string groundGridExcess(double extent, double cell) {
+  if (extent / cell <= kMaxGroundHalfCells) return {};
+  return std::to_string(static_cast<long long>(extent / cell)) + " cells each side, at most " +
+         std::to_string(static_cast<int>(kMaxGroundHalfCells));
 }
 
 double scanPeriod(const std::vector<double>& stamps) {

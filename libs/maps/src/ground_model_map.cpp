@@ -73,10 +73,9 @@ void checkOptions(double cell, const CGroundModelMap::TInsertionOptions& o,
   if (!(cell >= 0.05 && cell <= 10)) bad("cell must be in [0.05, 10] m");
   if (!(o.step > 0)) bad("step must be > 0");
   if (!(o.extent > 0 && o.extent <= 1000)) bad("extent must be in (0, 1000] m");
-  if (o.extent / cell > cleanmap::kMaxGroundHalfCells)  // the grid segmented per scan (params.h)
-    bad("cell is too small for the grid: extent / cell = " +
-        std::to_string(static_cast<long long>(o.extent / cell)) + " cells each side, at most " +
-        std::to_string(static_cast<int>(cleanmap::kMaxGroundHalfCells)));
+  // The grid segmented per scan (params.h).
+  if (const auto excess = cleanmap::groundGridExcess(o.extent, cell); !excess.empty())
+    bad("cell is too small for the grid: extent / cell = " + excess);
   if (o.max_gap_cells < 1) bad("max_gap_cells must be >= 1");
   if (!(o.height == 0 || (o.height >= 0.1 && o.height <= 10)))
     bad("height must be auto or in [0.1, 10] m above the ground");

@@ -64,6 +64,9 @@ struct GroundParams {
 /// (5001^2 cells, about 0.5 GB of scratch), so that a small cell over a wide crop is a clear error
 /// rather than an overflow.
 constexpr double kMaxGroundHalfCells = 2500;
+/// "" where a ground grid over +-extent in cells of `cell` keeps within kMaxGroundHalfCells, else
+/// what the errors say: "N cells each side, at most 2500".
+std::string groundGridExcess(double extent, double cell);
 
 /// DESIGN §2b: Dempster-Shafer beam model and window.
 struct DsParams {
