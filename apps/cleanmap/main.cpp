@@ -73,9 +73,9 @@ K past and K future scans, after ground removal; doc/DESIGN.md §2) and writes, 
   labels/<stem>.label   uint32 per original point: 251 moving, 9 static, 40 ground, 0 not classified
   static_map.ply/.pcd   compact static map (duplicates of the recent map left out), world frame,
                         RGB by height above the sensor
-  static_map_full.ply   the clean map: every static point (ground included) within map.radius
-                        (50 m) of its sensor, less what the sequence's free space removed
-                        (static_map.policy; DESIGN §2e), world frame, RGB by height
+  static_map_full.ply   the clean map: every static point (ground included) within
+                        static_map.radius (50 m) of its sensor, less what the sequence's free
+                        space removed (static_map.policy; DESIGN §2e), world frame, RGB by height
   dynamic.ply/.pcd      the moving points (the windowed test), world frame, red
   map_removed.ply       the points the free-space cleaning removed from the map
   map_labels/<stem>.label  what the map did with each point: 251 removed, 9 kept, 40 ground,
@@ -88,7 +88,8 @@ K past and K future scans, after ground removal; doc/DESIGN.md §2) and writes, 
   labelled.rawlog       per scan: pose + the scan coloured by label (RawLogViewer; doc/FORMATS.md)
   ground_model.ply/.txt the ground model map's cells (world grid of ground heights), when the
                         configuration declares a cleanmap_ground map (config/cleanmap.ini does)
-  poses.txt             lidar poses used (KITTI 3x4 rows); params.ini: the parameters of the run
+  poses.txt             lidar poses used (KITTI 3x4 rows; poses_tum.txt: the same as TUM lines);
+                        params.ini: the parameters of the run
   report.json, report.md  counts, time per stage, and precision/recall/IoU when INPUT has labels
 
 INPUT                a KITTI odometry/SemanticKITTI or raw folder, or an MRPT .rawlog
@@ -102,7 +103,9 @@ INPUT                a KITTI odometry/SemanticKITTI or raw folder, or an MRPT .r
                      values of config/cleanmap.ini
 --map-section NAME   the section listing the maps (default: the first of MappingApplication,
                      map, MetricMap that declares maps)
---threads N          worker threads for the moving-point test (default 2; results do not depend on it)
+--threads N          threads (default 2): the moving-point test's workers, and from 2 on the
+                     registration, the free space and the map's read-ahead beside the pipeline
+                     (the output files are always written beside it); results do not depend on it
 --seed S             seed of the octree sampling (default 42; same seed, same output bit for bit)
 --first N, --last M  process scans N..M only (indices in the input, inclusive)
 --poses SOURCE       given: the input's poses (KITTI poses.txt / OXTS, rawlog CObservationRobotPose);

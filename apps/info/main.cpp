@@ -17,7 +17,8 @@ constexpr const char* kUsage = R"(usage: cleanmap-info INPUT
 
 Summarises a KITTI folder (odometry, SemanticKITTI or raw) or an MRPT rawlog as cleanmap reads
 it: scans and points per scan, invalid points dropped, poses and trajectory length, images and
-camera, and, for labelled folders, the share of moving points.
+camera, a rawlog's sensors and the scans timed earlier than the scan before, and, for labelled
+folders, the share of moving points.
 )";
 
 }  // namespace
