@@ -234,9 +234,9 @@ int main(int argc, char** argv) {
     return runEval(argc, argv);
   } catch (const std::exception& e) {
     std::cerr << "cleanmap-eval: error: "
-              << (g_staged.empty()
-                      ? e.what()
-                      : cleanmap::io::messageWithoutStaging(e.what(), g_staged, kStagingTag))
+              << (g_staged.empty() ? cleanmap::cli::errorLine(e)
+                                   : cleanmap::io::messageWithoutStaging(
+                                         cleanmap::cli::errorLine(e), g_staged, kStagingTag))
               << '\n';
     return 1;
   }

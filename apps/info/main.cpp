@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "../common/cli.h"
 #include "cleanmap/core/error.h"
 #include "cleanmap/io/kitti.h"
 #include "cleanmap/mrpt/input.h"
@@ -112,7 +113,7 @@ int main(int argc, char** argv) {
       std::printf("labels:  %zu points, %zu moving (%.2f %%)\n", labelled, moving,
                   100.0 * static_cast<double>(moving) / static_cast<double>(labelled));
   } catch (const std::exception& e) {
-    std::cerr << "cleanmap-info: error: " << e.what() << '\n';
+    std::cerr << "cleanmap-info: error: " << cleanmap::cli::errorLine(e) << '\n';
     return 1;
   }
   return 0;

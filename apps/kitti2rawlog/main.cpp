@@ -4,6 +4,7 @@
 #include <iostream>
 #include <string>
 
+#include "../common/cli.h"
 #include "cleanmap/core/error.h"
 #include "cleanmap/io/kitti.h"
 #include "cleanmap/mrpt/rawlog.h"
@@ -75,7 +76,7 @@ int main(int argc, char** argv) {
     if (empty) std::cout << "; " << empty << " empty scans kept (no valid point)";
     std::cout << '\n';
   } catch (const std::exception& e) {
-    std::cerr << "cleanmap-kitti2rawlog: error: " << e.what() << '\n';
+    std::cerr << "cleanmap-kitti2rawlog: error: " << cleanmap::cli::errorLine(e) << '\n';
     return 1;
   }
   return 0;

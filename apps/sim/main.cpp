@@ -112,7 +112,9 @@ int main(int argc, char** argv) {
                 rawlog ? ", sequence.rawlog" : "", out.c_str());
   } catch (const std::exception& e) {
     std::cerr << (g_progress_shown ? "\n" : "") << "cleanmap-sim: error: "
-              << cleanmap::io::messageWithoutStaging(e.what(), out, "cleanmap-sim") << '\n';
+              << cleanmap::io::messageWithoutStaging(cleanmap::cli::errorLine(e), out,
+                                                     "cleanmap-sim")
+              << '\n';
     return 1;
   }
   return 0;
