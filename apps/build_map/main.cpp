@@ -115,6 +115,12 @@ int main(int argc, char** argv) {
         outdir, [&](const std::string& d) { return force || isBuild(d); },
         "cleanmap-build-map maps (no maps.bin)", "-o",
         ", or pass --force to replace it and everything in it");
+    // A rawlog's external files are input too (those of the first scan, then of every scan).
+    const auto requireOutsideExternals = [&](const cleanmap::FrameSource* src) {
+      if (const auto* r = dynamic_cast<const cleanmap::mrpt::RawlogSource*>(src))
+        for (const auto& dir : r->externalFolders())
+          cleanmap::io::requireOutsideInput(outdir, dir, isBuild, "-o");
+    };
     ::mrpt::maps::CMultiMetricMap maps;
     maps.setListOfMaps(mc.maps);
 
@@ -136,6 +142,7 @@ int main(int argc, char** argv) {
       in.allow_empty_scans = true;
       in.load_images = false;
       src_read = cleanmap::mrpt::openInput(input, in);
+      requireOutsideExternals(src_read.get());
       while (auto f = src_read->next()) {
         if (!f->scan.has_pose)
           throw cleanmap::Error(f->source,
@@ -150,6 +157,7 @@ int main(int argc, char** argv) {
       }
     }
     if (scans == 0) throw cleanmap::Error(input, "holds no scans");
+    requireOutsideExternals(src_read.get());
     if (const auto* r = dynamic_cast<const cleanmap::mrpt::RawlogSource*>(src_read.get()))
       if (const auto w = cleanmap::mrpt::timedBackWarning(*r); !w.empty())
         std::fprintf(stderr, "cleanmap-build-map: warning: %s\n", w.c_str());

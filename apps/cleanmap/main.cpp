@@ -272,6 +272,14 @@ int main(int argc, char** argv) {
     auto src = cleanmap::mrpt::openInput(input, in_opts);
     const auto* kitti = dynamic_cast<const cleanmap::io::KittiSequence*>(src.get());
     const auto* rawlog = dynamic_cast<const cleanmap::mrpt::RawlogSource*>(src.get());
+    // A rawlog's external files (cleanmap-kitti2rawlog --external, rawlog-edit --externalize) are
+    // input too: checked for the first scan's here, for every scan's before publishing.
+    const auto requireOutsideExternals = [&] {
+      if (rawlog)
+        for (const auto& dir : rawlog->externalFolders())
+          cleanmap::io::requireOutsideInput(outdir, dir, cleanmap::io::isCleanmapRun, "-o");
+    };
+    requireOutsideExternals();
     const bool evaluate = kitti && kitti->hasLabels();
     if (params.image.enabled && kitti) {  // a rawlog's camera is known from its first image
       if (images == "on" && (!src->camera() || !kitti->hasImages()))
@@ -370,6 +378,7 @@ int main(int argc, char** argv) {
                       rawlog->otherCameras(), rawlog->scansTimedBack()});
     moving->flush();
     checkSignal();
+    requireOutsideExternals();
     if (images == "on" && moving->totals().image_scans == 0)
       throw cleanmap::Error(input,
                             "--images on, but no scan came with a camera image and "
@@ -470,7 +479,9 @@ int main(int argc, char** argv) {
   } catch (const std::exception& e) {
     if (progress_shown) std::fprintf(stderr, "\n");
     std::cerr << "cleanmap: error: "
-              << cleanmap::io::messageWithoutStaging(e.what(), outdir, "cleanmap") << '\n';
+              << cleanmap::io::messageWithoutStaging(cleanmap::cli::errorLine(e), outdir,
+                                                     "cleanmap")
+              << '\n';
     return 1;
   }
   return 0;

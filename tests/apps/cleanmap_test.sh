@@ -94,6 +94,23 @@ mkdir -p "$scratch/holder" && ln -s "$seq" "$scratch/holder/seq"
 expect_error 1 "holds the input" "$bin/cleanmap" "$scratch/holder/seq" -o "$scratch/holder" --force --last 2
 expect_error 1 "lies inside the input folder" "$bin/cleanmap" "$seq" -o "$seq/velodyne" --force --last 2
 [[ -L $scratch/holder/seq && $(ls "$seq/velodyne" | wc -l) -eq 24 ]] || fail "a refused run touched its input"
+# A rawlog's external files are input too: a rawlog that references the sequence's .bin files
+# (--external) cannot be cleaned into the sequence's folder or its velodyne/, --force or not.
+"$bin/cleanmap-kitti2rawlog" "$seq" "$scratch/ext.rawlog" --external >/dev/null || fail "kitti2rawlog --external failed"
+expect_error 1 "holds the input $seq/velodyne" "$bin/cleanmap" "$scratch/ext.rawlog" -o "$seq" --force --last 2
+expect_error 1 "the output folder is the input folder" "$bin/cleanmap" "$scratch/ext.rawlog" -o "$seq/velodyne" --force --last 2
+expect_error 1 "holds the input $seq/velodyne" "$bin/cleanmap-build-map" "$scratch/ext.rawlog" -c "$(dirname "$0")/../../config/cleanmap.ini" -o "$seq" --force
+[[ $(ls "$seq/velodyne" | wc -l) -eq 24 ]] || fail "a refused run touched the files its rawlog references"
+# MRPT's own externalized rawlog (rawlog-edit --externalize: files named relative to the rawlog, in
+# <name>_Images beside it) reads as the embedded one, from any working folder.
+if command -v rawlog-edit >/dev/null; then
+  rawlog-edit --externalize -i "$seq/sequence.rawlog" -o "$scratch/mrptext.rawlog" >/dev/null 2>&1 || fail "rawlog-edit --externalize failed"
+  [[ -d $scratch/mrptext_Images ]] || fail "rawlog-edit wrote no mrptext_Images/"
+  (cd / && "$bin/cleanmap" "$scratch/mrptext.rawlog" -o "$scratch/mrptext_out" --quiet --last 3 --no-mrpt-outputs >/dev/null) || fail "an externalized rawlog did not run"
+  "$bin/cleanmap" "$seq/sequence.rawlog" -o "$scratch/embedded_out" --quiet --last 3 --no-mrpt-outputs >/dev/null || fail "the embedded rawlog did not run"
+  diff -r "$scratch/mrptext_out/labels" "$scratch/embedded_out/labels" >/dev/null || fail "externalized and embedded rawlogs gave different labels"
+  expect_error 1 "the output folder is the input folder" "$bin/cleanmap" "$scratch/mrptext.rawlog" -o "$scratch/mrptext_Images" --force --last 2
+fi
 "$bin/cleanmap" "$seq" -o "$seq/cleaned" --last 2 --quiet >/dev/null || fail "a run into the input's own subfolder failed"
 rm -rf "$seq/cleaned"
 

@@ -5,6 +5,7 @@
 #include <cstring>
 #include <fstream>
 #include <map>
+#include <set>
 #include <tuple>
 
 #include <mrpt/io/CFileGZInputStream.h>
@@ -573,4 +574,80 @@ TEST(RawlogSource, ARawlogWithoutLidarSaysWhatItHolds) {
                     "CObservationVelodyneScan, CObservationRotatingScan or "
                     "CObservation3DRangeScan); it holds mrpt::obs::CObservation2DRangeScan (3), "
                     "mrpt::obs::CObservationGPS (1)");
+}
+
+// A rawlog whose scans and images MRPT keeps in external files named relative to it, in
+// "<name>_Images" beside it (as rawlog-edit --externalize writes them), reads as the same data
+// embedded, from any working folder; its external folder is reported (no output may replace it);
+// a missing external scan is one line naming the rawlog and the entry.
+TEST(RawlogSource, ReadsRelativeExternalFilesFromTheRawlogsImagesFolder) {
+  const auto dir = test::scratchDir("rawlog_relative_external");
+  const fs::path images = dir / "ext_Images";
+  fs::create_directories(images);
+  const PinholeCamera cam = pinhole(500, 500, 32, 24, 64, 48);
+  const std::vector<PointXYZI> pts = {{5, 0, -1, 0.25f}, {5, 1, -1, 0.5f}, {6, 2, -1, 0.75f}};
+  auto write = [&](const std::string& name, bool missing_scan) {
+    ::mrpt::io::CFileGZOutputStream out((dir / name).string());
+    auto ar = ::mrpt::serialization::archiveFrom(out);
+    for (int k = 0; k < 2; ++k) {
+      const std::string bin = "pc_" + std::to_string(k) + ".bin";
+      if (!missing_scan || k == 0) {
+        std::ofstream f(images / bin, std::ios::binary);
+        for (const auto& p : pts) {
+          const float v[4] = {p.x + float(k), p.y, p.z, p.intensity};
+          f.write(reinterpret_cast<const char*>(v), sizeof v);
+        }
+      } else {
+        fs::remove(images / bin);
+      }
+      auto pc = ::mrpt::obs::CObservationPointCloud::Create();
+      pc->sensorLabel = "LIDAR";
+      pc->timestamp = cleanmap::mrpt::toMrptTime(10.0 + 0.1 * k);
+      pc->setAsExternalStorage(
+          bin, ::mrpt::obs::CObservationPointCloud::ExternalStorageFormat::KittiBinFile);
+      ar << *pc;
+      auto img = ::mrpt::obs::CObservationImage::Create();
+      img->sensorLabel = "CAM";
+      img->timestamp = pc->timestamp;
+      img->cameraParams = cleanmap::mrpt::toTCamera(cam, img->cameraPose);
+      const std::string png = "img_" + std::to_string(k) + ".png";
+      ::mrpt::img::CImage(cv::Mat(48, 64, CV_8UC3, cv::Scalar::all(40 + 100 * k)),
+                          ::mrpt::img::DEEP_COPY)
+          .saveToFile((images / png).string());
+      img->image.setExternalStorage(png);
+      ar << *img;
+    }
+  };
+  write("ext.rawlog", false);
+  const fs::path cwd = fs::current_path();
+  fs::current_path(fs::temp_directory_path());  // not where the rawlog is
+  std::vector<Frame> frames;
+  std::set<std::string> folders;
+  try {
+    cleanmap::mrpt::RawlogSource src((dir / "ext.rawlog").string());
+    folders = src.externalFolders();
+    while (auto f = src.next()) frames.push_back(std::move(*f));
+  } catch (const std::exception& e) {
+    ADD_FAILURE() << e.what();
+  }
+  fs::current_path(cwd);
+  ASSERT_EQ(frames.size(), 2u);
+  for (int k = 0; k < 2; ++k) {
+    ASSERT_EQ(frames[k].scan.points.size(), pts.size());
+    EXPECT_EQ(frames[k].scan.points[2].x, 6.0f + float(k));
+    EXPECT_EQ(frames[k].scan.points[1].intensity, 0.5f);
+    ASSERT_TRUE(frames[k].image.has_value());
+    EXPECT_EQ(frames[k].image->bgr.at<cv::Vec3b>(10, 10)[1], 40 + 100 * k);
+  }
+  EXPECT_EQ(folders, (std::set<std::string>{fs::absolute(images).lexically_normal().string()}));
+
+  write("cut.rawlog", true);
+  fs::rename(images, dir / "cut_Images");
+  test::expectError(
+      [&] {
+        cleanmap::mrpt::RawlogSource src((dir / "cut.rawlog").string());
+        while (src.next()) {
+        }
+      },
+      "cut.rawlog", "entry 2: the scan's external file");
 }

@@ -28,6 +28,7 @@ std::unique_ptr<FrameSource> openInput(const std::string& path, const InputOptio
   r.allow_empty_scans = opts.allow_empty_scans;
   r.lidar_label = opts.lidar_label;
   r.camera_label = opts.camera_label;
+  r.load_images = opts.load_images;
   return std::make_unique<RawlogSource>(path, r);
 }
 

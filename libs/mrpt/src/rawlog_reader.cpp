@@ -6,17 +6,21 @@
 #include <deque>
 #include <filesystem>
 #include <mutex>
+#include <set>
 #include <sstream>
 #include <vector>
 
 #include <opencv2/imgproc.hpp>
 
 #include <mrpt/io/CFileGZInputStream.h>
+#include <mrpt/io/lazy_load_path.h>
 #include <mrpt/obs/CActionCollection.h>
 #include <mrpt/obs/CActionRobotMovement2D.h>
 #include <mrpt/obs/CActionRobotMovement3D.h>
+#include <mrpt/obs/CObservation3DRangeScan.h>
 #include <mrpt/obs/CObservationImage.h>
 #include <mrpt/obs/CObservationOdometry.h>
+#include <mrpt/obs/CObservationPointCloud.h>
 #include <mrpt/obs/CObservationRobotPose.h>
 #include <mrpt/obs/CSensoryFrame.h>
 #include <mrpt/serialization/CArchive.h>
@@ -91,6 +95,7 @@ struct RawlogSource::Impl {
   std::optional<double> last_scan_t;                   // the time of the scan read before
   std::size_t timed_back = 0;                          // scans timed before the one before
   std::string first_timed_back;
+  std::set<std::string> external_dirs;  // folders of the external files read (absolute)
 
   // One lidar and one camera per run (opts.lidar_label / camera_label, else the first seen).
   static bool ours(std::string& chosen, const std::string& wanted, const std::string& label,
@@ -122,11 +127,14 @@ struct RawlogSource::Impl {
     // Another lidar's scan is skipped before it is decoded (an error in it is not this run's).
     if (isLidarObservation(*obs) && !ours(lidar, opts.lidar_label, obs->sensorLabel, other_lidars))
       return;
+    if (isLidarObservation(*obs)) requireExternals(*obs);
     std::optional<Scan> scan;
     try {
       scan = scanFromObservation(*obs);
     } catch (const Error& e) {  // name the rawlog and the entry too
       throw Error(path, "entry " + std::to_string(entry - 1) + ": " + e.what());
+    } catch (const std::exception& e) {  // MRPT's: its message only, not its banner and stack
+      throw Error(path, "entry " + std::to_string(entry - 1) + ": " + briefMessage(e));
     }
     if (scan) {
       Item it;
@@ -152,7 +160,10 @@ struct RawlogSource::Impl {
       it.robot_pose = ::mrpt::poses::CPose3D(od->odometry);
       buf.push_back(std::move(it));
     } else if (auto im = std::dynamic_pointer_cast<CObservationImage>(obs)) {
+      if (!opts.load_images) return;  // laser only: not decoded, not counted
       if (!ours(cam, opts.camera_label, obs->sensorLabel, other_cameras)) return;
+      if (im->image.isExternallyStored())
+        noteExternal(im->image.getExternalStorageFileAbsolutePath(), "image", false);
       Item it;
       it.kind = Item::kImage;
       it.t = t;
@@ -162,6 +173,32 @@ struct RawlogSource::Impl {
     } else {
       ++skipped;
       ++skipped_classes[obs->GetRuntimeClass()->className];
+    }
+  }
+
+  // A file an observation of ours keeps outside the rawlog (MRPT's external storage): its folder
+  // is recorded (no output may replace it). A scan's that is missing is an error naming the entry
+  // (MRPT's own says only that an assertion failed); an image's is loaded, or found missing,
+  // where a scan takes it.
+  void noteExternal(const std::string& file, const char* what, bool required) {
+    external_dirs.insert(fs::absolute(fs::path(file)).parent_path().lexically_normal().string());
+    std::error_code ec;
+    if (required && !fs::is_regular_file(file, ec))
+      throw Error(path, "entry " + std::to_string(entry - 1) + ": the " + what +
+                            "'s external file " + file + " does not exist (relative paths are " +
+                            "read from " + ::mrpt::io::getLazyLoadPathBase() + ")");
+  }
+  void requireExternals(const ::mrpt::obs::CObservation& obs) {
+    using namespace ::mrpt::obs;
+    if (const auto* pc = dynamic_cast<const CObservationPointCloud*>(&obs)) {
+      if (pc->isExternallyStored())
+        noteExternal(::mrpt::io::lazy_load_absolute_path(pc->getExternalStorageFile()), "scan",
+                     true);
+    } else if (const auto* r = dynamic_cast<const CObservation3DRangeScan*>(&obs)) {
+      if (r->hasRangeImage && r->rangeImage_isExternallyStored())
+        noteExternal(r->rangeImage_getExternalStorageFileAbsolutePath(""), "range image", true);
+      if (r->hasPoints3D && r->points3D_isExternallyStored())
+        noteExternal(r->points3D_getExternalStorageFileAbsolutePath(), "scan", true);
     }
   }
 
@@ -258,10 +295,10 @@ struct RawlogSource::Impl {
     try {
       it.img->image.asCvMat(m, ::mrpt::img::DEEP_COPY);
     } catch (const std::exception& e) {
-      throw Error(path, "cannot load image of entry near t=" + std::to_string(it.t) + ": " +
-                            briefMessage(e));
+      throw Error(path, "entry " + std::to_string(it.entry) +
+                            ": cannot load its image: " + briefMessage(e));
     }
-    if (m.empty()) throw Error(path, "empty image at t=" + std::to_string(it.t));
+    if (m.empty()) throw Error(path, "entry " + std::to_string(it.entry) + ": the image is empty");
     if (rectifier) {
       if (camera && (m.cols != camera->width || m.rows != camera->height))
         throw Error(path, "image at t=" + std::to_string(it.t) + " is " + std::to_string(m.cols) +
@@ -288,6 +325,18 @@ RawlogSource::RawlogSource(const std::string& path, const RawlogReadOptions& opt
   if (!fs::exists(path, ec)) throw Error(path, "file does not exist");
   if (fs::is_directory(path, ec)) throw Error(path, "is a directory, expected a rawlog file");
   if (!impl_->in.open(path)) throw Error(path, "cannot open for reading");
+  // Relative external files (rawlog-edit --externalize) are read from the rawlog's images folder
+  // beside it, "<name>_Images" (or _images, _IMAGES, or Images), as RawLogViewer and rawlog-edit
+  // read them (CRawlog::detectImagesDirectory's names; it does not see folders in MRPT 2.5.8).
+  // A process-wide MRPT setting, set where such a folder exists.
+  const fs::path beside = fs::path(path).parent_path();
+  const std::string stem = fs::path(path).stem().string();
+  for (const std::string& name :
+       {stem + "_Images", stem + "_images", stem + "_IMAGES", std::string("Images")})
+    if (fs::is_directory(beside / name, ec)) {
+      ::mrpt::io::setLazyLoadPathBase((beside / name).string());
+      break;
+    }
   while (!impl_->findScan(0) && impl_->readEntry()) {
   }
   if (impl_->entry == 0)  // a compressed file cut inside its first block reads as a clean end
@@ -399,6 +448,10 @@ std::size_t RawlogSource::scansTimedBack() const {
 
 const std::string& RawlogSource::firstTimedBack() const {
   return impl_->first_timed_back;
+}
+
+const std::set<std::string>& RawlogSource::externalFolders() const {
+  return impl_->external_dirs;
 }
 
 std::string timedBackWarning(const RawlogSource& rawlog) {

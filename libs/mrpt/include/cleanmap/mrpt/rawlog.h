@@ -4,6 +4,7 @@
 #include <map>
 #include <memory>
 #include <optional>
+#include <set>
 #include <string>
 
 #include "cleanmap/core/frame.h"
@@ -69,6 +70,7 @@ struct RawlogReadOptions {
   /// the first lidar / image observation in the file); the others are skipped and counted.
   std::string lidar_label;
   std::string camera_label;
+  bool load_images = true;  ///< false: images are skipped unread (laser only)
 };
 
 /// Reads a rawlog (either MRPT format) as a stream of frames. Scans come from
@@ -100,6 +102,12 @@ class RawlogSource : public FrameSource {
   /// the window counts scans in file order, and such a scan is not de-skewed (DESIGN §2.0).
   std::size_t scansTimedBack() const;
   const std::string& firstTimedBack() const;
+  /// The folders (absolute) of the external files of the scans and images read so far (MRPT's
+  /// external storage: cleanmap-kitti2rawlog --external, rawlog-edit --externalize), which no
+  /// output may replace. The constructor reads up to the first scan, so its folders are known
+  /// from the start. Relative paths are read from "<name>_Images" beside the rawlog where that
+  /// folder exists (MRPT's convention; the constructor sets MRPT's process-wide lazy-load base).
+  const std::set<std::string>& externalFolders() const;
 
  private:
   struct Impl;
