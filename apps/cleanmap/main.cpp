@@ -92,7 +92,9 @@ K past and K future scans, after ground removal; doc/DESIGN.md §2) and writes, 
                         params.ini: the parameters of the run
   report.json, report.md  counts, time per stage, and precision/recall/IoU when INPUT has labels
 
-INPUT                a KITTI odometry/SemanticKITTI or raw folder, or an MRPT .rawlog
+INPUT                a KITTI odometry/SemanticKITTI or raw folder, an MRPT .rawlog, or a SLAM's
+                     .simplemap (each keyframe's scans at its pose; --poses refine re-aligns
+                     a 2D SLAM's poses in 6D)
 -o, --output DIR     output folder. The run is written beside it and moved into place when
                      complete: an earlier cleanmap run there is replaced as a whole; an
                      interrupted or failed run leaves DIR as it was

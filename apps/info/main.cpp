@@ -72,7 +72,9 @@ int main(int argc, char** argv) {
     std::printf("input:   %s (%s)\n", input.c_str(),
                 kitti ? (kitti->layout() == cleanmap::io::KittiLayout::kRaw ? "KITTI raw"
                                                                             : "KITTI odometry")
-                      : "MRPT rawlog");
+                      : (dynamic_cast<const cleanmap::mrpt::RawlogSource*>(src.get())->isSimplemap()
+                             ? "MRPT simplemap"
+                             : "MRPT rawlog"));
     std::printf("scans:   %zu over %.2f s; points per scan min %zu / median %zu / max %zu\n",
                 sizes.size(), t1 - t0, sorted.front(), sorted[sorted.size() / 2], sorted.back());
     std::printf("invalid: %zu NaN/inf points dropped, %zu empty scans\n", dropped, empty);

@@ -16,6 +16,17 @@ seq=$scratch/seq
 "$bin/cleanmap" "$seq" -o "$scratch/out" --quiet >/dev/null || fail "first run failed"
 [[ $(ls "$scratch/out/labels" | wc -l) -eq 24 ]] || fail "expected 24 label files"
 cp -r "$scratch/out" "$scratch/clean"  # a default run, scored against one without cleaning below
+# A simplemap (a SLAM's keyframes; here the run's own) is an input too: its scans at their
+# keyframes' poses.
+"$bin/cleanmap" "$scratch/out/static_map.simplemap" -o "$scratch/from_sm" --quiet --no-mrpt-outputs >/dev/null ||
+  fail "a simplemap did not run"
+[[ $(ls "$scratch/from_sm/labels" | wc -l) -eq 24 ]] || fail "a simplemap: expected 24 label files"
+python3 - "$scratch/out/poses.txt" "$scratch/from_sm/poses.txt" <<'PY' || fail "a simplemap's poses differ from the run's"
+import sys
+a, b = ([[float(x) for x in l.split()] for l in open(p)] for p in sys.argv[1:])
+sys.exit(0 if len(a) == len(b) == 24 and max(abs(x - y) for r, s in zip(a, b) for x, y in zip(r, s)) < 1e-6 else 1)
+PY
+grep -q "(MRPT simplemap)" <<<"$("$bin/cleanmap-info" "$scratch/out/static_map.simplemap")" || fail "cleanmap-info does not see a simplemap"
 # DESIGN §2b: the auto window spans 1 s at the rate of the scans' timestamps, from times.txt and
 # from the rawlog's observations alike (10 Hz: K 10).
 window_of() {

@@ -35,6 +35,20 @@ moving=$(vertices "${traj%_trajectory.txt}_moving.ply")
 static=$(vertices "${traj%_trajectory.txt}_static.ply")
 [[ ${moving:-0} -gt 1000 && ${static:-0} -gt 100000 ]] || fail "layer holds $moving moving, $static static points"
 ls "$scratch"/slam/*CGroundModelMap*.txt >/dev/null 2>&1 || fail "ICP-SLAM saved no cleanmap_ground layer"
+# ICP-SLAM's keyframes (_finalmap_.simplemap, every scan: insertionLinDistance = 0) cleaned by
+# cleanmap, its 2D poses refined by GICP: the moving points as found with the given poses
+# (measured: recall 0.999, precision 0.581 against 0.580; with the 2D poses as given 0.435).
+"$bin/cleanmap" "$scratch/slam/_finalmap_.simplemap" -o "$scratch/slam_clean" --poses refine --quiet \
+  --no-mrpt-outputs >/dev/null 2>"$scratch/slam_clean.err" || fail "cleanmap on ICP-SLAM's simplemap failed: $(tail -1 "$scratch/slam_clean.err")"
+"$bin/cleanmap" "$city" -o "$scratch/given" --quiet --no-mrpt-outputs >/dev/null || fail "cleanmap on kitti_city failed"
+for run in slam_clean given; do
+  "$bin/cleanmap-eval" "$city" "$scratch/$run" --json >"$scratch/$run.json" || fail "cleanmap-eval on $run failed"
+done
+python3 - "$scratch/slam_clean.json" "$scratch/given.json" <<'PY' || fail "ICP-SLAM's simplemap, cleaned: $(cat "$scratch/slam_clean.json" | head -c 300)"
+import json, sys
+s, g = (json.load(open(p)) for p in sys.argv[1:])
+sys.exit(0 if s["recall"] > 0.98 and s["precision"] > g["precision"] - 0.03 else 1)
+PY
 
 # A misspelled map in the SLAM ini is refused before MRPT would ignore it.
 sed 's/^cleanmap_moving_count/cleanmap_movng_count/' "$scratch/slam.ini" >"$scratch/typo.ini"

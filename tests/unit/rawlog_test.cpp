@@ -10,6 +10,7 @@
 
 #include <mrpt/io/CFileGZInputStream.h>
 #include <mrpt/io/CFileGZOutputStream.h>
+#include <mrpt/maps/CSimpleMap.h>
 #include <mrpt/obs/CObservation2DRangeScan.h>
 #include <mrpt/obs/CObservationGPS.h>
 #include <mrpt/obs/CObservationImage.h>
@@ -17,6 +18,8 @@
 #include <mrpt/obs/CObservationRotatingScan.h>
 #include <mrpt/obs/CObservationVelodyneScan.h>
 #include <mrpt/obs/CRawlog.h>
+#include <mrpt/obs/CSensoryFrame.h>
+#include <mrpt/poses/CPose3DPDFGaussian.h>
 #include <mrpt/serialization/CArchive.h>
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
@@ -650,4 +653,53 @@ TEST(RawlogSource, ReadsRelativeExternalFilesFromTheRawlogsImagesFolder) {
         }
       },
       "cut.rawlog", "entry 2: the scan's external file");
+}
+
+// A simplemap (a SLAM's output: keyframes of a pose and a sensory frame) reads as its scans, each
+// at its keyframe's pose: the points bit for bit, the poses within 1e-9; the pose goes by the
+// keyframe, not by time, so keyframes without times (older simplemaps) keep their own poses.
+TEST(RawlogSource, ReadsASimplemapKeyframeByKeyframe) {
+  CLEANMAP_REQUIRE_DATASET("kitti_city");
+  const auto seq = io::KittiSequence::open(test::dataDir() + "/kitti_city");
+  const auto dir = test::scratchDir("rawlog_simplemap");
+  for (const bool timed : {true, false}) {
+    SCOPED_TRACE(timed ? "timed" : "no times");
+    const std::string path = (dir / (timed ? "timed.simplemap" : "untimed.simplemap")).string();
+    {
+      ::mrpt::maps::CSimpleMap sm;
+      for (std::size_t i = 0; i < 4; ++i) {
+        const Frame k = seq.frame(i);
+        auto pc = ::mrpt::obs::CObservationPointCloud::Create();
+        pc->sensorLabel = "LIDAR";
+        pc->timestamp =
+            timed ? cleanmap::mrpt::toMrptTime(k.scan.timestamp) : ::mrpt::Clock::time_point();
+        pc->pointcloud = cleanmap::mrpt::toPointsMap(k.scan.points);
+        auto sf = ::mrpt::obs::CSensoryFrame::Create();
+        sf->insert(pc);
+        sm.insert(::mrpt::poses::CPose3DPDFGaussian::Create(cleanmap::mrpt::toCPose3D(k.scan.pose)),
+                  sf);
+      }
+      ASSERT_TRUE(sm.saveToFile(path));
+    }
+    cleanmap::mrpt::RawlogSource src(path);
+    EXPECT_TRUE(src.isSimplemap());
+    std::size_t i = 0;
+    while (auto f = src.next()) {
+      ASSERT_LT(i, 4u);
+      const Frame k = seq.frame(i);
+      ASSERT_EQ(f->scan.size(), k.scan.size());
+      EXPECT_EQ(0, std::memcmp(f->scan.points.data(), k.scan.points.data(),
+                               k.scan.size() * sizeof(PointXYZI)));
+      ASSERT_TRUE(f->scan.has_pose);
+      EXPECT_LT((f->scan.pose.matrix() - k.scan.pose.matrix()).cwiseAbs().maxCoeff(), 1e-9) << i;
+      EXPECT_EQ(f->source, path + " keyframe " + std::to_string(i));
+      ++i;
+    }
+    EXPECT_EQ(i, 4u);
+  }
+  {
+    ASSERT_TRUE(::mrpt::maps::CSimpleMap().saveToFile((dir / "empty.simplemap").string()));
+    test::expectError([&] { cleanmap::mrpt::RawlogSource((dir / "empty.simplemap").string()); },
+                      "empty.simplemap", "is a simplemap with no keyframes");
+  }
 }

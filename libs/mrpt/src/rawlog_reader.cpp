@@ -14,6 +14,7 @@
 
 #include <mrpt/io/CFileGZInputStream.h>
 #include <mrpt/io/lazy_load_path.h>
+#include <mrpt/maps/CSimpleMap.h>
 #include <mrpt/obs/CActionCollection.h>
 #include <mrpt/obs/CActionRobotMovement2D.h>
 #include <mrpt/obs/CActionRobotMovement3D.h>
@@ -74,6 +75,7 @@ struct Item {
   ::mrpt::poses::CPose3D sensor_pose;                     // kScan: lidar on robot
   ::mrpt::poses::CPose3D robot_pose;                      // kPose, kOdometry
   std::optional<::mrpt::poses::CPose3D> action_odometry;  // kScan: odometry from the actions so far
+  std::optional<::mrpt::poses::CPose3D> keyframe_pose;    // kScan of a simplemap: its robot pose
   ::mrpt::obs::CObservationImage::Ptr img;                // kImage
 };
 
@@ -96,6 +98,17 @@ struct RawlogSource::Impl {
   std::size_t timed_back = 0;                          // scans timed before the one before
   std::string first_timed_back;
   std::set<std::string> external_dirs;  // folders of the external files read (absolute)
+  // A simplemap (one CSimpleMap object): its keyframes are read one per readEntry(), each freed
+  // once pushed; `entry` then counts keyframes and the messages say so.
+  ::mrpt::maps::CSimpleMap::Ptr simplemap;
+  std::size_t keyframe = 0;
+  std::optional<::mrpt::poses::CPose3D> keyframe_pose;  // of the keyframe being pushed
+  bool keyframes = false;
+
+  // "entry N" (a rawlog's) or "keyframe N" (a simplemap's), of the one read last.
+  std::string where(std::size_t n) const {
+    return (keyframes ? "keyframe " : "entry ") + std::to_string(n);
+  }
 
   // One lidar and one camera per run (opts.lidar_label / camera_label, else the first seen).
   static bool ours(std::string& chosen, const std::string& wanted, const std::string& label,
@@ -132,9 +145,9 @@ struct RawlogSource::Impl {
     try {
       scan = scanFromObservation(*obs);
     } catch (const Error& e) {  // name the rawlog and the entry too
-      throw Error(path, "entry " + std::to_string(entry - 1) + ": " + e.what());
+      throw Error(path, where(entry - 1) + ": " + e.what());
     } catch (const std::exception& e) {  // MRPT's: its message only, not its banner and stack
-      throw Error(path, "entry " + std::to_string(entry - 1) + ": " + briefMessage(e));
+      throw Error(path, where(entry - 1) + ": " + briefMessage(e));
     }
     if (scan) {
       Item it;
@@ -143,6 +156,7 @@ struct RawlogSource::Impl {
       it.scan = std::move(*scan);
       it.entry = entry - 1;
       it.action_odometry = odometry;
+      it.keyframe_pose = keyframe_pose;
       obs->getSensorPose(it.sensor_pose);
       buf.push_back(std::move(it));
     } else if (auto rp = std::dynamic_pointer_cast<CObservationRobotPose>(obs)) {
@@ -184,9 +198,9 @@ struct RawlogSource::Impl {
     external_dirs.insert(fs::absolute(fs::path(file)).parent_path().lexically_normal().string());
     std::error_code ec;
     if (required && !fs::is_regular_file(file, ec))
-      throw Error(path, "entry " + std::to_string(entry - 1) + ": the " + what +
-                            "'s external file " + file + " does not exist (relative paths are " +
-                            "read from " + ::mrpt::io::getLazyLoadPathBase() + ")");
+      throw Error(path, where(entry - 1) + ": the " + what + "'s external file " + file +
+                            " does not exist (relative paths are " + "read from " +
+                            ::mrpt::io::getLazyLoadPathBase() + ")");
   }
   void requireExternals(const ::mrpt::obs::CObservation& obs) {
     using namespace ::mrpt::obs;
@@ -206,6 +220,7 @@ struct RawlogSource::Impl {
   // CRawlog::getActionObservationPairOrObservation, which prints and swallows errors, so a
   // truncated rawlog would look complete.
   bool readEntry() {
+    if (simplemap) return readKeyframe();
     if (eof) return false;
     using namespace ::mrpt::obs;
     auto arch = ::mrpt::serialization::archiveFrom(in);
@@ -237,10 +252,33 @@ struct RawlogSource::Impl {
       push(obs);
     } else if (auto acts = std::dynamic_pointer_cast<CActionCollection>(obj)) {
       addActions(*acts);
+    } else if (auto sm = std::dynamic_pointer_cast<::mrpt::maps::CSimpleMap>(obj);
+               sm && entry == 1) {  // a .simplemap file: one object, its keyframes
+      simplemap = std::move(sm);
+      keyframes = true;
+      entry = 0;
     } else {
       ++skipped;  // anything else
       if (obj) ++skipped_classes[obj->GetRuntimeClass()->className];
     }
+    return true;
+  }
+
+  // The next keyframe of a simplemap (a SLAM's output): its observations at its pose, each scan
+  // posed by its keyframe (not by time: a simplemap's times may be missing). False after the last.
+  bool readKeyframe() {
+    if (keyframe >= simplemap->size()) {
+      simplemap.reset();
+      eof = true;
+      return false;
+    }
+    auto& kf = simplemap->getAsPair(keyframe++);
+    ++entry;
+    if (!kf.pose || !kf.sf) throw Error(path, where(entry - 1) + " has no pose or no observations");
+    keyframe_pose = kf.pose->getMeanVal();
+    for (const auto& o : *kf.sf) push(o);
+    keyframe_pose.reset();
+    kf.sf.reset();  // read: freed
     return true;
   }
 
@@ -295,10 +333,9 @@ struct RawlogSource::Impl {
     try {
       it.img->image.asCvMat(m, ::mrpt::img::DEEP_COPY);
     } catch (const std::exception& e) {
-      throw Error(path, "entry " + std::to_string(it.entry) +
-                            ": cannot load its image: " + briefMessage(e));
+      throw Error(path, where(it.entry) + ": cannot load its image: " + briefMessage(e));
     }
-    if (m.empty()) throw Error(path, "entry " + std::to_string(it.entry) + ": the image is empty");
+    if (m.empty()) throw Error(path, where(it.entry) + ": the image is empty");
     if (rectifier) {
       if (camera && (m.cols != camera->width || m.rows != camera->height))
         throw Error(path, "image at t=" + std::to_string(it.t) + " is " + std::to_string(m.cols) +
@@ -339,6 +376,7 @@ RawlogSource::RawlogSource(const std::string& path, const RawlogReadOptions& opt
     }
   while (!impl_->findScan(0) && impl_->readEntry()) {
   }
+  if (impl_->keyframes && impl_->entry == 0) throw Error(path, "is a simplemap with no keyframes");
   if (impl_->entry == 0)  // a compressed file cut inside its first block reads as a clean end
     throw Error(path, fs::file_size(path, ec) == 0
                           ? "is empty (0 bytes)"
@@ -378,7 +416,7 @@ std::optional<Frame> RawlogSource::next() {
   char stem[16];
   std::snprintf(stem, sizeof stem, "%06zu", f.index);
   f.stem = stem;
-  f.source = I.path + " entry " + std::to_string(cur.entry);
+  f.source = I.path + " " + I.where(cur.entry);
   f.scan = std::move(cur.scan);
   f.scan.timestamp = cur.t;
   if (I.last_scan_t && cur.t < *I.last_scan_t && !I.timed_back++) {
@@ -392,11 +430,16 @@ std::optional<Frame> RawlogSource::next() {
   if (!f.mount->matrix().allFinite()) throw Error(f.source, "the scan's sensorPose is not finite");
   if (f.scan.empty() && !I.opts.allow_empty_scans)
     throw Error(f.source, "scan " + f.stem + " is empty (0 valid points)");
-  if (const Item* p = I.nearest(Item::kPose, cur.t, I.opts.pose_time_tolerance, end)) {
+  if (cur.keyframe_pose) {  // a simplemap's keyframe
+    f.scan.pose = toIsometry(*cur.keyframe_pose + cur.sensor_pose);
+    f.scan.has_pose = true;
+    if (!f.scan.pose.matrix().allFinite())
+      throw Error(f.source, "the keyframe's pose is not finite");
+  } else if (const Item* p = I.nearest(Item::kPose, cur.t, I.opts.pose_time_tolerance, end)) {
     f.scan.pose = toIsometry(p->robot_pose + cur.sensor_pose);  // robot pose (+) sensor pose
     f.scan.has_pose = true;
     if (!f.scan.pose.matrix().allFinite())
-      throw Error(I.path + " entry " + std::to_string(p->entry), "the robot pose is not finite");
+      throw Error(I.path + " " + I.where(p->entry), "the robot pose is not finite");
   } else {
     f.scan.pose = toIsometry(cur.sensor_pose);
   }
@@ -404,7 +447,7 @@ std::optional<Frame> RawlogSource::next() {
   if (const Item* o = I.nearest(Item::kOdometry, cur.t, I.opts.pose_time_tolerance, end)) {
     f.odometry = toIsometry(o->robot_pose + cur.sensor_pose);
     if (!f.odometry->matrix().allFinite())
-      throw Error(I.path + " entry " + std::to_string(o->entry), "the odometry is not finite");
+      throw Error(I.path + " " + I.where(o->entry), "the odometry is not finite");
   } else if (cur.action_odometry) {
     f.odometry = toIsometry(*cur.action_odometry + cur.sensor_pose);
     if (!f.odometry->matrix().allFinite())
@@ -448,6 +491,10 @@ std::size_t RawlogSource::scansTimedBack() const {
 
 const std::string& RawlogSource::firstTimedBack() const {
   return impl_->first_timed_back;
+}
+
+bool RawlogSource::isSimplemap() const {
+  return impl_->keyframes;
 }
 
 const std::set<std::string>& RawlogSource::externalFolders() const {

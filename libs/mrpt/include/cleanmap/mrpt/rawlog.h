@@ -108,6 +108,9 @@ class RawlogSource : public FrameSource {
   /// from the start. Relative paths are read from "<name>_Images" beside the rawlog where that
   /// folder exists (MRPT's convention; the constructor sets MRPT's process-wide lazy-load base).
   const std::set<std::string>& externalFolders() const;
+  /// The file is a simplemap (one mrpt::maps::CSimpleMap: a SLAM's keyframes), read keyframe by
+  /// keyframe, each scan at its keyframe's pose; messages name "keyframe N" for "entry N".
+  bool isSimplemap() const;
 
  private:
   struct Impl;
