@@ -362,18 +362,7 @@ RawlogSource::RawlogSource(const std::string& path, const RawlogReadOptions& opt
   if (!fs::exists(path, ec)) throw Error(path, "file does not exist");
   if (fs::is_directory(path, ec)) throw Error(path, "is a directory, expected a rawlog file");
   if (!impl_->in.open(path)) throw Error(path, "cannot open for reading");
-  // Relative external files (rawlog-edit --externalize) are read from the rawlog's images folder
-  // beside it, "<name>_Images" (or _images, _IMAGES, or Images), as RawLogViewer and rawlog-edit
-  // read them (CRawlog::detectImagesDirectory's names; it does not see folders in MRPT 2.5.8).
-  // A process-wide MRPT setting, set where such a folder exists.
-  const fs::path beside = fs::path(path).parent_path();
-  const std::string stem = fs::path(path).stem().string();
-  for (const std::string& name :
-       {stem + "_Images", stem + "_images", stem + "_IMAGES", std::string("Images")})
-    if (fs::is_directory(beside / name, ec)) {
-      ::mrpt::io::setLazyLoadPathBase((beside / name).string());
-      break;
-    }
+  useExternalFilesFolderOf(path);
   while (!impl_->findScan(0) && impl_->readEntry()) {
   }
   if (impl_->keyframes && impl_->entry == 0) throw Error(path, "is a simplemap with no keyframes");
@@ -499,6 +488,20 @@ bool RawlogSource::isSimplemap() const {
 
 const std::set<std::string>& RawlogSource::externalFolders() const {
   return impl_->external_dirs;
+}
+
+std::string useExternalFilesFolderOf(const std::string& file) {
+  // CRawlog::detectImagesDirectory's names, in its order (it does not see folders in MRPT 2.5.8).
+  const fs::path beside = fs::path(file).parent_path();
+  const std::string stem = fs::path(file).stem().string();
+  std::error_code ec;
+  for (const std::string& name :
+       {stem + "_Images", stem + "_images", stem + "_IMAGES", std::string("Images")})
+    if (fs::is_directory(beside / name, ec)) {
+      ::mrpt::io::setLazyLoadPathBase((beside / name).string());
+      return (beside / name).string();
+    }
+  return {};
 }
 
 std::string timedBackWarning(const RawlogSource& rawlog) {

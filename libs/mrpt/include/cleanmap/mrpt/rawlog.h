@@ -120,6 +120,12 @@ class RawlogSource : public FrameSource {
 /// Per-sensorLabel counts as the messages give them: 'FRONT' (3), 'LIDAR' (24).
 std::string labelCounts(const std::map<std::string, std::size_t>& counts);
 
+/// Relative external files (rawlog-edit --externalize) are read from the folder beside a rawlog or
+/// simplemap that MRPT's tools use, "<name>_Images" (or _images, _IMAGES, or Images): sets MRPT's
+/// process-wide lazy-load base (mrpt::io::setLazyLoadPathBase) to the first that exists, as
+/// RawLogViewer and rawlog-edit do, and returns it ("" where none exists: the base is left).
+std::string useExternalFilesFolderOf(const std::string& file);
+
 /// The apps' warning about the scans timed back (scansTimedBack), without the "prog: warning: "
 /// prefix; "" when there is none.
 std::string timedBackWarning(const RawlogSource& rawlog);
