@@ -199,7 +199,7 @@ struct RawlogSource::Impl {
     std::error_code ec;
     if (required && !fs::is_regular_file(file, ec))
       throw Error(path, where(entry - 1) + ": the " + what + "'s external file " + file +
-                            " does not exist (relative paths are " + "read from " +
+                            " does not exist (relative paths are read from " +
                             ::mrpt::io::getLazyLoadPathBase() + ")");
   }
   void requireExternals(const ::mrpt::obs::CObservation& obs) {

@@ -80,6 +80,8 @@ struct RawlogReadOptions {
 /// robot pose + sensor pose) and CObservationImage the image, each matched to the scan with the
 /// nearest timestamp within tolerance. Other observations are counted and skipped, and so are
 /// the scans and images of other sensors than the one lidar and camera read (by sensorLabel).
+/// A .simplemap (one CSimpleMap: a SLAM's keyframes) is read the same way, keyframe by keyframe,
+/// each scan at its keyframe's pose (isSimplemap).
 class RawlogSource : public FrameSource {
  public:
   /// Throws cleanmap::Error if the file is missing or not a rawlog.
