@@ -434,6 +434,14 @@ int main(int argc, char** argv) {
                      cleanmap::mrpt::labelCounts(rawlog->otherCameras()).c_str());
       if (const auto w = cleanmap::mrpt::timedBackWarning(*rawlog); !w.empty())
         std::fprintf(stderr, "cleanmap: warning: %s (report.json: rawlog_sensors)\n", w.c_str());
+      // A 2D SLAM's keyframes: a 3D lidar's scans disagree where the ground and walls tilt
+      // (ICP-SLAM's map of kitti_city: precision 0.435, 0.581 refined; doc/MRPT.md step d).
+      if (rawlog->isSimplemap() && out.givenPosesArePlanar())
+        std::fprintf(stderr,
+                     "cleanmap: warning: %s: the keyframes' poses are planar (one height, no "
+                     "roll or pitch), as a 2D SLAM's are; --poses refine re-aligns the scans in "
+                     "6D from them\n",
+                     input.c_str());
     }
     if (empty)
       std::fprintf(stderr,

@@ -49,6 +49,12 @@ import json, sys
 s, g = (json.load(open(p)) for p in sys.argv[1:])
 sys.exit(0 if s["recall"] > 0.98 and s["precision"] > g["precision"] - 0.03 else 1)
 PY
+grep -q "planar" "$scratch/slam_clean.err" && fail "refined poses were called planar"
+# Taken as given, the 2D SLAM's poses are said to be planar, with the option that helps.
+"$bin/cleanmap" "$scratch/slam/_finalmap_.simplemap" -o "$scratch/slam_given" --quiet --last 4 \
+  --no-mrpt-outputs >/dev/null 2>"$scratch/slam_given.err" || fail "cleanmap on ICP-SLAM's simplemap, given poses, failed"
+grep -q "warning: .*_finalmap_.simplemap: the keyframes' poses are planar .*--poses refine" "$scratch/slam_given.err" ||
+  fail "no warning for a 2D SLAM's planar poses: $(cat "$scratch/slam_given.err")"
 
 # A misspelled map in the SLAM ini is refused before MRPT would ignore it.
 sed 's/^cleanmap_moving_count/cleanmap_movng_count/' "$scratch/slam.ini" >"$scratch/typo.ini"

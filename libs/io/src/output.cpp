@@ -146,6 +146,18 @@ std::vector<std::pair<std::string, std::size_t>> OutputWriter::refusedAlignments
   return out;
 }
 
+bool OutputWriter::givenPosesArePlanar() const {
+  if (poses_.size() < 3) return false;
+  for (std::size_t i = 0; i < poses_.size(); ++i) {
+    const Eigen::Matrix3d& R = poses_[i].linear();
+    // R's third row is (-sin pitch, cos pitch sin roll, cos pitch cos roll) in ZYX angles.
+    if (pose_info_[i].source != "given" || std::abs(R(2, 0)) > 1e-6 || std::abs(R(2, 1)) > 1e-6 ||
+        std::abs(poses_[i].translation().z() - poses_[0].translation().z()) > 1e-6)
+      return false;
+  }
+  return true;
+}
+
 std::optional<double> OutputWriter::measuredSensorHeight() const {
   std::vector<double> m;
   for (const double g : ground_measured_)

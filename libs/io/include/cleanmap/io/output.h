@@ -102,6 +102,9 @@ class OutputWriter {
   /// DESIGN §2a: the sensor's height above the ground measured over the run so far (the median of
   /// the scans' measurements), nullopt if no scan could be measured.
   std::optional<double> measuredSensorHeight() const;
+  /// True where the input gave every pose (three scans or more) and they are planar: the same
+  /// height, no roll, no pitch (within 1e-6 m / rad), as a 2D SLAM's (x, y, heading) are.
+  bool givenPosesArePlanar() const;
   /// DESIGN §2.1: the scans whose estimated pose is the motion model's guess because GICP's
   /// alignment was refused, counted by reason (e.g. "degenerate scene"), most frequent first.
   std::vector<std::pair<std::string, std::size_t>> refusedAlignments() const;
