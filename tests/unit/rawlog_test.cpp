@@ -656,8 +656,8 @@ TEST(RawlogSource, ReadsRelativeExternalFilesFromTheRawlogsImagesFolder) {
 }
 
 // A simplemap (a SLAM's output: keyframes of a pose and a sensory frame) reads as its scans, each
-// at its keyframe's pose: the points bit for bit, the poses within 1e-9; the pose goes by the
-// keyframe, not by time, so keyframes without times (older simplemaps) keep their own poses.
+// at its keyframe's pose: the points bit for bit, the poses within 1e-9. The pose and the image go
+// by the keyframe, not by time, so keyframes without times (older simplemaps) keep their own.
 TEST(RawlogSource, ReadsASimplemapKeyframeByKeyframe) {
   CLEANMAP_REQUIRE_DATASET("kitti_city");
   const auto seq = io::KittiSequence::open(test::dataDir() + "/kitti_city");
@@ -674,8 +674,16 @@ TEST(RawlogSource, ReadsASimplemapKeyframeByKeyframe) {
         pc->timestamp =
             timed ? cleanmap::mrpt::toMrptTime(k.scan.timestamp) : ::mrpt::Clock::time_point();
         pc->pointcloud = cleanmap::mrpt::toPointsMap(k.scan.points);
+        auto img = ::mrpt::obs::CObservationImage::Create();  // after the scan in its keyframe
+        img->sensorLabel = "CAM";
+        img->timestamp = pc->timestamp;
+        img->cameraParams =
+            cleanmap::mrpt::toTCamera(pinhole(500, 500, 32, 24, 64, 48), img->cameraPose);
+        img->image = ::mrpt::img::CImage(cv::Mat(48, 64, CV_8UC3, cv::Scalar::all(10 + 50 * i)),
+                                         ::mrpt::img::DEEP_COPY);
         auto sf = ::mrpt::obs::CSensoryFrame::Create();
         sf->insert(pc);
+        sf->insert(img);
         sm.insert(::mrpt::poses::CPose3DPDFGaussian::Create(cleanmap::mrpt::toCPose3D(k.scan.pose)),
                   sf);
       }
@@ -693,6 +701,8 @@ TEST(RawlogSource, ReadsASimplemapKeyframeByKeyframe) {
       ASSERT_TRUE(f->scan.has_pose);
       EXPECT_LT((f->scan.pose.matrix() - k.scan.pose.matrix()).cwiseAbs().maxCoeff(), 1e-9) << i;
       EXPECT_EQ(f->source, path + " keyframe " + std::to_string(i));
+      ASSERT_TRUE(f->image.has_value());
+      EXPECT_EQ(f->image->bgr.at<cv::Vec3b>(5, 5)[0], 10 + 50 * i) << "the image of keyframe " << i;
       ++i;
     }
     EXPECT_EQ(i, 4u);
@@ -701,5 +711,10 @@ TEST(RawlogSource, ReadsASimplemapKeyframeByKeyframe) {
     ASSERT_TRUE(::mrpt::maps::CSimpleMap().saveToFile((dir / "empty.simplemap").string()));
     test::expectError([&] { cleanmap::mrpt::RawlogSource((dir / "empty.simplemap").string()); },
                       "empty.simplemap", "is a simplemap with no keyframes");
+    // One object: a file cut short fails as a whole, said as a simplemap's failure.
+    fs::copy_file(dir / "timed.simplemap", dir / "cut.simplemap");
+    fs::resize_file(dir / "cut.simplemap", fs::file_size(dir / "timed.simplemap") / 2);
+    test::expectError([&] { cleanmap::mrpt::RawlogSource((dir / "cut.simplemap").string()); },
+                      "cut.simplemap", "is not a simplemap MRPT can read");
   }
 }

@@ -216,6 +216,15 @@ struct RawlogSource::Impl {
     }
   }
 
+  // A .simplemap or .simplemap.gz file, by its name: its one object's failure is then said as such.
+  bool namedSimplemap() const {
+    const std::string name = fs::path(path).filename().string();
+    for (const std::string ext : {".simplemap", ".simplemap.gz"})
+      if (name.size() > ext.size() && name.compare(name.size() - ext.size(), ext.size(), ext) == 0)
+        return true;
+    return false;
+  }
+
   // Reads one rawlog entry; false at a clean end of file. We deserialize ourselves instead of
   // CRawlog::getActionObservationPairOrObservation, which prints and swallows errors, so a
   // truncated rawlog would look complete.
@@ -234,11 +243,15 @@ struct RawlogSource::Impl {
         eof = true;
         return false;
       }
+      if (entry == 0 && namedSimplemap())
+        throw Error(path, "is a simplemap cut short (the file ends inside its one object)");
       if (entry == 0)
         throw Error(path, "is not an MRPT rawlog, or is truncated inside its first entry");
       throw Error(path, "truncated rawlog at entry " + std::to_string(entry) +
                             " (the file ends inside an object)");
     } catch (const std::exception& e) {
+      if (entry == 0 && namedSimplemap())  // one object: MRPT's message says no more than this
+        throw Error(path, "is not a simplemap MRPT can read (cut short, corrupt, or another file)");
       if (entry == 0)
         throw Error(path,
                     "is not an MRPT rawlog (its first entry is not a serialized MRPT object)");
@@ -289,11 +302,14 @@ struct RawlogSource::Impl {
   }
 
   // The item of `kind` in [0, end) nearest in time to t, within tol.
-  const Item* nearest(Item::Kind kind, double t, double tol, std::size_t end) const {
+  // In a simplemap (`of_keyframe` given): only that keyframe's items, whatever their times.
+  const Item* nearest(Item::Kind kind, double t, double tol, std::size_t end,
+                      std::optional<std::size_t> of_keyframe = std::nullopt) const {
     const Item* best = nullptr;
     for (std::size_t i = 0; i < end; ++i) {
       const Item& it = buf[i];
-      if (it.kind != kind || std::abs(it.t - t) > tol) continue;
+      if (it.kind != kind) continue;
+      if (of_keyframe ? it.entry != *of_keyframe : std::abs(it.t - t) > tol) continue;
       if (!best || std::abs(it.t - t) < std::abs(best->t - t)) best = &it;
     }
     return best;
@@ -442,7 +458,10 @@ std::optional<Frame> RawlogSource::next() {
     if (!f.odometry->matrix().allFinite())
       throw Error(f.source, "the odometry actions before this scan sum to a non-finite pose");
   }
-  if (const Item* im = I.nearest(Item::kImage, cur.t, I.opts.image_time_tolerance, end)) {
+  // A simplemap's image goes with its keyframe's scan (its times may be missing).
+  const auto of_keyframe = I.keyframes ? std::optional<std::size_t>(cur.entry) : std::nullopt;
+  if (const Item* im =
+          I.nearest(Item::kImage, cur.t, I.opts.image_time_tolerance, end, of_keyframe)) {
     if (!I.camera) I.learnCamera(*im->img, cur.sensor_pose);
     f.image = I.toImage(*im);
   }
