@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
+#include <set>
 #include <string>
 
 #include <mrpt/io/CFileOutputStream.h>
@@ -130,10 +131,24 @@ int main(int argc, char** argv) {
       cleanmap::mrpt::useExternalFilesFolderOf(input);  // relative external scans and images
       ::mrpt::maps::CSimpleMap sm;
       if (!sm.loadFromFile(input)) throw cleanmap::Error(input, "cannot be read as a CSimpleMap");
+      // Its external files, before any is read: each scan's must exist, and no folder of them
+      // may be one that -o would replace.
+      std::set<std::string> folders;
+      for (std::size_t i = 0; i < sm.size(); ++i) {
+        const auto& pair = sm.getAsPair(i);
+        if (!pair.pose || !pair.sf)
+          throw cleanmap::Error(input, "keyframe " + std::to_string(i) + " is empty");
+        for (const auto& obs : *pair.sf)
+          for (const auto& f : cleanmap::mrpt::externalFiles(*obs)) {
+            folders.insert(fs::absolute(f.path).parent_path().lexically_normal().string());
+            std::error_code ec;
+            if (f.what != "image" && !fs::is_regular_file(f.path, ec))
+              throw cleanmap::mrpt::missingExternalFile(input, "keyframe " + std::to_string(i), f);
+          }
+      }
+      for (const auto& dir : folders) cleanmap::io::requireOutsideInput(outdir, dir, isBuild, "-o");
       for (std::size_t i = 0; i < sm.size(); ++i) {
         auto& pair = sm.getAsPair(i);
-        if (!pair.pose || !pair.sf)
-          throw cleanmap::Error(input, "pair " + std::to_string(i) + " is empty");
         const ::mrpt::poses::CPose3D robot = pair.pose->getMeanVal();
         for (auto& obs : *pair.sf) insertAt(maps, *obs, robot);
         ++scans;

@@ -20,6 +20,12 @@ grep -Eq "POSE / +22 " <<<"$info" || fail "rawlog-edit does not see 22 POSE obse
 grep -Eq "LIDAR / +22 " <<<"$(rawlog-edit --info -i "$scratch/city_ext.rawlog" 2>/dev/null)" ||
   fail "rawlog-edit cannot read the external rawlog"
 
+# As a simplemap (a SLAM's keyframes, at KITTI's poses): cleanmap-info sees a keyframe per scan.
+out=$("$bin/cleanmap-kitti2rawlog" "$city" "$scratch/city.simplemap") || fail "simplemap conversion failed"
+[[ $out == *"22 keyframes, 22 poses"* ]] || fail "simplemap conversion said: $out"
+info=$("$bin/cleanmap-info" "$scratch/city.simplemap") || fail "cleanmap-info cannot read the simplemap"
+[[ $info == *"MRPT simplemap"* && $info == *"22 scans"* ]] || fail "cleanmap-info on the simplemap: $info"
+
 # Bad inputs.
 mk() {  # mk NAME: a 3-scan copy of kitti_city (links) to spoil
   local d=$scratch/$1; mkdir -p "$d/velodyne"
@@ -34,6 +40,9 @@ d=$(mk posecount); head -2 "$city/poses.txt" >"$d/poses.txt"
 expect_error 1 "has 2 poses but the sequence has 3 scans" "$bin/cleanmap-kitti2rawlog" "$d" "$scratch/o.rawlog"
 d=$(mk calibkey); echo "P0: 1 0 0 0 0 1 0 0 0 0 1 0" >"$d/calib.txt"
 expect_error 1 "missing calibration key 'Tr'" "$bin/cleanmap-kitti2rawlog" "$d" "$scratch/o.rawlog"
+d=$(mk noposes); rm "$d/poses.txt"
+expect_error 1 "noposes: has no poses (poses.txt, or oxts/ for a raw drive): a simplemap's keyframes need them" "$bin/cleanmap-kitti2rawlog" "$d" "$scratch/o.simplemap"
+[[ -e $scratch/o.simplemap ]] && fail "a failed conversion left $scratch/o.simplemap"
 [[ -e $scratch/o.rawlog ]] && fail "a failed conversion left $scratch/o.rawlog"
 ls "$scratch" | grep -q '\.tmp\.' && fail "a temporary file was left behind"
 

@@ -81,6 +81,33 @@ ls -a "$scratch" | grep -q staging && fail "the builder left a staging folder"
 expect_error 1 "unknown map 'cleanmap_movng'" "$bin/cleanmap-build-map" "$scratch/city.rawlog" -c "$scratch/typo.ini" -o "$scratch/x"
 [[ -e $scratch/x ]] && fail "a refused build left an output folder"
 
+# A KITTI folder as a simplemap of scan files kept outside it (cleanmap-kitti2rawlog --external),
+# built from another working folder: the maps of the embedded simplemap. Before reading any
+# keyframe, a missing scan file is named with its keyframe, and -o may not hold the scan files.
+mkdir -p "$scratch/citylink/velodyne"
+for f in "$city"/velodyne/*.bin; do ln -s "$f" "$scratch/citylink/velodyne/"; done
+cp "$city/poses.txt" "$city/calib.txt" "$city/times.txt" "$scratch/citylink/"
+"$bin/cleanmap-kitti2rawlog" "$scratch/citylink" "$scratch/cityext.simplemap" --external >/dev/null ||
+  fail "kitti2rawlog --external to a simplemap failed"
+"$bin/cleanmap-kitti2rawlog" "$scratch/citylink" "$scratch/cityemb.simplemap" >/dev/null ||
+  fail "kitti2rawlog to a simplemap failed"
+(cd / && "$bin/cleanmap-build-map" "$scratch/cityext.simplemap" -c "$config/cleanmap.ini" -o "$scratch/fromext" >/dev/null) ||
+  fail "cleanmap-build-map on an external simplemap failed"
+"$bin/cleanmap-build-map" "$scratch/cityemb.simplemap" -c "$config/cleanmap.ini" -o "$scratch/fromemb" >/dev/null ||
+  fail "cleanmap-build-map on an embedded simplemap failed"
+# cleanmap reads the folder's simplemap as the folder: the same labels.
+"$bin/cleanmap" "$scratch/cityemb.simplemap" -o "$scratch/sm_kitti" --quiet --no-mrpt-outputs >/dev/null ||
+  fail "cleanmap on the folder's simplemap failed"
+diff -r "$scratch/sm_kitti/labels" "$scratch/given/labels" >/dev/null || fail "the folder's simplemap and the folder gave different labels"
+[[ $(grep -vc '^#' "$scratch"/fromext/*_trajectory.txt) -eq $n ]] || fail "the builder decided too few keyframes"
+cmp -s "$scratch/fromext/maps.bin" "$scratch/fromemb/maps.bin" || fail "external and embedded simplemaps built different maps"
+expect_error 1 "holds the input $scratch/citylink/velodyne" "$bin/cleanmap-build-map" "$scratch/cityext.simplemap" -c "$config/cleanmap.ini" -o "$scratch/citylink" --force
+[[ -f $scratch/citylink/poses.txt ]] || fail "a refused build removed the scans' folder"
+rm "$scratch/citylink/velodyne/000003.bin"
+expect_error 1 "cityext.simplemap: keyframe 3: the scan's external file $scratch/citylink/velodyne/000003.bin does not exist" "$bin/cleanmap-build-map" "$scratch/cityext.simplemap" -c "$config/cleanmap.ini" -o "$scratch/x"
+[[ -e $scratch/x ]] && fail "a refused build left an output folder"
+expect_error 1 "cityext.simplemap: keyframe 3: the scan's external file" "$bin/cleanmap" "$scratch/cityext.simplemap" -o "$scratch/x" --quiet
+
 # rawlog-edit reads the serialized maps only with our plugin.
 if command -v rawlog-edit >/dev/null; then
   out=$(rawlog-edit --plugins "$plugin" --info -i "$scratch/built/maps.bin" 2>&1)

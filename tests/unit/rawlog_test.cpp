@@ -112,6 +112,29 @@ TEST_P(RawlogRoundTrip, ExternalIsBitIdentical) {
   expectSameAsKitti(seq, out.string());
 }
 
+// A .simplemap (cleanmap-kitti2rawlog OUT.simplemap): a keyframe per scan at its pose, read back
+// as the folder; a frame without a pose is an error that leaves nothing.
+TEST_P(RawlogRoundTrip, SimplemapIsBitIdentical) {
+  CLEANMAP_REQUIRE_DATASET(GetParam());
+  const auto seq = io::KittiSequence::open(test::dataDir() + "/" + GetParam());
+  const auto dir = test::scratchDir("rt_sm_" + GetParam());
+  convert(seq, (dir / "seq.simplemap").string(), false);
+  {
+    cleanmap::mrpt::RawlogSource src((dir / "seq.simplemap").string());
+    EXPECT_TRUE(src.isSimplemap());
+  }
+  expectSameAsKitti(seq, (dir / "seq.simplemap").string());
+  Frame unposed = seq.frame(0);
+  unposed.scan.has_pose = false;
+  test::expectError(
+      [&] {
+        cleanmap::mrpt::RawlogWriter w((dir / "unposed.simplemap").string());
+        w.write(unposed, seq.camera());
+      },
+      "unposed.simplemap", "frame " + unposed.stem + " has no pose");
+  EXPECT_EQ(std::distance(fs::directory_iterator(dir), fs::directory_iterator()), 1);
+}
+
 INSTANTIATE_TEST_SUITE_P(SharedData, RawlogRoundTrip,
                          ::testing::Values("kitti_city", "kitti_highway", "kitti_residential"));
 

@@ -176,8 +176,8 @@ struct RawlogSource::Impl {
     } else if (auto im = std::dynamic_pointer_cast<CObservationImage>(obs)) {
       if (!opts.load_images) return;  // laser only: not decoded, not counted
       if (!ours(cam, opts.camera_label, obs->sensorLabel, other_cameras)) return;
-      if (im->image.isExternallyStored())
-        noteExternal(im->image.getExternalStorageFileAbsolutePath(), "image", false);
+      for (const auto& f : externalFiles(*im))
+        noteExternal(f, false);  // read where a scan takes it
       Item it;
       it.kind = Item::kImage;
       it.t = t;
@@ -194,26 +194,15 @@ struct RawlogSource::Impl {
   // is recorded (no output may replace it). A scan's that is missing is an error naming the entry
   // (MRPT's own says only that an assertion failed); an image's is loaded, or found missing,
   // where a scan takes it.
-  void noteExternal(const std::string& file, const char* what, bool required) {
-    external_dirs.insert(fs::absolute(fs::path(file)).parent_path().lexically_normal().string());
+  void noteExternal(const ExternalFile& f, bool required) {
+    external_dirs.insert(fs::absolute(fs::path(f.path)).parent_path().lexically_normal().string());
     std::error_code ec;
-    if (required && !fs::is_regular_file(file, ec))
-      throw Error(path, where(entry - 1) + ": the " + what + "'s external file " + file +
-                            " does not exist (relative paths are read from " +
-                            ::mrpt::io::getLazyLoadPathBase() + ")");
+    if (required && !fs::is_regular_file(f.path, ec))
+      throw missingExternalFile(path, where(entry - 1), f);
   }
   void requireExternals(const ::mrpt::obs::CObservation& obs) {
-    using namespace ::mrpt::obs;
-    if (const auto* pc = dynamic_cast<const CObservationPointCloud*>(&obs)) {
-      if (pc->isExternallyStored())
-        noteExternal(::mrpt::io::lazy_load_absolute_path(pc->getExternalStorageFile()), "scan",
-                     true);
-    } else if (const auto* r = dynamic_cast<const CObservation3DRangeScan*>(&obs)) {
-      if (r->hasRangeImage && r->rangeImage_isExternallyStored())
-        noteExternal(r->rangeImage_getExternalStorageFileAbsolutePath(""), "range image", true);
-      if (r->hasPoints3D && r->points3D_isExternallyStored())
-        noteExternal(r->points3D_getExternalStorageFileAbsolutePath(), "scan", true);
-    }
+    for (const auto& f : externalFiles(obs))
+      if (f.what != "image") noteExternal(f, true);
   }
 
   // A .simplemap or .simplemap.gz file, by its name: its one object's failure is then said as such.
@@ -507,6 +496,31 @@ bool RawlogSource::isSimplemap() const {
 
 const std::set<std::string>& RawlogSource::externalFolders() const {
   return impl_->external_dirs;
+}
+
+std::vector<ExternalFile> externalFiles(const ::mrpt::obs::CObservation& obs) {
+  using namespace ::mrpt::obs;
+  std::vector<ExternalFile> out;
+  if (const auto* pc = dynamic_cast<const CObservationPointCloud*>(&obs)) {
+    if (pc->isExternallyStored())
+      out.push_back({::mrpt::io::lazy_load_absolute_path(pc->getExternalStorageFile()), "scan"});
+  } else if (const auto* r = dynamic_cast<const CObservation3DRangeScan*>(&obs)) {
+    if (r->hasRangeImage && r->rangeImage_isExternallyStored())
+      out.push_back({r->rangeImage_getExternalStorageFileAbsolutePath(""), "range image"});
+    if (r->hasPoints3D && r->points3D_isExternallyStored())
+      out.push_back({r->points3D_getExternalStorageFileAbsolutePath(), "scan"});
+  } else if (const auto* im = dynamic_cast<const CObservationImage*>(&obs)) {
+    if (im->image.isExternallyStored())
+      out.push_back({im->image.getExternalStorageFileAbsolutePath(), "image"});
+  }
+  return out;
+}
+
+Error missingExternalFile(const std::string& file_of, const std::string& where,
+                          const ExternalFile& f) {
+  return Error(file_of, where + ": the " + f.what + "'s external file " + f.path +
+                            " does not exist (relative paths are read from " +
+                            ::mrpt::io::getLazyLoadPathBase() + ")");
 }
 
 std::string useExternalFilesFolderOf(const std::string& file) {

@@ -5,10 +5,13 @@
 #include <filesystem>
 
 #include <mrpt/io/CFileGZOutputStream.h>
+#include <mrpt/maps/CSimpleMap.h>
 #include <mrpt/obs/CObservationImage.h>
 #include <mrpt/obs/CObservationOdometry.h>
 #include <mrpt/obs/CObservationPointCloud.h>
 #include <mrpt/obs/CObservationRobotPose.h>
+#include <mrpt/obs/CSensoryFrame.h>
+#include <mrpt/poses/CPose3DPDFGaussian.h>
 #include <mrpt/serialization/CArchive.h>
 
 #include "cleanmap/core/error.h"
@@ -24,6 +27,7 @@ struct RawlogWriter::Impl {
   std::string tmp;
   ::mrpt::io::CFileGZOutputStream out;
   bool open = false;
+  ::mrpt::maps::CSimpleMap keyframes;  // a .simplemap's, serialized by close()
 };
 
 RawlogWriter::RawlogWriter(const std::string& path, const RawlogWriteOptions& opts)
@@ -35,6 +39,9 @@ RawlogWriter::RawlogWriter(const std::string& path, const RawlogWriteOptions& op
     fs::create_directories(target.parent_path(), ec);
     if (ec) throw Error(target.parent_path().string(), "cannot create directory: " + ec.message());
   }
+  const std::string ext = ".simplemap";
+  simplemap_ =
+      path.size() > ext.size() && path.compare(path.size() - ext.size(), ext.size(), ext) == 0;
   impl_->tmp = path + ".tmp." + std::to_string(::getpid());
   if (!impl_->out.open(impl_->tmp)) throw Error(path, "cannot open for writing");
   impl_->open = true;
@@ -66,14 +73,30 @@ void RawlogWriter::writeObservations(const Frame& frame, const std::optional<Pin
   using namespace ::mrpt::obs;
   auto arch = ::mrpt::serialization::archiveFrom(impl_->out);
   const auto stamp = toMrptTime(frame.scan.timestamp);
+  // A simplemap's keyframe: the frame's pose, and its observations in one sensory frame.
+  CSensoryFrame::Ptr keyframe;
+  if (simplemap_) {
+    if (!frame.scan.has_pose)
+      throw Error(path_, "frame " + frame.stem +
+                             " has no pose: a simplemap's keyframes need poses (write a .rawlog)");
+    keyframe = CSensoryFrame::Create();
+  }
+  const auto put = [&](const CObservation::Ptr& obs) {
+    if (keyframe)
+      keyframe->insert(obs);
+    else
+      arch << *obs;
+  };
 
-  if (frame.scan.has_pose) {
+  if (simplemap_) {
+    ++poses_;
+  } else if (frame.scan.has_pose) {
     auto obs = CObservationRobotPose::Create();
     obs->sensorLabel = opts_.pose_label;
     obs->timestamp = stamp;
     obs->pose.mean = toCPose3D(frame.scan.pose);
     obs->pose.cov.setZero();
-    arch << *obs;
+    put(obs);
     ++poses_;
   }
 
@@ -86,7 +109,7 @@ void RawlogWriter::writeObservations(const Frame& frame, const std::optional<Pin
     od->timestamp = stamp;
     od->odometry = ::mrpt::poses::CPose2D(T.translation().x(), T.translation().y(),
                                           std::atan2(T.linear()(1, 0), T.linear()(0, 0)));
-    arch << *od;
+    put(od);
     ++odometries_;
   }
 
@@ -104,7 +127,7 @@ void RawlogWriter::writeObservations(const Frame& frame, const std::optional<Pin
   } else {
     pc->pointcloud = toPointsMap(frame.scan.points);
   }
-  arch << *pc;
+  put(pc);
   ++scans_;
 
   if (frame.image) {
@@ -117,17 +140,30 @@ void RawlogWriter::writeObservations(const Frame& frame, const std::optional<Pin
       img->image.setExternalStorage(fs::absolute(image_source).string());
     else
       img->image = ::mrpt::img::CImage(frame.image->bgr, ::mrpt::img::DEEP_COPY);
-    arch << *img;
+    put(img);
     ++images_;
   }
+  if (keyframe)
+    impl_->keyframes.insert(::mrpt::poses::CPose3DPDFGaussian::Create(toCPose3D(frame.scan.pose)),
+                            keyframe);
 }
 
 void RawlogWriter::close() {
   if (!impl_->open) return;
+  if (simplemap_) {
+    try {
+      ::mrpt::serialization::archiveFrom(impl_->out) << impl_->keyframes;
+    } catch (const std::exception&) {
+      throw Error(path_, "write failed (disk full?)");
+    }
+    impl_->keyframes.clear();
+  }
   closeGzChecked(impl_->out, impl_->tmp, path_);  // on error the destructor removes the temporary
   std::error_code ec;
   fs::rename(impl_->tmp, path_, ec);
-  if (ec) throw Error(path_, "cannot move the finished rawlog into place: " + ec.message());
+  if (ec)
+    throw Error(path_, std::string("cannot move the finished ") +
+                           (simplemap_ ? "simplemap" : "rawlog") + " into place: " + ec.message());
   impl_->open = false;
 }
 

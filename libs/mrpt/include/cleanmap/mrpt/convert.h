@@ -12,6 +12,7 @@
 #include <mrpt/obs/CObservation.h>
 #include <mrpt/poses/CPose3D.h>
 
+#include "cleanmap/core/error.h"
 #include "cleanmap/core/types.h"
 
 namespace mrpt::opengl {
@@ -60,5 +61,20 @@ PinholeCamera fromTCamera(const ::mrpt::img::TCamera& cam,
 std::optional<Scan> scanFromObservation(const ::mrpt::obs::CObservation& obs);
 /// True for the observation types scanFromObservation reads (without decoding them).
 bool isLidarObservation(const ::mrpt::obs::CObservation& obs);
+
+/// A file an observation keeps outside its rawlog or simplemap (MRPT's external storage), as an
+/// absolute path (a relative one through MRPT's lazy-load base), and what it holds: "scan",
+/// "range image" or "image".
+struct ExternalFile {
+  std::string path;
+  std::string what;
+};
+std::vector<ExternalFile> externalFiles(const ::mrpt::obs::CObservation& obs);
+
+/// A scan's external file that does not exist, in one line: "<file_of>: <where>: the scan's
+/// external file ... does not exist (relative paths are read from ...)". MRPT's own message is
+/// a failed assertion's, naming neither.
+Error missingExternalFile(const std::string& file_of, const std::string& where,
+                          const ExternalFile& f);
 
 }  // namespace cleanmap::mrpt

@@ -32,6 +32,11 @@ struct RawlogWriteOptions {
 /// a CObservationImage (with TCamera and camera pose), all with the scan's timestamp (relative
 /// times from 2000-01-01, see toMrptTime). Written to a temporary file and moved into place by
 /// close(): an interrupted run leaves nothing.
+///
+/// A path ending in `.simplemap` gets a CSimpleMap instead, as a SLAM saves its keyframes: per
+/// frame a keyframe at the scan's pose (every frame needs one) whose sensory frame holds the
+/// same point cloud, odometry and image. The keyframes are held in memory until close() (MRPT
+/// serializes a simplemap as one object): with `external`, a few hundred bytes a keyframe.
 class RawlogWriter {
  public:
   RawlogWriter(const std::string& path, const RawlogWriteOptions& opts = {});
@@ -60,6 +65,7 @@ class RawlogWriter {
   std::string path_;
   RawlogWriteOptions opts_;
   std::size_t scans_ = 0, images_ = 0, poses_ = 0, odometries_ = 0;
+  bool simplemap_ = false;
 };
 
 struct RawlogReadOptions {
