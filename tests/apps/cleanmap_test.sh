@@ -33,8 +33,21 @@ window_of() {
   python3 -c 'import json,sys; w=json.load(open(sys.argv[1]))["window"]; print(w["k"], round(w["scan_rate_hz"], 3), w["window_k"])' "$1"
 }
 [[ $(window_of "$scratch/out/report.json") == "10 10.0 auto" ]] || fail "window: $(window_of "$scratch/out/report.json")"
-"$bin/cleanmap" "$seq/sequence.rawlog" -o "$scratch/rawwin" --quiet --last 6 --no-mrpt-outputs >/dev/null ||
+"$bin/cleanmap" "$seq/sequence.rawlog" -o "$scratch/rawwin" --quiet --last 6 --no-mrpt-outputs >/dev/null 2>"$scratch/rawwin.err" ||
   fail "a rawlog run failed"
+grep -q "sparser than" "$scratch/rawwin.err" && fail "scans at 10 Hz were called sparse"
+# Every third scan (0.3 s apart, as a SLAM's keyframes may be) is said in one warning: the window
+# compares neighbouring sweeps.
+mkdir -p "$scratch/sparse/velodyne" && cp "$seq/calib.txt" "$scratch/sparse/"
+for i in 0 3 6 9 12 15; do
+  ln -s "$seq/velodyne/$(printf %06d $i).bin" "$scratch/sparse/velodyne/"
+  sed -n "$((i + 1))p" "$seq/poses.txt" >>"$scratch/sparse/poses.txt"
+  sed -n "$((i + 1))p" "$seq/times.txt" >>"$scratch/sparse/times.txt"
+done
+"$bin/cleanmap" "$scratch/sparse" -o "$scratch/sparse_out" --quiet --no-mrpt-outputs >/dev/null 2>"$scratch/sparse.err" ||
+  fail "a run of sparse scans failed"
+grep -q "warning: $scratch/sparse: the scans are 0.30 s and [0-9.]* m apart (median), sparser than a lidar's sweeps" "$scratch/sparse.err" ||
+  fail "no warning for scans 0.3 s apart: $(cat "$scratch/sparse.err")"
 [[ $(window_of "$scratch/rawwin/report.json") == "10 10.0 auto" ]] || fail "rawlog window: $(window_of "$scratch/rawwin/report.json")"
 sensors=$(python3 -c 'import json,sys; s=json.load(open(sys.argv[1]))["rawlog_sensors"]; print(s["lidar"], s["other_lidars"])' "$scratch/rawwin/report.json")
 [[ $sensors == "LIDAR {}" ]] || fail "rawlog sensors: $sensors"

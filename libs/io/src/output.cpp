@@ -158,6 +158,17 @@ bool OutputWriter::givenPosesArePlanar() const {
   return true;
 }
 
+std::optional<OutputWriter::Spacing> OutputWriter::scanSpacing() const {
+  std::vector<double> dt, dx;
+  for (std::size_t i = 1; i < times_.size(); ++i)
+    if (times_[i] - times_[i - 1] > 1e-3) {
+      dt.push_back(times_[i] - times_[i - 1]);
+      dx.push_back((poses_[i].translation() - poses_[i - 1].translation()).norm());
+    }
+  if (dt.empty()) return std::nullopt;
+  return Spacing{median(std::move(dt)), median(std::move(dx))};
+}
+
 std::optional<double> OutputWriter::measuredSensorHeight() const {
   std::vector<double> m;
   for (const double g : ground_measured_)
