@@ -15,6 +15,7 @@
 #include <mrpt/maps/CMultiMetricMap.h>
 #include "../common/cli.h"
 #include "cleanmap/core/error.h"
+#include "cleanmap/core/params.h"
 
 #include "cleanmap/core/stopwatch.h"
 #include "cleanmap/io/config.h"
@@ -443,17 +444,10 @@ int main(int argc, char** argv) {
                      "6D from them\n",
                      input.c_str());
     }
-    // DESIGN §2b: the window compares neighbouring sweeps. A spinning lidar sweeps at 5-20 Hz,
-    // so scans over 0.25 s apart are a selection, as a SLAM's keyframes are; over 1 m apart
-    // they flag static points (kitti_residential, every third scan, 0.3 s and 2.5 m apart:
-    // precision 0.82 -> 0.03; kitti_highway's, 0.67 m apart, 0.94 as every sweep; doc/MRPT.md).
-    if (const auto gap = out.scanSpacing(); gap && gap->seconds > 0.25 && gap->metres > 1.0)
-      std::fprintf(stderr,
-                   "cleanmap: warning: %s: the scans are %.2f s and %.1f m apart (median), sparser "
-                   "than a lidar's sweeps (5-20 Hz), as a SLAM's keyframes may be: the moving test "
-                   "compares neighbouring sweeps and flags more static points so far apart; clean "
-                   "every sweep (doc/MRPT.md step d)\n",
-                   input.c_str(), gap->seconds, gap->metres);
+    // DESIGN §2b: scans far apart, as a SLAM's keyframes may be (doc/MRPT.md step d).
+    if (const auto gap = out.scanSpacing())
+      if (const auto w = cleanmap::sparseScansWarning(gap->seconds, gap->metres); !w.empty())
+        std::fprintf(stderr, "cleanmap: warning: %s: %s\n", input.c_str(), w.c_str());
     if (empty)
       std::fprintf(stderr,
                    "cleanmap: warning: %zu empty scans (no valid point) kept, labelled 0 "

@@ -8,6 +8,8 @@
 
 #include "../common/cli.h"
 #include "cleanmap/core/error.h"
+#include "cleanmap/core/median.h"
+#include "cleanmap/core/params.h"
 #include "cleanmap/io/kitti.h"
 #include "cleanmap/mrpt/input.h"
 #include "cleanmap/mrpt/rawlog.h"
@@ -35,15 +37,24 @@ int main(int argc, char** argv) {
     opts.allow_empty_scans = true;
     auto src = cleanmap::mrpt::openInput(input, opts);
     const auto* kitti = dynamic_cast<const cleanmap::io::KittiSequence*>(src.get());
+    const auto* rawlog = dynamic_cast<const cleanmap::mrpt::RawlogSource*>(src.get());
     std::vector<std::size_t> sizes;
     std::size_t dropped = 0, posed = 0, images = 0, empty = 0, moving = 0, labelled = 0,
                 odometry = 0, timed = 0;
     std::vector<double> spans;  // each timed scan's first to last point time (s)
     double length = 0, t0 = 0, t1 = 0;
     std::optional<Eigen::Vector3d> last;
+    std::vector<double> gaps_s, gaps_m;  // between consecutive scans whose times grow (> 1 ms)
+    bool all_posed = true;
     while (auto f = src->next()) {
       const auto& s = f->scan;
       if (sizes.empty()) t0 = s.timestamp;
+      if (!sizes.empty() && s.timestamp - t1 > 1e-3) {
+        gaps_s.push_back(s.timestamp - t1);
+        if (all_posed && s.has_pose && last)
+          gaps_m.push_back((s.pose.translation() - *last).norm());
+      }
+      all_posed = all_posed && s.has_pose;
       t1 = s.timestamp;
       sizes.push_back(s.size());
       dropped += s.dropped_invalid;
@@ -72,13 +83,22 @@ int main(int argc, char** argv) {
     std::printf("input:   %s (%s)\n", input.c_str(),
                 kitti ? (kitti->layout() == cleanmap::io::KittiLayout::kRaw ? "KITTI raw"
                                                                             : "KITTI odometry")
-                      : (dynamic_cast<const cleanmap::mrpt::RawlogSource*>(src.get())->isSimplemap()
-                             ? "MRPT simplemap"
-                             : "MRPT rawlog"));
+                      : (rawlog && rawlog->isSimplemap() ? "MRPT simplemap" : "MRPT rawlog"));
     std::printf("scans:   %zu over %.2f s; points per scan min %zu / median %zu / max %zu\n",
                 sizes.size(), t1 - t0, sorted.front(), sorted[sorted.size() / 2], sorted.back());
     std::printf("invalid: %zu NaN/inf points dropped, %zu empty scans\n", dropped, empty);
     std::printf("poses:   %zu of %zu scans; trajectory %.2f m\n", posed, sizes.size(), length);
+    // DESIGN §2b: the window compares neighbouring sweeps; a SLAM's keyframes may be far apart.
+    if (!gaps_s.empty()) {
+      const double gap_s = cleanmap::median(gaps_s);
+      const double gap_m = all_posed && !gaps_m.empty() ? cleanmap::median(gaps_m) : 0.0;
+      if (const auto w = cleanmap::sparseScansWarning(gap_s, gap_m); !w.empty())
+        std::printf("spacing: %s\n", w.c_str());
+      else if (all_posed && !gaps_m.empty())
+        std::printf("spacing: %.2f s and %.2f m between scans (median)\n", gap_s, gap_m);
+      else
+        std::printf("spacing: %.2f s between scans (median)\n", gap_s);
+    }
     // DESIGN §2.0: scans whose points carry their times are de-skewed (sensor.deskew auto)
     if (timed) {
       std::sort(spans.begin(), spans.end());
@@ -94,7 +114,7 @@ int main(int argc, char** argv) {
                   cam->width, cam->height, cam->focal());
     else
       std::printf("images:  %zu\n", images);
-    if (const auto* r = dynamic_cast<const cleanmap::mrpt::RawlogSource*>(src.get())) {
+    if (const auto* r = rawlog) {
       // "lidar 'X'" and the other sensors of that kind the reader skipped, with the option.
       const auto sensor = [](const char* kind, const std::string& label, const auto& others) {
         std::string line = std::string(kind) + " '" + label + "'";

@@ -243,6 +243,12 @@ TEST(Pipeline, AutoWindowSpansOneSecondAtTheScanRate) {
   // The stride: every scan up to K = 19, then scans 0.1 s apart or closer (10-19 each side).
   for (const auto& [k, stride] : {std::pair{1, 1}, {10, 1}, {19, 1}, {20, 2}, {29, 2}, {50, 5}})
     EXPECT_EQ(windowStride(ds, k), stride) << k;
+  // Scans sparser than sweeps and far apart are said (a SLAM's keyframes); a 5 Hz lidar at
+  // 15 m/s, or every third sweep of slow traffic, is not.
+  EXPECT_NE(sparseScansWarning(0.3, 2.5).find("the scans are 0.30 s and 2.5 m apart"),
+            std::string::npos);
+  EXPECT_EQ(sparseScansWarning(0.2, 3.0), "");
+  EXPECT_EQ(sparseScansWarning(0.3, 0.67), "");
   ds.window_stride = 3;
   EXPECT_EQ(windowStride(ds, 10), 3);
 }

@@ -338,15 +338,20 @@ struct PipelineParams {
 /// cleanmap::Error(name, "<section.key> must ...") naming the offending key.
 void validate(const PipelineParams& params, const std::string& name);
 
+/// The median interval (s) between consecutive timestamps among those in (1 ms, 1 s] (a lidar of
+/// 1 to 1000 Hz; repeats and gaps left out); 0 where there is none.
+double scanPeriod(const std::vector<double>& stamps);
 /// DESIGN §2b: the window's K. ds.window_k where it is set; auto: round(window_s x rate), the
 /// rate from the median interval between consecutive `stamps` (seconds; those of the run's first
 /// kRateScans scans) among those in (1 ms, 1 s], clamped to [1, kMaxWindowK]; kDefaultWindowK
 /// where no interval is usable (no timestamps, one scan). `rate_hz` gets the rate (0: none).
-/// The median interval (s) between consecutive timestamps among those in (1 ms, 1 s] (a lidar of
-/// 1 to 1000 Hz; repeats and gaps left out); 0 where there is none.
-double scanPeriod(const std::vector<double>& stamps);
 int windowScans(const DsParams& ds, const std::vector<double>& stamps, double* rate_hz = nullptr);
 /// The stride of a window of K scans: ds.window_stride, or auto max(1, K / kDefaultWindowK).
 int windowStride(const DsParams& ds, int k);
+/// DESIGN §2b: the window compares neighbouring sweeps. Scans whose median interval is over
+/// 0.25 s (a lidar sweeps at 5-20 Hz: a selection, as a SLAM's keyframes are) and whose median
+/// distance apart is over 1 m flag more static points. What the apps say of it, from "the scans
+/// are ..." on; "" where the scans are not so sparse.
+std::string sparseScansWarning(double median_seconds, double median_metres);
 
 }  // namespace cleanmap
