@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: BSD-3-Clause
-// cleanmap-kitti2rawlog: KITTI odometry / SemanticKITTI / raw folder -> MRPT rawlog.
+// cleanmap-kitti2rawlog: KITTI odometry / SemanticKITTI / raw folder -> MRPT rawlog or simplemap.
 #include <cstring>
 #include <filesystem>
 #include <iostream>
