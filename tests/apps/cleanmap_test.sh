@@ -48,6 +48,11 @@ done
   fail "a run of sparse scans failed"
 grep -q "warning: $scratch/sparse: the scans are 0.30 s and [0-9.]* m apart (median), sparser than a lidar's sweeps" "$scratch/sparse.err" ||
   fail "no warning for scans 0.3 s apart: $(cat "$scratch/sparse.err")"
+spacing_of() {
+  python3 -c 'import json,sys; s=json.load(open(sys.argv[1]))["window"]["scan_spacing"]; print(round(s["seconds"], 2), s["sparser_than_sweeps"])' "$1"
+}
+[[ $(spacing_of "$scratch/sparse_out/report.json") == "0.3 True" ]] || fail "report.json spacing: $(spacing_of "$scratch/sparse_out/report.json")"
+[[ $(spacing_of "$scratch/rawwin/report.json") == "0.1 False" ]] || fail "report.json spacing at 10 Hz: $(spacing_of "$scratch/rawwin/report.json")"
 grep -q "^spacing: the scans are 0.30 s and" <<<"$("$bin/cleanmap-info" "$scratch/sparse")" || fail "cleanmap-info does not say the scans are sparse"
 grep -q "^spacing: 0.10 s and [0-9.]* m between scans (median)" <<<"$("$bin/cleanmap-info" "$seq")" || fail "cleanmap-info gives no spacing"
 [[ $(window_of "$scratch/rawwin/report.json") == "10 10.0 auto" ]] || fail "rawlog window: $(window_of "$scratch/rawwin/report.json")"

@@ -615,6 +615,14 @@ void OutputWriter::finish(double wall_s, const FreeSpaceMap* free_space) {
                  {"window_s", params_.ds.window_s},
                  {"stride", total.window_stride},
                  {"scan_rate_hz", total.scan_rate_hz}};
+  // DESIGN §2b: how far apart the scans are (a SLAM's keyframes may be sparser than sweeps)
+  if (const auto gap = scanSpacing())
+    j["window"]["scan_spacing"] = {
+        {"seconds", gap->seconds},
+        {"metres", gap->metres},
+        {"sparser_than_sweeps", !sparseScansWarning(gap->seconds, gap->metres).empty()}};
+  else
+    j["window"]["scan_spacing"] = nullptr;
   {  // DESIGN §3: the camera check
     const auto& im = params_.image;
     j["images"] = {
