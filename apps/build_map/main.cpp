@@ -127,7 +127,7 @@ int main(int argc, char** argv) {
 
     std::size_t scans = 0;
     std::unique_ptr<cleanmap::FrameSource> src_read;  // a KITTI folder or a rawlog
-    if (fs::path(input).extension() == ".simplemap") {
+    if (cleanmap::mrpt::isSimplemapName(input)) {
       cleanmap::mrpt::useExternalFilesFolderOf(input);  // relative external scans and images
       ::mrpt::maps::CSimpleMap sm;
       if (!sm.loadFromFile(input)) throw cleanmap::Error(input, "cannot be read as a CSimpleMap");

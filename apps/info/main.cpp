@@ -8,7 +8,6 @@
 
 #include "../common/cli.h"
 #include "cleanmap/core/error.h"
-#include "cleanmap/core/median.h"
 #include "cleanmap/core/params.h"
 #include "cleanmap/io/kitti.h"
 #include "cleanmap/mrpt/input.h"
@@ -44,17 +43,15 @@ int main(int argc, char** argv) {
     std::vector<double> spans;  // each timed scan's first to last point time (s)
     double length = 0, t0 = 0, t1 = 0;
     std::optional<Eigen::Vector3d> last;
-    std::vector<double> gaps_s, gaps_m;  // between consecutive scans whose times grow (> 1 ms)
+    std::vector<double> times;
+    std::vector<Eigen::Vector3d> positions;  // while every scan has a pose
     bool all_posed = true;
     while (auto f = src->next()) {
       const auto& s = f->scan;
       if (sizes.empty()) t0 = s.timestamp;
-      if (!sizes.empty() && s.timestamp - t1 > 1e-3) {
-        gaps_s.push_back(s.timestamp - t1);
-        if (all_posed && s.has_pose && last)
-          gaps_m.push_back((s.pose.translation() - *last).norm());
-      }
+      times.push_back(s.timestamp);
       all_posed = all_posed && s.has_pose;
+      if (all_posed) positions.push_back(s.pose.translation());
       t1 = s.timestamp;
       sizes.push_back(s.size());
       dropped += s.dropped_invalid;
@@ -89,15 +86,15 @@ int main(int argc, char** argv) {
     std::printf("invalid: %zu NaN/inf points dropped, %zu empty scans\n", dropped, empty);
     std::printf("poses:   %zu of %zu scans; trajectory %.2f m\n", posed, sizes.size(), length);
     // DESIGN §2b: the window compares neighbouring sweeps; a SLAM's keyframes may be far apart.
-    if (!gaps_s.empty()) {
-      const double gap_s = cleanmap::median(gaps_s);
-      const double gap_m = all_posed && !gaps_m.empty() ? cleanmap::median(gaps_m) : 0.0;
-      if (const auto w = cleanmap::sparseScansWarning(gap_s, gap_m); !w.empty())
+    if (!all_posed) positions.clear();
+    if (const auto gap = cleanmap::scanSpacing(times, positions)) {
+      if (const auto w = cleanmap::sparseScansWarning(gap->seconds, gap->metres); !w.empty())
         std::printf("spacing: %s\n", w.c_str());
-      else if (all_posed && !gaps_m.empty())
-        std::printf("spacing: %.2f s and %.2f m between scans (median)\n", gap_s, gap_m);
+      else if (all_posed)
+        std::printf("spacing: %.2f s and %.2f m between scans (median)\n", gap->seconds,
+                    gap->metres);
       else
-        std::printf("spacing: %.2f s between scans (median)\n", gap_s);
+        std::printf("spacing: %.2f s between scans (median)\n", gap->seconds);
     }
     // DESIGN §2.0: scans whose points carry their times are de-skewed (sensor.deskew auto)
     if (timed) {

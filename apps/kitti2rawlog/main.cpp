@@ -1,7 +1,6 @@
 // SPDX-License-Identifier: BSD-3-Clause
 // cleanmap-kitti2rawlog: KITTI odometry / SemanticKITTI / raw folder -> MRPT rawlog or simplemap.
 #include <cstring>
-#include <filesystem>
 #include <iostream>
 #include <string>
 
@@ -9,8 +8,6 @@
 #include "cleanmap/core/error.h"
 #include "cleanmap/io/kitti.h"
 #include "cleanmap/mrpt/rawlog.h"
-
-namespace fs = std::filesystem;
 
 namespace {
 
@@ -69,7 +66,7 @@ int main(int argc, char** argv) {
     cleanmap::io::KittiReadOptions ro;
     ro.scan.allow_empty = true;  // the rule of every app: empty scans are kept and counted
     auto seq = cleanmap::io::KittiSequence::open(in, ro);
-    const bool simplemap = fs::path(out).extension() == ".simplemap";
+    const bool simplemap = cleanmap::mrpt::isSimplemapName(out);
     if (simplemap && !seq.hasPoses())
       throw cleanmap::Error(in,
                             "has no poses (poses.txt, or oxts/ for a raw drive): a "

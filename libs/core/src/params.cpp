@@ -6,6 +6,7 @@
 #include <cstdio>
 
 #include "cleanmap/core/error.h"
+#include "cleanmap/core/median.h"
 
 namespace cleanmap {
 
@@ -138,6 +139,18 @@ std::string groundGridExcess(double extent, double cell) {
   if (extent / cell <= kMaxGroundHalfCells) return {};
   return std::to_string(static_cast<long long>(extent / cell)) + " cells each side, at most " +
          std::to_string(static_cast<int>(kMaxGroundHalfCells));
+}
+
+std::optional<ScanSpacing> scanSpacing(const std::vector<double>& times,
+                                       const std::vector<Eigen::Vector3d>& positions) {
+  std::vector<double> dt, dx;
+  for (std::size_t i = 1; i < times.size(); ++i)
+    if (times[i] - times[i - 1] > 1e-3) {
+      dt.push_back(times[i] - times[i - 1]);
+      if (positions.size() == times.size()) dx.push_back((positions[i] - positions[i - 1]).norm());
+    }
+  if (dt.empty()) return std::nullopt;
+  return ScanSpacing{median(std::move(dt)), dx.empty() ? 0.0 : median(std::move(dx))};
 }
 
 std::string sparseScansWarning(double median_seconds, double median_metres) {

@@ -158,15 +158,11 @@ bool OutputWriter::givenPosesArePlanar() const {
   return true;
 }
 
-std::optional<OutputWriter::Spacing> OutputWriter::scanSpacing() const {
-  std::vector<double> dt, dx;
-  for (std::size_t i = 1; i < times_.size(); ++i)
-    if (times_[i] - times_[i - 1] > 1e-3) {
-      dt.push_back(times_[i] - times_[i - 1]);
-      dx.push_back((poses_[i].translation() - poses_[i - 1].translation()).norm());
-    }
-  if (dt.empty()) return std::nullopt;
-  return Spacing{median(std::move(dt)), median(std::move(dx))};
+std::optional<ScanSpacing> OutputWriter::scanSpacing() const {
+  std::vector<Eigen::Vector3d> at;
+  at.reserve(poses_.size());
+  for (const auto& p : poses_) at.push_back(p.translation());
+  return cleanmap::scanSpacing(times_, at);
 }
 
 std::optional<double> OutputWriter::measuredSensorHeight() const {

@@ -205,15 +205,6 @@ struct RawlogSource::Impl {
       if (f.what != "image") noteExternal(f, true);
   }
 
-  // A .simplemap or .simplemap.gz file, by its name: its one object's failure is then said as such.
-  bool namedSimplemap() const {
-    const std::string name = fs::path(path).filename().string();
-    for (const std::string ext : {".simplemap", ".simplemap.gz"})
-      if (name.size() > ext.size() && name.compare(name.size() - ext.size(), ext.size(), ext) == 0)
-        return true;
-    return false;
-  }
-
   // Reads one rawlog entry; false at a clean end of file. We deserialize ourselves instead of
   // CRawlog::getActionObservationPairOrObservation, which prints and swallows errors, so a
   // truncated rawlog would look complete.
@@ -232,14 +223,14 @@ struct RawlogSource::Impl {
         eof = true;
         return false;
       }
-      if (entry == 0 && namedSimplemap())
+      if (entry == 0 && isSimplemapName(path))
         throw Error(path, "is a simplemap cut short (the file ends inside its one object)");
       if (entry == 0)
         throw Error(path, "is not an MRPT rawlog, or is truncated inside its first entry");
       throw Error(path, "truncated rawlog at entry " + std::to_string(entry) +
                             " (the file ends inside an object)");
     } catch (const std::exception& e) {
-      if (entry == 0 && namedSimplemap())  // one object: MRPT's message says no more than this
+      if (entry == 0 && isSimplemapName(path))  // one object: MRPT's message says no more than this
         throw Error(path, "is not a simplemap MRPT can read (cut short, corrupt, or another file)");
       if (entry == 0)
         throw Error(path,
@@ -496,6 +487,14 @@ bool RawlogSource::isSimplemap() const {
 
 const std::set<std::string>& RawlogSource::externalFolders() const {
   return impl_->external_dirs;
+}
+
+bool isSimplemapName(const std::string& path) {
+  const std::string name = fs::path(path).filename().string();
+  for (const std::string ext : {".simplemap", ".simplemap.gz"})
+    if (name.size() > ext.size() && name.compare(name.size() - ext.size(), ext.size(), ext) == 0)
+      return true;
+  return false;
 }
 
 std::vector<ExternalFile> externalFiles(const ::mrpt::obs::CObservation& obs) {

@@ -39,9 +39,7 @@ RawlogWriter::RawlogWriter(const std::string& path, const RawlogWriteOptions& op
     fs::create_directories(target.parent_path(), ec);
     if (ec) throw Error(target.parent_path().string(), "cannot create directory: " + ec.message());
   }
-  const std::string ext = ".simplemap";
-  simplemap_ =
-      path.size() > ext.size() && path.compare(path.size() - ext.size(), ext.size(), ext) == 0;
+  simplemap_ = isSimplemapName(path);
   impl_->tmp = path + ".tmp." + std::to_string(::getpid());
   if (!impl_->out.open(impl_->tmp)) throw Error(path, "cannot open for writing");
   impl_->open = true;

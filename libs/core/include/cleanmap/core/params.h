@@ -3,6 +3,7 @@
 // truth: ini files and CLI flags are parsed into these structs at the boundary.
 #pragma once
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -348,6 +349,14 @@ double scanPeriod(const std::vector<double>& stamps);
 int windowScans(const DsParams& ds, const std::vector<double>& stamps, double* rate_hz = nullptr);
 /// The stride of a window of K scans: ds.window_stride, or auto max(1, K / kDefaultWindowK).
 int windowStride(const DsParams& ds, int k);
+/// The median time (s) and distance (m) between consecutive scans, over the pairs whose times
+/// grow by more than 1 ms; `positions` (one per time, or none: metres 0) are where the scans
+/// were taken. nullopt where there is no such pair (one scan, no times).
+struct ScanSpacing {
+  double seconds = 0, metres = 0;
+};
+std::optional<ScanSpacing> scanSpacing(const std::vector<double>& times,
+                                       const std::vector<Eigen::Vector3d>& positions);
 /// DESIGN §2b: the window compares neighbouring sweeps. Scans whose median interval is over
 /// 0.25 s (a lidar sweeps at 5-20 Hz: a selection, as a SLAM's keyframes are) and whose median
 /// distance apart is over 1 m flag more static points. What the apps say of it, from "the scans

@@ -105,12 +105,8 @@ class OutputWriter {
   /// True where the input gave every pose (three scans or more) and they are planar: the same
   /// height, no roll, no pitch (within 1e-6 m / rad), as a 2D SLAM's (x, y, heading) are.
   bool givenPosesArePlanar() const;
-  /// The median time (s) and distance (m) between consecutive scans, over the pairs whose times
-  /// grow by more than 1 ms; nullopt where there is none (one scan, no times).
-  struct Spacing {
-    double seconds = 0, metres = 0;
-  };
-  std::optional<Spacing> scanSpacing() const;
+  /// cleanmap::scanSpacing of the scans so far, at their poses.
+  std::optional<ScanSpacing> scanSpacing() const;
   /// DESIGN §2.1: the scans whose estimated pose is the motion model's guess because GICP's
   /// alignment was refused, counted by reason (e.g. "degenerate scene"), most frequent first.
   std::vector<std::pair<std::string, std::size_t>> refusedAlignments() const;

@@ -125,6 +125,10 @@ class RawlogSource : public FrameSource {
   std::unique_ptr<Impl> impl_;
 };
 
+/// A simplemap by its file name: ".simplemap" or ".simplemap.gz" (MRPT's tools' names). The
+/// writer writes a CSimpleMap to such a path, and the apps read one as keyframes.
+bool isSimplemapName(const std::string& path);
+
 /// Per-sensorLabel counts as the messages give them: 'FRONT' (3), 'LIDAR' (24).
 std::string labelCounts(const std::map<std::string, std::size_t>& counts);
 
