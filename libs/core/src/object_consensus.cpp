@@ -4,6 +4,7 @@
 #include <Eigen/Core>
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numeric>
 #include <stdexcept>
 #include <string>
@@ -244,10 +245,56 @@ void groupObjects(const std::vector<PointXYZI>& points, const std::vector<uint8_
   if (split) splitOnLowSurfaces(points, cc, reach, links);
 }
 
+std::vector<float> componentWidths(const ObjectComponents& cc, double foot) {
+  const std::size_t nv = cc.voxels.size();
+  std::vector<int> z_lo(nv, std::numeric_limits<int>::max());
+  for (std::size_t v = 0; v < nv; ++v)
+    z_lo[cc.root_of[v]] = std::min(z_lo[cc.root_of[v]], cc.voxels[v].z());
+  // The layers from ceil(foot / side) above the lowest up: a sidewalk a car touches is not its
+  // width, nor is a car's its sills' (both are rule 2's foot).
+  const int up = foot > 0 ? static_cast<int>(std::ceil(foot / cc.side - 1e-9)) : 0;
+  struct Moments {
+    double n = 0, x = 0, y = 0, xx = 0, xy = 0, yy = 0;
+    void add(double a, double b) {
+      n += 1;
+      x += a;
+      y += b;
+      xx += a * a;
+      xy += a * b;
+      yy += b * b;
+    }
+  };
+  std::vector<Moments> raised(nv), all(nv);
+  for (std::size_t v = 0; v < nv; ++v) {
+    const uint32_t r = cc.root_of[v];
+    const Eigen::Vector3i& c = cc.voxels[v];
+    all[r].add(c.x(), c.y());
+    if (c.z() >= z_lo[r] + up) raised[r].add(c.x(), c.y());
+  }
+  std::vector<float> width(nv, 0.0f);
+  for (std::size_t v = 0; v < nv; ++v) {
+    if (cc.root_of[v] != v) continue;
+    const Moments& m = raised[v].n > 0 ? raised[v] : all[v];
+    const double mx = m.x / m.n, my = m.y / m.n;
+    const double a = m.xx / m.n - mx * mx, b = m.xy / m.n - mx * my, d = m.yy / m.n - my * my;
+    const double lambda_min = 0.5 * (a + d - std::sqrt((a - d) * (a - d) + 4.0 * b * b));
+    width[v] = static_cast<float>(std::sqrt(12.0 * std::max(0.0, lambda_min)) * cc.side);
+  }
+  return width;
+}
+
 namespace {
 
 bool vehicleSized(const Eigen::Vector3f& lo, const Eigen::Vector3f& hi, const ObjectParams& p) {
   return cleanmap::vehicleSized(lo, hi, p.max_length, p.max_height);
+}
+
+// Per voxel (at its component's root): wider than any vehicle (ObjectParams::max_width).
+std::vector<uint8_t> wideComponents(const ObjectComponents& cc, const ObjectParams& p) {
+  const std::vector<float> w = componentWidths(cc, p.foot_height);
+  std::vector<uint8_t> wide(w.size(), 0);
+  for (std::size_t v = 0; v < w.size(); ++v) wide[v] = w[v] > p.max_width;
+  return wide;
 }
 
 }  // namespace
@@ -401,6 +448,7 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
     Eigen::Vector3f sum = Eigen::Vector3f::Zero();
   };
   std::vector<Comp> comps(voxels.size());
+  const std::vector<uint8_t> wide = wideComponents(cc, p);
   for (std::size_t i = 0; i < points.size(); ++i) {
     if (point_voxel[i] == UINT32_MAX) continue;
     Comp& c = comps[root_of[point_voxel[i]]];
@@ -473,13 +521,18 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
     if (c.n == 0) continue;
     ++st.objects;
     const bool vehicle_sized = vehicleSized(c.lo, c.hi, p);
+    // Rule 2's width: what is wider than any vehicle never moves as a whole (doc/OBJECTS.md).
+    const bool movable = vehicle_sized && !wide[v];
     if (in_moving_object)
       whole[v] = vehicle_sized && c.moving == c.n && static_cast<int>(c.n) >= p.min_moving;
     // Partly moving with at least min_moving points and `share` of them.
     const auto partly = [&](double share) {
-      return vehicle_sized && static_cast<int>(c.moving) >= p.min_moving &&
+      return movable && static_cast<int>(c.moving) >= p.min_moving &&
              static_cast<double>(c.moving) >= share * static_cast<double>(c.n) && c.moving < c.n;
     };
+    if (vehicle_sized && wide[v] && static_cast<int>(c.moving) >= p.min_moving &&
+        static_cast<double>(c.moving) >= p.static_fraction * static_cast<double>(c.n))
+      ++st.wide_objects_left;  // its share would have turned it or kept it moving
     if (partly(p.moving_fraction)) {
       turn[v] = 1;
       ++st.moving_objects;
@@ -487,7 +540,7 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
       turn[v] = 1;  // hysteresis: it moved in the previous scan and is still partly moving
       ++st.moving_objects;
       ++st.persisted;
-    } else if (rules.has_left && p.persist_radius > 0 && vehicle_sized && c.moving < c.n &&
+    } else if (rules.has_left && p.persist_radius > 0 && movable && c.moving < c.n &&
                2 * c.near_prev >= c.n && leftItsPlace(v)) {
       // Rule 4 under static_fraction: it moved before and has left where it is now (or the
       // scans after it are too few to tell); has_left says what leaving takes (the caller's).
@@ -498,7 +551,7 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
       ++st.moving_objects;
       ++st.persisted;
       ++st.left_place;
-    } else if (rules.measured && vehicle_sized && c.moving < c.n && c.n >= rules.measured_points &&
+    } else if (rules.measured && movable && c.moving < c.n && c.n >= rules.measured_points &&
                static_cast<double>(c.moving) < p.moving_fraction * static_cast<double>(c.n) &&
                measuredMoving(v)) {
       // Rule 7: its outline moved between the scans half a window before and after it.
@@ -523,7 +576,7 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
     const auto candidate = [&](uint32_t v) {
       const Comp& c = comps[v];
       return c.n > 0 && turn[v] != 1 && c.moving < c.n && static_cast<int>(c.n) >= p.min_moving &&
-             vehicleSized(c.lo, c.hi, p);
+             vehicleSized(c.lo, c.hi, p) && !wide[v];
     };
     const auto isWhole = [&](uint32_t v) {
       const Comp& c = comps[v];

@@ -52,6 +52,7 @@ ScanStats& ScanStats::operator+=(const ScanStats& o) {
   mover_feet += o.mover_feet;
   mover_roofs += o.mover_roofs;
   consensus_still_part_left += o.consensus_still_part_left;
+  consensus_wide_left += o.consensus_wide_left;
   objects_persisted += o.objects_persisted;
   objects_left_place += o.objects_left_place;
   objects_measured += o.objects_measured;

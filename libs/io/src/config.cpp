@@ -125,6 +125,7 @@ std::map<std::string, Key> table(PipelineParams& p) {
       {"object.min_moving", i(p.object.min_moving)},
       {"object.max_length", d(p.object.max_length)},
       {"object.max_height", d(p.object.max_height)},
+      {"object.max_width", d(p.object.max_width)},
       {"object.persist_radius", d(p.object.persist_radius)},
       {"object.foot_height", d(p.object.foot_height)},
       {"object.feet", Key{[&p](double v) { p.object.feet = v != 0; },

@@ -562,6 +562,7 @@ void OutputWriter::finish(double wall_s, const FreeSpaceMap* free_space) {
                  {"consensus_body_points_kept", total.consensus_body_kept},
                  {"consensus_foot_points_left", total.consensus_foot_left},
                  {"consensus_still_part_points_left", total.consensus_still_part_left},
+                 {"consensus_wide_objects_left", total.consensus_wide_left},
                  {"mover_feet_points", total.mover_feet},
                  {"mover_roof_points", total.mover_roofs},
                  {"no_evidence_points", total.no_evidence},

@@ -34,6 +34,9 @@ struct ObjectConsensusStats {
   /// (ConsensusRules::has_left).
   std::size_t left_place = 0;
   std::size_t measured = 0;  ///< of moving_objects, those rule 7 measured moving
+  /// Components of vehicle extent wider than max_width with min_moving and static_fraction of
+  /// moving points, which rules 2, 4, 5 and 7 therefore did not turn moving as a whole.
+  std::size_t wide_objects_left = 0;
 };
 
 /// Rule 5's objects of one scan (ConsensusRules::whole_objects): each voxel (ObjectParams::voxel)
@@ -138,6 +141,13 @@ struct ObjectComponents {
 /// voxels of side `side`. Deterministic; O(points).
 void groupObjects(const std::vector<PointXYZI>& points, const std::vector<uint8_t>& member,
                   double side, ObjectComponents& out, const RingReach& reach = {});
+
+/// Rule 2's width (doc/OBJECTS.md): per voxel, at its component's root (0 elsewhere), the spread
+/// of the component's voxels across their main horizontal axis, as the width of a uniform strip
+/// of that variance (sqrt(12 lambda_min), metres): about 2.5 m for a truck seen from any side,
+/// 9 m for a hedge's corner 12 x 14 m. Only its voxels from ceil(foot / side) layers above its
+/// lowest count (all where it has none there): not the sidewalk a car touches.
+std::vector<float> componentWidths(const ObjectComponents& cc, double foot);
 
 /// Calls f(voxel) for the voxels of `cc` that voxel v's slice joins across rings (RingReach):
 /// where both are pooled, those of v's 3 x 3 column 2 to the reach's voxels above it (at most

@@ -122,6 +122,10 @@ struct ObjectParams {
   double static_fraction = 0.1;  ///< an object with a smaller share of moving points is static
   double max_length = 25.0;      ///< m; larger horizontal extents are structures, left alone
   double max_height = 5.0;       ///< m; taller objects are structures, left alone
+  /// m; a component of vehicle extent that is wider than this (componentWidths: about 2.5 m for
+  /// a truck, 9 m for a hedge's corner) is no vehicle: it is never turned moving as a whole
+  /// (rules 2, 4, 5 and 7), only static where few of its points are moving (doc/OBJECTS.md).
+  double max_width = 6.0;
   /// Hysteresis over time: a vehicle-sized object with a share of moving points between
   /// static_fraction and moving_fraction stays moving if most of its points lie within
   /// `persist_radius` of the previous scan's moving points (0 = off).

@@ -59,6 +59,8 @@ struct ScanStats {
   std::size_t mover_roofs = 0;  ///< a sparse lidar's roof stripes taken along (rule 6)
   /// points of a moving component's raised parts with no moving point of their own, left static
   std::size_t consensus_still_part_left = 0;
+  /// components of vehicle extent too wide for a vehicle, not turned moving whole (rule 2)
+  std::size_t consensus_wide_left = 0;
   std::size_t empty = 0;  ///< 1 for a scan without valid points (summed: empty scans)
   /// DESIGN §3, the camera check: scans that had an image; decision units (cells of moving
   /// points) tested, of which confirmed moving by the colour / depth test, relabelled static
