@@ -213,6 +213,20 @@ void BM_ObjectConsensus(benchmark::State& state) {
   }
 }
 
+void BM_ComponentWidths(benchmark::State& state) {
+  // Rule 2's width (doc/OBJECTS.md) of every component of the scan's grouping, which
+  // BM_ObjectConsensus includes: its share of that stage.
+  const auto& in = inputs();
+  const auto& c = in.scans[in.center];
+  ObjectComponents cc;
+  groupObjects(c.points, in.member, ObjectParams{}.voxel, cc, ringReach(ObjectParams{}, 0.0));
+  for (auto _ : state) {
+    const std::vector<float> w = componentWidths(cc, ObjectParams{}.foot_height);
+    benchmark::DoNotOptimize(w.data());
+  }
+  state.counters["voxels"] = static_cast<double>(cc.voxels.size());
+}
+
 void BM_FreeSpaceInsert(benchmark::State& state) {
   // The window's 21 scans into a fresh map: time per scan.
   const auto& in = inputs();
@@ -319,6 +333,7 @@ BENCHMARK(BM_SensorChecks)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_Registration)->Arg(1)->Arg(2)->UseRealTime()->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_DuplicateFilter)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_ObjectConsensus)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_ComponentWidths)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_FreeSpaceInsert)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_FreeSpaceInsertKnownArea)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_MapDecision)->Arg(0)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond);
