@@ -532,7 +532,7 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
     };
     if (vehicle_sized && wide[v] && static_cast<int>(c.moving) >= p.min_moving &&
         static_cast<double>(c.moving) >= p.static_fraction * static_cast<double>(c.n))
-      ++st.wide_objects_left;  // its share would have turned it or kept it moving
+      ++st.wide_objects_left;  // a share the rules below would weigh
     if (partly(p.moving_fraction)) {
       turn[v] = 1;
       ++st.moving_objects;
