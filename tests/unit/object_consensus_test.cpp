@@ -735,7 +735,8 @@ TEST(ObjectConsensus, AComponentsWidthIsATrucksWhateverItsHeadingAndAHedgeCorner
 TEST(ObjectConsensus, AHedgeCornerWiderThanAVehicleIsNeverMovedWhole) {
   // kitti_residential every third scan: the windowed test flagged 11-35 % of a hedge's corner,
   // which rule 2 or the hysteresis then moved whole (8,447 false positives in one scan). What is
-  // wider than object.max_width keeps its points' labels; a truck of that extent still moves.
+  // wider than object.max_width keeps its points' labels (a 16 m truck still moves:
+  // LongVehicleWithMovingEndsMovesAsAWhole).
   std::vector<PointXYZI> pts;
   addWall(pts, -5, -6, -5, -20, 2.6f);
   addWall(pts, -5.1f, -20, -17, -20, 2.6f);

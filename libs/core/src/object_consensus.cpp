@@ -289,14 +289,6 @@ bool vehicleSized(const Eigen::Vector3f& lo, const Eigen::Vector3f& hi, const Ob
   return cleanmap::vehicleSized(lo, hi, p.max_length, p.max_height);
 }
 
-// Per voxel (at its component's root): wider than any vehicle (ObjectParams::max_width).
-std::vector<uint8_t> wideComponents(const ObjectComponents& cc, const ObjectParams& p) {
-  const std::vector<float> w = componentWidths(cc, p.foot_height);
-  std::vector<uint8_t> wide(w.size(), 0);
-  for (std::size_t v = 0; v < w.size(); ++v) wide[v] = w[v] > p.max_width;
-  return wide;
-}
-
 }  // namespace
 
 // Rule 5's objects: the components of the points of `mask`.
@@ -448,7 +440,7 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
     Eigen::Vector3f sum = Eigen::Vector3f::Zero();
   };
   std::vector<Comp> comps(voxels.size());
-  const std::vector<uint8_t> wide = wideComponents(cc, p);
+  const std::vector<float> width = componentWidths(cc, p.foot_height);  // per root, rule 2
   for (std::size_t i = 0; i < points.size(); ++i) {
     if (point_voxel[i] == UINT32_MAX) continue;
     Comp& c = comps[root_of[point_voxel[i]]];
@@ -522,16 +514,17 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
     ++st.objects;
     const bool vehicle_sized = vehicleSized(c.lo, c.hi, p);
     // Rule 2's width: what is wider than any vehicle never moves as a whole (doc/OBJECTS.md).
-    const bool movable = vehicle_sized && !wide[v];
+    const bool wide = width[v] > p.max_width;
+    const bool movable = vehicle_sized && !wide;
     if (in_moving_object)
       whole[v] = vehicle_sized && c.moving == c.n && static_cast<int>(c.n) >= p.min_moving;
     // Partly moving with at least min_moving points and `share` of them.
-    const auto partly = [&](double share) {
-      return movable && static_cast<int>(c.moving) >= p.min_moving &&
+    const auto share_of = [&](double share) {
+      return static_cast<int>(c.moving) >= p.min_moving &&
              static_cast<double>(c.moving) >= share * static_cast<double>(c.n) && c.moving < c.n;
     };
-    if (vehicle_sized && wide[v] && static_cast<int>(c.moving) >= p.min_moving &&
-        static_cast<double>(c.moving) >= p.static_fraction * static_cast<double>(c.n))
+    const auto partly = [&](double share) { return movable && share_of(share); };
+    if (vehicle_sized && wide && share_of(p.static_fraction))
       ++st.wide_objects_left;  // a share the rules below would weigh
     if (partly(p.moving_fraction)) {
       turn[v] = 1;
@@ -576,7 +569,7 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
     const auto candidate = [&](uint32_t v) {
       const Comp& c = comps[v];
       return c.n > 0 && turn[v] != 1 && c.moving < c.n && static_cast<int>(c.n) >= p.min_moving &&
-             vehicleSized(c.lo, c.hi, p) && !wide[v];
+             vehicleSized(c.lo, c.hi, p) && !(width[v] > p.max_width);
     };
     const auto isWhole = [&](uint32_t v) {
       const Comp& c = comps[v];

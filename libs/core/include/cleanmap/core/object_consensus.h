@@ -35,7 +35,7 @@ struct ObjectConsensusStats {
   std::size_t left_place = 0;
   std::size_t measured = 0;  ///< of moving_objects, those rule 7 measured moving
   /// Components of vehicle extent wider than max_width with at least min_moving and
-  /// static_fraction of their points moving: rules 2, 4, 5 and 7 do not move them whole.
+  /// static_fraction of their points moving, not all: rules 2, 4, 5 and 7 do not move them whole.
   std::size_t wide_objects_left = 0;
 };
 
