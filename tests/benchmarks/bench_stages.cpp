@@ -6,7 +6,8 @@
 // (MovingTest::testOrder; CLEANMAP_BENCH_SCAN_ORDER=1: the scan's). `BM_MovingTest/0` is the fast
 // beam maths, `/1` the libm reference path (BeamMath): their ratio is the vectorised masses' gain;
 // `/2` the fast maths with the pose error of estimated poses (`--poses gicp`: the scan-conflict
-// check's widened cone, issue #11).
+// check's widened cone, issue #11); `/3` the fast maths with the empty runs (DESIGN §2b), as the
+// pipeline tests: `/0` and `/1` are the votes alone.
 // usage: cleanmap-bench-stages [--data DIR] [google-benchmark flags]
 #include <benchmark/benchmark.h>
 
@@ -63,7 +64,9 @@ const Inputs& inputs() {
     const double radius = ds.search_lambdas * ds.lambda_theta;
     for (const auto& s : r.scans) r.beams.emplace_back(s.points, radius);
     for (std::size_t i = 0; i < r.scans.size(); ++i)
-      if (i != r.center) r.window.push_back({&r.beams[i], r.scans[i].pose.inverse()});
+      if (i != r.center)
+        r.window.push_back({&r.beams[i], r.scans[i].pose.inverse(), 0.0, 0.0,
+                            static_cast<int>(i) - static_cast<int>(r.center)});
     // As the pipeline's window with gicp poses: relative_error times the path between the scans.
     const double e = RegistrationParams{}.relative_error;
     for (std::size_t i = 0; i < r.scans.size(); ++i) {
@@ -71,8 +74,8 @@ const Inputs& inputs() {
       double path = 0;
       for (std::size_t a = std::min(i, r.center); a < std::max(i, r.center); ++a)
         path += (r.scans[a + 1].pose.translation() - r.scans[a].pose.translation()).norm();
-      r.window_estimated.push_back(
-          {&r.beams[i], r.scans[i].pose.inverse(), (e * path) * (e * path)});
+      r.window_estimated.push_back({&r.beams[i], r.scans[i].pose.inverse(), (e * path) * (e * path),
+                                    0.0, static_cast<int>(i) - static_cast<int>(r.center)});
     }
     const auto& c = r.scans[r.center];
     std::vector<Eigen::Vector3f> tested;  // sensor frame
@@ -125,10 +128,11 @@ void BM_MovingTest(benchmark::State& state) {
   const auto& in = inputs();
   const MovingTest t(DsParams{}, state.range(0) == 1 ? BeamMath::kReference : BeamMath::kFast);
   const auto& window = state.range(0) == 2 ? in.window_estimated : in.window;
+  const bool runs = state.range(0) == 3;
   MovingTestStats st;
   std::size_t moving = 0;
   for (auto _ : state)
-    for (const auto& p : in.tested) moving += t.isMoving(p, window, &st);
+    for (const auto& p : in.tested) moving += t.isMoving(p, window, &st, 0, runs);
   const double n = static_cast<double>(state.iterations());
   state.counters["tested"] = static_cast<double>(in.tested.size());
   state.counters["moving"] = static_cast<double>(moving) / n;
@@ -327,7 +331,7 @@ void BM_MapDecision(benchmark::State& state) {
 
 BENCHMARK(BM_BeamIndex)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_Grazing)->Unit(benchmark::kMillisecond);
-BENCHMARK(BM_MovingTest)->Arg(0)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_MovingTest)->Arg(0)->Arg(1)->Arg(2)->Arg(3)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_Ground)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_SensorChecks)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_Registration)->Arg(1)->Arg(2)->UseRealTime()->Unit(benchmark::kMillisecond);

@@ -190,6 +190,18 @@ TEST(Config, BadIniIsAClearError) {
         io::parseParams("[ds]\nscan_conflict = 0\n", "x.ini", q);
       },
       "x.ini", "ds.scan_conflict must be in (0, 1]");
+  for (const char* bad : {"-0.1", "1.5"})
+    test::expectError(
+        [&] {
+          PipelineParams q;
+          io::parseParams(std::string("[ds]\nempty_run = ") + bad + "\n", "x.ini", q);
+        },
+        "x.ini", "ds.empty_run must be in [0, 1] (0 = off)");
+  {  // 0 turns the empty runs off (DESIGN §2b)
+    PipelineParams q;
+    io::parseParams("[ds]\nempty_run = 0\n", "x.ini", q);
+    EXPECT_EQ(q.ds.empty_run, 0.0);
+  }
   test::expectError(
       [] {
         PipelineParams q;

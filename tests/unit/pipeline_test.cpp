@@ -512,6 +512,85 @@ TEST(MovingTest, ItsWorkIsCounted) {
   EXPECT_EQ(all.early, 0u);
 }
 
+namespace {
+// A window of scans at the origin, offsets -n_before..-1 and 1..n_after, each seeing the place
+// empty (every beam passes it) or occupied (a surface there) as `empty(offset)` says, or nothing
+// (no beams) where `unseen(offset)`.
+template <class Empty, class Unseen>
+std::vector<WindowScan> sidedWindow(const BeamIndex& passes, const BeamIndex& hits, int n_before,
+                                    int n_after, Empty empty, Unseen unseen) {
+  std::vector<WindowScan> w;
+  for (int o = -n_before; o <= n_after; ++o) {
+    if (o == 0) continue;
+    WindowScan s{unseen(o) ? nullptr : (empty(o) ? &passes : &hits), Eigen::Isometry3d::Identity()};
+    s.offset = o;
+    w.push_back(s);
+  }
+  return w;
+}
+
+// The two scans of the empty-run tests: every beam passing P's place, or a surface there at 10 m
+// whose border's beams reach the wall at 20 m as the passing scan's do, so that both weigh their
+// votes alike (l of Eq. 8, by the farthest return).
+struct RunScans {
+  DsParams p;
+  BeamIndex passes{hedgeScan([](int, int) { return false; }), p.search_lambdas* p.lambda_theta};
+  BeamIndex hits{hedgeScan([](int iy, int) { return std::abs(iy) < 90; }),
+                 p.search_lambdas* p.lambda_theta};
+  Eigen::Vector3d at{10.0, 0.03, 0.01};
+  template <class Empty, class Unseen>
+  std::vector<WindowScan> window(Empty empty, Unseen unseen) const {
+    return sidedWindow(passes, hits, 10, 10, empty, unseen);
+  }
+};
+}  // namespace
+
+TEST(MovingTest, ASlowMoversPlaceEmptyFromTheWindowsFarEndIsMoving) {
+  // DESIGN §2b, "Empty runs". A walker coming towards the sensor at 0.75 m/s: the scans before
+  // this one saw his place empty (he was further away), the ten after it see his front nearer
+  // than P, within the occupied mass of Eq. 3. The votes tie or lean static; the unbroken run of
+  // empty votes from the window's far end says he is moving.
+  const RunScans r;
+  ASSERT_DOUBLE_EQ(r.p.empty_run, 0.7);
+  const MovingTest t(r.p);
+  auto none = [](int) { return false; };
+  // The scan just before still saw him there (he moved 7.5 cm): 9 empty votes against 11. The
+  // run of 9 from the far end is over 0.7 x 10.
+  const auto leaning = r.window([](int o) { return o < -1; }, none);
+  EXPECT_FALSE(t.isMoving(r.at, leaning, nullptr));  // the paper's votes alone
+  EXPECT_TRUE(t.isMoving(r.at, leaning, nullptr, 0, true));
+  DsParams off = r.p;
+  off.empty_run = 0;
+  EXPECT_FALSE(MovingTest(off).isMoving(r.at, leaning, nullptr, 0, true));
+  // Scans that see nothing there (no beams) are passed over: 8 empty votes after 2 unseen.
+  const auto gaps = r.window([](int o) { return o < 0; }, [](int o) { return o < -8; });
+  EXPECT_TRUE(t.isMoving(r.at, gaps, nullptr, 0, true));
+  // The same on the other side: a place he has left, seen empty by the later scans.
+  EXPECT_TRUE(t.isMoving(r.at, r.window([](int o) { return o > 1; }, none), nullptr, 0, true));
+}
+
+TEST(MovingTest, EmptyVotesBrokenByAnOccupiedOneOrTooFewStayStatic) {
+  // A static point's empty votes (foliage, a wall seen from afar at a grazing angle) come with
+  // occupied ones: a run needs 7 empty votes from the far end before any occupied one.
+  const RunScans r;
+  const MovingTest t(r.p);
+  auto none = [](int) { return false; };
+  auto moving = [&](auto empty) {
+    return t.isMoving(r.at, r.window(empty, none), nullptr, 0, true);
+  };
+  // Nine empty votes, but the furthest scan saw the surface.
+  EXPECT_FALSE(moving([](int o) { return o < 0 && o > -10; }));
+  // Empty and occupied alternating before, occupied after.
+  EXPECT_FALSE(moving([](int o) { return o < 0 && o % 2; }));
+  // Six empty votes from the far end, then occupied: one short. The seventh makes it.
+  EXPECT_FALSE(moving([](int o) { return o < -4; }));
+  EXPECT_TRUE(moving([](int o) { return o < -3; }));
+  // Scans without offsets (0: not known) have no sides: the votes alone decide.
+  auto unsided = r.window([](int o) { return o < -1; }, none);
+  for (auto& s : unsided) s.offset = 0;
+  EXPECT_FALSE(t.isMoving(r.at, unsided, nullptr, 0, true));
+}
+
 TEST(MovingTest, ThinPoleWithRegistrationErrorStaysStatic) {
   // A 12 cm pole at x = 10 m; another scan measured a point of its edge 4 cm off to the side
   // (a pose error along the track). Some beams near that direction hit the pole, others pass it.

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 #include <optional>
 #include <tuple>
 #include <type_traits>
@@ -399,7 +400,7 @@ ds::Mass MovingTest::scanMassAt(const Eigen::Vector3d& pl, double d, const Windo
 std::optional<bool> MovingTest::combineWindow(const Eigen::Vector3d& p_world,
                                               const std::vector<WindowScan>& window,
                                               MovingTestStats* stats, bool stop_early,
-                                              ds::Mass& acc, uint8_t edges) const {
+                                              ds::Mass& acc, uint8_t edges, int8_t* votes) const {
   if (stats) ++stats->points;
   constexpr double kSafety = 1e-6;  // far above the rounding of the sums
   struct Visit {
@@ -443,10 +444,14 @@ std::optional<bool> MovingTest::combineWindow(const Eigen::Vector3d& p_world,
     }
     const Visit& v = visits[k];
     rest -= v.w;
-    if (v.w == 0.0) continue;  // no beams, or P at the sensor: unknown
+    if (v.w == 0.0) {  // no beams, or P at the sensor: unknown
+      if (votes) votes[v.i] = kUnknown;
+      continue;
+    }
     if (stats) ++stats->scans_visited;
     const ds::Mass m = scanMassAt(v.pl, v.d, window[v.i], stats, edges);
     const ds::Mass dm = ds::discretise(m, ds::beliefAtRatio(v.ratio, p_));
+    if (votes) votes[v.i] = dm.e > 0 ? kEmpty : (dm.o > 0 ? kOccupied : kUnknown);
     if (dm.e > 0) lead -= std::log1p(-dm.e);
     if (dm.o > 0) lead += std::log1p(-dm.o);
     any = any || dm.u < 1.0;
@@ -468,10 +473,83 @@ ds::Mass MovingTest::windowMass(const Eigen::Vector3d& p_world,
 }
 
 bool MovingTest::isMoving(const Eigen::Vector3d& p_world, const std::vector<WindowScan>& window,
-                          MovingTestStats* stats, uint8_t edges) const {
+                          MovingTestStats* stats, uint8_t edges, bool empty_run,
+                          bool* by_run) const {
   ds::Mass acc;
-  if (const auto early = combineWindow(p_world, window, stats, true, acc, edges)) return *early;
-  return ds::isMoving(acc);
+  if (by_run) *by_run = false;
+  if (!empty_run || p_.empty_run <= 0) {
+    if (const auto early = combineWindow(p_world, window, stats, true, acc, edges)) return *early;
+    return ds::isMoving(acc);
+  }
+  constexpr std::size_t kInline = 64;
+  std::array<int8_t, kInline> inline_votes;
+  std::vector<int8_t> heap_votes;
+  int8_t* votes = inline_votes.data();
+  if (window.size() > kInline) {
+    heap_votes.resize(window.size());
+    votes = heap_votes.data();
+  }
+  std::fill(votes, votes + window.size(), kNotCast);
+  const auto early = combineWindow(p_world, window, stats, true, acc, edges, votes);
+  if (early ? *early : ds::isMoving(acc)) return true;
+  const bool run = emptyRun(p_world, window, votes, stats, edges);
+  if (by_run) *by_run = run;
+  return run;
+}
+
+int8_t MovingTest::vote(const Eigen::Vector3d& p_world, const WindowScan& s, MovingTestStats* stats,
+                        uint8_t edges) const {
+  const Eigen::Vector3d pl = s.world_to_sensor * p_world;
+  const double d = pl.norm();
+  if (!s.beams || s.beams->empty() || d < 1e-3) return kUnknown;  // as combineWindow
+  if (stats) ++stats->scans_visited;
+  const ds::Mass m = scanMassAt(pl, d, s, stats, edges);
+  const ds::Mass dm =
+      ds::discretise(m, ds::beliefAtRatio(ds::rangeRatio(d, s.beams->farthest()), p_));
+  return dm.e > 0 ? kEmpty : (dm.o > 0 ? kOccupied : kUnknown);
+}
+
+// DESIGN §2b, "Empty runs". Each side of the window is read from the scan furthest in time
+// towards P's own; the votes combineWindow did not cast are cast here, until the run is long
+// enough, meets an occupied vote, or cannot be long enough with the scans left.
+bool MovingTest::emptyRun(const Eigen::Vector3d& p_world, const std::vector<WindowScan>& window,
+                          int8_t* votes, MovingTestStats* stats, uint8_t edges) const {
+  std::size_t before = 0, after = 0;
+  for (const WindowScan& s : window) {
+    before += s.offset < 0;
+    after += s.offset > 0;
+  }
+  const auto need = static_cast<std::size_t>(
+      std::max(1.0, std::ceil(p_.empty_run * static_cast<double>(std::max(before, after)) - 1e-9)));
+  for (const int side : {-1, 1}) {
+    const std::size_t n = side < 0 ? before : after;
+    if (n < need) continue;
+    // An occupied vote already cast with fewer than `need` scans further out ends every run
+    // before it is long enough: most static points, at no extra visit (issue #16).
+    int o_far = 0;
+    for (std::size_t i = 0; i < window.size(); ++i)
+      if (votes[i] == kOccupied) o_far = std::max(o_far, window[i].offset * side);
+    std::size_t further = 0;
+    for (const WindowScan& w : window) further += w.offset * side > o_far;
+    if (o_far > 0 && further < need) continue;
+    // This side's scans, furthest first (windows are short: a selection by repeated scans).
+    std::size_t run = 0, left = n;
+    int last = std::numeric_limits<int>::max();
+    while (run + left >= need && left > 0) {
+      std::size_t far = window.size();
+      for (std::size_t i = 0; i < window.size(); ++i) {
+        const int a = window[i].offset * side;
+        if (a > 0 && a < last && (far == window.size() || a > window[far].offset * side)) far = i;
+      }
+      if (far == window.size()) break;  // scans sharing an offset: the first of them counts
+      last = window[far].offset * side;
+      --left;
+      if (votes[far] == kNotCast) votes[far] = vote(p_world, window[far], stats, edges);
+      if (votes[far] == kOccupied) break;
+      if (votes[far] == kEmpty && ++run >= need) return true;
+    }
+  }
+  return false;
 }
 
 }  // namespace cleanmap

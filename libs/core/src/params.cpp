@@ -40,6 +40,7 @@ void validate(const PipelineParams& p, const std::string& name) {
           "ds.window_stride must be auto or in [1, " + std::to_string(kMaxWindowK) + "] scans");
   require(p.ds.scan_conflict > 0 && p.ds.scan_conflict <= 1,
           "ds.scan_conflict must be in (0, 1] (1 = off)");
+  require(p.ds.empty_run >= 0 && p.ds.empty_run <= 1, "ds.empty_run must be in [0, 1] (0 = off)");
   require(p.octree.leaf >= 0.02 && p.octree.leaf <= 10, "octree.leaf must be in [0.02, 10] m");
   require(p.octree.tau_np >= 1, "octree.tau_np must be >= 1");
   require(p.octree.fraction > 0 && p.octree.fraction <= 1, "octree.fraction must be in (0, 1]");

@@ -114,6 +114,7 @@ std::map<std::string, Key> table(PipelineParams& p) {
                            [&p] { return p.ds.ring_vote ? 1.0 : 0.0; }, true}},
       {"ds.grazing", Key{[&p](double v) { p.ds.grazing = v != 0; },
                          [&p] { return p.ds.grazing ? 1.0 : 0.0; }, true}},
+      {"ds.empty_run", d(p.ds.empty_run)},
       {"octree.leaf", d(p.octree.leaf)},
       {"octree.tau_np", i(p.octree.tau_np)},
       {"octree.fraction", d(p.octree.fraction)},

@@ -230,6 +230,7 @@ struct LaserPipeline::Work {
     relabelled.clear();
     whole.clear();
     held.clear();
+    tested_as.clear();
     measured.clear();
     grouped = false;
   }
@@ -244,7 +245,9 @@ struct LaserPipeline::Work {
   std::vector<uint8_t> moving;                 // per scan point, the final decision
   std::vector<uint8_t> relabelled;  // per scan point: moving, relabelled static by the camera
   std::vector<uint8_t> whole;       // per scan point: in a vehicle-sized object moving as a whole
-  std::vector<uint8_t> held;      // per scan point: in an object rule 4 held (the camera leaves it)
+  std::vector<uint8_t> held;  // per scan point: in an object rule 4 held (the camera leaves it)
+  std::vector<uint8_t> tested_as;  // per scan point: kVotes / kRun where tested moving (§2b)
+  static constexpr uint8_t kVotes = 1, kRun = 2;  // by the window's votes, by an empty run alone
   std::vector<uint8_t> measured;  // per scan point: in an object rule 7 measured moving
   ObjectComponents groups;        // the candidates' components (doc/OBJECTS.md rule 1) ...
   bool grouped = false;           // ... where the object consensus ran
@@ -909,7 +912,8 @@ std::vector<WindowScan> LaserPipeline::windowAround(std::size_t pos, std::size_t
       window.push_back(
           {&buf_[j]->beams,
            corrected[j] ? Eigen::Isometry3d(corrected[j]->inverse()) : buf_[j]->world_to_sensor,
-           (e * path) * (e * path), buf_[j]->ring_gap});
+           (e * path) * (e * path), buf_[j]->ring_gap,
+           static_cast<int>(j) - static_cast<int>(pos)});
     }
   return window;
 }
@@ -976,6 +980,7 @@ void LaserPipeline::classify(const std::vector<WindowScan>& window, Prepared& s,
   const WindowScan own = s.own();
   const auto workers = static_cast<std::size_t>(std::max(p_.threads, 1));
   std::vector<MovingTestStats> acc(workers);
+  w.tested_as.assign(s.scan.size(), 0);  // each point written by the one worker testing it
   parallelFor(
       order.size(), p_.threads,
       [&](std::size_t t, int worker) {
@@ -983,7 +988,11 @@ void LaserPipeline::classify(const std::vector<WindowScan>& window, Prepared& s,
         auto& stats = acc[static_cast<std::size_t>(worker)];
         w.leaf_moving[l] = decideLeaf(w.leaves[l], [&](uint32_t c) {
           const uint32_t i = w.cand[c];
-          return test_.isMoving(w.cand_world[c], window, &stats, edgeBits(s, i, own));
+          bool run = false;
+          const bool moving =
+              test_.isMoving(w.cand_world[c], window, &stats, edgeBits(s, i, own), true, &run);
+          w.tested_as[i] = moving ? (run ? Work::kRun : Work::kVotes) : 0;
+          return moving;
         });
       },
       128);  // leaves differ in work: smaller chunks balance the threads
@@ -1362,10 +1371,32 @@ void LaserPipeline::validateImages(std::size_t pos, Prepared& s, Work& w) const 
   std::vector<uint64_t> keys;
   std::vector<uint32_t> considered, cell_of;  // the points placed in cells, and their cells
   // An object rule 4 held is not compared (DESIGN §3, "Objects rule 4 holds"): its camera vote
-  // was the previous scan's, and it stays moving on evidence the images cannot resolve.
+  // was the previous scan's, and it stays moving on evidence the images cannot resolve. Nor is
+  // an object most of whose points tested moving were found by their empty runs (DESIGN §2b): a
+  // slow mover, whose images change less over the window than the colour and depth tests resolve.
+  std::vector<std::pair<uint32_t, int>> run_lead;  // component root, runs minus votes
+  if (w.grouped)
+    for (uint32_t i = 0; i < s.scan.size(); ++i)
+      if (w.tested_as[i] && w.moving[i] && s.candidate[i])
+        run_lead.emplace_back(w.groups.root_of[w.groups.point_voxel[i]],
+                              w.tested_as[i] == Work::kRun ? 1 : -1);
+  std::sort(run_lead.begin(), run_lead.end());
+  std::vector<uint32_t> run_found;  // roots where the runs lead
+  for (std::size_t a = 0, b = 0; a < run_lead.size(); a = b) {
+    int lead = 0;
+    for (b = a; b < run_lead.size() && run_lead[b].first == run_lead[a].first; ++b)
+      lead += run_lead[b].second;
+    if (lead > 0) run_found.push_back(run_lead[a].first);
+  }
+  auto found_by_run = [&](uint32_t i) {
+    if (!w.grouped) return w.tested_as[i] == Work::kRun;  // no objects: the point itself
+    return !run_found.empty() && s.candidate[i] &&
+           std::binary_search(run_found.begin(), run_found.end(),
+                              w.groups.root_of[w.groups.point_voxel[i]]);
+  };
   for (uint32_t i = 0; i < s.scan.size(); ++i) {
     if (!w.moving[i]) continue;
-    if (w.held[i]) {
+    if (w.held[i] || found_by_run(i)) {
       ++s.stats.image_held;
       continue;
     }

@@ -24,6 +24,9 @@ struct WindowScan {
   /// P's direction keeps the scan from voting empty (MovingTest::scanMass, DESIGN §2b); where its
   /// cone holds no beam, the rings around P may vote (DsParams::ring_vote).
   double ring_gap = 0.0;
+  /// Scans from P's own scan to this one (negative: before it). The empty-run rule
+  /// (DsParams::empty_run) reads each side of the window from its far end; 0 = not known.
+  int offset = 0;
 };
 
 // One per worker thread: aligned to a cache line so workers never share one (issue #16).
@@ -67,9 +70,12 @@ class MovingTest {
   /// ds::isMoving(windowMass(...)), but stops visiting scans once the rest of the window cannot
   /// change the decision (see the .cpp); the statistics then cover the scans visited.
   /// `edges` (edgesOf of P in its own scan): beams that pass P on an edge's open side are left
-  /// out, so they vote neither way.
+  /// out, so they vote neither way. `empty_run`: where the votes say static, P is still moving
+  /// if one side of the window has an empty run (DsParams::empty_run, DESIGN §2b); `by_run`, if
+  /// given, is set to whether that run alone made P moving.
   bool isMoving(const Eigen::Vector3d& p_world, const std::vector<WindowScan>& window,
-                MovingTestStats* stats, uint8_t edges = 0) const;
+                MovingTestStats* stats, uint8_t edges = 0, bool empty_run = false,
+                bool* by_run = nullptr) const;
   /// EdgeBits of P (`p`, in the sensor frame of its own scan `own`) where that scan's rings lie
   /// further apart than the beam cone (own.ring_gap); 0 for dense lidars. A ring continues P's
   /// surface if it returns within the cone in azimuth, one ring step (0.5-1.5 gaps) away in
@@ -90,7 +96,16 @@ class MovingTest {
   // (acc is then partial).
   std::optional<bool> combineWindow(const Eigen::Vector3d& p_world,
                                     const std::vector<WindowScan>& window, MovingTestStats* stats,
-                                    bool stop_early, ds::Mass& acc, uint8_t edges = 0) const;
+                                    bool stop_early, ds::Mass& acc, uint8_t edges = 0,
+                                    int8_t* votes = nullptr) const;
+  // The vote of window scan i (kEmpty, kOccupied, kUnknown), as combineWindow casts it.
+  static constexpr int8_t kEmpty = 1, kOccupied = -1, kUnknown = 0, kNotCast = 2;
+  int8_t vote(const Eigen::Vector3d& p_world, const WindowScan& s, MovingTestStats* stats,
+              uint8_t edges) const;
+  // DsParams::empty_run: whether one side of the window votes empty from its far end
+  // (`votes`: those combineWindow cast, kNotCast for the others).
+  bool emptyRun(const Eigen::Vector3d& p_world, const std::vector<WindowScan>& window,
+                int8_t* votes, MovingTestStats* stats, uint8_t edges) const;
   // scanMass with P already in the scan's sensor frame (pl, |pl| = d > 0): combineWindow has
   // both from its visit order.
   ds::Mass scanMassAt(const Eigen::Vector3d& pl, double d, const WindowScan& s,

@@ -103,6 +103,13 @@ struct DsParams {
   /// on a flat top of its own scan (the evidence slow movers drawing away had on their roofs is
   /// replaced by rule 4's far-half leaving test, doc/OBJECTS.md). false = such beams vote.
   bool grazing = true;
+  /// Our addition (DESIGN §2b, "Empty runs"): where the votes say static, P is still moving if
+  /// one side of its window, read from its far end towards P's own scan, votes empty in at least
+  /// this share of the scans of the longer side before any scan votes occupied (unknown votes are
+  /// passed over). A slow mover has left its place, or not yet reached it, for an unbroken
+  /// stretch of time; a static point's empty votes (noise, foliage, a wall seen from afar at a
+  /// grazing angle) are broken by occupied ones. 0 = off (the paper's votes alone).
+  double empty_run = 0.7;
 };
 
 /// DESIGN §2c: octree leaf sampling.
