@@ -388,6 +388,58 @@ ds::Mass MovingTest::scanMassAt(const Eigen::Vector3d& pl, double d, const Windo
   return m;
 }
 
+namespace {
+
+// A buffer of n values, in place up to N (windows are 2K + 1 scans), on the heap beyond: the
+// test's per-point scratch, without an allocation per point.
+template <class T, std::size_t N = 64>
+class SmallBuffer {
+ public:
+  explicit SmallBuffer(std::size_t n) {
+    if (n > N) heap_.resize(n);
+    data_ = n > N ? heap_.data() : inline_.data();
+  }
+  SmallBuffer(const SmallBuffer&) = delete;
+  SmallBuffer& operator=(const SmallBuffer&) = delete;
+  T* data() { return data_; }
+  T& operator[](std::size_t i) { return data_[i]; }
+
+ private:
+  std::array<T, N> inline_;
+  std::vector<T> heap_;
+  T* data_;
+};
+
+// Sorts a[0, n) by key, largest first, ties kept in order: an insertion sort (windows are short;
+// std::stable_sort may take a buffer from the heap, once per tested point).
+template <class T, class Key>
+void sortDescending(T* a, std::size_t n, Key&& key) {
+  for (std::size_t i = 1; i < n; ++i) {
+    const T v = a[i];
+    std::size_t j = i;
+    for (; j > 0 && key(a[j - 1]) < key(v); --j) a[j] = a[j - 1];
+    a[j] = v;
+  }
+}
+
+}  // namespace
+
+MovingTest::ScanView MovingTest::view(const Eigen::Vector3d& p_world, const WindowScan& s) const {
+  ScanView v;
+  v.pl = s.world_to_sensor * p_world;
+  v.d = v.pl.norm();
+  v.seen = s.beams && !s.beams->empty() && v.d >= 1e-3;
+  v.ratio = ds::rangeRatio(v.d, v.seen ? s.beams->farthest() : 0.0);
+  return v;
+}
+
+// A seen scan's mass at P discretised by l at P's range ratio (Eq. 8-10): its vote.
+ds::Mass MovingTest::discreteMass(const ScanView& v, const WindowScan& s, MovingTestStats* stats,
+                                  uint8_t edges) const {
+  if (stats) ++stats->scans_visited;
+  return ds::discretise(scanMassAt(v.pl, v.d, s, stats, edges), ds::beliefAtRatio(v.ratio, p_));
+}
+
 // The discretised votes are simple supports of mass l on {empty} or {occupied}. Combined, the
 // empty votes give E = 1 - prod(1 - l) and the occupied ones O likewise, and the result is moving
 // iff E > O (empty then also beats unknown, as l > 0.5). So the decision is a weighted vote:
@@ -404,36 +456,20 @@ std::optional<bool> MovingTest::combineWindow(const Eigen::Vector3d& p_world,
   if (stats) ++stats->points;
   constexpr double kSafety = 1e-6;  // far above the rounding of the sums
   struct Visit {
-    Eigen::Vector3d pl;  // P in the scan's sensor frame
-    double d, ratio, w;  // |pl|, |OP| / |OB|, the bound of the scan's vote weight
+    ScanView v;
+    double w;  // the bound of the scan's vote weight
     std::size_t i;
   };
-  constexpr std::size_t kInline = 64;  // windows are 2K + 1 scans; longer ones use the heap
-  std::array<Visit, kInline> inline_visits;
-  std::vector<Visit> heap_visits;
-  Visit* visits = inline_visits.data();
-  if (window.size() > kInline) {
-    heap_visits.resize(window.size());
-    visits = heap_visits.data();
-  }
+  SmallBuffer<Visit> visits(window.size());
   double rest = kSafety;
   for (std::size_t i = 0; i < window.size(); ++i) {
-    const Eigen::Vector3d pl = window[i].world_to_sensor * p_world;
-    const double d = pl.norm();
-    const bool seen = window[i].beams && !window[i].beams->empty() && d >= 1e-3;
-    const double ratio = ds::rangeRatio(d, seen ? window[i].beams->farthest() : 0.0);
-    const double w = seen ? w_bound_[static_cast<std::size_t>(ratio * kWeightCells)] : 0.0;
-    visits[i] = {pl, d, ratio, w, i};
+    const ScanView v = view(p_world, window[i]);
+    const double w = v.seen ? w_bound_[static_cast<std::size_t>(v.ratio * kWeightCells)] : 0.0;
+    visits[i] = {v, w, i};
     rest += w;
   }
-  if (stop_early) {  // heaviest first; ties in window order (a stable insertion sort, no buffer)
-    for (std::size_t i = 1; i < window.size(); ++i) {
-      const Visit v = visits[i];
-      std::size_t j = i;
-      for (; j > 0 && visits[j - 1].w < v.w; --j) visits[j] = visits[j - 1];
-      visits[j] = v;
-    }
-  }
+  if (stop_early)  // heaviest first, ties in window order
+    sortDescending(visits.data(), window.size(), [](const Visit& v) { return v.w; });
   acc = ds::Mass{};
   bool any = false, conflict = false;
   double lead = 0.0;  // S_e - S_o
@@ -448,10 +484,8 @@ std::optional<bool> MovingTest::combineWindow(const Eigen::Vector3d& p_world,
       if (votes) votes[v.i] = kUnknown;
       continue;
     }
-    if (stats) ++stats->scans_visited;
-    const ds::Mass m = scanMassAt(v.pl, v.d, window[v.i], stats, edges);
-    const ds::Mass dm = ds::discretise(m, ds::beliefAtRatio(v.ratio, p_));
-    if (votes) votes[v.i] = dm.e > 0 ? kEmpty : (dm.o > 0 ? kOccupied : kUnknown);
+    const ds::Mass dm = discreteMass(v.v, window[v.i], stats, edges);
+    if (votes) votes[v.i] = voteOf(dm);
     if (dm.e > 0) lead -= std::log1p(-dm.e);
     if (dm.o > 0) lead += std::log1p(-dm.o);
     any = any || dm.u < 1.0;
@@ -481,32 +515,19 @@ bool MovingTest::isMoving(const Eigen::Vector3d& p_world, const std::vector<Wind
     if (const auto early = combineWindow(p_world, window, stats, true, acc, edges)) return *early;
     return ds::isMoving(acc);
   }
-  constexpr std::size_t kInline = 64;
-  std::array<int8_t, kInline> inline_votes;
-  std::vector<int8_t> heap_votes;
-  int8_t* votes = inline_votes.data();
-  if (window.size() > kInline) {
-    heap_votes.resize(window.size());
-    votes = heap_votes.data();
-  }
-  std::fill(votes, votes + window.size(), kNotCast);
-  const auto early = combineWindow(p_world, window, stats, true, acc, edges, votes);
+  SmallBuffer<int8_t> votes(window.size());
+  std::fill(votes.data(), votes.data() + window.size(), kNotCast);
+  const auto early = combineWindow(p_world, window, stats, true, acc, edges, votes.data());
   if (early ? *early : ds::isMoving(acc)) return true;
-  const bool run = emptyRun(p_world, window, votes, stats, edges);
+  const bool run = emptyRun(p_world, window, votes.data(), stats, edges);
   if (by_run) *by_run = run;
   return run;
 }
 
 int8_t MovingTest::vote(const Eigen::Vector3d& p_world, const WindowScan& s, MovingTestStats* stats,
                         uint8_t edges) const {
-  const Eigen::Vector3d pl = s.world_to_sensor * p_world;
-  const double d = pl.norm();
-  if (!s.beams || s.beams->empty() || d < 1e-3) return kUnknown;  // as combineWindow
-  if (stats) ++stats->scans_visited;
-  const ds::Mass m = scanMassAt(pl, d, s, stats, edges);
-  const ds::Mass dm =
-      ds::discretise(m, ds::beliefAtRatio(ds::rangeRatio(d, s.beams->farthest()), p_));
-  return dm.e > 0 ? kEmpty : (dm.o > 0 ? kOccupied : kUnknown);
+  const ScanView v = view(p_world, s);
+  return v.seen ? voteOf(discreteMass(v, s, stats, edges)) : kUnknown;  // as combineWindow
 }
 
 // DESIGN §2b, "Empty runs". Each side of the window is read from the scan furthest in time
@@ -521,6 +542,7 @@ bool MovingTest::emptyRun(const Eigen::Vector3d& p_world, const std::vector<Wind
   }
   const auto need = static_cast<std::size_t>(
       std::max(1.0, std::ceil(p_.empty_run * static_cast<double>(std::max(before, after)) - 1e-9)));
+  SmallBuffer<uint32_t> order(window.size());
   for (const int side : {-1, 1}) {
     const std::size_t n = side < 0 ? before : after;
     if (n < need) continue;
@@ -532,21 +554,22 @@ bool MovingTest::emptyRun(const Eigen::Vector3d& p_world, const std::vector<Wind
     std::size_t further = 0;
     for (const WindowScan& w : window) further += w.offset * side > o_far;
     if (o_far > 0 && further < need) continue;
-    // This side's scans, furthest first (windows are short: a selection by repeated scans).
-    std::size_t run = 0, left = n;
-    int last = std::numeric_limits<int>::max();
-    while (run + left >= need && left > 0) {
-      std::size_t far = window.size();
-      for (std::size_t i = 0; i < window.size(); ++i) {
-        const int a = window[i].offset * side;
-        if (a > 0 && a < last && (far == window.size() || a > window[far].offset * side)) far = i;
-      }
-      if (far == window.size()) break;  // scans sharing an offset: the first of them counts
-      last = window[far].offset * side;
-      --left;
-      if (votes[far] == kNotCast) votes[far] = vote(p_world, window[far], stats, edges);
-      if (votes[far] == kOccupied) break;
-      if (votes[far] == kEmpty && ++run >= need) return true;
+    // This side's scans, furthest first; of scans sharing an offset the first counts.
+    std::size_t m = 0;
+    for (std::size_t i = 0; i < window.size(); ++i)
+      if (window[i].offset * side > 0) order[m++] = static_cast<uint32_t>(i);
+    const auto away = [&](uint32_t i) { return window[i].offset * side; };
+    sortDescending(order.data(), m, away);
+    m = static_cast<std::size_t>(
+        std::unique(order.data(), order.data() + m,
+                    [&](uint32_t a, uint32_t b) { return away(a) == away(b); }) -
+        order.data());
+    std::size_t run = 0;
+    for (std::size_t k = 0; k < m && run + (m - k) >= need; ++k) {
+      const uint32_t i = order[k];
+      if (votes[i] == kNotCast) votes[i] = vote(p_world, window[i], stats, edges);
+      if (votes[i] == kOccupied) break;
+      if (votes[i] == kEmpty && ++run >= need) return true;
     }
   }
   return false;

@@ -98,8 +98,23 @@ class MovingTest {
                                     const std::vector<WindowScan>& window, MovingTestStats* stats,
                                     bool stop_early, ds::Mass& acc, uint8_t edges = 0,
                                     int8_t* votes = nullptr) const;
-  // The vote of window scan i (kEmpty, kOccupied, kUnknown), as combineWindow casts it.
+  // P as a window scan sees it: in its sensor frame (pl, d = |pl|), |OP| / |OB| (ratio), and
+  // whether the scan can vote (beams, P not at the sensor).
+  struct ScanView {
+    Eigen::Vector3d pl = Eigen::Vector3d::Zero();
+    double d = 0.0, ratio = 0.0;
+    bool seen = false;
+  };
+  ScanView view(const Eigen::Vector3d& p_world, const WindowScan& s) const;
+  // A seen scan's discretised mass at P (Eq. 8-10), counted as a visit.
+  ds::Mass discreteMass(const ScanView& v, const WindowScan& s, MovingTestStats* stats,
+                        uint8_t edges) const;
+  // A scan's vote (kEmpty, kOccupied, kUnknown) from its discretised mass.
   static constexpr int8_t kEmpty = 1, kOccupied = -1, kUnknown = 0, kNotCast = 2;
+  static int8_t voteOf(const ds::Mass& dm) {
+    return dm.e > 0 ? kEmpty : (dm.o > 0 ? kOccupied : kUnknown);
+  }
+  // The vote of window scan s, as combineWindow casts it.
   int8_t vote(const Eigen::Vector3d& p_world, const WindowScan& s, MovingTestStats* stats,
               uint8_t edges) const;
   // DsParams::empty_run: whether one side of the window votes empty from its far end
