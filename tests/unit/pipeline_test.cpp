@@ -482,6 +482,39 @@ TEST(MovingTest, VacatedSpaceStillVotesEmpty) {
                                          {{&idx2, Eigen::Isometry3d::Identity()}}, nullptr));
 }
 
+TEST(MovingTest, AReturnWithinTheRangeNoiseOfPIsNoEmptyVote) {
+  // doc/SCAN_CONFLICT.md, "A return at P": one beam along P's direction returns at 10 m. For P
+  // 1 cm in front of that return (inside the range noise sigma_m = 5 cm), Eq. 3-5 give e' = 0.525
+  // against o' = 0.469, and the paper's discretisation makes that a full empty vote: a coin
+  // flipped by the noise for every static point that a scan sees with few beams. No beam passed
+  // P by more than sigma_m, so our vote is unknown. 8 cm in front (a walker before a wall) and
+  // 0.3 m in front, the beam passed P: empty under both rules.
+  std::vector<PointXYZI> ring;  // one beam every 0.02 rad: only one in P's cone
+  for (int k = -5; k <= 5; ++k)
+    ring.push_back({float(10.0 * std::cos(0.02 * k)), float(10.0 * std::sin(0.02 * k)), 0, 0});
+  const DsParams ours;
+  DsParams paper = ours;
+  paper.scan_conflict = 1.0;
+  const BeamIndex idx(ring, ours.search_lambdas * ours.lambda_theta);
+  const std::vector<WindowScan> w = {{&idx, Eigen::Isometry3d::Identity()}};
+  const ds::Mass beam = ds::BeamModel(ours).beam(-0.01, 0.0);
+  ASSERT_GT(beam.e, beam.o);                       // the paper's masses lean empty, by a little
+  ASSERT_LT(beam.e * beam.o, ours.scan_conflict);  // the beams do not conflict by K
+  MovingTestStats st_ours, st_paper;
+  EXPECT_FALSE(MovingTest(ours).isMoving({9.99, 0, 0}, w, &st_ours));
+  EXPECT_EQ(st_ours.conflicting_scans, 1u);
+  EXPECT_TRUE(MovingTest(paper).isMoving({9.99, 0, 0}, w, &st_paper));
+  EXPECT_EQ(st_paper.conflicting_scans, 0u);
+  for (const double x : {9.92, 9.7}) {
+    MovingTestStats st;
+    EXPECT_TRUE(MovingTest(ours).isMoving({x, 0, 0}, w, &st)) << x;
+    EXPECT_EQ(st.conflicting_scans, 0u) << x;
+  }
+  // Behind the return by 1 cm, occupied leans: static under both.
+  EXPECT_FALSE(MovingTest(paper).isMoving({10.01, 0, 0}, w, nullptr));
+  EXPECT_FALSE(MovingTest(ours).isMoving({10.01, 0, 0}, w, nullptr));
+}
+
 TEST(MovingTest, ItsWorkIsCounted) {
   // Issue #16: every window scan visited and every beam inside its cone is counted, and a point
   // whose votes can no longer be overturned is decided early. Twenty scans all see the place

@@ -209,6 +209,9 @@ ds::Mass MovingTest::scanMassAt(const Eigen::Vector3d& pl, double d, const Windo
   double qe = 1.0, qo = 1.0, qu = 1.0;
   float e_max = 0.0f, o_max = 0.0f;  // the scan's most-empty beam, most-occupied return at P
   const float band = static_cast<float>(2.0 * model_.sigma);  // not an occluder in front of P
+  // Whether a beam passed P by more than the range noise (doc/SCAN_CONFLICT.md, "A return at P").
+  const float past = -static_cast<float>(p_.sigma_m);
+  bool passed = false;
   std::size_t beams = 0;
   // The beams in the cone are gathered kBatch at a time; their masses are then computed side by
   // side (BeamModel::massesFast) and multiplied in, in the order the index gave them.
@@ -224,9 +227,11 @@ ds::Mass MovingTest::scanMassAt(const Eigen::Vector3d& pl, double d, const Windo
     // captures) each step waited for a store (issue #16). Same order, same bits.
     double pe = qe, po = qo, pu = qu;
     float em = e_max, om = o_max;
+    bool ps = passed;
     for (int k = 0; k < n; ++k) {
       em = std::max(em, e_b[k]);
       if (r_b[k] <= band) om = std::max(om, o_b[k]);  // a return at P's range
+      ps = ps || r_b[k] < past;
       const double e = e_b[k], o = o_b[k];
       pe *= 1.0 - o;
       po *= 1.0 - e;
@@ -237,6 +242,7 @@ ds::Mass MovingTest::scanMassAt(const Eigen::Vector3d& pl, double d, const Windo
     qu = pu;
     e_max = em;
     o_max = om;
+    passed = ps;
     beams += static_cast<std::size_t>(n);
     n = 0;
   };
@@ -321,6 +327,13 @@ ds::Mass MovingTest::scanMassAt(const Eigen::Vector3d& pl, double d, const Windo
       ring = true;
       if (stats) ++stats->ring_votes;
     }
+  }
+  // doc/SCAN_CONFLICT.md, "A return at P": an empty vote needs a beam that passed P by more than
+  // the range noise sigma_m. Beams returning within it give e' and o' near 0.5 each (Eq. 3-5 at
+  // r = 0), and the discretisation (Eq. 8-10) would turn the noise's lean into a full vote.
+  if (!ring && p_.scan_conflict < 1.0 && m.e > m.o && m.e > m.u && !passed) {
+    m = ds::Mass{};
+    if (stats) ++stats->conflicting_scans;
   }
   // doc/SCAN_CONFLICT.md: an empty vote needs a scan whose beams agree. Beams that pass P and
   // beams that return at P's range (|r| <= 2 sigma) in the same scan mean a porous or thin

@@ -91,7 +91,8 @@ struct DsParams {
   /// Our addition (doc/SCAN_CONFLICT.md): a scan votes empty only if its own beams agree. When
   /// its most-empty and most-occupied beams conflict by K = e_max * o_max >= scan_conflict
   /// (foliage, fences, thin poles: some beams pass P, some return at P), the scan's empty vote
-  /// becomes unknown. 1 = off (the paper's rule alone).
+  /// becomes unknown; so does one where no beam passes P by more than sigma_m (a return at P's
+  /// range: e' and o' near 0.5, decided by the noise). 1 = off (the paper's rule alone).
   double scan_conflict = 0.3;
   /// Our addition (issue #15, DESIGN §2b "Sparse lidars"): where a sparse lidar's scan has no beam
   /// in P's cone, the rings just above and below P vote empty if both pass well beyond P and no
