@@ -99,11 +99,12 @@ class MovingTest {
                                     bool stop_early, ds::Mass& acc, uint8_t edges = 0,
                                     int8_t* votes = nullptr) const;
   // P as a window scan sees it: in its sensor frame (pl, d = |pl|), |OP| / |OB| (ratio), and
-  // whether the scan can vote (beams, P not at the sensor).
+  // whether the scan can vote (beams, P not at the sensor). view() sets every field; none has a
+  // default, so the test's per-point buffers of 64 are not cleared on every call (issue #16).
   struct ScanView {
-    Eigen::Vector3d pl = Eigen::Vector3d::Zero();
-    double d = 0.0, ratio = 0.0;
-    bool seen = false;
+    Eigen::Vector3d pl;
+    double d, ratio;
+    bool seen;
   };
   ScanView view(const Eigen::Vector3d& p_world, const WindowScan& s) const;
   // A seen scan's discretised mass at P (Eq. 8-10), counted as a visit.
