@@ -1374,25 +1374,21 @@ void LaserPipeline::validateImages(std::size_t pos, Prepared& s, Work& w) const 
   // was the previous scan's, and it stays moving on evidence the images cannot resolve. Nor is
   // an object most of whose points tested moving were found by their empty runs (DESIGN §2b): a
   // slow mover, whose images change less over the window than the colour and depth tests resolve.
-  std::vector<std::pair<uint32_t, int>> run_lead;  // component root, runs minus votes
-  if (w.grouped)
+  std::vector<int> run_lead;  // per component root: its points moving by runs minus by votes
+  const auto root = [&](uint32_t i) {
+    const uint32_t v = s.candidate[i] ? w.groups.point_voxel[i] : UINT32_MAX;
+    return v == UINT32_MAX ? UINT32_MAX : w.groups.root_of[v];
+  };
+  if (w.grouped) {
+    run_lead.assign(w.groups.root_of.size(), 0);
     for (uint32_t i = 0; i < s.scan.size(); ++i)
-      if (w.tested_as[i] && w.moving[i] && s.candidate[i])
-        run_lead.emplace_back(w.groups.root_of[w.groups.point_voxel[i]],
-                              w.tested_as[i] == Work::kRun ? 1 : -1);
-  std::sort(run_lead.begin(), run_lead.end());
-  std::vector<uint32_t> run_found;  // roots where the runs lead
-  for (std::size_t a = 0, b = 0; a < run_lead.size(); a = b) {
-    int lead = 0;
-    for (b = a; b < run_lead.size() && run_lead[b].first == run_lead[a].first; ++b)
-      lead += run_lead[b].second;
-    if (lead > 0) run_found.push_back(run_lead[a].first);
+      if (w.tested_as[i] && w.moving[i] && root(i) != UINT32_MAX)
+        run_lead[root(i)] += w.tested_as[i] == Work::kRun ? 1 : -1;
   }
   auto found_by_run = [&](uint32_t i) {
     if (!w.grouped) return w.tested_as[i] == Work::kRun;  // no objects: the point itself
-    return !run_found.empty() && s.candidate[i] &&
-           std::binary_search(run_found.begin(), run_found.end(),
-                              w.groups.root_of[w.groups.point_voxel[i]]);
+    const uint32_t r = root(i);
+    return r != UINT32_MAX && run_lead[r] > 0;
   };
   for (uint32_t i = 0; i < s.scan.size(); ++i) {
     if (!w.moving[i]) continue;
