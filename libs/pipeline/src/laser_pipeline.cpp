@@ -44,6 +44,9 @@ constexpr float kCarryMatch = 1.5f;
 constexpr float kSeedSize = 0.15f;
 // Rule 4's leaving and arriving tests ask at most about this many of an object's points.
 constexpr std::size_t kRule4Sample = 2000;
+// Rule 4's arrival at a large object's ends (doc/OBJECTS.md): m along its length from either end,
+// the new space a vehicle at stop-and-go speeds (up to 2 m/s) sweeps in half a window (0.5 s).
+constexpr double kArrivalEnd = 1.0;
 // Rule 7's outline match (doc/OBJECTS.md, "Measured"): the grid, the other scans' points in
 // columns of this side (m), up to this far above the object's top (m), and the least gain in
 // matched cells (or 5 % of the outline's) for a shift to count.
@@ -111,6 +114,36 @@ bool sizedAs(const Eigen::Vector3f& e, const Eigen::Vector3f& x, double toleranc
   const float eh = e.head<2>().norm(), xh = x.head<2>().norm();
   const double f = 1.0 - tolerance;
   return eh >= f * xh && e.z() >= f * x.z() && (!at_most || xh >= f * eh);
+}
+
+// Rule 4's arrival (doc/OBJECTS.md): the object's points (idx, world frame) within kArrivalEnd
+// of either end along its horizontal principal axis, in idx's order.
+void arrivalEnds(const std::vector<uint32_t>& idx, const std::vector<Eigen::Vector3d>& world,
+                 std::vector<uint32_t>& ends) {
+  ends.clear();
+  if (idx.empty()) return;
+  Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+  for (const uint32_t i : idx) mean += world[i].head<2>();
+  mean /= static_cast<double>(idx.size());
+  double xx = 0.0, xy = 0.0, yy = 0.0;
+  for (const uint32_t i : idx) {
+    const Eigen::Vector2d d = world[i].head<2>() - mean;
+    xx += d.x() * d.x();
+    xy += d.x() * d.y();
+    yy += d.y() * d.y();
+  }
+  const double angle = 0.5 * std::atan2(2.0 * xy, xx - yy);  // the major axis of the 2x2 scatter
+  const Eigen::Vector2d axis(std::cos(angle), std::sin(angle));
+  double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+  for (const uint32_t i : idx) {
+    const double t = axis.dot(world[i].head<2>() - mean);
+    lo = std::min(lo, t);
+    hi = std::max(hi, t);
+  }
+  for (const uint32_t i : idx) {
+    const double t = axis.dot(world[i].head<2>() - mean);
+    if (t < lo + kArrivalEnd || t > hi - kArrivalEnd) ends.push_back(i);
+  }
 }
 
 // Positions 0..n-1 in the order of their components' roots, and where each component ends.
@@ -1048,6 +1081,7 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
   std::optional<std::vector<WindowScan>> after, far, just_before;
   std::vector<Eigen::Vector3f> q_prev;     // an object's points in the previous frame
   std::vector<Eigen::Vector3f> pieces_at;  // the scan's grouped points in the previous frame
+  std::vector<uint32_t> ends;              // a large object's points at its ends (arrivalEnds)
   const WindowScan own = s.own();
   w.held.assign(s.scan.size(), 0);
   w.measured.assign(s.scan.size(), 0);
@@ -1187,6 +1221,20 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
         if ((arrived +=
              static_cast<int>(stride) * test_.isMoving(w.world[idx[k]], *just_before, nullptr,
                                                        edgeBits(s, idx[k], own))) >= op.min_moving)
+          return true;
+      if (stride == 1) return false;
+      // A large object arrives at its ends: its leading end's new place is a few columns, which
+      // the sample above can step over (a crawling truck's dozen arrivals among 24,000 points).
+      // Its points within kArrivalEnd of either end along its length are asked, all of them or
+      // every n-th, the n-th shifted by one each time so that no ring is left out.
+      arrivalEnds(idx, w.world, ends);
+      const std::size_t end_stride =
+          std::max<std::size_t>(1, (ends.size() + kRule4Sample - 1) / kRule4Sample);
+      arrived = 0;
+      for (std::size_t j = 0, k = 0; k < ends.size(); ++j, k = j * end_stride + j % end_stride)
+        if ((arrived += static_cast<int>(end_stride) *
+                        test_.isMoving(w.world[ends[k]], *just_before, nullptr,
+                                       edgeBits(s, ends[k], own))) >= op.min_moving)
           return true;
       return false;
     };
