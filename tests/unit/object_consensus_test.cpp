@@ -459,6 +459,47 @@ TEST(ObjectConsensus, TheSameObjectIsFoundInPlaceOrMovedAndNothingElseIs) {
   EXPECT_FALSE(matchWholeObject({}, objects, 0.3, 0.9f));  // no points: no object
 }
 
+TEST(ObjectConsensus, ACarWhoseSideComesAndGoesIsFoundByItsEnds) {
+  // doc/OBJECTS.md rule 4 backwards, "Its side comes and goes": a car seen from behind at an
+  // angle, its near face (x = 1, 1.8 m wide) and its side (y = 0, 4.4 m long, grazing). In this
+  // scan the side is joined; in the scan before it was a slice of its own, and the car 1 m
+  // further back. The centroids differ by the side's half as well: shifted by that, the face
+  // lies beside the object, and no centroid finds it. Its ends meet where the car moved.
+  const auto face = [](float x, std::vector<PointXYZI>& c) {
+    for (float z = 0; z <= 1.5f; z += 0.1f)
+      for (float y = 0; y <= 1.8f; y += 0.1f) c.push_back({x, y, z, 0});
+  };
+  std::vector<PointXYZI> pts;
+  face(1.0f, pts);
+  for (float z = 0; z <= 1.5f; z += 0.1f)
+    for (float x = -3.4f; x < 1.0f; x += 0.1f) pts.push_back({x, 0, z, 0});
+  WholeObjects objects;
+  wholeObjectsOf(pts, std::vector<uint8_t>(pts.size(), 1), 0.3, objects);
+  ASSERT_EQ(objects.extent.size(), 1u);
+  std::vector<PointXYZI> before;
+  face(0.0f, before);
+  std::vector<Eigen::Vector3f> q;
+  for (const auto& p : before) q.push_back(p.xyz());
+  EXPECT_FALSE(matchWholeObject(q, objects, 0.3, 1.5f));
+  const auto e = matchWholeObjectByEnds(q, objects, 0.3, 1.5f);
+  ASSERT_TRUE(e);
+  EXPECT_EQ(e->object, 0u);
+  EXPECT_NEAR(e->shift.x(), 1.0f, 0.01f);  // the car's motion, its near face on its face
+  EXPECT_NEAR(e->shift.y(), 0.0f, 0.01f);
+  EXPECT_EQ(e->shift.z(), 0.0f);
+  // Further back than max_shift, or beside it, or no points: nothing.
+  EXPECT_FALSE(matchWholeObjectByEnds(q, objects, 0.3, 0.9f));
+  for (auto& x : q) x.y() += 3.0f;
+  EXPECT_FALSE(matchWholeObjectByEnds(q, objects, 0.3, 1.5f));
+  EXPECT_FALSE(matchWholeObjectByEnds({}, objects, 0.3, 1.5f));
+  // Objects without their boxes (not made by wholeObjectsOf): nothing, not a crash.
+  WholeObjects no_boxes = objects;
+  no_boxes.lo.clear();
+  no_boxes.hi.clear();
+  for (auto& x : q) x.y() -= 3.0f;
+  EXPECT_FALSE(matchWholeObjectByEnds(q, no_boxes, 0.3, 1.5f));
+}
+
 TEST(ObjectConsensus, TheSameObjectIsFoundMovedLevelWhateverItsRingsHold) {
   // A sparse lidar's car: its rings 0.6 m apart (0.35, 0.95 and 1.55 m up, each in the upper
   // half of a voxel; its corners join them), and in this scan a roof stripe 1.85 m up joined to it,

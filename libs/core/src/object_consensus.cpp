@@ -329,15 +329,32 @@ void wholeObjectsOf(const std::vector<PointXYZI>& points, const std::vector<uint
   }
 }
 
+namespace {
+
+// Whether object a of `objects` holds at least half of q shifted by `shift` (voxels of 1 / inv);
+// stops once half is reached or out of reach.
+bool holdsHalf(const std::vector<Eigen::Vector3f>& q, const WholeObjects& objects, float inv,
+               std::size_t a, const Eigen::Vector3f& shift) {
+  std::size_t n = 0, left = q.size();
+  for (const Eigen::Vector3f& x : q) {
+    if (2 * n >= q.size()) return true;
+    if (2 * (n + left) < q.size()) return false;
+    --left;
+    const Eigen::Vector3f y = x + shift;
+    if (const uint32_t* b = objects.voxel.find(
+            cellKey(floorToCell(y.x(), inv), floorToCell(y.y(), inv), floorToCell(y.z(), inv))))
+      n += *b == a;
+  }
+  return 2 * n >= q.size();
+}
+
+}  // namespace
+
 std::optional<WholeMatch> matchWholeObject(const std::vector<Eigen::Vector3f>& q,
                                            const WholeObjects& objects, double side,
                                            float max_shift) {
   if (q.empty()) return std::nullopt;
   const float inv = static_cast<float>(1.0 / side);
-  const auto voxelOf = [&](const Eigen::Vector3f& x) {
-    return objects.voxel.find(
-        cellKey(floorToCell(x.x(), inv), floorToCell(x.y(), inv), floorToCell(x.z(), inv)));
-  };
   std::vector<uint32_t> in(objects.extent.size(), 0);
   Eigen::Vector3f c = Eigen::Vector3f::Zero(), lo = Eigen::Vector3f::Constant(1e30f), hi = -lo;
   for (const Eigen::Vector3f& x : q) {
@@ -377,14 +394,7 @@ std::optional<WholeMatch> matchWholeObject(const std::vector<Eigen::Vector3f>& q
   // also tried level.
   c /= static_cast<float>(q.size());
   const auto holds = [&](std::size_t a, const Eigen::Vector3f& shift) {
-    std::size_t n = 0, left = q.size();  // stops once half is reached or out of reach
-    for (const Eigen::Vector3f& x : q) {
-      if (2 * n >= q.size()) return true;
-      if (2 * (n + left) < q.size()) return false;
-      --left;
-      if (const uint32_t* b = voxelOf(x + shift)) n += *b == a;
-    }
-    return 2 * n >= q.size();
+    return holdsHalf(q, objects, inv, a, shift);
   };
   for (std::size_t a = 0; a < objects.extent.size(); ++a) {
     const Eigen::Vector3f shift = objects.centroid[a] - c;
@@ -394,6 +404,28 @@ std::optional<WholeMatch> matchWholeObject(const std::vector<Eigen::Vector3f>& q
       return WholeMatch{a, shift};
     if (shift.z() != 0.0f && holds(a, level)) return WholeMatch{a, level};
   }
+  return std::nullopt;
+}
+
+std::optional<WholeMatch> matchWholeObjectByEnds(const std::vector<Eigen::Vector3f>& q,
+                                                 const WholeObjects& objects, double side,
+                                                 float max_shift) {
+  if (q.empty() || objects.lo.size() != objects.extent.size()) return std::nullopt;
+  const float inv = static_cast<float>(1.0 / side);
+  Eigen::Vector3f lo = Eigen::Vector3f::Constant(1e30f), hi = -lo;
+  for (const Eigen::Vector3f& x : q) {
+    lo = lo.cwiseMin(x);
+    hi = hi.cwiseMax(x);
+  }
+  // Each pairing of the boxes' ends in x and in y (lower or upper faces), level.
+  for (std::size_t a = 0; a < objects.extent.size(); ++a)
+    for (int ex = 0; ex < 2; ++ex)
+      for (int ey = 0; ey < 2; ++ey) {
+        const Eigen::Vector3f s(ex ? objects.hi[a].x() - hi.x() : objects.lo[a].x() - lo.x(),
+                                ey ? objects.hi[a].y() - hi.y() : objects.lo[a].y() - lo.y(), 0.0f);
+        if (s.squaredNorm() <= max_shift * max_shift && holdsHalf(q, objects, inv, a, s))
+          return WholeMatch{a, s};
+      }
   return std::nullopt;
 }
 

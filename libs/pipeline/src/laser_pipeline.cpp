@@ -1832,9 +1832,11 @@ std::vector<uint32_t> withoutFoot(const std::vector<uint32_t>& part,
 // moving by the labels: where it was half a window before and where it is half a window after
 // lie more than kMovedDistance apart. A vehicle coming towards the sensor in the run's first
 // scans shows only its front, whose place only the scans before saw empty; a vehicle about to
-// pull away is moving by the labels' +-0.5 s before it starts. Only the results change: the
-// memories of later decisions (duplicates, persistence, the free space) keep what the scans were
-// decided with, so no later scan depends on it (DESIGN §2f).
+// pull away is moving by the labels' +-0.5 s before it starts. A car whose side comes and goes
+// (joined in one scan, a slice of its own in the next) is found by its ends where no centroid
+// finds it (doc/OBJECTS.md rule 4 backwards). Only the results change: the memories of later
+// decisions (duplicates, persistence, the free space) keep what the scans were decided with, so
+// no later scan depends on it (DESIGN §2f).
 void LaserPipeline::carryBack() {
   const double tolerance = ConsensusRules{}.extent_tolerance;
   const auto paramsOf = [&](const Held& h) {
@@ -1899,16 +1901,30 @@ void LaserPipeline::carryBack() {
       q.clear();
       for (const uint32_t k : members[o])
         q.push_back((a_to_b * a.whole[k].xyz().cast<double>()).cast<float>());
-      const std::optional<WholeMatch> m = matchWholeObject(q, ob, op.voxel, kCarryMatch);
+      std::optional<WholeMatch> m = matchWholeObject(q, ob, op.voxel, kCarryMatch);
+      bool by_ends = false;
+      if (!m) {
+        m = matchWholeObjectByEnds(q, ob, op.voxel, kCarryMatch);
+        by_ends = m.has_value();
+      }
       if (!m || dt <= 0) continue;
       // The same size in both (horizontal diagonal, within kSeedSize): a step of the centroids
       // between two sizes is what the two components hold, not the object's motion (a car that
       // stands, with the kerb joined in one of the two scans: a "velocity" of 0.9 m a scan).
+      // Where they differ, its ends say how far it moved ("Its side comes and goes"): b's place
+      // is then a's centroid shifted by them, the same composition in both.
       const float ea = oa.extent[o].head<2>().norm(), eb = ob.extent[m->object].head<2>().norm();
-      if (std::abs(ea - eb) > kSeedSize * std::max(ea, eb)) continue;
+      Eigen::Vector3f at_b = ob.centroid[m->object];
+      if (std::abs(ea - eb) > kSeedSize * std::max(ea, eb)) {
+        if (!by_ends) m = matchWholeObjectByEnds(q, ob, op.voxel, kCarryMatch);
+        if (!m) continue;
+        at_b = std::accumulate(q.begin(), q.end(), Eigen::Vector3f(Eigen::Vector3f::Zero())) /
+                   static_cast<float>(q.size()) +
+               m->shift;
+      }
       Track t;
       t.at.push_back({double(a.r.index), worldCentroid(a, oa.centroid[o])});
-      t.at.push_back({double(b.r.index), worldCentroid(b, ob.centroid[m->object])});
+      t.at.push_back({double(b.r.index), worldCentroid(b, at_b)});
       t.velocity = (t.at[1].second - t.at[0].second) / dt;
       for (const uint32_t k : members[o]) {
         next_whole.push_back(a.whole[k]);
@@ -1953,6 +1969,7 @@ void LaserPipeline::carryBack() {
       Eigen::Vector3f lo = h.lo[c_at], hi = h.hi[c_at];
       const Eigen::Vector3f& sum = h.sum[c_at];
       std::optional<WholeMatch> match;
+      bool by_ends = false;
       // Only a component that can reach an object: its box and the object's overlap (the one
       // holding half of its points in the other's voxels, a voxel's quantisation aside), or do
       // once shifted by at most kCarryMatch; two points of overlapping boxes lie at most their
@@ -1982,6 +1999,10 @@ void LaserPipeline::carryBack() {
         q.assign(h.at_next.begin() + static_cast<std::ptrdiff_t>(from),
                  h.at_next.begin() + static_cast<std::ptrdiff_t>(to));
         match = matchWholeObject(q, next, op.voxel, kCarryMatch);
+        if (!match) {
+          match = matchWholeObjectByEnds(q, next, op.voxel, kCarryMatch);
+          by_ends = match.has_value();
+        }
       }
       if (match && track_of[match->object] != UINT32_MAX) {
         // Its points turn whole where it is that object's size; where it is larger (it holds
@@ -2004,11 +2025,17 @@ void LaserPipeline::carryBack() {
         // stood, unless it moves here (from here to its next known place within half that
         // velocity of it): then it came at that velocity.
         Track& track = tracks[track_of[m.object]];
+        // Found by its ends, it is where the object's centroid lies shifted back by them: the
+        // composition its track knows (its side in view or not), not this one.
         Eigen::Vector3f c = Eigen::Vector3f::Zero();
         for (const uint32_t k : part) c += h.points[h.order[k]].xyz();
         const double t = static_cast<double>(h.r.index);
         const Eigen::Vector2d here =
-            worldCentroid(h, c / static_cast<float>(std::max<std::size_t>(part.size(), 1)));
+            by_ends
+                ? Eigen::Vector2d((next_world_to_sensor.inverse() *
+                                   (next.centroid[m.object] - m.shift).cast<double>())
+                                      .head<2>())
+                : worldCentroid(h, c / static_cast<float>(std::max<std::size_t>(part.size(), 1)));
         // Its motion here: to its last known place within half of the half window after it (a
         // longer span steadies a slow walker's jittering centroid; a shorter one keeps a car
         // that starts two scans later standing here).
@@ -2021,8 +2048,17 @@ void LaserPipeline::carryBack() {
         const Eigen::Vector2d before =
             moves_here ? Eigen::Vector2d(here - track.velocity * half) : here;
         const double moved = (track.where(t + half) - before).norm();
-        if (!part.empty() && sizedAs(hi - lo, next.extent[m.object], tolerance, true) &&
-            moved > kMovedDistance) {
+        // Its size: the object's, or as wide and as high within kSeedSize and not longer (its
+        // side out of view here or in the next scan).
+        const auto sized = [&] {
+          const Eigen::Vector3f e = hi - lo, x = next.extent[m.object];
+          if (sizedAs(e, x, tolerance, true)) return true;
+          const float f = 1.0f - kSeedSize, ew = e.head<2>().minCoeff(),
+                      xw = x.head<2>().minCoeff();
+          return ew >= f * xw && xw >= f * ew && e.z() >= f * x.z() && x.z() >= f * e.z() &&
+                 e.head<2>().norm() * static_cast<float>(1.0 - tolerance) <= x.head<2>().norm();
+        };
+        if (!part.empty() && sized() && moved > kMovedDistance) {
           std::size_t moving = 0;
           for (std::size_t k = from; k < to; ++k) moving += h.moving[h.order[k]] != 0;
           h.r.stats.objects_carried_back += moving < n;

@@ -222,6 +222,15 @@ struct WholeMatch {
 std::optional<WholeMatch> matchWholeObject(const std::vector<Eigen::Vector3f>& q,
                                            const WholeObjects& objects, double side,
                                            float max_shift);
+/// Rule 4 backwards only, "Its side comes and goes" (doc/OBJECTS.md): the first object of
+/// `objects` holding half of `q` shifted level so that one end of their boxes meets the object's,
+/// in x and in y (lower or upper faces, four pairings), the shift within `max_shift`. A car seen
+/// from behind at an angle has its side, grazing, joined in one scan and a slice of its own in
+/// the next: the centroids step by half the side, the near end moves with the car. nullopt: none
+/// (or the objects' boxes not given).
+std::optional<WholeMatch> matchWholeObjectByEnds(const std::vector<Eigen::Vector3f>& q,
+                                                 const WholeObjects& objects, double side,
+                                                 float max_shift);
 
 /// Per point: a member of a vehicle-sized component (as objectConsensus groups them). Under
 /// ConsensusRules{few_points_are_noise = false} no other point's decision can change, and
