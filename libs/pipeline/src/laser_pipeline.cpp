@@ -1783,16 +1783,25 @@ std::vector<uint32_t> nearObject(const std::vector<Eigen::Vector3f>& q, std::siz
     const Eigen::Vector3f x = q[k] + m.shift;
     const int cx = floorToCell(x.x(), inv), cy = floorToCell(x.y(), inv),
               cz = floorToCell(x.z(), inv);
-    bool in = false;
+    const auto inObject = [&](int dx, int dy, int dz) {
+      const uint32_t* o = objects.voxel.find(cellKey(cx + dx, cy + dy, cz + dz));
+      return o && *o == m.object;
+    };
+    bool in = inObject(0, 0, 0);  // its own voxel first: most are in it
     for (int dx = -1; dx <= 1 && !in; ++dx)
       for (int dy = -1; dy <= 1 && !in; ++dy)
-        for (int dz = -1; dz <= 1 && !in; ++dz) {
-          const uint32_t* o = objects.voxel.find(cellKey(cx + dx, cy + dy, cz + dz));
-          in = o && *o == m.object;
-        }
+        for (int dz = -1; dz <= 1 && !in; ++dz) in = inObject(dx, dy, dz);
     if (in) near.push_back(static_cast<uint32_t>(from + k));
   }
   return near;
+}
+
+// As wide (the smaller horizontal extent) and as high as x within kSeedSize, however long: the
+// same face, its side in view or not ("Its side comes and goes", doc/OBJECTS.md rule 4
+// backwards).
+bool sameFace(const Eigen::Vector3f& e, const Eigen::Vector3f& x) {
+  const float f = 1.0f - kSeedSize, ew = e.head<2>().minCoeff(), xw = x.head<2>().minCoeff();
+  return ew >= f * xw && xw >= f * ew && e.z() >= f * x.z() && x.z() >= f * e.z();
 }
 
 // Rule 2's foot (doc/OBJECTS.md), of the points order[k] of `part`: a point less than
@@ -1912,12 +1921,14 @@ void LaserPipeline::carryBack() {
       // between two sizes is what the two components hold, not the object's motion (a car that
       // stands, with the kerb joined in one of the two scans: a "velocity" of 0.9 m a scan).
       // Where they differ, its ends say how far it moved ("Its side comes and goes"): b's place
-      // is then a's centroid shifted by them, the same composition in both.
+      // is then a's centroid shifted by them, the same composition in both. Only more than a
+      // voxel, what a box's face is known to: a standing truck's side at 16 rings, its ends
+      // coming and going with the rings, "moved" 0.07-0.14 m a scan.
       const float ea = oa.extent[o].head<2>().norm(), eb = ob.extent[m->object].head<2>().norm();
       Eigen::Vector3f at_b = ob.centroid[m->object];
       if (std::abs(ea - eb) > kSeedSize * std::max(ea, eb)) {
         if (!by_ends) m = matchWholeObjectByEnds(q, ob, op.voxel, kCarryMatch);
-        if (!m) continue;
+        if (!m || m->shift.head<2>().norm() <= op.voxel) continue;
         at_b = std::accumulate(q.begin(), q.end(), Eigen::Vector3f(Eigen::Vector3f::Zero())) /
                    static_cast<float>(q.size()) +
                m->shift;
@@ -2052,11 +2063,9 @@ void LaserPipeline::carryBack() {
         // side out of view here or in the next scan).
         const auto sized = [&] {
           const Eigen::Vector3f e = hi - lo, x = next.extent[m.object];
-          if (sizedAs(e, x, tolerance, true)) return true;
-          const float f = 1.0f - kSeedSize, ew = e.head<2>().minCoeff(),
-                      xw = x.head<2>().minCoeff();
-          return ew >= f * xw && xw >= f * ew && e.z() >= f * x.z() && x.z() >= f * e.z() &&
-                 e.head<2>().norm() * static_cast<float>(1.0 - tolerance) <= x.head<2>().norm();
+          return sizedAs(e, x, tolerance, true) ||
+                 (sameFace(e, x) &&
+                  e.head<2>().norm() * static_cast<float>(1.0 - tolerance) <= x.head<2>().norm());
         };
         if (!part.empty() && sized() && moved > kMovedDistance) {
           std::size_t moving = 0;
@@ -2064,12 +2073,19 @@ void LaserPipeline::carryBack() {
           h.r.stats.objects_carried_back += moving < n;
           track.at.push_front({t, here});
           // Its foot stays (rule 2): it goes on in the chain, as the objects moved whole keep
-          // theirs, but does not turn.
+          // theirs, but does not turn. Asked only where a point can turn (issue #16: a truck
+          // moving in every point is carried on through every held scan).
+          bool turns = false;
+          for (const uint32_t k : part) {
+            const uint32_t i = h.order[k];
+            turns = turns || (!h.moving[i] && !h.relabelled[i]);
+          }
           const std::vector<uint32_t> body =
-              withoutFoot(part, h.order, h.points, op.voxel, op.foot_height);
+              turns ? withoutFoot(part, h.order, h.points, op.voxel, op.foot_height)
+                    : std::vector<uint32_t>{};
           std::vector<uint8_t> in_body(part.size(), 0);
-          for (std::size_t a = 0, b = 0; a < part.size(); ++a)
-            if (b < body.size() && body[b] == part[a]) {
+          for (std::size_t a = 0, b = 0; a < part.size() && b < body.size(); ++a)
+            if (body[b] == part[a]) {
               in_body[a] = 1;
               ++b;
             }
