@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstring>
 #include <fstream>
+#include <limits>
 #include <nlohmann/json.hpp>
 #include <random>
 
@@ -225,6 +226,34 @@ TEST(MapScore, RadiusIndexMatchesBruteForce) {
     EXPECT_GT(found, 0u);
     EXPECT_LT(found, queries.size());  // both outcomes exercised
   }
+}
+
+// The hints change no answer: every query hinted 16 and 8 ahead, as evaluate() and the map cases
+// do, among them points the index cannot hold (NaN, 1e30) and an index with no points.
+TEST(MapScore, PrefetchHintsChangeNoAnswer) {
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> u(-1.f, 1.f);
+  std::vector<Eigen::Vector3f> map(2000), queries(2000);
+  for (auto& p : map) p = {u(rng), u(rng), 0.2f * u(rng)};
+  for (auto& q : queries) q = {u(rng), u(rng), 0.2f * u(rng)};
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  queries[100] = {nan, 0.f, 0.f};
+  queries[200] = {1e30f, 0.f, 0.f};
+  const RadiusIndex index(map, 0.05), empty({}, 0.05);
+  std::size_t found = 0;
+  for (std::size_t i = 0; i < queries.size(); ++i) {
+    for (const RadiusIndex* x : {&index, &empty}) {
+      if (i + 16 < queries.size()) x->prefetch(queries[i + 16], false);
+      if (i + 8 < queries.size()) x->prefetch(queries[i + 8], true);
+    }
+    bool brute = false;
+    for (const auto& p : map) brute |= (p - queries[i]).squaredNorm() <= 0.05f * 0.05f;
+    ASSERT_EQ(index.hasNeighbour(queries[i]), brute) << "query " << i;
+    EXPECT_FALSE(empty.hasNeighbour(queries[i]));
+    found += brute;
+  }
+  EXPECT_GT(found, 0u);
+  EXPECT_LT(found, queries.size());
 }
 
 // Points on cell boundaries and at exactly the radius: map points on a lattice of spacing

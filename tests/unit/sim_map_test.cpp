@@ -131,7 +131,10 @@ MapCase runMapCase(const sim::Scenario& sc, const PipelineParams& params, const 
   };
   std::vector<MapScorer*> by_id, vacated_by_id(kinds.size(), nullptr);
   for (const auto& k : kinds) by_id.push_back(&scorer(k));
-  for (const Truth& t : truth) {
+  for (std::size_t i = 0; i < truth.size(); ++i) {
+    const Truth& t = truth[i];
+    if (i + 16 < truth.size()) index.prefetch(truth[i + 16].p, false);  // the points ahead
+    if (i + 8 < truth.size()) index.prefetch(truth[i + 8].p, true);
     by_id[t.kind]->add(t.p, t.moving);
     if (!t.vacated) continue;
     if (!vacated_by_id[t.kind]) vacated_by_id[t.kind] = &scorer(kinds[t.kind] + "/vacated");

@@ -82,6 +82,16 @@ bool RadiusIndex::hasNeighbour(const Eigen::Vector3f& p) const {
   return false;
 }
 
+void RadiusIndex::prefetch(const Eigen::Vector3f& p, bool points) const {
+  if (!indexable(p)) return;
+  const uint64_t key = cellKeyOf(double(p.x()), double(p.y()), double(p.z()), inv_cell_);
+  if (!points) {
+    cells_.prefetch(key);
+  } else if (const auto* cell = cells_.find(key)) {
+    __builtin_prefetch(&pts_[cell->first]);
+  }
+}
+
 double MapScore::aa() const {
   return std::sqrt(sa() * da());
 }

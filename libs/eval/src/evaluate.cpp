@@ -239,6 +239,9 @@ EvalReport evaluate(const std::string& gt_dir, const ResultInput& result, const 
     if (scorer) {
       const Eigen::Isometry3f pose = seq.poses()[i].cast<float>();
       for (std::size_t j = 0; j < scan.size(); ++j) {
+        // The points ahead, hinted twice (RadiusIndex::prefetch; some will be skipped below).
+        if (j + 16 < scan.size()) scorer->prefetch(pose * scan.points[j + 16].xyz(), false);
+        if (j + 8 < scan.size()) scorer->prefetch(pose * scan.points[j + 8].xyz(), true);
         const GtClass t = gtClass(all_truth[scan.originalIndex(j)]);
         if (t == GtClass::kIgnore) continue;
         const Eigen::Vector3f p = scan.points[j].xyz();
