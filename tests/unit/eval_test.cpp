@@ -242,10 +242,8 @@ TEST(MapScore, PrefetchHintsChangeNoAnswer) {
   const RadiusIndex index(map, 0.05), empty({}, 0.05);
   std::size_t found = 0;
   for (std::size_t i = 0; i < queries.size(); ++i) {
-    for (const RadiusIndex* x : {&index, &empty}) {
-      if (i + 16 < queries.size()) x->prefetch(queries[i + 16], false);
-      if (i + 8 < queries.size()) x->prefetch(queries[i + 8], true);
-    }
+    for (const RadiusIndex* x : {&index, &empty})
+      x->prefetchAhead(i, queries.size(), [&](std::size_t k) { return queries[k]; });
     bool brute = false;
     for (const auto& p : map) brute |= (p - queries[i]).squaredNorm() <= 0.05f * 0.05f;
     ASSERT_EQ(index.hasNeighbour(queries[i]), brute) << "query " << i;

@@ -133,8 +133,7 @@ MapCase runMapCase(const sim::Scenario& sc, const PipelineParams& params, const 
   for (const auto& k : kinds) by_id.push_back(&scorer(k));
   for (std::size_t i = 0; i < truth.size(); ++i) {
     const Truth& t = truth[i];
-    if (i + 16 < truth.size()) index.prefetch(truth[i + 16].p, false);  // the points ahead
-    if (i + 8 < truth.size()) index.prefetch(truth[i + 8].p, true);
+    index.prefetchAhead(i, truth.size(), [&](std::size_t k) { return truth[k].p; });
     by_id[t.kind]->add(t.p, t.moving);
     if (!t.vacated) continue;
     if (!vacated_by_id[t.kind]) vacated_by_id[t.kind] = &scorer(kinds[t.kind] + "/vacated");

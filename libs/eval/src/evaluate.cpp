@@ -239,9 +239,10 @@ EvalReport evaluate(const std::string& gt_dir, const ResultInput& result, const 
     if (scorer) {
       const Eigen::Isometry3f pose = seq.poses()[i].cast<float>();
       for (std::size_t j = 0; j < scan.size(); ++j) {
-        // The points ahead, hinted twice (RadiusIndex::prefetch; some will be skipped below).
-        if (j + 16 < scan.size()) scorer->prefetch(pose * scan.points[j + 16].xyz(), false);
-        if (j + 8 < scan.size()) scorer->prefetch(pose * scan.points[j + 8].xyz(), true);
+        // The points ahead, hinted (RadiusIndex::prefetchAhead; some will be skipped below).
+        scorer->prefetchAhead(j, scan.size(), [&](std::size_t k) -> Eigen::Vector3f {
+          return pose * scan.points[k].xyz();
+        });
         const GtClass t = gtClass(all_truth[scan.originalIndex(j)]);
         if (t == GtClass::kIgnore) continue;
         const Eigen::Vector3f p = scan.points[j].xyz();

@@ -3,6 +3,7 @@
 // kept if the scored map has a point within `radius` (0.05 m) of it.
 #pragma once
 #include <Eigen/Core>
+#include <cstddef>
 #include <cstdint>
 #include <vector>
 
@@ -21,10 +22,17 @@ class RadiusIndex {
   bool hasNeighbour(const Eigen::Vector3f& p) const;
   /// A hint that p will be asked soon; answers never change. The test waits on two loads from
   /// memory, its cell's table slot and then the cell's first point (`perf annotate`: 72 % of its
-  /// time), so a caller going through many points hints each twice, about 16 queries ahead
-  /// (`points` false: the slot starts loading) and 8 ahead (true: the slot is in cache by then,
-  /// the point starts loading).
+  /// time), so a caller going through many points hints each twice (prefetchAhead): kSlotAhead
+  /// queries ahead (`points` false: the slot starts loading) and kPointAhead ahead (true: the slot
+  /// is in cache by then, the point starts loading).
   void prefetch(const Eigen::Vector3f& p, bool points) const;
+  static constexpr std::size_t kSlotAhead = 16, kPointAhead = 8;
+  /// Both hints for the queries ahead of query i of n; at(k) is query k (a point).
+  template <class At>
+  void prefetchAhead(std::size_t i, std::size_t n, const At& at) const {
+    if (i + kSlotAhead < n) prefetch(at(i + kSlotAhead), false);
+    if (i + kPointAhead < n) prefetch(at(i + kPointAhead), true);
+  }
   std::size_t size() const { return pts_.size(); }
   const std::vector<Eigen::Vector3f>& points() const {
     return pts_;
@@ -56,8 +64,11 @@ class MapScorer {
  public:
   explicit MapScorer(const RadiusIndex& map) : map_(map) {}
   void add(const Eigen::Vector3f& p, bool moving);
-  /// RadiusIndex::prefetch for a point to be added soon.
-  void prefetch(const Eigen::Vector3f& p, bool points) const { map_.prefetch(p, points); }
+  /// RadiusIndex::prefetchAhead for the points to be added soon.
+  template <class At>
+  void prefetchAhead(std::size_t i, std::size_t n, const At& at) const {
+    map_.prefetchAhead(i, n, at);
+  }
   const MapScore& score() const { return s_; }
 
  private:
