@@ -119,6 +119,34 @@ TEST(Output, TheSteadyIntervalLeavesOutTheScansDecidedAfterTheInput) {
   EXPECT_GE(t.at("mean_ms").get<double>(), 30.0);
 }
 
+// The steady rate is that of the decisions, not of the writes: rule 4 backwards holds each result
+// for later scans, so results decided 30 ms apart while scans came in may all be written after the
+// input ended. Written at once, they keep their decisions' 30 ms; decided after the end, left out.
+TEST(Output, TheSteadyIntervalIsTheTimeBetweenDecisions) {
+  const auto dir = test::scratchDir("output_interval_decided");
+  {
+    io::OutputWriter w((dir / "out").string(), "input", PipelineParams{});
+    const auto now = std::chrono::steady_clock::now();
+    std::vector<ScanResult> held;
+    for (std::size_t i = 0; i < 4; ++i) {
+      held.push_back(result(i, 5));
+      held.back().decided_at = now - std::chrono::milliseconds(30 * (3 - i));
+    }
+    w.inputEnded();
+    for (const auto& r : held) w.write(r, std::nullopt);
+    for (std::size_t i = 4; i < 8; ++i) {
+      ScanResult r = result(i, 5);
+      r.decided_at = std::chrono::steady_clock::now();  // after the input's end
+      w.write(r, std::nullopt);
+    }
+    w.finish(0.1);
+  }
+  const auto j = nlohmann::json::parse(io::readTextFile((dir / "out/report.json").string()));
+  const auto& t = j.at("timing_per_scan").at("interval");
+  EXPECT_NEAR(t.at("median_ms").get<double>(), 30.0, 1e-6);
+  EXPECT_NEAR(t.at("mean_ms").get<double>(), 30.0, 1e-6);
+}
+
 // report.json `map.clean_passes_ms`: the map's decision pass by pass (DESIGN §2e, "Objects"). With
 // the objects decided both ways the three passes run, each a part of `clean_ms`; one way (the
 // objects off), the writing pass is the whole decision.

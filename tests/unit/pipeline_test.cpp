@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <array>
+#include <chrono>
 #include <cmath>
 #include <cstring>
 #include <functional>
@@ -196,12 +197,16 @@ TEST(Pipeline, StreamsWithDelayKAndBoundedWindow) {
   PipelineParams p = testParams();
   std::vector<std::size_t> decided_after_push;
   std::size_t decided = 0, max_window = 0;
+  std::vector<std::chrono::steady_clock::time_point> stamped, push_start, push_end;
   LaserPipeline pl(p, [&](ScanResult&& r) {
     ++decided;
     max_window = std::max(max_window, r.stats.window);
+    stamped.push_back(r.decided_at);
   });
   for (std::size_t i = 0; i < 12; ++i) {
+    push_start.push_back(std::chrono::steady_clock::now());
     pl.push(castScene(i, double(i), 10.0, nullptr));
+    push_end.push_back(std::chrono::steady_clock::now());
     decided_after_push.push_back(decided);
   }
   // Scan k is decided once scan k + K has arrived, and handed on once ceil(K / 2) + 2 more are
@@ -211,6 +216,14 @@ TEST(Pipeline, StreamsWithDelayKAndBoundedWindow) {
   pl.finish();
   EXPECT_EQ(decided, 12u);
   EXPECT_EQ(max_window, 8u);  // 2K scans, never more
+  // Each result carries when it was decided (report.json `interval`), not when it was handed on:
+  // in the push of scan k + K.
+  ASSERT_EQ(stamped.size(), 12u);
+  for (std::size_t k = 0; k + 4 < 12; ++k) {
+    EXPECT_GE(stamped[k], push_start[k + 4]) << "scan " << k;
+    EXPECT_LE(stamped[k], push_end[k + 4]) << "scan " << k;
+  }
+  for (std::size_t k = 1; k < 12; ++k) EXPECT_LE(stamped[k - 1], stamped[k]) << "scan " << k;
 }
 
 // DESIGN §2b: an auto K is window_s (1 s) at the rate of the first scans' timestamps; a dropped

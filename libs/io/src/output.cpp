@@ -174,7 +174,9 @@ std::optional<double> OutputWriter::measuredSensorHeight() const {
 }
 
 void OutputWriter::write(const ScanResult& r, const std::optional<MosCounts>& eval) {
-  written_at_.push_back(std::chrono::steady_clock::now());
+  decided_at_.push_back(r.decided_at.time_since_epoch().count() != 0
+                            ? r.decided_at
+                            : std::chrono::steady_clock::now());
   files_->writeLabels(staging_ + "/labels/" + r.stem + ".label", r.labels);
   if (!r.overlay.empty()) {  // --save-overlays (DESIGN §3)
     std::vector<uchar> png;
@@ -516,10 +518,10 @@ void OutputWriter::finish(double wall_s, const FreeSpaceMap* free_space) {
 
   ScanStats total;
   std::vector<double> t_total, t_reg, t_index, t_ground, t_dup, t_oct, t_cls, t_obj, t_free, t_img;
-  std::vector<double> t_interval;  // between two writes while the input flowed (inputEnded)
-  for (std::size_t i = 1; i < std::min(written_at_.size(), input_ended_at_); ++i)
+  std::vector<double> t_interval;  // between two decisions while the input flowed (inputEnded)
+  for (std::size_t i = 1; i < decided_at_.size() && decided_at_[i] <= input_ended_; ++i)
     t_interval.push_back(
-        std::chrono::duration<double, std::milli>(written_at_[i] - written_at_[i - 1]).count());
+        std::chrono::duration<double, std::milli>(decided_at_[i] - decided_at_[i - 1]).count());
   for (const auto& s : stats_) {
     total += s;
     t_total.push_back(s.ms.total);

@@ -910,6 +910,7 @@ void LaserPipeline::decide(std::size_t pos) {
       msSince(t_start) + (s.registered_beside ? 0.0 : s.stats.ms.registration) + s.prepare_ms;
   ++decided_;
   if (!p_.object.enabled || p_.object.persist_radius <= 0) {
+    r.decided_at = Clock::now();
     sink_(std::move(r));
     return;
   }
@@ -923,6 +924,7 @@ void LaserPipeline::decide(std::size_t pos) {
   const double back_ms = msSince(t_back);
   ms.objects += back_ms;
   ms.total += back_ms;
+  held_results_.back().r.decided_at = Clock::now();
 }
 
 // W_k: the other buffered scans that have beams.

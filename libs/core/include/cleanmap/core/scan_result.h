@@ -3,6 +3,7 @@
 // times. Plain data below the pipeline, so the writers in cleanmap::io need no pipeline.
 #pragma once
 #include <Eigen/Geometry>
+#include <chrono>
 #include <cstddef>
 #include <limits>
 #include <opencv2/core/mat.hpp>
@@ -142,6 +143,10 @@ struct ScanResult {
   /// scans (LaserPipeline::keepScans): the cleaned and labelled rawlogs are made from it.
   Scan scan;
   ScanStats stats;
+  /// When the pipeline had decided it (rule 4's carrying back included); unset (epoch) where no
+  /// pipeline made it. The report's steady rate is the time between two decisions (`interval`):
+  /// a result may be held for later scans' rules before it is written.
+  std::chrono::steady_clock::time_point decided_at{};
 };
 
 }  // namespace cleanmap

@@ -62,10 +62,11 @@ class OutputWriter {
 
   /// One decided scan, with its evaluation when ground truth exists.
   void write(const ScanResult& r, const std::optional<MosCounts>& eval);
-  /// The input has ended: the scans written from now on are the last ones the pipeline decides
-  /// without new scans coming in. report.json's `interval` (the run's steady rate: the wall time
-  /// between two scans' results, everything the process does per scan) leaves them out.
-  void inputEnded() { input_ended_at_ = written_at_.size(); }
+  /// The input has ended: the scans decided from now on are the last ones, decided without new
+  /// scans coming in. report.json's `interval` (the run's steady rate: the wall time between two
+  /// scans' decisions, ScanResult::decided_at, or their writes where unset; everything the process
+  /// does per scan) leaves them out.
+  void inputEnded() { input_ended_ = std::chrono::steady_clock::now(); }
   /// Wall time (ms, whole run) of another writer of the run (report.json `output_ms`).
   void addOutputTime(const std::string& name, double ms) { output_ms_[name] += ms; }
   /// Where ground truth exists: how many points the camera check relabelled static were truly
@@ -131,8 +132,9 @@ class OutputWriter {
   double map_ms_ = 0;
   double map_forward_ms_ = 0, map_backward_ms_ = 0, map_write_ms_ = 0;  // its passes (§2e)
   std::vector<Eigen::Isometry3d> poses_;
-  std::vector<std::chrono::steady_clock::time_point> written_at_;         // of each write()
-  std::size_t input_ended_at_ = std::numeric_limits<std::size_t>::max();  // writes before
+  // Each result's decision (its write where no pipeline stamped it), and the input's end.
+  std::vector<std::chrono::steady_clock::time_point> decided_at_;
+  std::chrono::steady_clock::time_point input_ended_ = std::chrono::steady_clock::time_point::max();
   std::vector<ScanStats> stats_;
   std::vector<std::string> stems_;
   std::vector<std::uint64_t> spool_offsets_;  // where each scan's spool starts
