@@ -5,7 +5,6 @@
 #pragma once
 #include <chrono>
 #include <functional>
-#include <limits>
 #include <map>
 #include <memory>
 #include <optional>
