@@ -139,7 +139,8 @@ int main(int argc, char** argv) {
         if (!pair.pose || !pair.sf)
           throw cleanmap::Error(input, "keyframe " + std::to_string(i) + " is empty");
         for (const auto& obs : *pair.sf)
-          for (const auto& f : cleanmap::mrpt::externalFiles(*obs)) {
+          for (const auto& f :
+               cleanmap::mrpt::externalFiles(*obs, input, "keyframe " + std::to_string(i))) {
             folders.insert(fs::absolute(f.path).parent_path().lexically_normal().string());
             std::error_code ec;
             if (f.what != "image" && !fs::is_regular_file(f.path, ec))

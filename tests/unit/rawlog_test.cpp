@@ -678,6 +678,39 @@ TEST(RawlogSource, ReadsRelativeExternalFilesFromTheRawlogsImagesFolder) {
       "cut.rawlog", "entry 2: the scan's external file");
 }
 
+// An external file name MRPT cannot resolve (2 characters or fewer: MRPT asserts, naming neither
+// the rawlog nor the entry; found by fuzzing) is one line naming the rawlog, the entry and the
+// name, for a scan and for an image alike.
+TEST(RawlogSource, AnExternalNameMrptCannotResolveIsAClearError) {
+  const auto dir = test::scratchDir("rawlog_external_name");
+  auto write = [&](const std::string& name, const std::string& scan, const std::string& image) {
+    ::mrpt::io::CFileGZOutputStream out((dir / name).string());
+    auto ar = ::mrpt::serialization::archiveFrom(out);
+    auto img = ::mrpt::obs::CObservationImage::Create();
+    img->sensorLabel = "CAM";
+    img->timestamp = cleanmap::mrpt::toMrptTime(10.0);
+    img->image.setExternalStorage(image);
+    ar << *img;
+    auto pc = ::mrpt::obs::CObservationPointCloud::Create();
+    pc->sensorLabel = "LIDAR";
+    pc->timestamp = img->timestamp;
+    pc->setAsExternalStorage(
+        scan, ::mrpt::obs::CObservationPointCloud::ExternalStorageFormat::KittiBinFile);
+    ar << *pc;
+  };
+  const auto read = [&](const std::string& name) {
+    cleanmap::mrpt::RawlogSource src((dir / name).string());
+    while (src.next()) {
+    }
+  };
+  write("scan.rawlog", "ab", "image.png");
+  test::expectError([&] { read("scan.rawlog"); }, "scan.rawlog",
+                    "entry 1: the scan's external file name \"ab\" cannot be resolved (");
+  write("image.rawlog", "scan.bin", "x");
+  test::expectError([&] { read("image.rawlog"); }, "image.rawlog",
+                    "entry 0: the image's external file name \"x\" cannot be resolved (");
+}
+
 // A simplemap (a SLAM's output: keyframes of a pose and a sensory frame) reads as its scans, each
 // at its keyframe's pose: the points bit for bit, the poses within 1e-9. The pose and the image go
 // by the keyframe, not by time, so keyframes without times (older simplemaps) keep their own.

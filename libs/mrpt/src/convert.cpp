@@ -43,7 +43,11 @@ std::string briefMessage(const std::exception& e) {
   while (std::getline(in, line)) {
     if (line.find_first_not_of(" \t=") == std::string::npos) continue;
     if (line.find("MRPT exception") != std::string::npos) continue;
-    if (line.rfind("Message:", 0) == 0) return printable(line.substr(9));
+    if (line.rfind("Message:", 0) == 0) {  // its text, without the spaces before it
+      const std::size_t at = line.find_first_not_of(' ', 8);
+      if (at != std::string::npos) return printable(line.substr(at));
+      continue;
+    }
     if (last.empty()) last = line;
   }
   return last.empty() ? std::string("unknown error") : printable(last);

@@ -176,7 +176,7 @@ struct RawlogSource::Impl {
     } else if (auto im = std::dynamic_pointer_cast<CObservationImage>(obs)) {
       if (!opts.load_images) return;  // laser only: not decoded, not counted
       if (!ours(cam, opts.camera_label, obs->sensorLabel, other_cameras)) return;
-      for (const auto& f : externalFiles(*im))
+      for (const auto& f : externalFiles(*im, path, where(entry - 1)))
         noteExternal(f, false);  // read where a scan takes it
       Item it;
       it.kind = Item::kImage;
@@ -201,7 +201,7 @@ struct RawlogSource::Impl {
       throw missingExternalFile(path, where(entry - 1), f);
   }
   void requireExternals(const ::mrpt::obs::CObservation& obs) {
-    for (const auto& f : externalFiles(obs))
+    for (const auto& f : externalFiles(obs, path, where(entry - 1)))
       if (f.what != "image") noteExternal(f, true);
   }
 
@@ -497,20 +497,35 @@ bool isSimplemapName(const std::string& path) {
   return false;
 }
 
-std::vector<ExternalFile> externalFiles(const ::mrpt::obs::CObservation& obs) {
+std::vector<ExternalFile> externalFiles(const ::mrpt::obs::CObservation& obs,
+                                        const std::string& file_of, const std::string& where) {
   using namespace ::mrpt::obs;
   std::vector<ExternalFile> out;
+  // MRPT resolves a stored name by an assertion (a name of 2 characters or fewer is none): its
+  // message names neither the file nor the entry.
+  const auto add = [&](const std::string& what, const std::string& name, auto&& resolve) {
+    try {
+      out.push_back({resolve(), what});
+    } catch (const std::exception& e) {
+      throw Error(file_of, where + ": the " + what + "'s external file name \"" + name +
+                               "\" cannot be resolved (" + briefMessage(e) + ")");
+    }
+  };
   if (const auto* pc = dynamic_cast<const CObservationPointCloud*>(&obs)) {
     if (pc->isExternallyStored())
-      out.push_back({::mrpt::io::lazy_load_absolute_path(pc->getExternalStorageFile()), "scan"});
+      add("scan", pc->getExternalStorageFile(),
+          [&] { return ::mrpt::io::lazy_load_absolute_path(pc->getExternalStorageFile()); });
   } else if (const auto* r = dynamic_cast<const CObservation3DRangeScan*>(&obs)) {
     if (r->hasRangeImage && r->rangeImage_isExternallyStored())
-      out.push_back({r->rangeImage_getExternalStorageFileAbsolutePath(""), "range image"});
+      add("range image", r->rangeImage_getExternalStorageFile(""),
+          [&] { return r->rangeImage_getExternalStorageFileAbsolutePath(""); });
     if (r->hasPoints3D && r->points3D_isExternallyStored())
-      out.push_back({r->points3D_getExternalStorageFileAbsolutePath(), "scan"});
+      add("scan", r->points3D_getExternalStorageFile(),
+          [&] { return r->points3D_getExternalStorageFileAbsolutePath(); });
   } else if (const auto* im = dynamic_cast<const CObservationImage*>(&obs)) {
     if (im->image.isExternallyStored())
-      out.push_back({im->image.getExternalStorageFileAbsolutePath(), "image"});
+      add("image", im->image.getExternalStorageFile(),
+          [&] { return im->image.getExternalStorageFileAbsolutePath(); });
   }
   return out;
 }

@@ -64,12 +64,14 @@ bool isLidarObservation(const ::mrpt::obs::CObservation& obs);
 
 /// A file an observation keeps outside its rawlog or simplemap (MRPT's external storage), as an
 /// absolute path (a relative one through MRPT's lazy-load base), and what it holds: "scan",
-/// "range image" or "image".
+/// "range image" or "image". A stored name MRPT cannot resolve is an Error naming file_of (the
+/// rawlog or simplemap) and where ("entry N", "keyframe N").
 struct ExternalFile {
   std::string path;
   std::string what;
 };
-std::vector<ExternalFile> externalFiles(const ::mrpt::obs::CObservation& obs);
+std::vector<ExternalFile> externalFiles(const ::mrpt::obs::CObservation& obs,
+                                        const std::string& file_of, const std::string& where);
 
 /// A scan's external file that does not exist, in one line: "<file_of>: <where>: the scan's
 /// external file ... does not exist (relative paths are read from ...)". MRPT's own message is
