@@ -130,7 +130,7 @@ int main(int argc, char** argv) {
     if (cleanmap::mrpt::isSimplemapName(input)) {
       cleanmap::mrpt::useExternalFilesFolderOf(input);  // relative external scans and images
       ::mrpt::maps::CSimpleMap sm;
-      if (!sm.loadFromFile(input)) throw cleanmap::Error(input, "cannot be read as a CSimpleMap");
+      cleanmap::mrpt::loadSimplemap(input, sm);
       // Its external files, before any is read: each scan's must exist, and no folder of them
       // may be one that -o would replace.
       std::set<std::string> folders;

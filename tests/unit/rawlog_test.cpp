@@ -11,6 +11,7 @@
 #include <mrpt/io/CFileGZInputStream.h>
 #include <mrpt/io/CFileGZOutputStream.h>
 #include <mrpt/maps/CSimpleMap.h>
+#include <mrpt/maps/CSimplePointsMap.h>
 #include <mrpt/obs/CObservation2DRangeScan.h>
 #include <mrpt/obs/CObservationGPS.h>
 #include <mrpt/obs/CObservationImage.h>
@@ -709,6 +710,70 @@ TEST(RawlogSource, AnExternalNameMrptCannotResolveIsAClearError) {
   write("image.rawlog", "scan.bin", "x");
   test::expectError([&] { read("image.rawlog"); }, "image.rawlog",
                     "entry 0: the image's external file name \"x\" cannot be resolved (");
+}
+
+// MRPT 2.5.8 crashes reading a CSimpleMap of its first format (version 0) whose pose is missing
+// (found by fuzzing). Such a simplemap, or such an entry of a rawlog, is one line; so is it for
+// cleanmap-build-map's reader of a whole simplemap. Where the file reads, the peeking changes
+// nothing: a version-1 simplemap loads whole.
+TEST(RawlogSource, ASimplemapOfMrptsFirstFormatIsAClearError) {
+  const auto dir = test::scratchDir("rawlog_simplemap_v0");
+  const auto write = [&](const std::string& name, bool entry_before) {
+    ::mrpt::io::CFileGZOutputStream out((dir / name).string());
+    auto ar = ::mrpt::serialization::archiveFrom(out);
+    if (entry_before) {
+      auto pc = ::mrpt::obs::CObservationPointCloud::Create();
+      pc->pointcloud = ::mrpt::maps::CSimplePointsMap::Create();
+      pc->pointcloud->insertPoint(5, 0, -1);
+      ar << *pc;
+    }
+    const std::string cls = "mrpt::maps::CSimpleMap";
+    const uint8_t head[] = {static_cast<uint8_t>(0x80 | cls.size())};
+    out.Write(head, 1);
+    out.Write(cls.data(), cls.size());
+    const uint8_t version_and_count[] = {0, 1, 0, 0, 0};  // version 0, one keyframe
+    out.Write(version_and_count, sizeof version_and_count);
+    ar << ::mrpt::serialization::CSerializable::Ptr();  // its 2D pose: missing
+    ar << ::mrpt::obs::CSensoryFrame();
+    const uint8_t end = 0x88;
+    out.Write(&end, 1);
+  };
+  write("old.simplemap", false);
+  test::expectError([&] { cleanmap::mrpt::RawlogSource src((dir / "old.simplemap").string()); },
+                    "old.simplemap", "is a CSimpleMap of MRPT's first format (version 0");
+  ::mrpt::maps::CSimpleMap sm;
+  test::expectError([&] { cleanmap::mrpt::loadSimplemap((dir / "old.simplemap").string(), sm); },
+                    "old.simplemap", "is a CSimpleMap of MRPT's first format (version 0");
+  write("old.rawlog", true);
+  test::expectError(
+      [&] {
+        cleanmap::mrpt::RawlogSource src((dir / "old.rawlog").string());
+        while (src.next()) {
+        }
+      },
+      "old.rawlog", "entry 1 is a CSimpleMap of MRPT's first format (version 0");
+  test::expectError([&] { cleanmap::mrpt::loadSimplemap((dir / "none.simplemap").string(), sm); },
+                    "none.simplemap", "cannot be opened as a simplemap");
+  test::expectError([&] { cleanmap::mrpt::loadSimplemap((dir / "old.rawlog").string(), sm); },
+                    "old.rawlog", "is not a simplemap MRPT can read");
+
+  ::mrpt::maps::CSimpleMap v1;
+  auto sf = ::mrpt::obs::CSensoryFrame::Create();
+  auto pc = ::mrpt::obs::CObservationPointCloud::Create();
+  pc->pointcloud = ::mrpt::maps::CSimplePointsMap::Create();
+  pc->pointcloud->insertPoint(5, 1, -1);
+  sf->insert(pc);
+  v1.insert(::mrpt::poses::CPose3DPDFGaussian::Create(::mrpt::poses::CPose3D(1, 2, 0, 0, 0, 0)),
+            sf);
+  ASSERT_TRUE(v1.saveToFile((dir / "new.simplemap").string()));
+  cleanmap::mrpt::loadSimplemap((dir / "new.simplemap").string(), sm);
+  ASSERT_EQ(sm.size(), 1u);
+  EXPECT_EQ(sm.getAsPair(0).pose->getMeanVal().x(), 1.0);
+  cleanmap::mrpt::RawlogSource src((dir / "new.simplemap").string());
+  const auto f = src.next();
+  ASSERT_TRUE(f.has_value());
+  ASSERT_EQ(f->scan.points.size(), 1u);
+  EXPECT_EQ(f->scan.points[0].y, 1.0f);
 }
 
 // A simplemap (a SLAM's output: keyframes of a pose and a sensory frame) reads as its scans, each

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <deque>
 #include <filesystem>
 #include <mutex>
@@ -67,6 +68,70 @@ class ReadingGuard {
   ReadingGuard& operator=(const ReadingGuard&) = delete;
 };
 
+// MRPT's input stream with read-ahead: the next object's header is read (peekHeader) and read
+// again by MRPT's deserializer.
+class PeekStream : public ::mrpt::io::CStream {
+ public:
+  explicit PeekStream(::mrpt::io::CStream& in) : in_(in) {}
+  size_t Read(void* out, size_t n) override {
+    const size_t got = std::min(n, ahead_.size() - at_);
+    std::memcpy(out, ahead_.data() + at_, got);
+    at_ += got;
+    return got + (got < n ? in_.Read(static_cast<char*>(out) + got, n - got) : 0);
+  }
+  size_t Write(const void*, size_t) override { throw std::logic_error("PeekStream is read-only"); }
+  uint64_t Seek(int64_t, TSeekOrigin) override { throw std::logic_error("PeekStream cannot seek"); }
+  uint64_t getTotalBytesCount() const override { return in_.getTotalBytesCount(); }
+  uint64_t getPosition() const override { return in_.getPosition() - (ahead_.size() - at_); }
+  // The next n bytes (fewer at the end of the stream), left to be read.
+  std::string peek(size_t n) {
+    ahead_.erase(0, at_);
+    at_ = 0;
+    if (ahead_.size() < n) {
+      std::string more(n - ahead_.size(), '\0');
+      more.resize(in_.Read(more.data(), more.size()));
+      ahead_ += more;
+    }
+    return ahead_.substr(0, n);
+  }
+
+ private:
+  ::mrpt::io::CStream& in_;
+  std::string ahead_;  // bytes read from in_ and not yet by Read
+  size_t at_ = 0;
+};
+
+// The class name and serialization version of the next object, read ahead as
+// CArchive::ReadObject reads them (a name length with its high bit set, the name, a version
+// byte; before MRPT 0.5.5: the length, three zero bytes, the name, a 32-bit version). nullopt
+// where the bytes are no such header: MRPT's reader then says what is wrong.
+std::optional<std::pair<std::string, int>> peekHeader(PeekStream& s) {
+  const std::string first = s.peek(1);
+  if (first.empty()) return std::nullopt;
+  const auto len0 = static_cast<uint8_t>(first[0]);
+  const bool old = !(len0 & 0x80);
+  const size_t len = len0 & 0x7F, name_at = old ? 4 : 1;
+  const std::string b = s.peek(name_at + len + (old ? 4 : 1));
+  if (b.size() < name_at + len + (old ? 4 : 1)) return std::nullopt;
+  int version = static_cast<int8_t>(b[name_at + len]);
+  if (old) {
+    uint32_t v = 0;
+    for (int i = 3; i >= 0; --i) v = (v << 8) | static_cast<uint8_t>(b[name_at + len + i]);
+    version = static_cast<int>(v);
+  }
+  return std::make_pair(b.substr(name_at, len), version);
+}
+
+// MRPT 2.5.8 reads a CSimpleMap of its first format (version 0: keyframes at 2D poses) through a
+// pose it does not check, and crashes on a missing one (found by fuzzing): such a simplemap is
+// refused before MRPT reads it. A point-cloud SLAM never wrote one: MRPT saves version 1.
+void refuseSimplemapV0(PeekStream& s, const std::string& path, const std::string& what) {
+  if (const auto h = peekHeader(s); h && h->first == "mrpt::maps::CSimpleMap" && h->second == 0)
+    throw Error(path, what +
+                          " a CSimpleMap of MRPT's first format (version 0: keyframes at 2D "
+                          "poses), which cleanmap does not read");
+}
+
 struct Item {
   enum Kind { kScan, kPose, kImage, kOdometry } kind = kScan;
   double t = 0;
@@ -84,7 +149,8 @@ struct Item {
 struct RawlogSource::Impl {
   std::string path;
   RawlogReadOptions opts;
-  ::mrpt::io::CFileGZInputStream in;
+  ::mrpt::io::CFileGZInputStream file;
+  PeekStream in{file};
   std::size_t entry = 0, scans = 0, skipped = 0;
   bool eof = false;
   std::deque<Item> buf;
@@ -212,6 +278,7 @@ struct RawlogSource::Impl {
     if (simplemap) return readKeyframe();
     if (eof) return false;
     using namespace ::mrpt::obs;
+    refuseSimplemapV0(in, path, entry == 0 ? "is" : "entry " + std::to_string(entry) + " is");
     auto arch = ::mrpt::serialization::archiveFrom(in);
     const uint64_t before = in.getPosition();
     ::mrpt::serialization::CSerializable::Ptr obj;
@@ -357,7 +424,7 @@ RawlogSource::RawlogSource(const std::string& path, const RawlogReadOptions& opt
   std::error_code ec;
   if (!fs::exists(path, ec)) throw Error(path, "file does not exist");
   if (fs::is_directory(path, ec)) throw Error(path, "is a directory, expected a rawlog file");
-  if (!impl_->in.open(path)) throw Error(path, "cannot open for reading");
+  if (!impl_->file.open(path)) throw Error(path, "cannot open for reading");
   useExternalFilesFolderOf(path);
   while (!impl_->findScan(0) && impl_->readEntry()) {
   }
@@ -535,6 +602,23 @@ Error missingExternalFile(const std::string& file_of, const std::string& where,
   return Error(file_of, where + ": the " + f.what + "'s external file " + f.path +
                             " does not exist (relative paths are read from " +
                             ::mrpt::io::getLazyLoadPathBase() + ")");
+}
+
+void loadSimplemap(const std::string& path, ::mrpt::maps::CSimpleMap& out) {
+  registerClasses();
+  ::mrpt::io::CFileGZInputStream file;
+  std::error_code ec;
+  if (!fs::is_regular_file(path, ec) || !file.open(path))
+    throw Error(path, "cannot be opened as a simplemap (no such file, or not a file)");
+  PeekStream in(file);
+  refuseSimplemapV0(in, path, "is");
+  try {
+    auto arch = ::mrpt::serialization::archiveFrom(in);
+    arch >> out;
+  } catch (const std::exception& e) {
+    throw Error(path, "is not a simplemap MRPT can read (cut short, corrupt, or another file): " +
+                          briefMessage(e));
+  }
 }
 
 std::string useExternalFilesFolderOf(const std::string& file) {

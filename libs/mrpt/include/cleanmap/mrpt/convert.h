@@ -18,6 +18,9 @@
 namespace mrpt::opengl {
 class CPointCloudColoured;
 }
+namespace mrpt::maps {
+class CSimpleMap;
+}
 
 namespace cleanmap::mrpt {
 
@@ -72,6 +75,11 @@ struct ExternalFile {
 };
 std::vector<ExternalFile> externalFiles(const ::mrpt::obs::CObservation& obs,
                                         const std::string& file_of, const std::string& where);
+
+/// A simplemap read whole (cleanmap-build-map), as CSimpleMap::loadFromFile reads it, but an error
+/// is one line naming the file, and a simplemap of MRPT's first format (version 0), whose MRPT
+/// reader crashes on a missing pose, is refused before it is read.
+void loadSimplemap(const std::string& path, ::mrpt::maps::CSimpleMap& out);
 
 /// A scan's external file that does not exist, in one line: "<file_of>: <where>: the scan's
 /// external file ... does not exist (relative paths are read from ...)". MRPT's own message is
