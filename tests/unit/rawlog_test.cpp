@@ -5,6 +5,7 @@
 #include <cstring>
 #include <fstream>
 #include <map>
+#include <random>
 #include <set>
 #include <tuple>
 
@@ -710,6 +711,46 @@ TEST(RawlogSource, AnExternalNameMrptCannotResolveIsAClearError) {
   write("image.rawlog", "scan.bin", "x");
   test::expectError([&] { read("image.rawlog"); }, "image.rawlog",
                     "entry 0: the image's external file name \"x\" cannot be resolved (");
+}
+
+// A compressed rawlog whose data is corrupt in the middle (gzread fails, and MRPT's stream returns
+// its -1 as a count) is one line naming the rawlog, whatever byte is hit.
+TEST(RawlogSource, CorruptCompressedDataIsAClearError) {
+  const auto dir = test::scratchDir("rawlog_corrupt_gz");
+  std::minstd_rand rng(7);
+  {
+    ::mrpt::io::CFileGZOutputStream out((dir / "ok.rawlog").string());
+    auto ar = ::mrpt::serialization::archiveFrom(out);
+    for (int k = 0; k < 20; ++k) {
+      auto pc = ::mrpt::obs::CObservationPointCloud::Create();
+      pc->sensorLabel = "LIDAR";
+      pc->timestamp = cleanmap::mrpt::toMrptTime(10.0 + 0.1 * k);
+      pc->pointcloud = ::mrpt::maps::CSimplePointsMap::Create();
+      for (int i = 0; i < 2000; ++i)  // random bits: compressed data over several gz blocks
+        pc->pointcloud->insertPoint(5 + 0.01f * float(rng() % 1000), float(k), -1);
+      ar << *pc;
+    }
+  }
+  std::ifstream f(dir / "ok.rawlog", std::ios::binary);
+  const std::string good((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  ASSERT_GT(good.size(), 200u);
+  int errors = 0;
+  for (std::size_t at = 20; at + 10 < good.size(); at += good.size() / 16) {
+    std::string bad = good;
+    for (std::size_t i = at; i < at + 8; ++i) bad[i] = static_cast<char>(bad[i] ^ 0x5a);
+    std::ofstream((dir / "bad.rawlog").string(), std::ios::binary) << bad;
+    try {
+      cleanmap::mrpt::RawlogSource src((dir / "bad.rawlog").string());
+      while (src.next()) {
+      }
+    } catch (const cleanmap::Error& e) {
+      ++errors;
+      const std::string m = e.what();
+      EXPECT_NE(m.find("bad.rawlog"), std::string::npos) << m;
+      EXPECT_EQ(m.find('\n'), std::string::npos) << m;
+    }
+  }
+  EXPECT_GT(errors, 0);  // corrupt deflate data is found (the CRC at the end, if not before)
 }
 
 // MRPT 2.5.8 crashes reading a CSimpleMap of its first format (version 0) whose pose is missing

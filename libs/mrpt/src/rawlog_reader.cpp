@@ -9,6 +9,7 @@
 #include <mutex>
 #include <set>
 #include <sstream>
+#include <stdexcept>
 #include <vector>
 
 #include <opencv2/imgproc.hpp>
@@ -77,7 +78,7 @@ class PeekStream : public ::mrpt::io::CStream {
     const size_t got = std::min(n, ahead_.size() - at_);
     std::memcpy(out, ahead_.data() + at_, got);
     at_ += got;
-    return got + (got < n ? in_.Read(static_cast<char*>(out) + got, n - got) : 0);
+    return got + (got < n ? readFile(static_cast<char*>(out) + got, n - got) : 0);
   }
   size_t Write(const void*, size_t) override { throw std::logic_error("PeekStream is read-only"); }
   uint64_t Seek(int64_t, TSeekOrigin) override { throw std::logic_error("PeekStream cannot seek"); }
@@ -89,13 +90,19 @@ class PeekStream : public ::mrpt::io::CStream {
     at_ = 0;
     if (ahead_.size() < n) {
       std::string more(n - ahead_.size(), '\0');
-      more.resize(in_.Read(more.data(), more.size()));
+      more.resize(readFile(more.data(), more.size()));
       ahead_ += more;
     }
     return ahead_.substr(0, n);
   }
 
  private:
+  // MRPT's gz stream returns gzread's -1 as a count on corrupt compressed data.
+  size_t readFile(char* out, size_t n) {
+    const size_t got = in_.Read(out, n);
+    if (got > n) throw std::runtime_error("corrupt compressed data (gzread failed)");
+    return got;
+  }
   ::mrpt::io::CStream& in_;
   std::string ahead_;  // bytes read from in_ and not yet by Read
   size_t at_ = 0;
@@ -278,13 +285,15 @@ struct RawlogSource::Impl {
     if (simplemap) return readKeyframe();
     if (eof) return false;
     using namespace ::mrpt::obs;
-    refuseSimplemapV0(in, path, entry == 0 ? "is" : "entry " + std::to_string(entry) + " is");
     auto arch = ::mrpt::serialization::archiveFrom(in);
     const uint64_t before = in.getPosition();
     ::mrpt::serialization::CSerializable::Ptr obj;
     try {
+      refuseSimplemapV0(in, path, entry == 0 ? "is" : "entry " + std::to_string(entry) + " is");
       const ReadingGuard guard(path, entry);
       obj = arch.ReadObject();
+    } catch (const Error&) {
+      throw;
     } catch (const ::mrpt::serialization::CExceptionEOF&) {
       if (in.getPosition() == before) {
         eof = true;
@@ -611,10 +620,12 @@ void loadSimplemap(const std::string& path, ::mrpt::maps::CSimpleMap& out) {
   if (!fs::is_regular_file(path, ec) || !file.open(path))
     throw Error(path, "cannot be opened as a simplemap (no such file, or not a file)");
   PeekStream in(file);
-  refuseSimplemapV0(in, path, "is");
   try {
+    refuseSimplemapV0(in, path, "is");
     auto arch = ::mrpt::serialization::archiveFrom(in);
     arch >> out;
+  } catch (const Error&) {
+    throw;
   } catch (const std::exception& e) {
     throw Error(path, "is not a simplemap MRPT can read (cut short, corrupt, or another file): " +
                           briefMessage(e));
