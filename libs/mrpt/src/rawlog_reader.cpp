@@ -6,6 +6,7 @@
 #include <cstring>
 #include <deque>
 #include <filesystem>
+#include <fstream>
 #include <mutex>
 #include <set>
 #include <sstream>
@@ -69,6 +70,11 @@ class ReadingGuard {
   ReadingGuard& operator=(const ReadingGuard&) = delete;
 };
 
+// gzread failed: the compressed data is damaged (its check at the end, or the deflate data).
+struct CorruptCompressedData : std::runtime_error {
+  CorruptCompressedData() : std::runtime_error("corrupt compressed data (gzread failed)") {}
+};
+
 // MRPT's input stream with read-ahead: the next object's header is read (peekHeader) and read
 // again by MRPT's deserializer.
 class PeekStream : public ::mrpt::io::CStream {
@@ -84,6 +90,8 @@ class PeekStream : public ::mrpt::io::CStream {
   uint64_t Seek(int64_t, TSeekOrigin) override { throw std::logic_error("PeekStream cannot seek"); }
   uint64_t getTotalBytesCount() const override { return in_.getTotalBytesCount(); }
   uint64_t getPosition() const override { return in_.getPosition() - (ahead_.size() - at_); }
+  // A read failed on corrupt compressed data (MRPT's deserializer turns that into its "EOF").
+  bool corrupt() const { return corrupt_; }
   // The next n bytes (fewer at the end of the stream), left to be read.
   std::string peek(size_t n) {
     ahead_.erase(0, at_);
@@ -100,43 +108,90 @@ class PeekStream : public ::mrpt::io::CStream {
   // MRPT's gz stream returns gzread's -1 as a count on corrupt compressed data.
   size_t readFile(char* out, size_t n) {
     const size_t got = in_.Read(out, n);
-    if (got > n) throw std::runtime_error("corrupt compressed data (gzread failed)");
+    if (got > n) {
+      corrupt_ = true;
+      throw CorruptCompressedData();
+    }
     return got;
   }
   ::mrpt::io::CStream& in_;
+  bool corrupt_ = false;
   std::string ahead_;  // bytes read from in_ and not yet by Read
   size_t at_ = 0;
 };
 
-// The class name and serialization version of the next object, read ahead as
-// CArchive::ReadObject reads them (a name length with its high bit set, the name, a version
-// byte; before MRPT 0.5.5: the length, three zero bytes, the name, a 32-bit version). nullopt
-// where the bytes are no such header: MRPT's reader then says what is wrong.
-std::optional<std::pair<std::string, int>> peekHeader(PeekStream& s) {
+// The next object's header, read ahead as CArchive::ReadObject reads it (a name length with its
+// high bit set, the name, a version byte; before MRPT 0.5.5: the length, three zero bytes, the
+// name, a 32-bit version), and its size in bytes. nullopt where the bytes are no such header:
+// MRPT's reader then says what is wrong.
+struct Header {
+  std::string name;
+  int version = 0;
+  size_t bytes = 0;
+};
+std::optional<Header> peekHeader(PeekStream& s) {
   const std::string first = s.peek(1);
   if (first.empty()) return std::nullopt;
   const auto len0 = static_cast<uint8_t>(first[0]);
   const bool old = !(len0 & 0x80);
   const size_t len = len0 & 0x7F, name_at = old ? 4 : 1;
-  const std::string b = s.peek(name_at + len + (old ? 4 : 1));
-  if (b.size() < name_at + len + (old ? 4 : 1)) return std::nullopt;
+  const size_t bytes = name_at + len + (old ? 4 : 1);
+  const std::string b = s.peek(bytes);
+  if (b.size() < bytes) return std::nullopt;
   int version = static_cast<int8_t>(b[name_at + len]);
   if (old) {
     uint32_t v = 0;
     for (int i = 3; i >= 0; --i) v = (v << 8) | static_cast<uint8_t>(b[name_at + len + i]);
     version = static_cast<int>(v);
   }
-  return std::make_pair(b.substr(name_at, len), version);
+  return Header{b.substr(name_at, len), version, bytes};
 }
 
-// MRPT 2.5.8 reads a CSimpleMap of its first format (version 0: keyframes at 2D poses) through a
-// pose it does not check, and crashes on a missing one (found by fuzzing): such a simplemap is
-// refused before MRPT reads it. A point-cloud SLAM never wrote one: MRPT saves version 1.
-void refuseSimplemapV0(PeekStream& s, const std::string& path, const std::string& what) {
-  if (const auto h = peekHeader(s); h && h->first == "mrpt::maps::CSimpleMap" && h->second == 0)
-    throw Error(path, what +
-                          " a CSimpleMap of MRPT's first format (version 0: keyframes at 2D "
-                          "poses), which cleanmap does not read");
+// What MRPT 2.5.8's readers of its containers do not check (found by fuzzing), checked before
+// they read one: a CSimpleMap, CSensoryFrame or CActionCollection sizes its list (a std::deque,
+// filled block by block) to the count it reads first, so a few bytes claiming 2^32 elements take
+// gigabytes before the data runs out; and the first formats (version 0) of a CSimpleMap and a
+// CSensoryFrame use a pose or an observation that may be missing (SIGSEGV). A count is refused
+// where its elements, each at least a missing one ("nullptr", 9 bytes), would not fit in
+// max_bytes. A point-cloud SLAM never wrote a version 0: MRPT 2.5.8 writes version 1 of a
+// CSimpleMap and 2 of a CSensoryFrame. `what`: "is", "entry N is".
+void checkContainer(PeekStream& s, const std::string& path, const std::string& what,
+                    uint64_t max_bytes) {
+  constexpr uint64_t kLeastObjectBytes = 9;
+  const auto h = peekHeader(s);
+  if (!h) return;
+  const std::string cls = h->name.substr(h->name.rfind(':') + 1);
+  uint64_t per_element = 1;  // objects per element
+  size_t count_at = h->bytes;
+  if (h->name == "mrpt::maps::CSimpleMap") {
+    per_element = 2;  // a pose and a sensory frame
+  } else if (h->name == "mrpt::obs::CSensoryFrame") {
+    count_at += h->version == 1 ? 4 : 0;  // an ID before it
+  } else if (h->name != "mrpt::obs::CActionCollection") {
+    return;
+  }
+  if (h->version == 0 && cls != "CActionCollection")
+    throw Error(path, what + " a " + cls +
+                          " of MRPT's first format (version 0), which cleanmap does not read");
+  const std::string b = s.peek(count_at + 4);
+  if (b.size() < count_at + 4) return;
+  uint64_t n = 0;
+  for (int i = 3; i >= 0; --i) n = (n << 8) | static_cast<uint8_t>(b[count_at + i]);
+  if (n * per_element * kLeastObjectBytes > max_bytes)
+    throw Error(path, what + " a " + cls + " claiming " + std::to_string(n) +
+                          (cls == "CSimpleMap" ? " keyframes" : " elements") +
+                          ", more than the file can hold (corrupt)");
+}
+
+// The most bytes a file's objects can take: its size, or as much as deflate can expand it to
+// (1032:1) where it is compressed.
+uint64_t mostBytesIn(const std::string& path) {
+  std::error_code ec;
+  const uint64_t size = fs::file_size(path, ec);
+  if (ec) return UINT64_MAX;
+  char magic[2] = {};
+  std::ifstream(path, std::ios::binary).read(magic, 2);
+  return magic[0] == '\x1f' && magic[1] == '\x8b' ? size * 1032 : size;
 }
 
 struct Item {
@@ -158,6 +213,7 @@ struct RawlogSource::Impl {
   RawlogReadOptions opts;
   ::mrpt::io::CFileGZInputStream file;
   PeekStream in{file};
+  uint64_t max_bytes = UINT64_MAX;  // the most the file's objects can take (mostBytesIn)
   std::size_t entry = 0, scans = 0, skipped = 0;
   bool eof = false;
   std::deque<Item> buf;
@@ -288,13 +344,20 @@ struct RawlogSource::Impl {
     auto arch = ::mrpt::serialization::archiveFrom(in);
     const uint64_t before = in.getPosition();
     ::mrpt::serialization::CSerializable::Ptr obj;
+    // gzread failed under MRPT's reader (which calls that an end of file) or ours.
+    const auto corrupt = [&] {
+      return Error(
+          path, std::string(CorruptCompressedData().what()) + " at entry " + std::to_string(entry));
+    };
     try {
-      refuseSimplemapV0(in, path, entry == 0 ? "is" : "entry " + std::to_string(entry) + " is");
+      checkContainer(in, path, entry == 0 ? "is" : "entry " + std::to_string(entry) + " is",
+                     max_bytes);
       const ReadingGuard guard(path, entry);
       obj = arch.ReadObject();
     } catch (const Error&) {
       throw;
     } catch (const ::mrpt::serialization::CExceptionEOF&) {
+      if (in.corrupt()) throw corrupt();
       if (in.getPosition() == before) {
         eof = true;
         return false;
@@ -306,6 +369,7 @@ struct RawlogSource::Impl {
       throw Error(path, "truncated rawlog at entry " + std::to_string(entry) +
                             " (the file ends inside an object)");
     } catch (const std::exception& e) {
+      if (in.corrupt()) throw corrupt();
       if (entry == 0 && isSimplemapName(path))  // one object: MRPT's message says no more than this
         throw Error(path, "is not a simplemap MRPT can read (cut short, corrupt, or another file)");
       if (entry == 0)
@@ -434,6 +498,7 @@ RawlogSource::RawlogSource(const std::string& path, const RawlogReadOptions& opt
   if (!fs::exists(path, ec)) throw Error(path, "file does not exist");
   if (fs::is_directory(path, ec)) throw Error(path, "is a directory, expected a rawlog file");
   if (!impl_->file.open(path)) throw Error(path, "cannot open for reading");
+  impl_->max_bytes = mostBytesIn(path);
   useExternalFilesFolderOf(path);
   while (!impl_->findScan(0) && impl_->readEntry()) {
   }
@@ -621,12 +686,13 @@ void loadSimplemap(const std::string& path, ::mrpt::maps::CSimpleMap& out) {
     throw Error(path, "cannot be opened as a simplemap (no such file, or not a file)");
   PeekStream in(file);
   try {
-    refuseSimplemapV0(in, path, "is");
+    checkContainer(in, path, "is", mostBytesIn(path));
     auto arch = ::mrpt::serialization::archiveFrom(in);
     arch >> out;
   } catch (const Error&) {
     throw;
   } catch (const std::exception& e) {
+    if (in.corrupt()) throw Error(path, CorruptCompressedData().what());
     throw Error(path, "is not a simplemap MRPT can read (cut short, corrupt, or another file): " +
                           briefMessage(e));
   }
