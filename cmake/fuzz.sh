@@ -24,14 +24,23 @@ for t in "${TARGETS[@]}"; do
   # -malloc_limit_mb: one allocation above it is a finding (absurd headers must not allocate).
   opts=(-max_total_time="$SECONDS_EACH" -timeout=10 -rss_limit_mb=2048 -malloc_limit_mb=1024
         -max_len=65536 -print_final_stats=1 -artifact_prefix="$work/findings/")
+  seeds=("$SRC/tests/fuzz/corpus/$t")
   if [[ "$t" == rawlog ]]; then
+    # MRPT's sample rawlogs, where installed: rotating scans and Velodyne packets to start from.
+    mkdir -p "$work/mrpt-seeds"
+    for f in rot_scan_2d rot_scan_velodyne test_velodyne_VLP16; do
+      if [[ -f /usr/share/mrpt/datasets/$f.rawlog ]]; then
+        cp "/usr/share/mrpt/datasets/$f.rawlog" "$work/mrpt-seeds/"
+      fi
+    done
+    seeds+=("$work/mrpt-seeds")
     # MRPT's own deserializers allocate what a length field claims before reading it (a points
     # map: 4 arrays of up to 2^32 floats) and decode JPEG images with libjpeg's exit-on-error
     # handler (doc/FUZZING.md). Fork mode keeps fuzzing past those; each saved input is then
     # replayed and counted as upstream only if it is one of them.
     opts+=(-fork=1 -ignore_ooms=1 -ignore_crashes=1 -ignore_timeouts=0)
   fi
-  if ! TMPDIR="$work" "$exe" "${opts[@]}" "$work/corpus" "$SRC/tests/fuzz/corpus/$t" \
+  if ! TMPDIR="$work" "$exe" "${opts[@]}" "$work/corpus" "${seeds[@]}" \
       > "$work/log.txt" 2>&1 && [[ "$t" != rawlog ]]; then  # rawlog: judged per input below
     failed+=("$t")
     tail -n 30 "$work/log.txt" >&2
@@ -40,16 +49,24 @@ for t in "${TARGETS[@]}"; do
     upstream=0
     for f in "$work"/findings/*; do
       [[ -f "$f" ]] || continue
-      out=$(TMPDIR="$work" "$exe" -malloc_limit_mb=1024 -rss_limit_mb=2048 "$f" 2>&1 || true)
-      if grep -q "out-of-memory (used:" <<<"$out"; then  # over the RSS limit: find the allocation
-        out=$(TMPDIR="$work" "$exe" -malloc_limit_mb=100 -rss_limit_mb=8000 "$f" 2>&1 || true)
+      # The slow unwinder: MRPT's frames (Debian's build keeps no frame pointers) in the stacks.
+      replay() { ASAN_OPTIONS=fast_unwind_on_malloc=0 TMPDIR="$work" "$exe" "$@" "$f" 2>&1 || true; }
+      mrpt_heap() {
+        grep -A12 "Live Heap Allocations" <<<"$out" | grep -qE "serializeFrom|mrpt::serialization::"
+      }
+      out=$(replay -malloc_limit_mb=1024 -rss_limit_mb=2048)
+      if grep -q "out-of-memory (used:" <<<"$out" && ! mrpt_heap; then  # find the allocation
+        out=$(replay -malloc_limit_mb=100 -rss_limit_mb=8000)
       fi
       # Upstream: the JPEG exit, or an allocation made by MRPT's deserialization (an object's
-      # serializeFrom, or the length of a class name read by CArchive).
+      # serializeFrom, or the length of a class name read by CArchive): one allocation over the
+      # limit, or the heap grown past the RSS limit where most of it was allocated (a std::deque
+      # sized to a count read, block by block: "Live Heap Allocations", its largest context).
       if grep -q "corrupt rawlog entry: MRPT's decoder ended the process" <<<"$out" ||
          { grep -q "out-of-memory (malloc(" <<<"$out" &&
            grep -A12 "HandleMalloc" <<<"$out" |
-             grep -qE "serializeFrom|mrpt::serialization::"; }; then
+             grep -qE "serializeFrom|mrpt::serialization::"; } ||
+         { grep -q "out-of-memory (used:" <<<"$out" && mrpt_heap; }; then
         upstream=$((upstream + 1))
         mkdir -p "$work/upstream" && mv "$f" "$work/upstream/"
       else

@@ -509,6 +509,47 @@ TEST(RawlogSource, ReadsOneLidarAndOneCameraByLabel) {
                     "is a KITTI folder: a lidar or camera label selects the sensors of a rawlog");
 }
 
+// A camera whose calibration gives an image size no camera has (MRPT keeps any uint32; found by
+// fuzzing: the rectifier asked for 128 GB) is one line naming the rawlog and the camera, with
+// lens distortion or without.
+TEST(RawlogSource, ACameraOfNoCamerasSizeIsAClearError) {
+  const auto dir = test::scratchDir("rawlog_camera_size");
+  for (const bool distorted : {true, false}) {
+    for (const auto& [w, h] : {std::pair{1u << 30, 480u}, std::pair{640u, 0u}}) {
+      const std::string path = (dir / "cam.rawlog").string();
+      {
+        ::mrpt::io::CFileGZOutputStream out(path);
+        auto ar = ::mrpt::serialization::archiveFrom(out);
+        auto pc = ::mrpt::obs::CObservationPointCloud::Create();
+        pc->sensorLabel = "LIDAR";
+        pc->timestamp = cleanmap::mrpt::toMrptTime(5.0);
+        pc->pointcloud = cleanmap::mrpt::toPointsMap({PointXYZI{10, 0, 0, 0}});
+        ar << *pc;
+        auto im = ::mrpt::obs::CObservationImage::Create();
+        im->sensorLabel = "CAMERA";
+        im->timestamp = pc->timestamp;
+        im->cameraParams =
+            cleanmap::mrpt::toTCamera(pinhole(600, 590, 322, 238, 640, 480), im->cameraPose);
+        if (distorted) im->cameraParams.setDistortionPlumbBob(-0.3, 0.1, 0.002, -0.001, 0);
+        im->cameraParams.ncols = w;
+        im->cameraParams.nrows = h;
+        im->image = ::mrpt::img::CImage(cv::Mat(480, 640, CV_8UC3, cv::Scalar::all(9)),
+                                        ::mrpt::img::DEEP_COPY);
+        ar << *im;
+      }
+      test::expectError(
+          [&] {
+            cleanmap::mrpt::RawlogSource src(path);
+            while (src.next()) {
+            }
+          },
+          "cam.rawlog",
+          "camera 'CAMERA': its calibration gives images of " + std::to_string(w) + " x " +
+              std::to_string(h) + " pixels; a camera's are 1 to 32768 pixels a side");
+    }
+  }
+}
+
 // DESIGN §3 "Lens distortion": a rawlog camera with lens distortion (MRPT's plumb_bob model) is
 // made pinhole: its images are rectified as they are read and the camera delivered is their
 // pinhole model, so a lidar point projects onto what the camera saw there (a dot drawn where the

@@ -441,6 +441,13 @@ struct RawlogSource::Impl {
                    const ::mrpt::poses::CPose3D& lidar_pose) {
     using ::mrpt::img::DistortionModel;
     ::mrpt::img::TCamera tc = img.cameraParams;
+    // MRPT keeps any uint32 size; the rectifier's maps are sized by it (found by fuzzing: 128 GB).
+    constexpr uint32_t kMaxImageSide = 1u << 15;
+    if (tc.ncols < 1 || tc.nrows < 1 || tc.ncols > kMaxImageSide || tc.nrows > kMaxImageSide)
+      throw Error(path, "camera '" + img.sensorLabel + "': its calibration gives images of " +
+                            std::to_string(tc.ncols) + " x " + std::to_string(tc.nrows) +
+                            " pixels; a camera's are 1 to " + std::to_string(kMaxImageSide) +
+                            " pixels a side");
     const auto& d = tc.dist;
     const bool fisheye = tc.distortion == DistortionModel::kannala_brandt;
     const bool distorted =
