@@ -54,6 +54,8 @@ for t in "${TARGETS[@]}"; do
       mrpt_heap() {
         grep -A12 "Live Heap Allocations" <<<"$out" | grep -qE "serializeFrom|mrpt::serialization::"
       }
+      # One allocation too large: over libFuzzer's limit, ASan's, or the memory there is.
+      one_alloc="out-of-memory \(malloc\(|requested allocation size|allocator is out of memory"
       out=$(replay -malloc_limit_mb=1024 -rss_limit_mb=2048)
       if grep -q "out-of-memory (used:" <<<"$out" && ! mrpt_heap; then  # find the allocation
         out=$(replay -malloc_limit_mb=100 -rss_limit_mb=8000)
@@ -63,8 +65,8 @@ for t in "${TARGETS[@]}"; do
       # limit, or the heap grown past the RSS limit where most of it was allocated (a std::deque
       # sized to a count read, block by block: "Live Heap Allocations", its largest context).
       if grep -q "corrupt rawlog entry: MRPT's decoder ended the process" <<<"$out" ||
-         { grep -q "out-of-memory (malloc(" <<<"$out" &&
-           grep -A12 "HandleMalloc" <<<"$out" |
+         { grep -qE "$one_alloc" <<<"$out" &&
+           grep -A14 -E "HandleMalloc|$one_alloc" <<<"$out" |
              grep -qE "serializeFrom|mrpt::serialization::"; } ||
          { grep -q "out-of-memory (used:" <<<"$out" && mrpt_heap; }; then
         upstream=$((upstream + 1))
