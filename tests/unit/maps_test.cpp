@@ -588,3 +588,85 @@ TEST(MrptTrap, ViewerDropsColoursOfCloudsSeenThroughTheBase) {
   EXPECT_EQ(through_base.getPointColor(0).R, 0);
   EXPECT_EQ(direct.getPointColor(0).R, 255);
 }
+
+namespace {
+
+// The serialization of one of our layers, written field by field (serializeTo's order, version 1)
+// so that a test can put in what no map would: `fields` writes the fields after the class header.
+template <class F>
+std::vector<uint8_t> layerBytes(const std::string& cls, F&& fields) {
+  std::vector<uint8_t> buf;
+  auto ar = ::mrpt::serialization::archiveFrom(buf);
+  const uint8_t len = static_cast<uint8_t>(0x80 | cls.size()), version = 1;
+  ar.WriteBuffer(&len, 1);
+  ar.WriteBuffer(cls.data(), cls.size());
+  ar.WriteBuffer(&version, 1);
+  fields(ar);
+  const uint8_t end = 0x88;  // MRPT's end of an object
+  ar.WriteBuffer(&end, 1);
+  return buf;
+}
+
+std::string readError(const std::vector<uint8_t>& bytes,
+                      ::mrpt::serialization::CSerializable& into) {
+  auto copy = bytes;
+  auto ar = ::mrpt::serialization::archiveFrom(copy);
+  try {
+    ar.ReadObject(&into);
+  } catch (const std::exception& e) {
+    return e.what();
+  }
+  return "";
+}
+
+long peakRssMiB() {
+  rusage u{};
+  ::getrusage(RUSAGE_SELF, &u);
+  return u.ru_maxrss / 1024;
+}
+
+}  // namespace
+
+// A saved layer is input like any file (found by fuzzing maps.bin): its counts size nothing (the
+// elements are read until the data runs out: 2^25 trajectory poses or 2^28 ground cells claimed
+// by a few bytes ask for no memory), its options are those an ini must give, and its points,
+// poses and cells are finite. Each is an error MRPT's reader passes on, naming what is wrong.
+TEST(MapLayers, ASavedLayerIsCheckedAsItIsRead) {
+  cleanmap_maps::registerMaps();
+  const ::mrpt::maps::TMapGenericParams generic;
+  const std::string ini = cleanmap::io::toIni(cleanmap::PipelineParams{});
+  const auto moving = [&](double voxel, uint64_t poses, bool nan_point) {
+    return layerBytes("cleanmap_maps::CMovingObjectsMap", [&](auto& ar) {
+      ar << generic << ini << voxel << true << uint64_t{0} << false << std::string()
+         << std::string() << poses;
+      if (poses > 0) return;
+      for (int block = 0; block < 2; ++block)  // the static points, then the moving ones
+        ar << uint64_t{1} << (nan_point ? NAN : 1.f) << 2.f << 3.f << 0.f;
+      for (int total = 0; total < 9; ++total) ar << uint64_t{0};
+    });
+  };
+  const long before = peakRssMiB();
+  CMovingObjectsMap m;
+  EXPECT_NE(readError(moving(0.2, uint64_t{1} << 25, false), m), "");
+  CGroundModelMap g;
+  const auto ground = [&](double cell, uint64_t cells, uint64_t count) {
+    return layerBytes("cleanmap_maps::CGroundModelMap", [&](auto& ar) {
+      ar << generic << cell << 1.0 << 0.0 << true << int32_t{3} << 40.0 << false << uint64_t{0}
+         << cells;
+      if (cells == 1) ar << int32_t{0} << int32_t{0} << -1.7 << count;
+    });
+  };
+  EXPECT_NE(readError(ground(0.5, uint64_t{1} << 28, 1), g), "");
+  EXPECT_LT(peakRssMiB() - before, 200) << "a claimed count sized a list";
+
+  const auto says = [](const std::string& error, const std::string& what) {
+    EXPECT_NE(error.find(what), std::string::npos) << error;
+  };
+  says(readError(moving(1e-30, 0, false), m), "map_voxel must be 0 or in [0.001, 1000] m");
+  says(readError(moving(0.2, 0, true), m), "point 0 is not finite");
+  says(readError(ground(0.0, 0, 1), g), "cell must be in [0.05, 10] m");
+  says(readError(ground(0.5, 1, 0), g), "cell 0 has no height");
+  // What a map writes, it reads: the fields above as serializeTo orders them.
+  EXPECT_EQ(readError(moving(0.2, 0, false), m), "");
+  EXPECT_EQ(readError(ground(0.5, 1, 2), g), "");
+}

@@ -32,6 +32,9 @@ MAP_DEFINITION_REGISTER("cleanmap_maps::CGroundModelMap,cleanmap_ground",
 
 namespace {
 
+// The most elements a saved map's count reserves ahead of reading them (serializeFrom).
+constexpr uint64_t kReserveAtMost = 1 << 16;
+
 uint64_t key2(int64_t ix, int64_t iy) {
   return (static_cast<uint64_t>(static_cast<uint32_t>(ix)) << 32) | static_cast<uint32_t>(iy);
 }
@@ -261,13 +264,21 @@ void CGroundModelMap::serializeFrom(mrpt::serialization::CArchive& in, uint8_t v
   insertionOptions.max_gap_cells = gap;
   if (version == 0) insertionOptions.height = -insertionOptions.height;  // was sensor_height
   scans_ = scans;
+  // A saved map is input like any file: its options as an ini would have to give them, and its
+  // counts not trusted to size anything (a corrupt one would ask for 2^64 cells: the cells are
+  // read until the data runs out).
+  checkOptions(cell_, insertionOptions, "serialized cleanmap_ground");
   in >> n;
   cells_.clear();
-  cells_.reserve(n);
+  cells_.reserve(std::min<uint64_t>(n, kReserveAtMost));
   for (uint64_t i = 0; i < n; ++i) {
     int32_t ix = 0, iy = 0;
     Cell c;
     in >> ix >> iy >> c.sum_z >> c.count;
+    if (c.count == 0 || !std::isfinite(c.sum_z))
+      throw cleanmap::Error("serialized cleanmap_ground", "cell " + std::to_string(i) +
+                                                              " has no height (a count of 0 or a "
+                                                              "non-finite sum)");
     cells_[key2(ix, iy)] = c;
   }
   last_flags_.clear();

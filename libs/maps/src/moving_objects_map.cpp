@@ -10,6 +10,7 @@
 #include <mrpt/version.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <mutex>
 #include <sstream>
@@ -33,6 +34,9 @@ MAP_DEFINITION_REGISTER("cleanmap_maps::CMovingObjectsMap,cleanmap_moving",
                         cleanmap_maps::CMovingObjectsMap)
 
 namespace {
+
+// The most elements a saved map's count reserves ahead of reading them (serializeFrom).
+constexpr uint64_t kReserveAtMost = 1 << 16;
 
 std::vector<cleanmap::PointXYZI> sortedPoints(
     const std::unordered_map<uint64_t, cleanmap::PointXYZI>& m) {
@@ -66,11 +70,41 @@ void writePoints(mrpt::serialization::CArchive& out, const std::vector<cleanmap:
   for (const auto& p : v) out << p.x << p.y << p.z << p.intensity;
 }
 
+// A saved string (MRPT's format: a uint32 length, the bytes) of at most at_most bytes: MRPT's own
+// reader allocates whatever length it reads (up to 4 GiB; found by fuzzing).
+std::string readString(mrpt::serialization::CArchive& in, uint32_t at_most, const char* what) {
+  uint32_t n = 0;
+  in >> n;
+  if (n > at_most)
+    throw cleanmap::Error("serialized cleanmap_moving", std::string(what) + " claims " +
+                                                            std::to_string(n) + " bytes (at most " +
+                                                            std::to_string(at_most) + ")");
+  std::string text(n, '\0');
+  if (n > 0 && in.ReadBuffer(text.data(), n) != n)
+    throw cleanmap::Error("serialized cleanmap_moving", std::string(what) + " is cut short");
+  return text;
+}
+
+// A saved map's count sizes nothing (a corrupt one would ask for 2^64 points): the points are
+// read until the data runs out. Each must be finite and within kMaxCoordinate of the origin (its
+// voxel key is an integer).
 std::vector<cleanmap::PointXYZI> readPoints(mrpt::serialization::CArchive& in) {
+  constexpr float kMaxCoordinate = 1e7f;
   uint64_t n = 0;
   in >> n;
-  std::vector<cleanmap::PointXYZI> v(n);
-  for (auto& p : v) in >> p.x >> p.y >> p.z >> p.intensity;
+  std::vector<cleanmap::PointXYZI> v;
+  v.reserve(std::min<uint64_t>(n, kReserveAtMost));
+  for (uint64_t i = 0; i < n; ++i) {
+    cleanmap::PointXYZI p;
+    in >> p.x >> p.y >> p.z >> p.intensity;
+    if (!(std::abs(p.x) <= kMaxCoordinate && std::abs(p.y) <= kMaxCoordinate &&
+          std::abs(p.z) <= kMaxCoordinate && std::isfinite(p.intensity)))
+      throw cleanmap::Error("serialized cleanmap_moving",
+                            "point " + std::to_string(i) +
+                                " is not finite or lies over 10,000 km "
+                                "away");
+    v.push_back(p);
+  }
   return v;
 }
 
@@ -514,24 +548,36 @@ void CMovingObjectsMap::serializeFrom(mrpt::serialization::CArchive& in, uint8_t
   if (version > 1) MRPT_THROW_UNKNOWN_SERIALIZATION_VERSION(version);
   internal_clear();
   in >> genericMapParams;
-  std::string ini;
   uint64_t next = 0, n = 0;
-  in >> ini >> map_voxel_ >> store_points_ >> next >> insertionOptions.use_pose_observations;
+  const std::string ini = readString(in, 1 << 20, "its parameters");
+  in >> map_voxel_ >> store_points_ >> next >> insertionOptions.use_pose_observations;
   insertionOptions.sensor_label.clear();
-  if (version >= 1) in >> insertionOptions.sensor_label >> lidar_label_;
+  if (version >= 1) {
+    insertionOptions.sensor_label = readString(in, 4096, "its sensor label");
+    lidar_label_ = readString(in, 4096, "its lidar label");
+  }
   params_ = cleanmap::PipelineParams{};
   cleanmap::io::parseParams(ini, "serialized cleanmap_moving", params_);
+  if (!(map_voxel_ == 0 || (map_voxel_ >= 1e-3 && map_voxel_ <= 1e3)))
+    throw cleanmap::Error("serialized cleanmap_moving",
+                          "map_voxel must be 0 or in [0.001, 1000] m");
   next_index_ = next;
   in >> n;
-  trajectory_.resize(n);
-  for (auto& t : trajectory_) {
+  trajectory_.clear();
+  trajectory_.reserve(std::min<uint64_t>(n, kReserveAtMost));
+  for (uint64_t i = 0; i < n; ++i) {
+    TrajectoryPoint t;
     uint64_t idx = 0;
     in >> idx >> t.timestamp;
     t.index = idx;
     Eigen::Matrix4d m = Eigen::Matrix4d::Identity();
     for (int r = 0; r < 3; ++r)
       for (int c = 0; c < 4; ++c) in >> m(r, c);
+    if (!m.allFinite())
+      throw cleanmap::Error("serialized cleanmap_moving",
+                            "trajectory pose " + std::to_string(i) + " is not finite");
     t.pose.matrix() = m;
+    trajectory_.push_back(t);
   }
   // Points come back keyed by voxel again (or by arrival with map_voxel 0).
   addPoints(static_, readPoints(in), map_voxel_);
