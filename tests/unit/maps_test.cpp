@@ -161,6 +161,10 @@ TEST(MapConfig, MistakesAreOneLineErrors) {
       "[map]\ncleanmap_moving_count = 1\ncleanmap_ground_count = 1\n"
       "[map_cleanmap_ground_00_insertOpts]\nstepp = 0.1\n",
       "unknown key 'stepp'; did you mean 'step'?");
+  // A voxel the layer's saved form would refuse (its keys overflow): the ini refuses it too.
+  expect(std::string(kMinimal) + "map_voxel = 1e-6\n",
+         "[map_cleanmap_moving_00_creationOpts]: map_voxel must be 0 or in [0.001, 1000] m");
+  expect(std::string(kMinimal) + "map_voxel = -1\n", "map_voxel must be 0 or in [0.001, 1000] m");
   // The ground map's grid: a cell far below the lidar's noise, or one too small for its extent.
   const std::string ground = "[map]\ncleanmap_moving_count = 1\ncleanmap_ground_count = 1\n";
   expect(ground + "[map_cleanmap_ground_00_creationOpts]\ncell = 1e-7\n",

@@ -32,9 +32,6 @@ MAP_DEFINITION_REGISTER("cleanmap_maps::CGroundModelMap,cleanmap_ground",
 
 namespace {
 
-// The most elements a saved map's count reserves ahead of reading them (serializeFrom).
-constexpr uint64_t kReserveAtMost = 1 << 16;
-
 uint64_t key2(int64_t ix, int64_t iy) {
   return (static_cast<uint64_t>(static_cast<uint32_t>(ix)) << 32) | static_cast<uint32_t>(iy);
 }

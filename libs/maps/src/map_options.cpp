@@ -104,4 +104,9 @@ void OptionTable::load(const mrpt::config::CConfigFileBase& source, const std::s
   }
 }
 
+void checkMapVoxel(double map_voxel, const std::string& where) {
+  if (!(map_voxel == 0 || (map_voxel >= 1e-3 && map_voxel <= 1e3)))
+    throw cleanmap::Error(where, "map_voxel must be 0 or in [0.001, 1000] m");
+}
+
 }  // namespace cleanmap_maps

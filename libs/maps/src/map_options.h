@@ -5,6 +5,7 @@
 #pragma once
 #include <mrpt/config/CConfigFileBase.h>
 
+#include <cstdint>
 #include <functional>
 #include <map>
 #include <string>
@@ -35,5 +36,13 @@ std::string suggestion(const std::string& key, const std::vector<std::string>& k
 
 /// The keys every MRPT map accepts in its creationOpts (TMapGenericParams).
 const std::vector<std::string>& genericMapKeys();
+
+/// The most elements a saved map's count reserves ahead of reading them (serializeFrom): a
+/// corrupt count sizes nothing.
+constexpr uint64_t kReserveAtMost = 1 << 16;
+
+/// cleanmap_moving's map_voxel: 0 (every point its own entry) or in [0.001, 1000] m, the same in
+/// its ini and its saved form (a smaller voxel's keys overflow). Throws cleanmap::Error(where).
+void checkMapVoxel(double map_voxel, const std::string& where);
 
 }  // namespace cleanmap_maps

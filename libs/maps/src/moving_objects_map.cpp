@@ -35,9 +35,6 @@ MAP_DEFINITION_REGISTER("cleanmap_maps::CMovingObjectsMap,cleanmap_moving",
 
 namespace {
 
-// The most elements a saved map's count reserves ahead of reading them (serializeFrom).
-constexpr uint64_t kReserveAtMost = 1 << 16;
-
 std::vector<cleanmap::PointXYZI> sortedPoints(
     const std::unordered_map<uint64_t, cleanmap::PointXYZI>& m) {
   std::vector<std::pair<uint64_t, cleanmap::PointXYZI>> v(m.begin(), m.end());
@@ -100,9 +97,7 @@ std::vector<cleanmap::PointXYZI> readPoints(mrpt::serialization::CArchive& in) {
     if (!(std::abs(p.x) <= kMaxCoordinate && std::abs(p.y) <= kMaxCoordinate &&
           std::abs(p.z) <= kMaxCoordinate && std::isfinite(p.intensity)))
       throw cleanmap::Error("serialized cleanmap_moving",
-                            "point " + std::to_string(i) +
-                                " is not finite or lies over 10,000 km "
-                                "away");
+                            "point " + std::to_string(i) + " is not finite or over 10,000 km away");
     v.push_back(p);
   }
   return v;
@@ -128,7 +123,7 @@ CMovingObjectsMap::CMovingObjectsMap() = default;
 CMovingObjectsMap::CMovingObjectsMap(const cleanmap::PipelineParams& params, double map_voxel)
     : params_(params), map_voxel_(map_voxel) {
   cleanmap::validate(params_, "cleanmap_moving");
-  if (map_voxel < 0) throw cleanmap::Error("cleanmap_moving", "map_voxel must be >= 0");
+  checkMapVoxel(map_voxel, "cleanmap_moving");
 }
 
 CMovingObjectsMap::CMovingObjectsMap(const CMovingObjectsMap& o) : CMetricMap(o) {
@@ -558,9 +553,7 @@ void CMovingObjectsMap::serializeFrom(mrpt::serialization::CArchive& in, uint8_t
   }
   params_ = cleanmap::PipelineParams{};
   cleanmap::io::parseParams(ini, "serialized cleanmap_moving", params_);
-  if (!(map_voxel_ == 0 || (map_voxel_ >= 1e-3 && map_voxel_ <= 1e3)))
-    throw cleanmap::Error("serialized cleanmap_moving",
-                          "map_voxel must be 0 or in [0.001, 1000] m");
+  checkMapVoxel(map_voxel_, "serialized cleanmap_moving");
   next_index_ = next;
   in >> n;
   trajectory_.clear();
@@ -600,7 +593,7 @@ void CMovingObjectsMap::TMapDefinition::loadFromConfigFile_map_specific(
   const std::string creation = prefix + "_creationOpts";
   creationOptions(params, map_voxel, map_object_scans).load(source, creation, /*generic=*/true);
   cleanmap::validate(params, "[" + creation + "]");
-  if (map_voxel < 0) throw cleanmap::Error("[" + creation + "]", "map_voxel must be >= 0");
+  checkMapVoxel(map_voxel, "[" + creation + "]");
   if (map_object_scans < 0)
     throw cleanmap::Error("[" + creation + "]", "map_object_scans must be >= 0 (0: all)");
   OptionTable insert;
