@@ -901,6 +901,66 @@ TEST(RawlogSource, AContainerClaimingMoreThanTheFileHoldsIsAClearError) {
                     "truncated or corrupt rawlog at entry 1");
 }
 
+// The same checks inside a container: a simplemap's keyframe whose sensory frame claims more
+// observations than the file holds, or is of the first format, is refused as MRPT reads it, by
+// both readers, in one line naming the file; the same map unchanged reads.
+TEST(RawlogSource, AContainerInsideAnotherIsCheckedToo) {
+  const auto dir = test::scratchDir("rawlog_nested_counts");
+  ::mrpt::maps::CSimpleMap sm;
+  for (int k = 0; k < 2; ++k) {
+    auto pc = ::mrpt::obs::CObservationPointCloud::Create();
+    pc->pointcloud = ::mrpt::maps::CSimplePointsMap::Create();
+    pc->pointcloud->insertPoint(5, k, -1);
+    auto sf = ::mrpt::obs::CSensoryFrame::Create();
+    sf->insert(pc);
+    sm.insert(::mrpt::poses::CPose3DPDFGaussian::Create(::mrpt::poses::CPose3D(k, 0, 0, 0, 0, 0)),
+              sf);
+  }
+  ASSERT_TRUE(sm.saveToFile((dir / "good.simplemap").string()));
+  std::vector<char> bytes;
+  {
+    ::mrpt::io::CFileGZInputStream in((dir / "good.simplemap").string());
+    char buf[4096];
+    for (size_t got; (got = in.Read(buf, sizeof buf)) > 0;)
+      bytes.insert(bytes.end(), buf, buf + got);
+  }
+  // The second keyframe's frame: its header, then version 2 and its count (1).
+  const std::string header = "\x98mrpt::obs::CSensoryFrame";
+  auto at = std::search(bytes.begin(), bytes.end(), header.begin(), header.end());
+  ASSERT_NE(at, bytes.end());
+  at = std::search(at + 1, bytes.end(), header.begin(), header.end());
+  ASSERT_NE(at, bytes.end());
+  const std::size_t version_at = static_cast<std::size_t>(at - bytes.begin()) + header.size();
+  ASSERT_EQ(bytes[version_at], 2);
+  ASSERT_EQ(bytes[version_at + 1], 1);
+  const auto write = [&](const std::string& name, std::size_t offset, std::vector<char> patch) {
+    std::vector<char> b = bytes;
+    std::copy(patch.begin(), patch.end(), b.begin() + static_cast<std::ptrdiff_t>(offset));
+    std::ofstream((dir / name).string(), std::ios::binary)
+        .write(b.data(), static_cast<std::streamsize>(b.size()));
+    return (dir / name).string();
+  };
+  const auto both = [&](const std::string& path, const std::string& what) {
+    test::expectError(
+        [&] {
+          cleanmap::mrpt::RawlogSource src(path);
+          while (src.next()) {
+          }
+        },
+        path, what);
+    ::mrpt::maps::CSimpleMap out;
+    test::expectError([&] { cleanmap::mrpt::loadSimplemap(path, out); }, path, what);
+  };
+  both(write("count.simplemap", version_at + 1, {'\xff', '\xff', '\xff', '\x7f'}),
+       "holds a CSensoryFrame claiming 2147483647 elements, more than the file can hold (corrupt)");
+  both(write("v0.simplemap", version_at, {0}),
+       "holds a CSensoryFrame of MRPT's first format (version 0), which cleanmap does not read");
+  std::size_t scans = 0;
+  cleanmap::mrpt::RawlogSource src(write("same.simplemap", version_at, {2}));
+  while (src.next()) ++scans;
+  EXPECT_EQ(scans, 2u);
+}
+
 // A simplemap (a SLAM's output: keyframes of a pose and a sensory frame) reads as its scans, each
 // at its keyframe's pose: the points bit for bit, the poses within 1e-9. The pose and the image go
 // by the keyframe, not by time, so keyframes without times (older simplemaps) keep their own.

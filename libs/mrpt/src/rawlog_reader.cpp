@@ -75,8 +75,45 @@ struct CorruptCompressedData : std::runtime_error {
   CorruptCompressedData() : std::runtime_error("corrupt compressed data (gzread failed)") {}
 };
 
+// What MRPT 2.5.8's readers of its containers do not check (found by fuzzing): a CSimpleMap,
+// CSensoryFrame or CActionCollection sizes its list (a std::deque, filled block by block) to the
+// count it reads first, so a few bytes claiming 2^32 elements take gigabytes before the data runs
+// out; and the first formats (version 0) of a CSimpleMap and a CSensoryFrame use a pose or an
+// observation that may be missing (SIGSEGV). A count is refused where its elements, each at least
+// a missing one ("nullptr", 9 bytes), would not fit in max_bytes. A point-cloud SLAM never wrote
+// a version 0: MRPT 2.5.8 writes version 1 of a CSimpleMap and 2 of a CSensoryFrame. `name`: the
+// class MRPT names in the object's header, `after`: the bytes after its header (its count, after
+// the ID of a CSensoryFrame version 1). "" where it is no such container or nothing is wrong,
+// else what is wrong ("a CSensoryFrame claiming ...").
+std::string containerProblem(const std::string& name, int version, const std::string& after,
+                             uint64_t max_bytes) {
+  constexpr uint64_t kLeastObjectBytes = 9;
+  const std::string cls = name.substr(name.rfind(':') + 1);
+  uint64_t per_element = 1;  // objects per element
+  size_t count_at = 0;
+  if (name == "mrpt::maps::CSimpleMap") {
+    per_element = 2;  // a pose and a sensory frame
+  } else if (name == "mrpt::obs::CSensoryFrame") {
+    count_at = version == 1 ? 4 : 0;  // an ID before it
+  } else if (name != "mrpt::obs::CActionCollection") {
+    return "";
+  }
+  if (version == 0 && cls != "CActionCollection")
+    return "a " + cls + " of MRPT's first format (version 0), which cleanmap does not read";
+  if (after.size() < count_at + 4) return "";  // MRPT's reader says it is cut short
+  uint64_t n = 0;
+  for (int i = 3; i >= 0; --i) n = (n << 8) | static_cast<uint8_t>(after[count_at + i]);
+  if (n * per_element * kLeastObjectBytes <= max_bytes) return "";
+  return "a " + cls + " claiming " + std::to_string(n) +
+         (cls == "CSimpleMap" ? " keyframes" : " elements") +
+         ", more than the file can hold (corrupt)";
+}
+
 // MRPT's input stream with read-ahead: the next object's header is read (peekHeader) and read
-// again by MRPT's deserializer.
+// again by MRPT's deserializer. With watchContainers, each container MRPT reads inside another
+// (a simplemap's keyframes, a frame's observations) is checked as its header goes by
+// (containerProblem): MRPT reads a header's name length (high bit set), then the name, each in
+// one Read, so a read of a container's name after its length is one.
 class PeekStream : public ::mrpt::io::CStream {
  public:
   explicit PeekStream(::mrpt::io::CStream& in) : in_(in) {}
@@ -84,7 +121,9 @@ class PeekStream : public ::mrpt::io::CStream {
     const size_t got = std::min(n, ahead_.size() - at_);
     std::memcpy(out, ahead_.data() + at_, got);
     at_ += got;
-    return got + (got < n ? readFile(static_cast<char*>(out) + got, n - got) : 0);
+    const size_t total = got + (got < n ? readFile(static_cast<char*>(out) + got, n - got) : 0);
+    if (watch_bytes_ > 0) watch(static_cast<const char*>(out), total);
+    return total;
   }
   size_t Write(const void*, size_t) override { throw std::logic_error("PeekStream is read-only"); }
   uint64_t Seek(int64_t, TSeekOrigin) override { throw std::logic_error("PeekStream cannot seek"); }
@@ -92,6 +131,11 @@ class PeekStream : public ::mrpt::io::CStream {
   uint64_t getPosition() const override { return in_.getPosition() - (ahead_.size() - at_); }
   // A read failed on corrupt compressed data (MRPT's deserializer turns that into its "EOF").
   bool corrupt() const { return corrupt_; }
+  // Checks the containers inside others against the most bytes the file can hold (mostBytesIn).
+  void watchContainers(uint64_t max_bytes) { watch_bytes_ = max_bytes; }
+  // What was wrong with a container inside another ("a CSensoryFrame claiming ..."), or "": the
+  // read was stopped by an exception MRPT's reader passes on in its own words.
+  const std::string& refused() const { return refused_; }
   // The next n bytes (fewer at the end of the stream), left to be read.
   std::string peek(size_t n) {
     ahead_.erase(0, at_);
@@ -114,10 +158,24 @@ class PeekStream : public ::mrpt::io::CStream {
     }
     return got;
   }
+  void watch(const char* bytes, size_t n) {
+    const uint8_t length = length_;
+    length_ = n == 1 ? static_cast<uint8_t>(bytes[0]) : 0;
+    if (n == 1 || length != (0x80 | n) || n > 30) return;  // the containers' names: 22-28 bytes
+    const std::string name(bytes, n);
+    if (name.rfind("mrpt::", 0) != 0) return;
+    const std::string next = peek(1 + 8);  // the version byte, then the count (after an ID)
+    if (next.empty()) return;
+    refused_ = containerProblem(name, static_cast<int8_t>(next[0]), next.substr(1), watch_bytes_);
+    if (!refused_.empty()) throw std::runtime_error(refused_);
+  }
   ::mrpt::io::CStream& in_;
   bool corrupt_ = false;
   std::string ahead_;  // bytes read from in_ and not yet by Read
   size_t at_ = 0;
+  uint64_t watch_bytes_ = 0;  // watchContainers' bound; 0: no watch
+  uint8_t length_ = 0;        // the byte of the last one-byte Read
+  std::string refused_;
 };
 
 // The next object's header, read ahead as CArchive::ReadObject reads it (a name length with its
@@ -147,40 +205,17 @@ std::optional<Header> peekHeader(PeekStream& s) {
   return Header{b.substr(name_at, len), version, bytes};
 }
 
-// What MRPT 2.5.8's readers of its containers do not check (found by fuzzing), checked before
-// they read one: a CSimpleMap, CSensoryFrame or CActionCollection sizes its list (a std::deque,
-// filled block by block) to the count it reads first, so a few bytes claiming 2^32 elements take
-// gigabytes before the data runs out; and the first formats (version 0) of a CSimpleMap and a
-// CSensoryFrame use a pose or an observation that may be missing (SIGSEGV). A count is refused
-// where its elements, each at least a missing one ("nullptr", 9 bytes), would not fit in
-// max_bytes. A point-cloud SLAM never wrote a version 0: MRPT 2.5.8 writes version 1 of a
-// CSimpleMap and 2 of a CSensoryFrame. `what`: "is", "entry N is".
+// containerProblem of the next object, a top-level one, before MRPT reads it; the containers
+// inside it are checked as MRPT reads them (watchContainers). `what`: "is", "entry N is".
 void checkContainer(PeekStream& s, const std::string& path, const std::string& what,
                     uint64_t max_bytes) {
-  constexpr uint64_t kLeastObjectBytes = 9;
+  s.watchContainers(max_bytes);
   const auto h = peekHeader(s);
   if (!h) return;
-  const std::string cls = h->name.substr(h->name.rfind(':') + 1);
-  uint64_t per_element = 1;  // objects per element
-  size_t count_at = h->bytes;
-  if (h->name == "mrpt::maps::CSimpleMap") {
-    per_element = 2;  // a pose and a sensory frame
-  } else if (h->name == "mrpt::obs::CSensoryFrame") {
-    count_at += h->version == 1 ? 4 : 0;  // an ID before it
-  } else if (h->name != "mrpt::obs::CActionCollection") {
-    return;
-  }
-  if (h->version == 0 && cls != "CActionCollection")
-    throw Error(path, what + " a " + cls +
-                          " of MRPT's first format (version 0), which cleanmap does not read");
-  const std::string b = s.peek(count_at + 4);
-  if (b.size() < count_at + 4) return;
-  uint64_t n = 0;
-  for (int i = 3; i >= 0; --i) n = (n << 8) | static_cast<uint8_t>(b[count_at + i]);
-  if (n * per_element * kLeastObjectBytes > max_bytes)
-    throw Error(path, what + " a " + cls + " claiming " + std::to_string(n) +
-                          (cls == "CSimpleMap" ? " keyframes" : " elements") +
-                          ", more than the file can hold (corrupt)");
+  const std::string b = s.peek(h->bytes + 8);
+  const std::string problem = containerProblem(
+      h->name, h->version, b.size() > h->bytes ? b.substr(h->bytes) : "", max_bytes);
+  if (!problem.empty()) throw Error(path, what + " " + problem);
 }
 
 // The most bytes a file's objects can take: its size, or as much as deflate can expand it to
@@ -349,6 +384,11 @@ struct RawlogSource::Impl {
       return Error(
           path, std::string(CorruptCompressedData().what()) + " at entry " + std::to_string(entry));
     };
+    // A container inside the entry refused as MRPT read it (PeekStream::watchContainers).
+    const auto refused = [&] {
+      return Error(path, (entry == 0 ? "" : "entry " + std::to_string(entry) + " ") + "holds " +
+                             in.refused());
+    };
     try {
       checkContainer(in, path, entry == 0 ? "is" : "entry " + std::to_string(entry) + " is",
                      max_bytes);
@@ -358,6 +398,7 @@ struct RawlogSource::Impl {
       throw;
     } catch (const ::mrpt::serialization::CExceptionEOF&) {
       if (in.corrupt()) throw corrupt();
+      if (!in.refused().empty()) throw refused();
       if (in.getPosition() == before) {
         eof = true;
         return false;
@@ -370,6 +411,7 @@ struct RawlogSource::Impl {
                             " (the file ends inside an object)");
     } catch (const std::exception& e) {
       if (in.corrupt()) throw corrupt();
+      if (!in.refused().empty()) throw refused();
       if (entry == 0 && isSimplemapName(path))  // one object: MRPT's message says no more than this
         throw Error(path, "is not a simplemap MRPT can read (cut short, corrupt, or another file)");
       if (entry == 0)
@@ -700,6 +742,7 @@ void loadSimplemap(const std::string& path, ::mrpt::maps::CSimpleMap& out) {
     throw;
   } catch (const std::exception& e) {
     if (in.corrupt()) throw Error(path, CorruptCompressedData().what());
+    if (!in.refused().empty()) throw Error(path, "holds " + in.refused());
     throw Error(path, "is not a simplemap MRPT can read (cut short, corrupt, or another file): " +
                           briefMessage(e));
   }
