@@ -11,6 +11,7 @@
 
 #include <mrpt/io/CFileGZInputStream.h>
 #include <mrpt/io/CFileGZOutputStream.h>
+#include <mrpt/maps/CPointsMapXYZI.h>
 #include <mrpt/maps/CSimpleMap.h>
 #include <mrpt/maps/CSimplePointsMap.h>
 #include <mrpt/obs/CObservation2DRangeScan.h>
@@ -955,10 +956,55 @@ TEST(RawlogSource, AContainerInsideAnotherIsCheckedToo) {
        "holds a CSensoryFrame claiming 2147483647 elements, more than the file can hold (corrupt)");
   both(write("v0.simplemap", version_at, {0}),
        "holds a CSensoryFrame of MRPT's first format (version 0), which cleanmap does not read");
+  // A keyframe's points map claiming 2^32 - 1 points (MRPT zero-fills its arrays: 48 GB).
+  const std::string points = "\x9cmrpt::maps::CSimplePointsMap";
+  const auto map_at = std::search(bytes.begin(), bytes.end(), points.begin(), points.end());
+  ASSERT_NE(map_at, bytes.end());
+  const std::size_t count_at = static_cast<std::size_t>(map_at - bytes.begin()) + points.size() + 1;
+  ASSERT_EQ(bytes[count_at], 1);
+  both(write("points.simplemap", count_at, {'\xff', '\xff', '\xff', '\xff'}),
+       "holds a CSimplePointsMap claiming 4294967295 points, more than the file can hold");
   std::size_t scans = 0;
   cleanmap::mrpt::RawlogSource src(write("same.simplemap", version_at, {2}));
   while (src.next()) ++scans;
   EXPECT_EQ(scans, 2u);
+  // The same in a rawlog's observation: its entry named.
+  {
+    ::mrpt::io::CFileGZOutputStream out((dir / "cloud.rawlog").string());
+    auto ar = ::mrpt::serialization::archiveFrom(out);
+    for (int k = 0; k < 2; ++k) {
+      auto pc = ::mrpt::obs::CObservationPointCloud::Create();
+      pc->pointcloud = ::mrpt::maps::CPointsMapXYZI::Create();
+      pc->pointcloud->insertPoint(5, k, -1);
+      ar << *pc;
+    }
+  }
+  std::vector<char> cloud;
+  {
+    ::mrpt::io::CFileGZInputStream in((dir / "cloud.rawlog").string());
+    char buf[4096];
+    for (size_t got; (got = in.Read(buf, sizeof buf)) > 0;)
+      cloud.insert(cloud.end(), buf, buf + got);
+  }
+  const std::string xyzi = "\x9amrpt::maps::CPointsMapXYZI";
+  auto xyzi_at = std::search(cloud.begin(), cloud.end(), xyzi.begin(), xyzi.end());
+  ASSERT_NE(xyzi_at, cloud.end());
+  xyzi_at = std::search(xyzi_at + 1, cloud.end(), xyzi.begin(), xyzi.end());
+  ASSERT_NE(xyzi_at, cloud.end());
+  const auto n_at = xyzi_at + static_cast<std::ptrdiff_t>(xyzi.size()) + 1;
+  ASSERT_EQ(*n_at, 1);
+  std::fill(n_at, n_at + 4, '\x40');
+  const std::string cut = (dir / "cloud_count.rawlog").string();
+  std::ofstream(cut, std::ios::binary)
+      .write(cloud.data(), static_cast<std::streamsize>(cloud.size()));
+  test::expectError(
+      [&] {
+        cleanmap::mrpt::RawlogSource reader(cut);
+        while (reader.next()) {
+        }
+      },
+      cut,
+      "entry 1 holds a CPointsMapXYZI claiming 1077952576 points, more than the file can hold");
 }
 
 // A simplemap (a SLAM's output: keyframes of a pose and a sensory frame) reads as its scans, each

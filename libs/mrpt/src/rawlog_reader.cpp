@@ -78,34 +78,41 @@ struct CorruptCompressedData : std::runtime_error {
 // What MRPT 2.5.8's readers of its containers do not check (found by fuzzing): a CSimpleMap,
 // CSensoryFrame or CActionCollection sizes its list (a std::deque, filled block by block) to the
 // count it reads first, so a few bytes claiming 2^32 elements take gigabytes before the data runs
-// out; and the first formats (version 0) of a CSimpleMap and a CSensoryFrame use a pose or an
-// observation that may be missing (SIGSEGV). A count is refused where its elements, each at least
-// a missing one ("nullptr", 9 bytes), would not fit in max_bytes. A point-cloud SLAM never wrote
-// a version 0: MRPT 2.5.8 writes version 1 of a CSimpleMap and 2 of a CSensoryFrame. `name`: the
-// class MRPT names in the object's header, `after`: the bytes after its header (its count, after
-// the ID of a CSensoryFrame version 1). "" where it is no such container or nothing is wrong,
-// else what is wrong ("a CSensoryFrame claiming ...").
+// out; a points map zero-fills three to seven arrays of the count it reads first (64 GB for
+// 2^32 points of CPointsMapXYZI); and the first formats (version 0) of a CSimpleMap and a
+// CSensoryFrame use a pose or an observation that may be missing (SIGSEGV). A count is refused
+// where its elements, each at least a missing object ("nullptr", 9 bytes) or a point's x, y and
+// z (12 bytes), would not fit in max_bytes. A point-cloud SLAM never wrote a version 0: MRPT
+// 2.5.8 writes version 1 of a CSimpleMap and 2 of a CSensoryFrame. `name`: the class MRPT names
+// in the object's header, `after`: the bytes after its header (its count, after the ID of a
+// CSensoryFrame version 1). "" where it is no such container or nothing is wrong, else what is
+// wrong ("a CSensoryFrame claiming ...").
 std::string containerProblem(const std::string& name, int version, const std::string& after,
                              uint64_t max_bytes) {
-  constexpr uint64_t kLeastObjectBytes = 9;
+  constexpr uint64_t kLeastObjectBytes = 9, kLeastPointBytes = 12;
   const std::string cls = name.substr(name.rfind(':') + 1);
-  uint64_t per_element = 1;  // objects per element
+  uint64_t per_element = kLeastObjectBytes;
   size_t count_at = 0;
+  std::string elements = " elements";
   if (name == "mrpt::maps::CSimpleMap") {
-    per_element = 2;  // a pose and a sensory frame
+    per_element = 2 * kLeastObjectBytes;  // a pose and a sensory frame
+    elements = " keyframes";
   } else if (name == "mrpt::obs::CSensoryFrame") {
     count_at = version == 1 ? 4 : 0;  // an ID before it
+  } else if (name == "mrpt::maps::CSimplePointsMap" || name == "mrpt::maps::CPointsMapXYZI" ||
+             name == "mrpt::maps::CPointsMapXYZIRT" || name == "mrpt::maps::CColouredPointsMap") {
+    per_element = kLeastPointBytes;  // every version starts with the count
+    elements = " points";
   } else if (name != "mrpt::obs::CActionCollection") {
     return "";
   }
-  if (version == 0 && cls != "CActionCollection")
+  if (version == 0 && (cls == "CSimpleMap" || cls == "CSensoryFrame"))
     return "a " + cls + " of MRPT's first format (version 0), which cleanmap does not read";
   if (after.size() < count_at + 4) return "";  // MRPT's reader says it is cut short
   uint64_t n = 0;
   for (int i = 3; i >= 0; --i) n = (n << 8) | static_cast<uint8_t>(after[count_at + i]);
-  if (n * per_element * kLeastObjectBytes <= max_bytes) return "";
-  return "a " + cls + " claiming " + std::to_string(n) +
-         (cls == "CSimpleMap" ? " keyframes" : " elements") +
+  if (n * per_element <= max_bytes) return "";
+  return "a " + cls + " claiming " + std::to_string(n) + elements +
          ", more than the file can hold (corrupt)";
 }
 
@@ -161,7 +168,7 @@ class PeekStream : public ::mrpt::io::CStream {
   void watch(const char* bytes, size_t n) {
     const uint8_t length = length_;
     length_ = n == 1 ? static_cast<uint8_t>(bytes[0]) : 0;
-    if (n == 1 || length != (0x80 | n) || n > 30) return;  // the containers' names: 22-28 bytes
+    if (n == 1 || length != (0x80 | n) || n > 30) return;  // the checked names: 22-30 bytes
     const std::string name(bytes, n);
     if (name.rfind("mrpt::", 0) != 0) return;
     const std::string next = peek(1 + 8);  // the version byte, then the count (after an ID)
