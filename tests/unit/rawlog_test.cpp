@@ -954,6 +954,18 @@ TEST(RawlogSource, AContainerInsideAnotherIsCheckedToo) {
   };
   both(write("count.simplemap", version_at + 1, {'\xff', '\xff', '\xff', '\x7f'}),
        "holds a CSensoryFrame claiming 2147483647 elements, more than the file can hold (corrupt)");
+  {  // MRPT 1 wrote class names without their namespace
+    std::vector<char> b = bytes;
+    b[version_at + 4] = '\x7f';
+    const std::string bare = std::string(1, '\x8d') + "CSensoryFrame";
+    const auto from = b.begin() + static_cast<std::ptrdiff_t>(version_at - header.size());
+    b.erase(from, from + static_cast<std::ptrdiff_t>(header.size()));
+    b.insert(b.begin() + static_cast<std::ptrdiff_t>(version_at - header.size()), bare.begin(),
+             bare.end());
+    const std::string path = (dir / "bare.simplemap").string();
+    std::ofstream(path, std::ios::binary).write(b.data(), static_cast<std::streamsize>(b.size()));
+    both(path, "holds a CSensoryFrame claiming 2130706433 elements");
+  }
   both(write("v0.simplemap", version_at, {0}),
        "holds a CSensoryFrame of MRPT's first format (version 0), which cleanmap does not read");
   // A keyframe's points map claiming 2^32 - 1 points (MRPT zero-fills its arrays: 48 GB).

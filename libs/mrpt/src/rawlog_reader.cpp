@@ -75,7 +75,8 @@ struct CorruptCompressedData : std::runtime_error {
   CorruptCompressedData() : std::runtime_error("corrupt compressed data (gzread failed)") {}
 };
 
-// What MRPT 2.5.8's readers of its containers do not check (found by fuzzing): a CSimpleMap,
+// What MRPT 2.5.8's readers of its containers do not check (found by fuzzing and by reading
+// them): a CSimpleMap,
 // CSensoryFrame or CActionCollection sizes its list (a std::deque, filled block by block) to the
 // count it reads first, so a few bytes claiming 2^32 elements take gigabytes before the data runs
 // out; a points map zero-fills three to seven arrays of the count it reads first (64 GB for
@@ -85,25 +86,26 @@ struct CorruptCompressedData : std::runtime_error {
 // z (12 bytes), would not fit in max_bytes. A point-cloud SLAM never wrote a version 0: MRPT
 // 2.5.8 writes version 1 of a CSimpleMap and 2 of a CSensoryFrame. `name`: the class MRPT names
 // in the object's header, `after`: the bytes after its header (its count, after the ID of a
-// CSensoryFrame version 1). "" where it is no such container or nothing is wrong, else what is
-// wrong ("a CSensoryFrame claiming ...").
+// CSensoryFrame version 1; MRPT 1 wrote the names without their namespace). "" where it is no
+// such container or nothing is wrong, else what is wrong ("a CSensoryFrame claiming ...").
 std::string containerProblem(const std::string& name, int version, const std::string& after,
                              uint64_t max_bytes) {
   constexpr uint64_t kLeastObjectBytes = 9, kLeastPointBytes = 12;
   const std::string cls = name.substr(name.rfind(':') + 1);
+  if (cls != name && name.rfind("mrpt::", 0) != 0) return "";
   uint64_t per_element = kLeastObjectBytes;
   size_t count_at = 0;
   std::string elements = " elements";
-  if (name == "mrpt::maps::CSimpleMap") {
+  if (cls == "CSimpleMap") {
     per_element = 2 * kLeastObjectBytes;  // a pose and a sensory frame
     elements = " keyframes";
-  } else if (name == "mrpt::obs::CSensoryFrame") {
+  } else if (cls == "CSensoryFrame") {
     count_at = version == 1 ? 4 : 0;  // an ID before it
-  } else if (name == "mrpt::maps::CSimplePointsMap" || name == "mrpt::maps::CPointsMapXYZI" ||
-             name == "mrpt::maps::CPointsMapXYZIRT" || name == "mrpt::maps::CColouredPointsMap") {
+  } else if (cls == "CSimplePointsMap" || cls == "CPointsMapXYZI" || cls == "CPointsMapXYZIRT" ||
+             cls == "CColouredPointsMap") {
     per_element = kLeastPointBytes;  // every version starts with the count
     elements = " points";
-  } else if (name != "mrpt::obs::CActionCollection") {
+  } else if (cls != "CActionCollection") {
     return "";
   }
   if (version == 0 && (cls == "CSimpleMap" || cls == "CSensoryFrame"))
@@ -168,9 +170,8 @@ class PeekStream : public ::mrpt::io::CStream {
   void watch(const char* bytes, size_t n) {
     const uint8_t length = length_;
     length_ = n == 1 ? static_cast<uint8_t>(bytes[0]) : 0;
-    if (n == 1 || length != (0x80 | n) || n > 30) return;  // the checked names: 22-30 bytes
+    if (n < 10 || n > 30 || length != (0x80 | n)) return;  // the checked names: 10-30 bytes
     const std::string name(bytes, n);
-    if (name.rfind("mrpt::", 0) != 0) return;
     const std::string next = peek(1 + 8);  // the version byte, then the count (after an ID)
     if (next.empty()) return;
     refused_ = containerProblem(name, static_cast<int8_t>(next[0]), next.substr(1), watch_bytes_);
