@@ -56,6 +56,18 @@ for t in "${TARGETS[@]}"; do
       }
       # One allocation too large: over libFuzzer's limit, ASan's, or the memory there is.
       one_alloc="out-of-memory \(malloc\(|requested allocation size|allocator is out of memory"
+      # The reader checks these classes' counts (doc/FUZZING.md): memory sized by one of theirs
+      # (the nearest deserializer in the allocating stack, no string read between: MRPT's string
+      # reader allocates the length it reads, and an observation's frame can be missing) is
+      # ours, not upstream.
+      checked="(CSensoryFrame|CSimpleMap|CActionCollection|CSimplePointsMap|CPointsMapXYZI"
+      checked+="|CPointsMapXYZIRT|CColouredPointsMap)::serializeFrom"
+      ours() {
+        local stack
+        stack=$({ grep -A14 -E "HandleMalloc|$one_alloc" <<<"$out"
+                  grep -A12 "Live Heap Allocations" <<<"$out"; } | sed '/::serializeFrom/q')
+        grep -qE "$checked" <<<"$(tail -n1 <<<"$stack")" && ! grep -q "basic_string<char" <<<"$stack"
+      }
       out=$(replay -malloc_limit_mb=1024 -rss_limit_mb=2048)
       if grep -q "out-of-memory (used:" <<<"$out" && ! mrpt_heap; then  # find the allocation
         out=$(replay -malloc_limit_mb=100 -rss_limit_mb=8000)
@@ -69,6 +81,12 @@ for t in "${TARGETS[@]}"; do
            grep -A14 -E "HandleMalloc|$one_alloc" <<<"$out" |
              grep -qE "serializeFrom|mrpt::serialization::"; } ||
          { grep -q "out-of-memory (used:" <<<"$out" && mrpt_heap; }; then
+        if ours; then
+          echo "fuzz: rawlog finding $f: memory sized by a count the reader checks:" >&2
+          tail -n 20 <<<"$out" >&2
+          [[ " ${failed[*]} " == *" rawlog "* ]] || failed+=("rawlog")
+          continue
+        fi
         upstream=$((upstream + 1))
         mkdir -p "$work/upstream" && mv "$f" "$work/upstream/"
       else

@@ -893,6 +893,14 @@ TEST(RawlogSource, AContainerClaimingMoreThanTheFileHoldsIsAClearError) {
   write("map.rawlog", "mrpt::maps::CSimpleMap", {1, 0, 0, 1, 0});
   test::expectError([&] { read("map.rawlog"); }, "map.rawlog",
                     "entry 1 is a CSimpleMap claiming 65536 keyframes");
+  // MRPT reads a class by the name's part after its last "::" where no class has the whole name
+  // (found by fuzzing: a mutated namespace passed the check by name and took over 2 GB).
+  write("prefix.rawlog", "mrpt:Cmaps::CSimpleMap", {1, 0, 0, 1, 0});
+  test::expectError([&] { read("prefix.rawlog"); }, "prefix.rawlog",
+                    "entry 1 is a CSimpleMap claiming 65536 keyframes");
+  write("nul.rawlog", std::string("mrpt::\x96mrpt::maps::CSimpleMap\0\3", 31), {1, 0, 0, 1, 0});
+  test::expectError([&] { read("nul.rawlog"); }, "nul.rawlog",
+                    "entry 1 is a CSimpleMap claiming 65536 keyframes");
   write("frame0.rawlog", "mrpt::obs::CSensoryFrame", {0, 0, 0, 0, 0});
   test::expectError([&] { read("frame0.rawlog"); }, "frame0.rawlog",
                     "entry 1 is a CSensoryFrame of MRPT's first format (version 0)");

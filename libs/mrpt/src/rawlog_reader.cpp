@@ -27,6 +27,7 @@
 #include <mrpt/obs/CObservationPointCloud.h>
 #include <mrpt/obs/CObservationRobotPose.h>
 #include <mrpt/obs/CSensoryFrame.h>
+#include <mrpt/rtti/CObject.h>
 #include <mrpt/serialization/CArchive.h>
 
 #include "cleanmap/core/error.h"
@@ -79,33 +80,38 @@ struct CorruptCompressedData : std::runtime_error {
 // them): a CSimpleMap,
 // CSensoryFrame or CActionCollection sizes its list (a std::deque, filled block by block) to the
 // count it reads first, so a few bytes claiming 2^32 elements take gigabytes before the data runs
-// out; a points map zero-fills three to seven arrays of the count it reads first (64 GB for
+// out; a points map zero-fills three to six arrays of the count it reads first (64 GB for
 // 2^32 points of CPointsMapXYZI); and the first formats (version 0) of a CSimpleMap and a
 // CSensoryFrame use a pose or an observation that may be missing (SIGSEGV). A count is refused
 // where its elements, each at least a missing object ("nullptr", 9 bytes) or a point's x, y and
 // z (12 bytes), would not fit in max_bytes. A point-cloud SLAM never wrote a version 0: MRPT
 // 2.5.8 writes version 1 of a CSimpleMap and 2 of a CSensoryFrame. `name`: the class MRPT names
 // in the object's header, `after`: the bytes after its header (its count, after the ID of a
-// CSensoryFrame version 1; MRPT 1 wrote the names without their namespace). "" where it is no
-// such container or nothing is wrong, else what is wrong ("a CSensoryFrame claiming ...").
+// CSensoryFrame version 1). The class is the one MRPT's reader makes of the name: the name's, or
+// where no class has that name, the one named by its part after the last "::" (MRPT 1 wrote no
+// namespaces; any prefix passes). "" where it is no such container or nothing is wrong, else
+// what is wrong ("a CSensoryFrame claiming ...").
 std::string containerProblem(const std::string& name, int version, const std::string& after,
                              uint64_t max_bytes) {
   constexpr uint64_t kLeastObjectBytes = 9, kLeastPointBytes = 12;
-  const std::string cls = name.substr(name.rfind(':') + 1);
-  if (cls != name && name.rfind("mrpt::", 0) != 0) return "";
+  // MRPT reads the name as a C string: it ends at its first NUL.
+  const ::mrpt::rtti::TRuntimeClassId* id =
+      ::mrpt::rtti::findRegisteredClass(name.substr(0, name.find('\0')));
+  if (!id || !id->className) return "";
+  const std::string full = id->className, cls = full.substr(full.rfind(':') + 1);
   uint64_t per_element = kLeastObjectBytes;
   size_t count_at = 0;
   std::string elements = " elements";
-  if (cls == "CSimpleMap") {
+  if (full == "mrpt::maps::CSimpleMap") {
     per_element = 2 * kLeastObjectBytes;  // a pose and a sensory frame
     elements = " keyframes";
-  } else if (cls == "CSensoryFrame") {
+  } else if (full == "mrpt::obs::CSensoryFrame") {
     count_at = version == 1 ? 4 : 0;  // an ID before it
-  } else if (cls == "CSimplePointsMap" || cls == "CPointsMapXYZI" || cls == "CPointsMapXYZIRT" ||
-             cls == "CColouredPointsMap") {
+  } else if (full == "mrpt::maps::CSimplePointsMap" || full == "mrpt::maps::CPointsMapXYZI" ||
+             full == "mrpt::maps::CPointsMapXYZIRT" || full == "mrpt::maps::CColouredPointsMap") {
     per_element = kLeastPointBytes;  // every version starts with the count
     elements = " points";
-  } else if (cls != "CActionCollection") {
+  } else if (full != "mrpt::obs::CActionCollection") {
     return "";
   }
   if (version == 0 && (cls == "CSimpleMap" || cls == "CSensoryFrame"))
@@ -170,7 +176,7 @@ class PeekStream : public ::mrpt::io::CStream {
   void watch(const char* bytes, size_t n) {
     const uint8_t length = length_;
     length_ = n == 1 ? static_cast<uint8_t>(bytes[0]) : 0;
-    if (n < 10 || n > 30 || length != (0x80 | n)) return;  // the checked names: 10-30 bytes
+    if (n == 1 || length != (0x80 | n)) return;
     const std::string name(bytes, n);
     const std::string next = peek(1 + 8);  // the version byte, then the count (after an ID)
     if (next.empty()) return;
