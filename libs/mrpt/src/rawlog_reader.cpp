@@ -76,12 +76,11 @@ struct CorruptCompressedData : std::runtime_error {
   CorruptCompressedData() : std::runtime_error("corrupt compressed data (gzread failed)") {}
 };
 
-// What MRPT 2.5.8's readers of its containers do not check (found by fuzzing and by reading
-// them): a CSimpleMap,
-// CSensoryFrame or CActionCollection sizes its list (a std::deque, filled block by block) to the
-// count it reads first, so a few bytes claiming 2^32 elements take gigabytes before the data runs
-// out; a points map zero-fills three to six arrays of the count it reads first (64 GB for
-// 2^32 points of CPointsMapXYZI); and the first formats (version 0) of a CSimpleMap and a
+// What MRPT 2.5.8's readers of its containers do not check (found by fuzzing and by reading them):
+// a CSimpleMap, CSensoryFrame or CActionCollection sizes its list (a std::deque, filled block by
+// block) to the count it reads first, so a few bytes claiming 2^32 elements take gigabytes before
+// the data runs out; a points map zero-fills three to six arrays of the count it reads first (64 GB
+// for 2^32 points of CPointsMapXYZI); and the first formats (version 0) of a CSimpleMap and a
 // CSensoryFrame use a pose or an observation that may be missing (SIGSEGV). A count is refused
 // where its elements, each at least a missing object ("nullptr", 9 bytes) or a point's x, y and
 // z (12 bytes), would not fit in max_bytes. A point-cloud SLAM never wrote a version 0: MRPT
