@@ -910,6 +910,27 @@ TEST(RawlogSource, AContainerClaimingMoreThanTheFileHoldsIsAClearError) {
                     "truncated or corrupt rawlog at entry 1");
 }
 
+namespace {
+
+// A rawlog's or simplemap's bytes, uncompressed.
+std::vector<char> bytesOf(const std::string& path) {
+  std::vector<char> bytes;
+  ::mrpt::io::CFileGZInputStream in(path);
+  char buf[4096];
+  for (size_t got; (got = in.Read(buf, sizeof buf)) > 0;) bytes.insert(bytes.end(), buf, buf + got);
+  return bytes;
+}
+
+// Where the second object headed `header` (its name length and name) has its version byte.
+std::size_t secondVersionAt(const std::vector<char>& bytes, const std::string& header) {
+  auto at = std::search(bytes.begin(), bytes.end(), header.begin(), header.end());
+  if (at != bytes.end()) at = std::search(at + 1, bytes.end(), header.begin(), header.end());
+  EXPECT_NE(at, bytes.end()) << header;
+  return at == bytes.end() ? 0 : static_cast<std::size_t>(at - bytes.begin()) + header.size();
+}
+
+}  // namespace
+
 // The same checks inside a container: a simplemap's keyframe whose sensory frame claims more
 // observations than the file holds, or is of the first format, is refused as MRPT reads it, by
 // both readers, in one line naming the file; the same map unchanged reads.
@@ -926,20 +947,11 @@ TEST(RawlogSource, AContainerInsideAnotherIsCheckedToo) {
               sf);
   }
   ASSERT_TRUE(sm.saveToFile((dir / "good.simplemap").string()));
-  std::vector<char> bytes;
-  {
-    ::mrpt::io::CFileGZInputStream in((dir / "good.simplemap").string());
-    char buf[4096];
-    for (size_t got; (got = in.Read(buf, sizeof buf)) > 0;)
-      bytes.insert(bytes.end(), buf, buf + got);
-  }
+  const std::vector<char> bytes = bytesOf((dir / "good.simplemap").string());
   // The second keyframe's frame: its header, then version 2 and its count (1).
   const std::string header = "\x98mrpt::obs::CSensoryFrame";
-  auto at = std::search(bytes.begin(), bytes.end(), header.begin(), header.end());
-  ASSERT_NE(at, bytes.end());
-  at = std::search(at + 1, bytes.end(), header.begin(), header.end());
-  ASSERT_NE(at, bytes.end());
-  const std::size_t version_at = static_cast<std::size_t>(at - bytes.begin()) + header.size();
+  const std::size_t version_at = secondVersionAt(bytes, header);
+  ASSERT_GT(version_at, 0u);
   ASSERT_EQ(bytes[version_at], 2);
   ASSERT_EQ(bytes[version_at + 1], 1);
   const auto write = [&](const std::string& name, std::size_t offset, std::vector<char> patch) {
@@ -976,11 +988,9 @@ TEST(RawlogSource, AContainerInsideAnotherIsCheckedToo) {
   }
   both(write("v0.simplemap", version_at, {0}),
        "holds a CSensoryFrame of MRPT's first format (version 0), which cleanmap does not read");
-  // A keyframe's points map claiming 2^32 - 1 points (MRPT zero-fills its arrays: 48 GB).
-  const std::string points = "\x9cmrpt::maps::CSimplePointsMap";
-  const auto map_at = std::search(bytes.begin(), bytes.end(), points.begin(), points.end());
-  ASSERT_NE(map_at, bytes.end());
-  const std::size_t count_at = static_cast<std::size_t>(map_at - bytes.begin()) + points.size() + 1;
+  // The second keyframe's points map claiming 2^32 - 1 points (MRPT zero-fills its arrays: 48 GB).
+  const std::size_t count_at = secondVersionAt(bytes, "\x9cmrpt::maps::CSimplePointsMap") + 1;
+  ASSERT_GT(count_at, 1u);
   ASSERT_EQ(bytes[count_at], 1);
   both(write("points.simplemap", count_at, {'\xff', '\xff', '\xff', '\xff'}),
        "holds a CSimplePointsMap claiming 4294967295 points, more than the file can hold");
@@ -999,19 +1009,10 @@ TEST(RawlogSource, AContainerInsideAnotherIsCheckedToo) {
       ar << *pc;
     }
   }
-  std::vector<char> cloud;
-  {
-    ::mrpt::io::CFileGZInputStream in((dir / "cloud.rawlog").string());
-    char buf[4096];
-    for (size_t got; (got = in.Read(buf, sizeof buf)) > 0;)
-      cloud.insert(cloud.end(), buf, buf + got);
-  }
-  const std::string xyzi = "\x9amrpt::maps::CPointsMapXYZI";
-  auto xyzi_at = std::search(cloud.begin(), cloud.end(), xyzi.begin(), xyzi.end());
-  ASSERT_NE(xyzi_at, cloud.end());
-  xyzi_at = std::search(xyzi_at + 1, cloud.end(), xyzi.begin(), xyzi.end());
-  ASSERT_NE(xyzi_at, cloud.end());
-  const auto n_at = xyzi_at + static_cast<std::ptrdiff_t>(xyzi.size()) + 1;
+  std::vector<char> cloud = bytesOf((dir / "cloud.rawlog").string());
+  const std::size_t xyzi_version = secondVersionAt(cloud, "\x9amrpt::maps::CPointsMapXYZI");
+  ASSERT_GT(xyzi_version, 0u);
+  const auto n_at = cloud.begin() + static_cast<std::ptrdiff_t>(xyzi_version) + 1;
   ASSERT_EQ(*n_at, 1);
   std::fill(n_at, n_at + 4, '\x40');
   const std::string cut = (dir / "cloud_count.rawlog").string();
