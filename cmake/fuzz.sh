@@ -56,11 +56,11 @@ for t in "${TARGETS[@]}"; do
       }
       # One allocation too large: over libFuzzer's limit, ASan's, or the memory there is.
       one_alloc="out-of-memory \(malloc\(|requested allocation size|allocator is out of memory"
-      # The reader checks these classes' counts (doc/FUZZING.md): memory sized by one of theirs
-      # (the nearest deserializer in the allocating stack, no string read between: MRPT's string
-      # reader allocates the length it reads, and an observation's frame can be missing) is
-      # ours, not upstream.
-      checked="(CSensoryFrame|CSimpleMap|CActionCollection|CSimplePointsMap|CPointsMapXYZI"
+      # The reader checks these classes' counts and sizes (doc/FUZZING.md): memory sized by one
+      # of theirs (the nearest deserializer in the allocating stack, no string read between: MRPT's
+      # string reader allocates the length it reads, and an observation's frame can be missing)
+      # is ours, not upstream.
+      checked="(CSensoryFrame|CSimpleMap|CActionCollection|CSimplePointsMap|CPointsMapXYZI|CImage"
       checked+="|CPointsMapXYZIRT|CColouredPointsMap)::serializeFrom"
       ours() {
         local stack

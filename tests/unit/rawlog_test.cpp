@@ -11,6 +11,7 @@
 
 #include <mrpt/io/CFileGZInputStream.h>
 #include <mrpt/io/CFileGZOutputStream.h>
+#include <mrpt/io/CMemoryStream.h>
 #include <mrpt/maps/CPointsMapXYZI.h>
 #include <mrpt/maps/CSimpleMap.h>
 #include <mrpt/maps/CSimplePointsMap.h>
@@ -1026,6 +1027,91 @@ TEST(RawlogSource, AContainerInsideAnotherIsCheckedToo) {
       },
       cut,
       "entry 1 holds a CPointsMapXYZI claiming 1077952576 points, more than the file can hold");
+}
+
+// MRPT 2.5.8's image reader allocates the JPEG bytes or the pixels an image's header claims before
+// reading them (a 3 KB rawlog took 4.2 GB), and in its first format (version 0) reads a byte
+// count apart from the size it allocated into the image: more overflowed the heap (a 2 x 2 image
+// given 200,000 bytes aborted a run in malloc). Each is one line naming the entry, before MRPT
+// reads it; images MRPT wrote, colour and grey, and a first-format image that fits, read.
+TEST(RawlogSource, AnImageClaimingMoreThanTheFileHoldsIsAClearError) {
+  const auto dir = test::scratchDir("rawlog_image_sizes");
+  // A rawlog of a point cloud and a camera's image; `body`, where given, replaces the image's
+  // bytes from its version byte on (an external image's: version 9, true, a 12-character name).
+  const auto write = [&](const std::string& name, const ::mrpt::img::CImage& image,
+                         const std::string& body) {
+    ::mrpt::io::CMemoryStream mem;
+    auto ar = ::mrpt::serialization::archiveFrom(mem);
+    auto pc = ::mrpt::obs::CObservationPointCloud::Create();
+    pc->pointcloud = ::mrpt::maps::CSimplePointsMap::Create();
+    pc->pointcloud->insertPoint(5, 0, -1);
+    ar << *pc;
+    auto im = ::mrpt::obs::CObservationImage::Create();
+    im->image = image;
+    ar << *im;
+    std::string b(static_cast<const char*>(mem.getRawBufferData()), mem.getTotalBytesCount());
+    if (!body.empty()) {
+      const std::string header = "\x91mrpt::img::CImage";
+      const std::size_t at = b.find(header) + header.size();
+      EXPECT_EQ(b.substr(at, 6), std::string("\x09\x01\x0c\0\0\0", 6));
+      b = b.substr(0, at) + body + b.substr(at + 6 + 12);
+    }
+    const std::string path = (dir / name).string();
+    std::ofstream(path, std::ios::binary).write(b.data(), static_cast<std::streamsize>(b.size()));
+    return path;
+  };
+  const auto le32 = [](int64_t v) {
+    std::string s(4, '\0');
+    for (int i = 0; i < 4; ++i)
+      s[i] = static_cast<char>((static_cast<uint64_t>(v) >> (8 * i)) & 0xff);
+    return s;
+  };
+  const auto read = [](const std::string& path) {
+    cleanmap::mrpt::RawlogSource src(path);
+    std::size_t images = 0;
+    while (const auto f = src.next()) images += f->image.has_value();
+    return images;
+  };
+  ::mrpt::img::CImage external;
+  external.setExternalStorage("abcdefgh.png");
+  const auto refused = [&](const std::string& name, const std::string& body,
+                           const std::string& what) {
+    const std::string path = write(name, external, body);
+    test::expectError([&] { read(path); }, path, "entry 1 holds " + what);
+  };
+  // Version 0: width, height, channels, origin, then the byte count read into the image.
+  const std::string v0 = std::string(1, '\0') + le32(2) + le32(2) + le32(1) + '\1';
+  refused("v0_overflow.rawlog", v0 + le32(4096) + std::string(4096, 'A'),
+          "a CImage of 2 x 2 pixels of 1 byte claiming 4096 bytes of them (corrupt: MRPT would "
+          "write past the image)");
+  refused("v0_channels.rawlog",
+          std::string(1, '\0') + le32(2) + le32(2) + le32(513) + '\1' + le32(4) + "AAAA",
+          "a CImage of 513 channels (corrupt)");
+  EXPECT_EQ(read(write("v0.rawlog", external, v0 + le32(4) + "AAAA")), 1u);
+  // A JPEG's byte count: version 1; version 9 in colour at a positive size.
+  refused("v1_jpeg.rawlog", std::string(1, '\1') + le32(-1) + "AAAA",
+          "a CImage claiming 4294967295 bytes of JPEG data, more than the file can hold (corrupt)");
+  const std::string v9 = std::string("\x09\0", 2);
+  refused("v9_jpeg.rawlog", v9 + '\1' + le32(640) + le32(480) + le32(0x7fffffff) + "AAAA",
+          "a CImage claiming 2147483647 bytes of JPEG data");
+  // Raw pixels: colour (a negative size), grey of 8-byte pixels (depth 6: double).
+  refused("v9_rgb.rawlog", v9 + '\1' + le32(-4096) + le32(-4096) + "AAAA",
+          "a CImage claiming 4096 x 4096 pixels of 3 bytes, more than the file can hold (corrupt)");
+  refused("v9_grey.rawlog",
+          v9 + '\0' + le32(4096) + le32(4096) + le32(0) + le32(134217728) + le32(6) + "AAAA",
+          "a CImage claiming 4096 x 4096 pixels of 8 bytes");
+  // As MRPT writes them: raw colour and grey (8 and 16 bits).
+  EXPECT_EQ(read(write("rgb.rawlog",
+                       ::mrpt::img::CImage(cv::Mat(48, 64, CV_8UC3, cv::Scalar(10, 20, 30)),
+                                           ::mrpt::img::DEEP_COPY),
+                       "")),
+            1u);
+  for (const int type : {CV_8UC1, CV_16UC1}) {
+    const std::string path = write(
+        "grey.rawlog",
+        ::mrpt::img::CImage(cv::Mat(48, 64, type, cv::Scalar(9)), ::mrpt::img::DEEP_COPY), "");
+    EXPECT_NO_THROW(read(path)) << type;
+  }
 }
 
 // A simplemap (a SLAM's output: keyframes of a pose and a sensory frame) reads as its scans, each

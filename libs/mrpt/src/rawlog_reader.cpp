@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <fstream>
 #include <mutex>
+#include <optional>
 #include <set>
 #include <sstream>
 #include <stdexcept>
@@ -76,6 +77,95 @@ struct CorruptCompressedData : std::runtime_error {
   CorruptCompressedData() : std::runtime_error("corrupt compressed data (gzread failed)") {}
 };
 
+// The bytes after an object's version byte that objectProblem looks at (a CImage's header: 22).
+constexpr size_t kCheckedBytes = 24;
+
+// A little-endian field of `bytes` bytes at `at` of `b`; nullopt past its end.
+std::optional<uint64_t> fieldAt(const std::string& b, size_t at, size_t bytes) {
+  if (b.size() < at + bytes) return std::nullopt;
+  uint64_t v = 0;
+  for (size_t i = bytes; i-- > 0;) v = (v << 8) | static_cast<uint8_t>(b[at + i]);
+  return v;
+}
+
+// a * b * c, or UINT64_MAX where that overflows.
+uint64_t product(uint64_t a, uint64_t b, uint64_t c) {
+  uint64_t ab = 0, abc = 0;
+  if (__builtin_mul_overflow(a, b, &ab) || __builtin_mul_overflow(ab, c, &abc)) return UINT64_MAX;
+  return abc;
+}
+
+// What MRPT 2.5.8's CImage reader does not check, in each version it reads: it allocates a JPEG's
+// byte count (zero-filled: a 3 KB rawlog took 4.2 GB) or the pixels of the size it reads before
+// reading them, and in version 0 it reads a byte count apart from that size into the image (more
+// overflows the heap: a 2 x 2 image given 200,000 bytes aborted a run in malloc). Every pixel or
+// JPEG byte MRPT allocates is in a file it wrote, so more than max_bytes of them is corrupt; so is
+// a version 0 count over the image's size (MRPT 2.5.8 would overflow it). External images (a file
+// name) and sizes OpenCV refuses (negative) are MRPT's to read. `after`: the bytes after the
+// version byte.
+std::string imageProblem(int version, const std::string& after, uint64_t max_bytes) {
+  const auto u = [&](size_t at, size_t bytes) { return fieldAt(after, at, bytes); };
+  const auto i32 = [&](size_t at) -> std::optional<int64_t> {
+    const auto v = u(at, 4);
+    if (!v) return std::nullopt;
+    return static_cast<int64_t>(static_cast<int32_t>(static_cast<uint32_t>(*v)));
+  };
+  const auto jpeg = [&](size_t at) -> std::string {
+    const auto n = u(at, 4);
+    if (!n || *n <= max_bytes) return "";
+    return "a CImage claiming " + std::to_string(*n) +
+           " bytes of JPEG data, more than the file can hold (corrupt)";
+  };
+  // "w x h pixels of n bytes"
+  const auto size = [](uint64_t w, uint64_t h, uint64_t bytes) {
+    return std::to_string(w) + " x " + std::to_string(h) + " pixels of " + std::to_string(bytes) +
+           (bytes == 1 ? " byte" : " bytes");
+  };
+  const auto pixels = [&](uint64_t w, uint64_t h, uint64_t bytes) -> std::string {
+    if (product(w, h, bytes) <= max_bytes) return "";
+    return "a CImage claiming " + size(w, h, bytes) + ", more than the file can hold (corrupt)";
+  };
+  if (version == 0) {  // width, height, channels (uint32), origin (uint8), byte count (uint32)
+    const auto w = u(0, 4), h = u(4, 4), c = u(8, 4), n = u(13, 4);
+    if (!w || !h || !c || !n) return "";
+    // 1 to 4 channels: OpenCV's type keeps the count modulo 512 (513 would make 1).
+    if (*c < 1 || *c > 4) return "a CImage of " + std::to_string(*c) + " channels (corrupt)";
+    if (product(*w, *h, *c) < *n)
+      return "a CImage of " + size(*w, *h, *c) + " claiming " + std::to_string(*n) +
+             " bytes of them (corrupt: MRPT would write past the image)";
+    return pixels(*w, *h, *c);
+  }
+  if (version == 1) return jpeg(0);
+  if (version < 2 || version > 9) return "";  // 100: a file name; others MRPT refuses
+  size_t at = 0;
+  if (version >= 6) {
+    const auto external = u(at++, 1);
+    if (!external || *external != 0) return "";
+  }
+  const auto colour = u(at++, 1);
+  if (!colour) return "";
+  if (*colour == 0) {  // grey: width, height, origin, byte count (int32), depth (version 9)
+    const auto w = i32(at), h = i32(at + 4);
+    if (!w || !h || *w < 0 || *h < 0) return "";
+    uint64_t bytes = 1;
+    if (version >= 9) {
+      // OpenCV's depth codes (mrpt::img::PixelDepth): 8-bit, 16-bit, 32-bit and 64-bit
+      // pixels; an unknown one counted as 1 byte (OpenCV decides).
+      static constexpr uint64_t kBytes[] = {1, 1, 2, 2, 4, 4, 8};
+      const auto depth = u(at + 16, 4);
+      if (!depth) return "";
+      if (*depth < 7) bytes = kBytes[*depth];
+    }
+    return pixels(static_cast<uint64_t>(*w), static_cast<uint64_t>(*h), bytes);
+  }
+  if (version < 7) return jpeg(at);
+  const auto w = i32(at), h = i32(at + 4);  // positive: JPEG; both negative: raw RGB
+  if (!w || !h) return "";
+  if (*w >= 1 && *h >= 1) return jpeg(at + 8);
+  if (*w < 0 && *h < 0) return pixels(static_cast<uint64_t>(-*w), static_cast<uint64_t>(-*h), 3);
+  return "";
+}
+
 // What MRPT 2.5.8's readers of its containers do not check (found by fuzzing and by reading them):
 // a CSimpleMap, CSensoryFrame or CActionCollection sizes its list (a std::deque, filled block by
 // block) to the count it reads first, so a few bytes claiming 2^32 elements take gigabytes before
@@ -84,20 +174,21 @@ struct CorruptCompressedData : std::runtime_error {
 // CSensoryFrame use a pose or an observation that may be missing (SIGSEGV). A count is refused
 // where its elements, each at least a missing object ("nullptr", 9 bytes) or a point's x, y and
 // z (12 bytes), would not fit in max_bytes. A point-cloud SLAM never wrote a version 0: MRPT
-// 2.5.8 writes version 1 of a CSimpleMap and 2 of a CSensoryFrame. `name`: the class MRPT names
-// in the object's header, `after`: the bytes after its header (its count, after the ID of a
-// CSensoryFrame version 1). The class is the one MRPT's reader makes of the name: the name's, or
-// where no class has that name, the one named by its part after the last "::" (MRPT 1 wrote no
-// namespaces; any prefix passes). "" where it is no such container or nothing is wrong, else
-// what is wrong ("a CSensoryFrame claiming ...").
-std::string containerProblem(const std::string& name, int version, const std::string& after,
-                             uint64_t max_bytes) {
+// 2.5.8 writes version 1 of a CSimpleMap and 2 of a CSensoryFrame. Images: imageProblem.
+// `name`: the class MRPT names in the object's header, `after`: the bytes after its version byte
+// (kCheckedBytes of them, fewer at the end of the file). The class is the one MRPT's reader makes
+// of the name: the name's, or where no class has that name, the one named by its part after the
+// last "::" (MRPT 1 wrote no namespaces; any prefix passes). "" where it is no such class or
+// nothing is wrong, else what is wrong ("a CSensoryFrame claiming ...").
+std::string objectProblem(const std::string& name, int version, const std::string& after,
+                          uint64_t max_bytes) {
   constexpr uint64_t kLeastObjectBytes = 9, kLeastPointBytes = 12;
   // MRPT reads the name as a C string: it ends at its first NUL.
   const ::mrpt::rtti::TRuntimeClassId* id =
       ::mrpt::rtti::findRegisteredClass(name.substr(0, name.find('\0')));
   if (!id || !id->className) return "";
   const std::string full = id->className, cls = full.substr(full.rfind(':') + 1);
+  if (full == "mrpt::img::CImage") return imageProblem(version, after, max_bytes);
   uint64_t per_element = kLeastObjectBytes;
   size_t count_at = 0;
   std::string elements = " elements";
@@ -115,19 +206,17 @@ std::string containerProblem(const std::string& name, int version, const std::st
   }
   if (version == 0 && (cls == "CSimpleMap" || cls == "CSensoryFrame"))
     return "a " + cls + " of MRPT's first format (version 0), which cleanmap does not read";
-  if (after.size() < count_at + 4) return "";  // MRPT's reader says it is cut short
-  uint64_t n = 0;
-  for (int i = 3; i >= 0; --i) n = (n << 8) | static_cast<uint8_t>(after[count_at + i]);
-  if (n * per_element <= max_bytes) return "";
-  return "a " + cls + " claiming " + std::to_string(n) + elements +
+  const auto n = fieldAt(after, count_at, 4);
+  if (!n || *n * per_element <= max_bytes) return "";  // cut short: MRPT's reader says so
+  return "a " + cls + " claiming " + std::to_string(*n) + elements +
          ", more than the file can hold (corrupt)";
 }
 
 // MRPT's input stream with read-ahead: the next object's header is read (peekHeader) and read
-// again by MRPT's deserializer. With watchContainers, each container MRPT reads inside another
-// (a simplemap's keyframes, a frame's observations) is checked as its header goes by
-// (containerProblem): MRPT reads a header's name length (high bit set), then the name, each in
-// one Read, so a read of a container's name after its length is one.
+// again by MRPT's deserializer. With watchObjects, each container or image MRPT reads inside
+// another (a simplemap's keyframes, a frame's observations, an observation's image) is checked as
+// its header goes by (objectProblem): MRPT reads a header's name length (high bit set), then the
+// name, each in one Read, so a read of a class name after its length is one.
 class PeekStream : public ::mrpt::io::CStream {
  public:
   explicit PeekStream(::mrpt::io::CStream& in) : in_(in) {}
@@ -145,9 +234,10 @@ class PeekStream : public ::mrpt::io::CStream {
   uint64_t getPosition() const override { return in_.getPosition() - (ahead_.size() - at_); }
   // A read failed on corrupt compressed data (MRPT's deserializer turns that into its "EOF").
   bool corrupt() const { return corrupt_; }
-  // Checks the containers inside others against the most bytes the file can hold (mostBytesIn).
-  void watchContainers(uint64_t max_bytes) { watch_bytes_ = max_bytes; }
-  // What was wrong with a container inside another ("a CSensoryFrame claiming ..."), or "": the
+  // Checks the containers and images inside others against the most bytes the file can hold
+  // (mostBytesIn).
+  void watchObjects(uint64_t max_bytes) { watch_bytes_ = max_bytes; }
+  // What was wrong with an object inside another ("a CSensoryFrame claiming ..."), or "": the
   // read was stopped by an exception MRPT's reader passes on in its own words.
   const std::string& refused() const { return refused_; }
   // The next n bytes (fewer at the end of the stream), left to be read.
@@ -177,16 +267,16 @@ class PeekStream : public ::mrpt::io::CStream {
     length_ = n == 1 ? static_cast<uint8_t>(bytes[0]) : 0;
     if (n == 1 || length != (0x80 | n)) return;
     const std::string name(bytes, n);
-    const std::string next = peek(1 + 8);  // the version byte, then the count (after an ID)
+    const std::string next = peek(1 + kCheckedBytes);  // the version byte, then what follows
     if (next.empty()) return;
-    refused_ = containerProblem(name, static_cast<int8_t>(next[0]), next.substr(1), watch_bytes_);
+    refused_ = objectProblem(name, static_cast<int8_t>(next[0]), next.substr(1), watch_bytes_);
     if (!refused_.empty()) throw std::runtime_error(refused_);
   }
   ::mrpt::io::CStream& in_;
   bool corrupt_ = false;
   std::string ahead_;  // bytes read from in_ and not yet by Read
   size_t at_ = 0;
-  uint64_t watch_bytes_ = 0;  // watchContainers' bound; 0: no watch
+  uint64_t watch_bytes_ = 0;  // watchObjects' bound; 0: no watch
   uint8_t length_ = 0;        // the byte of the last one-byte Read
   std::string refused_;
 };
@@ -218,16 +308,16 @@ std::optional<Header> peekHeader(PeekStream& s) {
   return Header{b.substr(name_at, len), version, bytes};
 }
 
-// containerProblem of the next object, a top-level one, before MRPT reads it; the containers
-// inside it are checked as MRPT reads them (watchContainers). `what`: "is", "entry N is".
-void checkContainer(PeekStream& s, const std::string& path, const std::string& what,
-                    uint64_t max_bytes) {
-  s.watchContainers(max_bytes);
+// objectProblem of the next object, a top-level one, before MRPT reads it; the containers and
+// images inside it are checked as MRPT reads them (watchObjects). `what`: "is", "entry N is".
+void checkObject(PeekStream& s, const std::string& path, const std::string& what,
+                 uint64_t max_bytes) {
+  s.watchObjects(max_bytes);
   const auto h = peekHeader(s);
   if (!h) return;
-  const std::string b = s.peek(h->bytes + 8);
-  const std::string problem = containerProblem(
-      h->name, h->version, b.size() > h->bytes ? b.substr(h->bytes) : "", max_bytes);
+  const std::string b = s.peek(h->bytes + kCheckedBytes);
+  const std::string problem =
+      objectProblem(h->name, h->version, b.size() > h->bytes ? b.substr(h->bytes) : "", max_bytes);
   if (!problem.empty()) throw Error(path, what + " " + problem);
 }
 
@@ -397,14 +487,14 @@ struct RawlogSource::Impl {
       return Error(
           path, std::string(CorruptCompressedData().what()) + " at entry " + std::to_string(entry));
     };
-    // A container inside the entry refused as MRPT read it (PeekStream::watchContainers).
+    // A container or image inside the entry refused as MRPT read it (PeekStream::watchObjects).
     const auto refused = [&] {
       return Error(path, (entry == 0 ? "" : "entry " + std::to_string(entry) + " ") + "holds " +
                              in.refused());
     };
     try {
-      checkContainer(in, path, entry == 0 ? "is" : "entry " + std::to_string(entry) + " is",
-                     max_bytes);
+      checkObject(in, path, entry == 0 ? "is" : "entry " + std::to_string(entry) + " is",
+                  max_bytes);
       const ReadingGuard guard(path, entry);
       obj = arch.ReadObject();
     } catch (const Error&) {
@@ -748,7 +838,7 @@ void loadSimplemap(const std::string& path, ::mrpt::maps::CSimpleMap& out) {
     throw Error(path, "cannot be opened as a simplemap (no such file, or not a file)");
   PeekStream in(file);
   try {
-    checkContainer(in, path, "is", mostBytesIn(path));
+    checkObject(in, path, "is", mostBytesIn(path));
     auto arch = ::mrpt::serialization::archiveFrom(in);
     arch >> out;
   } catch (const Error&) {
