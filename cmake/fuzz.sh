@@ -25,6 +25,8 @@ for t in "${TARGETS[@]}"; do
   opts=(-max_total_time="$SECONDS_EACH" -timeout=10 -rss_limit_mb=2048 -malloc_limit_mb=1024
         -max_len=65536 -print_final_stats=1 -artifact_prefix="$work/findings/")
   seeds=("$SRC/tests/fuzz/corpus/$t")
+  # A target's dictionary, where it has one (rawlog: every MRPT class's object header).
+  if [[ -f "$SRC/tests/fuzz/$t.dict" ]]; then opts+=(-dict="$SRC/tests/fuzz/$t.dict"); fi
   if [[ "$t" == rawlog ]]; then
     # MRPT's sample rawlogs, where installed: rotating scans and Velodyne packets to start from.
     mkdir -p "$work/mrpt-seeds"
