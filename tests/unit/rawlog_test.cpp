@@ -1032,12 +1032,25 @@ TEST(RawlogSource, AContainerInsideAnotherIsCheckedToo) {
 // MRPT 2.5.8's image reader allocates the JPEG bytes or the pixels an image's header claims before
 // reading them (a 3 KB rawlog took 4.2 GB), and in its first format (version 0) reads a byte
 // count apart from the size it allocated into the image: more overflowed the heap (a 2 x 2 image
-// given 200,000 bytes aborted a run in malloc). Each is one line naming the entry, before MRPT
-// reads it; images MRPT wrote, colour and grey, and a first-format image that fits, read.
+// given 200,000 bytes aborted a run in malloc). Each is one line naming the entry (a simplemap's
+// keyframe: both readers), before MRPT reads it; images MRPT wrote, colour and grey, and a
+// first-format image that fits, read.
 TEST(RawlogSource, AnImageClaimingMoreThanTheFileHoldsIsAClearError) {
   const auto dir = test::scratchDir("rawlog_image_sizes");
-  // A rawlog of a point cloud and a camera's image; `body`, where given, replaces the image's
-  // bytes from its version byte on (an external image's: version 9, true, a 12-character name).
+  // Bytes written by MRPT, to `name` in dir; where `body` is given, with the image's bytes from
+  // its version byte on (an external image's: version 9, true, a 12-character name) replaced.
+  const auto patched = [&](std::string b, const std::string& body, const std::string& name) {
+    const std::string header = "\x91mrpt::img::CImage";
+    const std::size_t at = b.find(header) + header.size();
+    if (!body.empty()) {
+      EXPECT_EQ(b.substr(std::min(at, b.size()), 6), std::string("\x09\x01\x0c\0\0\0", 6));
+      b = b.substr(0, at) + body + b.substr(std::min(b.size(), at + 6 + 12));
+    }
+    const std::string path = (dir / name).string();
+    std::ofstream(path, std::ios::binary).write(b.data(), static_cast<std::streamsize>(b.size()));
+    return path;
+  };
+  // A rawlog of a point cloud and a camera's image.
   const auto write = [&](const std::string& name, const ::mrpt::img::CImage& image,
                          const std::string& body) {
     ::mrpt::io::CMemoryStream mem;
@@ -1050,15 +1063,7 @@ TEST(RawlogSource, AnImageClaimingMoreThanTheFileHoldsIsAClearError) {
     im->image = image;
     ar << *im;
     std::string b(static_cast<const char*>(mem.getRawBufferData()), mem.getTotalBytesCount());
-    if (!body.empty()) {
-      const std::string header = "\x91mrpt::img::CImage";
-      const std::size_t at = b.find(header) + header.size();
-      EXPECT_EQ(b.substr(at, 6), std::string("\x09\x01\x0c\0\0\0", 6));
-      b = b.substr(0, at) + body + b.substr(at + 6 + 12);
-    }
-    const std::string path = (dir / name).string();
-    std::ofstream(path, std::ios::binary).write(b.data(), static_cast<std::streamsize>(b.size()));
-    return path;
+    return patched(b, body, name);
   };
   const auto le32 = [](int64_t v) {
     std::string s(4, '\0');
@@ -1112,6 +1117,27 @@ TEST(RawlogSource, AnImageClaimingMoreThanTheFileHoldsIsAClearError) {
         ::mrpt::img::CImage(cv::Mat(48, 64, type, cv::Scalar(9)), ::mrpt::img::DEEP_COPY), "");
     EXPECT_NO_THROW(read(path)) << type;
   }
+  // A keyframe's image in a simplemap: both readers.
+  {
+    auto pc = ::mrpt::obs::CObservationPointCloud::Create();
+    pc->pointcloud = ::mrpt::maps::CSimplePointsMap::Create();
+    pc->pointcloud->insertPoint(5, 0, -1);
+    auto im = ::mrpt::obs::CObservationImage::Create();
+    im->image = external;
+    auto sf = ::mrpt::obs::CSensoryFrame::Create();
+    sf->insert(pc);
+    sf->insert(im);
+    ::mrpt::maps::CSimpleMap sm;
+    sm.insert(::mrpt::poses::CPose3DPDFGaussian::Create(::mrpt::poses::CPose3D()), sf);
+    ASSERT_TRUE(sm.saveToFile((dir / "image.simplemap").string()));
+  }
+  const std::vector<char> b = bytesOf((dir / "image.simplemap").string());
+  const std::string path = patched(std::string(b.begin(), b.end()),
+                                   v0 + le32(4096) + std::string(4096, 'A'), "v0.simplemap");
+  const std::string what = "holds a CImage of 2 x 2 pixels of 1 byte claiming 4096 bytes of them";
+  test::expectError([&] { read(path); }, path, what);
+  ::mrpt::maps::CSimpleMap out;
+  test::expectError([&] { cleanmap::mrpt::loadSimplemap(path, out); }, path, what);
 }
 
 // A simplemap (a SLAM's output: keyframes of a pose and a sensory frame) reads as its scans, each
