@@ -26,18 +26,23 @@ Eigen::Vector2d distortNormalised(const Lens& lens, const Eigen::Vector2d& xy) {
           y * radial + k[2] * (r2 + 2 * y * y) + 2 * k[3] * x * y};
 }
 
+namespace {
+// Output pixel (u, v) of focal scale s: ray ((u - cx) / (s fx), (v - cy) / (s fy)), through the
+// lens, to the distorted image's pixel.
+Eigen::Vector2d sourcePixel(const Eigen::Matrix3d& K, const Lens& lens, double s, double u,
+                            double v) {
+  const Eigen::Vector2d xy((u - K(0, 2)) / (s * K(0, 0)), (v - K(1, 2)) / (s * K(1, 1)));
+  const Eigen::Vector2d d = distortNormalised(lens, xy);
+  return Eigen::Vector2d(K(0, 0) * d.x() + K(0, 1) * d.y() + K(0, 2), K(1, 1) * d.y() + K(1, 2));
+}
+}  // namespace
+
 Rectifier::Rectifier(const Eigen::Matrix3d& K, const Lens& lens, int width, int height,
                      const std::string& source)
-    : width_(width), height_(height) {
+    : K_(K), lens_(lens), width_(width), height_(height) {
   if (width < 2 || height < 2 || !(K(0, 0) > 0) || !(K(1, 1) > 0))
     throw Error(source, "camera intrinsics or image size not usable for undistortion");
-  // Output pixel (u, v) of focal scale s: ray ((u - cx) / (s fx), (v - cy) / (s fy)), through the
-  // lens, to the distorted image's pixel.
-  auto source_pixel = [&](double s, double u, double v) {
-    const Eigen::Vector2d xy((u - K(0, 2)) / (s * K(0, 0)), (v - K(1, 2)) / (s * K(1, 1)));
-    const Eigen::Vector2d d = distortNormalised(lens, xy);
-    return Eigen::Vector2d(K(0, 0) * d.x() + K(0, 1) * d.y() + K(0, 2), K(1, 1) * d.y() + K(1, 2));
-  };
+  auto source_pixel = [&](double s, double u, double v) { return sourcePixel(K, lens, s, u, v); };
   // The image border, sampled every 8 px and at the corners; a scale is valid if every sample
   // lands inside the distorted image. The smallest valid scale keeps the widest view.
   auto valid = [&](double s) {
@@ -74,23 +79,26 @@ Rectifier::Rectifier(const Eigen::Matrix3d& K, const Lens& lens, int width, int 
     const double mid = 0.5 * (lo + hi);
     (valid(mid) ? hi : lo) = mid;
   }
+  scale_ = hi;
   K_new_ = K;
   K_new_(0, 0) *= hi;
   K_new_(0, 1) *= hi;
   K_new_(1, 1) *= hi;
-  cv::Mat mx(height, width, CV_32FC1), my(height, width, CV_32FC1);
-  for (int v = 0; v < height; ++v)
-    for (int u = 0; u < width; ++u) {
-      const Eigen::Vector2d p = source_pixel(hi, u, v);
-      mx.at<float>(v, u) = static_cast<float>(p.x());
-      my.at<float>(v, u) = static_cast<float>(p.y());
-    }
-  cv::convertMaps(mx, my, map1_, map2_, CV_16SC2);
 }
 
 cv::Mat Rectifier::apply(const cv::Mat& distorted) const {
   if (distorted.cols != width_ || distorted.rows != height_)
     throw Error("Rectifier", "image size differs from the camera's");
+  std::call_once(maps_once_, [&] {
+    cv::Mat mx(height_, width_, CV_32FC1), my(height_, width_, CV_32FC1);
+    for (int v = 0; v < height_; ++v)
+      for (int u = 0; u < width_; ++u) {
+        const Eigen::Vector2d p = sourcePixel(K_, lens_, scale_, u, v);
+        mx.at<float>(v, u) = static_cast<float>(p.x());
+        my.at<float>(v, u) = static_cast<float>(p.y());
+      }
+    cv::convertMaps(mx, my, map1_, map2_, CV_16SC2);
+  });
   cv::Mat out;
   cv::remap(distorted, out, map1_, map2_, cv::INTER_LINEAR, cv::BORDER_REPLICATE);
   return out;
