@@ -299,12 +299,8 @@ std::optional<Header> peekHeader(PeekStream& s) {
   const size_t bytes = name_at + len + (old ? 4 : 1);
   const std::string b = s.peek(bytes);
   if (b.size() < bytes) return std::nullopt;
-  int version = static_cast<int8_t>(b[name_at + len]);
-  if (old) {
-    uint32_t v = 0;
-    for (int i = 3; i >= 0; --i) v = (v << 8) | static_cast<uint8_t>(b[name_at + len + i]);
-    version = static_cast<int>(v);
-  }
+  const int version = old ? static_cast<int>(static_cast<uint32_t>(*fieldAt(b, name_at + len, 4)))
+                          : static_cast<int8_t>(b[name_at + len]);
   return Header{b.substr(name_at, len), version, bytes};
 }
 
