@@ -191,6 +191,19 @@ TEST(Pipeline, FreeSpaceIsTheSameWhateverTheThreadCount) {
   std::size_t seen_empty = 0;  // the box's old places were seen empty (it moves 1.5 m a scan)
   for (const auto& q : box) seen_empty += pa.freeSpace()->evidence(q).count > 0;
   EXPECT_GT(seen_empty, box.size() / 2);
+  // What the app's memory warning reads without waiting: once every insertion has finished
+  // (freeSpace() waits for them), the map's memory, whichever thread inserted; a clone's too.
+  EXPECT_GT(pa.freeSpace()->bytes(), 0u);
+  EXPECT_EQ(pa.freeSpaceBytes(), pa.freeSpace()->bytes());
+  EXPECT_EQ(pb.freeSpaceBytes(), pb.freeSpace()->bytes());
+  EXPECT_EQ(pb.clone([](ScanResult&&) {})->freeSpaceBytes(), pb.freeSpaceBytes());
+  PipelineParams off = testParams();
+  off.map.clean = false;
+  LaserPipeline pc(off, [](ScanResult&&) {});
+  for (std::size_t i = 0; i < 3; ++i)
+    pc.push(castScene(i, double(i), 10.0 + 1.5 * double(i), nullptr));
+  pc.finish();
+  EXPECT_EQ(pc.freeSpaceBytes(), 0u);  // no free space kept
 }
 
 TEST(Pipeline, StreamsWithDelayKAndBoundedWindow) {

@@ -221,6 +221,10 @@ const cleanmap::FreeSpaceMap* CMovingObjectsMap::freeSpace() const {
   return pipe_ ? pipe_->freeSpace() : nullptr;
 }
 
+std::size_t CMovingObjectsMap::freeSpaceBytes() const {
+  return pipe_ ? pipe_->freeSpaceBytes() : 0;
+}
+
 void CMovingObjectsMap::flush() {
   if (pipe_) pipe_->finish();
 }

@@ -321,10 +321,11 @@ struct LaserPipeline::FreeQueue {
     std::vector<uint8_t> mask;  // its returns that are not inflated (moving, ground)
     long index = 0;
   };
-  explicit FreeQueue(FreeSpaceMap& map)
-      : worker([&map](Job& j) {
+  FreeQueue(FreeSpaceMap& map, std::atomic<std::size_t>& bytes)
+      : worker([&map, &bytes](Job& j) {
           map.insertScan(j.scan->scan.points, j.scan->scan.pose, static_cast<int64_t>(j.index),
                          &j.mask, j.scan->grazing());
+          bytes.store(map.bytes(), std::memory_order_relaxed);
         }) {}
   SerialWorker<Job> worker;
 };
@@ -410,6 +411,7 @@ std::unique_ptr<LaserPipeline> LaserPipeline::clone(Sink sink) const {
   c->deskew_first_beside_ = deskew_first_beside_;
   joinFreeSpace();
   if (free_) c->free_ = std::make_unique<FreeSpaceMap>(*free_);
+  c->free_bytes_.store(free_bytes_.load(std::memory_order_relaxed), std::memory_order_relaxed);
   return c;
 }
 
@@ -741,13 +743,14 @@ double LaserPipeline::insertFreeSpace(const Prepared& s, const Work& w) {
   std::vector<uint8_t> mask(s.scan.size());
   for (std::size_t i = 0; i < mask.size(); ++i) mask[i] = w.moving[i] || s.ground[i];
   if (p_.threads > 1) {
-    if (!free_queue_) free_queue_ = std::make_unique<FreeQueue>(*free_);
+    if (!free_queue_) free_queue_ = std::make_unique<FreeQueue>(*free_, free_bytes_);
     const double finished_ms = free_queue_->worker.takeMs();        // rethrows an insertion's error
     free_queue_->worker.push({&s, std::move(mask), index}, index);  // `s` stays buffered
     return finished_ms;
   }
   const auto t = Clock::now();
   free_->insertScan(s.scan.points, s.scan.pose, static_cast<int64_t>(s.index), &mask, s.grazing());
+  free_bytes_.store(free_->bytes(), std::memory_order_relaxed);
   return msSince(t);
 }
 

@@ -73,6 +73,8 @@ class CMovingObjectsMap : public mrpt::maps::CMetricMap {
   /// static_map.clean off). The app cleans its map files with it, and staticPoints() this layer's
   /// own points.
   const cleanmap::FreeSpaceMap* freeSpace() const;
+  /// LaserPipeline::freeSpaceBytes(): without waiting, while scans are inserted (0 before).
+  std::size_t freeSpaceBytes() const;
   TInsertionOptions insertionOptions;
   /// The sensorLabel of the lidar observations inserted so far ("" before the first).
   const std::string& lidarLabel() const { return lidar_label_; }

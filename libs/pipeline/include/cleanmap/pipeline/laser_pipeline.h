@@ -2,6 +2,7 @@
 // DESIGN §2: the laser pipeline over a stream of posed scans, with a delay of K scans and memory
 // bounded by the window (2K + 1 scans), not by the sequence.
 #pragma once
+#include <atomic>
 #include <deque>
 #include <exception>
 #include <functional>
@@ -60,6 +61,11 @@ class LaserPipeline {
     joinFreeSpace();
     return free_.get();
   }
+  /// DESIGN §2e: the memory the free space held when its last finished insertion ended (bytes;
+  /// 0 with static_map.clean off). It does not wait, so it may lag the scans decided by the
+  /// insertions still queued; any thread may ask it while scans are pushed. It grows with the
+  /// ground covered, not the scans (about 0.6-1.2 GiB per km of street, doc/BENCHMARK.md).
+  std::size_t freeSpaceBytes() const { return free_bytes_.load(std::memory_order_relaxed); }
   /// DESIGN §2f: only the scans with an index in [first, last] add to the free space: a chunk
   /// of a long drive inserts the scans it owns, not its overlap with the chunks beside it, so the
   /// chunks' accumulators merge (FreeSpaceMap::merge) into the whole run's.
@@ -178,6 +184,7 @@ class LaserPipeline {
   double insertFreeSpace(const Prepared& s, const Work& w);  // ms of insertions reported now
   void joinFreeSpace() const;  // waits for every queued insertion; rethrows an error
   std::unique_ptr<FreeQueue> free_queue_;
+  std::atomic<std::size_t> free_bytes_{0};          // freeSpaceBytes(): stored after each insertion
   PoseSource source_;                               // resolved on the first scan
   std::unique_ptr<reg::Odometry> odo_;              // with gicp / refine
   std::optional<Eigen::Isometry3d> prev_odometry_;  // the last scan's input odometry ...
