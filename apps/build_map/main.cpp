@@ -20,7 +20,9 @@
 #include <mrpt/serialization/CArchive.h>
 
 #include "../common/cli.h"
+#include "../common/memory.h"
 #include "cleanmap/core/error.h"
+#include "cleanmap/core/free_space.h"
 #include "cleanmap/io/files.h"
 #include "cleanmap/maps/map_config.h"
 #include "cleanmap/maps/moving_objects_map.h"
@@ -52,6 +54,8 @@ Writes into DIR:
                     load libcleanmap_maps.so first)
   maps.3Dscene      every map's 3D view, for SceneViewer3D
   map_*             each map's own files (saveMetricMapRepresentationToFile)
+A cleanmap_moving layer's free space (static_map.clean) grows with the ground covered (0.6-1.2 GiB
+per km of street); one warning line when it passes half the memory (CLEANMAP_MEMORY_MIB=N sets it).
 Exit status: 0 done, 1 error (one line), 2 bad command line.
 )";
 
@@ -124,6 +128,16 @@ int main(int argc, char** argv) {
     };
     ::mrpt::maps::CMultiMetricMap maps;
     maps.setListOfMaps(mc.maps);
+    // DESIGN §2e: the cleanmap_moving layers' free space grows with the ground covered.
+    cleanmap::cli::FreeSpaceWarning memory_warning("cleanmap-build-map",
+                                                   "(rawlog-edit --cut; a simplemap in parts)");
+    const auto checkMemory = [&](std::size_t scans, bool all_decided) {
+      std::size_t held = 0;
+      for (const auto& m : maps.maps)
+        if (auto mv = std::dynamic_pointer_cast<cleanmap_maps::CMovingObjectsMap>(m))
+          held += all_decided && mv->freeSpace() ? mv->freeSpace()->bytes() : mv->freeSpaceBytes();
+      memory_warning.check(held, scans);
+    };
 
     std::size_t scans = 0;
     std::unique_ptr<cleanmap::FrameSource> src_read;  // a KITTI folder or a rawlog
@@ -152,7 +166,7 @@ int main(int argc, char** argv) {
         auto& pair = sm.getAsPair(i);
         const ::mrpt::poses::CPose3D robot = pair.pose->getMeanVal();
         for (auto& obs : *pair.sf) insertAt(maps, *obs, robot);
-        ++scans;
+        checkMemory(++scans, false);
       }
     } else {
       cleanmap::mrpt::InputOptions in;
@@ -170,7 +184,7 @@ int main(int argc, char** argv) {
         obs->timestamp = cleanmap::mrpt::toMrptTime(f->scan.timestamp);
         obs->sensorLabel = "LIDAR";
         insertAt(maps, *obs, cleanmap::mrpt::toCPose3D(f->scan.pose));
-        ++scans;
+        checkMemory(++scans, false);
       }
     }
     if (scans == 0) throw cleanmap::Error(input, "holds no scans");
@@ -180,6 +194,7 @@ int main(int argc, char** argv) {
         std::fprintf(stderr, "cleanmap-build-map: warning: %s\n", w.c_str());
     for (const auto& m : maps.maps)
       if (auto mv = std::dynamic_pointer_cast<cleanmap_maps::CMovingObjectsMap>(m)) mv->flush();
+    checkMemory(scans, true);
 
     // Written beside DIR, then moved into place as a whole (io::StagedFolder).
     cleanmap::io::StagedFolder staged(outdir, "cleanmap-build-map");

@@ -7,7 +7,6 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
-#include <fstream>
 #include <future>
 #include <iostream>
 #include <optional>
@@ -15,6 +14,7 @@
 
 #include <mrpt/maps/CMultiMetricMap.h>
 #include "../common/cli.h"
+#include "../common/memory.h"
 #include "cleanmap/core/error.h"
 #include "cleanmap/core/params.h"
 
@@ -44,28 +44,6 @@ struct Interrupted {
 };
 void checkSignal() {
   if (g_signal) throw Interrupted{static_cast<int>(g_signal)};
-}
-
-// The memory the free-space warning compares with, bytes (0: unknown): CLEANMAP_MEMORY_MIB, or
-// the machine's, or its control group's limit where that is lower (a cluster's job).
-std::size_t memoryHere() {
-  if (const char* v = std::getenv("CLEANMAP_MEMORY_MIB")) {
-    const std::string s(v);
-    const bool digits =
-        !s.empty() && s.size() < 10 && s.find_first_not_of("0123456789") == std::string::npos;
-    if (!digits || std::stoull(s) == 0)
-      throw cleanmap::Error("CLEANMAP_MEMORY_MIB",
-                            "is '" + s + "': give the memory in MiB, a positive integer");
-    return static_cast<std::size_t>(std::stoull(s)) << 20;
-  }
-  const long pages = sysconf(_SC_PHYS_PAGES), page = sysconf(_SC_PAGESIZE);
-  std::size_t bytes = pages > 0 && page > 0 ? std::size_t(pages) * std::size_t(page) : 0;
-  std::string limit;  // cgroup v2: a number, or "max"
-  std::getline(std::ifstream("/sys/fs/cgroup/memory.max"), limit);
-  if (!limit.empty() && limit.find_first_not_of("0123456789") == std::string::npos &&
-      limit.size() < 20)
-    bytes = bytes ? std::min<std::size_t>(bytes, std::stoull(limit)) : std::stoull(limit);
-  return bytes;
 }
 
 #if defined(__has_feature)
@@ -226,7 +204,7 @@ int main(int argc, char** argv) {
   std::signal(SIGINT, onSignal);
   std::signal(SIGTERM, onSignal);
   try {
-    const std::size_t memory = memoryHere();  // the free space's warning, below
+    cleanmap::cli::FreeSpaceWarning memory_warning("cleanmap", "with --first/--last");
     // Never replace the input (its labels/ by ours), a folder holding it, or one inside it that
     // is no earlier run, --force or not.
     cleanmap::io::requireOutsideInput(outdir, input, cleanmap::io::isCleanmapRun, "-o");
@@ -341,32 +319,8 @@ int main(int argc, char** argv) {
       mo.map_decisions = true;  // cleaned like static_map_full.ply (DESIGN §4a)
       mrpt_out.emplace(out.staging(), mo);
     }
-    // DESIGN §2e: the free space is kept for the whole run and grows with the ground covered
-    // (0.6-1.2 GiB per km of street, doc/BENCHMARK.md): past half the memory here, one warning,
-    // while the scans come in and once more when all are decided (a short run's insertions may
-    // still be queued while its results are handed on).
-    bool memory_warned = false;
-    const auto warnMemory = [&](std::size_t held, std::size_t scans) {
-      if (memory_warned || memory == 0 || held <= memory / 2) return;
-      memory_warned = true;
-      const auto size = [](std::size_t b) {  // "1.5 GiB", "37 MiB"
-        char t[32];
-        const double mib = double(b) / (1024.0 * 1024.0);
-        if (mib >= 1024)
-          std::snprintf(t, sizeof t, "%.1f GiB", mib / 1024);
-        else
-          std::snprintf(t, sizeof t, "%.0f MiB", mib);
-        return std::string(t);
-      };
-      std::fprintf(
-          stderr,
-          "%scleanmap: warning: the free-space map holds %s after %zu scan%s, over half of "
-          "the %s of memory here; it grows with the ground covered (0.6-1.2 GiB per km of "
-          "street): split a longer drive with --first/--last, or run without it "
-          "(static_map.clean = 0)\n",
-          progress_shown ? "\n" : "", size(held).c_str(), scans, scans == 1 ? "" : "s",
-          size(memory).c_str());
-    };
+    // DESIGN §2e: the free space's memory, while the scans come in and once more when all are
+    // decided (a short run's insertions may still be queued while its results are handed on).
     std::size_t seen = 0, empty = 0;
     const auto t0 = std::chrono::steady_clock::now();
     const auto total = src->sizeHint();
@@ -396,7 +350,7 @@ int main(int argc, char** argv) {
       }
       out.write(r, eval);
       if (mrpt_out) mrpt_out->write(std::move(r));
-      warnMemory(moving->freeSpaceBytes(), out.scans());
+      memory_warning.check(moving->freeSpaceBytes(), out.scans(), progress_shown);
       if (!quiet) {
         progress_shown = true;
         const double s =
@@ -434,7 +388,8 @@ int main(int argc, char** argv) {
                       rawlog->otherCameras(), rawlog->scansTimedBack()});
     moving->flush();
     checkSignal();
-    if (const auto* fs = moving->freeSpace()) warnMemory(fs->bytes(), out.scans());
+    if (const auto* fs = moving->freeSpace())
+      memory_warning.check(fs->bytes(), out.scans(), progress_shown);
     requireOutsideExternals();
     if (images == "on" && moving->totals().image_scans == 0)
       throw cleanmap::Error(input,
