@@ -15,7 +15,9 @@
 #include <mrpt/obs/CSensoryFrame.h>
 
 #include "../common/cli.h"
+#include "../common/memory.h"
 #include "cleanmap/maps/map_config.h"
+#include "cleanmap/maps/moving_objects_map.h"
 
 namespace {
 
@@ -28,7 +30,9 @@ ini's cleanmap sections are checked as cleanmap checks them (unknown maps and ke
 Outputs, in the ini's logOutput_dir, are icp-slam's: _finalmap_.simplemap, the estimated path,
 and _finalmaps_.txt_NN_<map> for every map; for the cleanmap_moving layer
 _static.ply / _moving.ply / _trajectory.txt (its last K scans decided). See doc/MRPT.md and
-config/icp_slam_kitti.ini.
+config/icp_slam_kitti.ini. The cleanmap_moving layer's free space (static_map.clean) grows with
+the ground covered (0.6-1.2 GiB per km of street); one warning line when it passes half the
+memory (CLEANMAP_MEMORY_MIB=N sets it).
 )";
 
 // MRPT 2.5.8's points maps drop the robot pose when inserting a CObservationPointCloud
@@ -62,13 +66,21 @@ class App : public ::mrpt::apps::ICP_SLAM_App_Rawlog {
   bool impl_get_next_observations(::mrpt::obs::CActionCollection::Ptr& action,
                                   ::mrpt::obs::CSensoryFrame::Ptr& observations,
                                   ::mrpt::obs::CObservation::Ptr& observation) override {
+    // DESIGN §2e: our layers' free space, as the entries read so far left it (MRPT's loop
+    // inserts each entry into the maps after this returns).
+    memory_warning_.check(cleanmap_maps::CMovingObjectsMap::freeSpaceBytesOfAll(), entries_);
     if (!ICP_SLAM_App_Rawlog::impl_get_next_observations(action, observations, observation))
       return false;
+    if (observation || observations) ++entries_;
     if (observation) observation = asRangeScan(observation);
     if (observations)
       for (auto& o : *observations) o = asRangeScan(o);
     return true;
   }
+
+ private:
+  cleanmap::cli::FreeSpaceWarning memory_warning_{"cleanmap-icp-slam", "(rawlog-edit --cut)"};
+  std::size_t entries_ = 0;
 };
 
 }  // namespace

@@ -303,6 +303,17 @@ TEST(MovingObjectsMap, StaticPointsAreCleanedWithTheFreeSpace) {
       m.insertFrame(std::move(f));
     }
     m.flush();
+    // What the apps' memory warning reads (DESIGN §2e): this layer's free space, the only layer
+    // alive here; none without the cleaning.
+    const std::size_t held = m.freeSpace() ? m.freeSpace()->bytes() : 0;
+    EXPECT_EQ(clean, held > 0);
+    EXPECT_EQ(m.freeSpaceBytes(), held);
+    EXPECT_EQ(CMovingObjectsMap::freeSpaceBytesOfAll(), held);
+    {
+      const CMovingObjectsMap copy(m);  // a copy is a layer too
+      EXPECT_EQ(CMovingObjectsMap::freeSpaceBytesOfAll(), 2 * held);
+    }
+    EXPECT_EQ(CMovingObjectsMap::freeSpaceBytesOfAll(), held);
     std::size_t box = 0, wall = 0;
     for (const auto& q : m.staticPoints()) (q.xyz().norm() < 12 ? box : wall) += 1;
     std::size_t removed_box = 0;
@@ -311,6 +322,7 @@ TEST(MovingObjectsMap, StaticPointsAreCleanedWithTheFreeSpace) {
   };
   const auto [box0, wall0, rb0, r0] = run(false);
   const auto [box1, wall1, rb1, r1] = run(true);
+  EXPECT_EQ(CMovingObjectsMap::freeSpaceBytesOfAll(), 0u);  // both layers gone
   EXPECT_GT(box0, 100u);  // the windowed test keeps the box it saw standing
   EXPECT_EQ(r0, 0u);
   EXPECT_EQ(box1, 0u);  // the free space removes all of it ...

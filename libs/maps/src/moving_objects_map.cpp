@@ -13,6 +13,7 @@
 #include <cmath>
 #include <cstdio>
 #include <mutex>
+#include <set>
 #include <sstream>
 
 #include "cleanmap/core/cell_key.h"
@@ -118,16 +119,40 @@ OptionTable creationOptions(cleanmap::PipelineParams& params, double& map_voxel,
 
 }  // namespace
 
-CMovingObjectsMap::CMovingObjectsMap() = default;
+// The layers alive in the process (freeSpaceBytesOfAll()).
+namespace {
+std::mutex g_layers_mutex;
+std::set<const CMovingObjectsMap*>& liveLayers() {
+  static std::set<const CMovingObjectsMap*> layers;
+  return layers;
+}
+void enter(const CMovingObjectsMap* m) {
+  std::lock_guard<std::mutex> lock(g_layers_mutex);
+  liveLayers().insert(m);
+}
+}  // namespace
+
+std::size_t CMovingObjectsMap::freeSpaceBytesOfAll() {
+  std::lock_guard<std::mutex> lock(g_layers_mutex);
+  std::size_t sum = 0;
+  for (const auto* m : liveLayers()) sum += m->freeSpaceBytes();
+  return sum;
+}
+
+CMovingObjectsMap::CMovingObjectsMap() {
+  enter(this);
+}
 
 CMovingObjectsMap::CMovingObjectsMap(const cleanmap::PipelineParams& params, double map_voxel)
     : params_(params), map_voxel_(map_voxel) {
   cleanmap::validate(params_, "cleanmap_moving");
   checkMapVoxel(map_voxel, "cleanmap_moving");
+  enter(this);
 }
 
 CMovingObjectsMap::CMovingObjectsMap(const CMovingObjectsMap& o) : CMetricMap(o) {
   copyFrom(o);
+  enter(this);
 }
 
 CMovingObjectsMap& CMovingObjectsMap::operator=(const CMovingObjectsMap& o) {
@@ -138,7 +163,10 @@ CMovingObjectsMap& CMovingObjectsMap::operator=(const CMovingObjectsMap& o) {
   return *this;
 }
 
-CMovingObjectsMap::~CMovingObjectsMap() = default;
+CMovingObjectsMap::~CMovingObjectsMap() {
+  std::lock_guard<std::mutex> lock(g_layers_mutex);
+  liveLayers().erase(this);
+}
 
 void CMovingObjectsMap::copyFrom(const CMovingObjectsMap& o) {
   params_ = o.params_;

@@ -75,6 +75,10 @@ class CMovingObjectsMap : public mrpt::maps::CMetricMap {
   const cleanmap::FreeSpaceMap* freeSpace() const;
   /// LaserPipeline::freeSpaceBytes(): without waiting, while scans are inserted (0 before).
   std::size_t freeSpaceBytes() const;
+  /// freeSpaceBytes() summed over every layer alive in the process: what an app that does not
+  /// hold its layers (MRPT's ICP-SLAM builds them inside its run) watches, from the thread that
+  /// inserts into them.
+  static std::size_t freeSpaceBytesOfAll();
   TInsertionOptions insertionOptions;
   /// The sensorLabel of the lidar observations inserted so far ("" before the first).
   const std::string& lidarLabel() const { return lidar_label_; }
