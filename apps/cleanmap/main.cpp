@@ -204,7 +204,7 @@ int main(int argc, char** argv) {
   std::signal(SIGINT, onSignal);
   std::signal(SIGTERM, onSignal);
   try {
-    cleanmap::cli::FreeSpaceWarning memory_warning("cleanmap", "with --first/--last");
+    cleanmap::cli::FreeSpaceWarning memory_warning("cleanmap", "with --first/--last");  // §2e
     // Never replace the input (its labels/ by ours), a folder holding it, or one inside it that
     // is no earlier run, --force or not.
     cleanmap::io::requireOutsideInput(outdir, input, cleanmap::io::isCleanmapRun, "-o");
@@ -319,8 +319,6 @@ int main(int argc, char** argv) {
       mo.map_decisions = true;  // cleaned like static_map_full.ply (DESIGN §4a)
       mrpt_out.emplace(out.staging(), mo);
     }
-    // DESIGN §2e: the free space's memory, while the scans come in and once more when all are
-    // decided (a short run's insertions may still be queued while its results are handed on).
     std::size_t seen = 0, empty = 0;
     const auto t0 = std::chrono::steady_clock::now();
     const auto total = src->sizeHint();
@@ -350,6 +348,8 @@ int main(int argc, char** argv) {
       }
       out.write(r, eval);
       if (mrpt_out) mrpt_out->write(std::move(r));
+      // DESIGN §2e: the free space's memory as the insertions finished so far left it (once more
+      // below, when all are: a short run's may still be queued while its results come here).
       memory_warning.check(moving->freeSpaceBytes(), out.scans(), progress_shown);
       if (!quiet) {
         progress_shown = true;
