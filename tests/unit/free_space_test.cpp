@@ -4,6 +4,8 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <stdexcept>
+#include <string>
 
 #include "cleanmap/core/free_space.h"
 
@@ -467,4 +469,28 @@ TEST(FreeSpace, ASparseLidarDoesNotSeeEmptyARoofItPassesClose) {
     EXPECT_EQ(counts(params(), roof, top), 0) << roof;
     EXPECT_GT(counts(params(), roof, 1.9f), 20) << roof;  // 0.4 m over it: still seen empty
   }
+}
+
+TEST(FreeSpace, ScanIndicesUpToTheLargestItCountsAndAClearErrorBeyond) {
+  // The voxels keep scan indices in 24 bits: the largest is kept exactly (a drive of 19 days at
+  // 10 Hz), the next and a negative one are refused with the index in the message.
+  const int64_t top = FreeSpaceMap::kMaxScan;
+  FreeSpaceMap fs(params());
+  fs.insertScan(ring(20.f), at(0), top - 1);
+  fs.insertScan(ring(20.f, {{10.05f, 0.f, 0.f, 0.f}}), at(0), top);
+  const FreeEvidence e = fs.evidence({10.05f, 0.f, 0.f});
+  EXPECT_EQ(e.first, top - 1);
+  EXPECT_EQ(e.last, top - 1);
+  EXPECT_EQ(e.last_hit, top);
+  EXPECT_EQ(e.count, 1);
+  EXPECT_EQ(e.hits, 1);
+  for (const int64_t bad : {top + 1, int64_t(-1)}) {
+    try {
+      fs.insertScan(ring(20.f), at(0), bad);
+      ADD_FAILURE() << "scan " << bad << " accepted";
+    } catch (const std::out_of_range& err) {
+      EXPECT_NE(std::string(err.what()).find(std::to_string(bad)), std::string::npos) << err.what();
+    }
+  }
+  EXPECT_EQ(fs.evidence({10.05f, 0.f, 0.f}), e);  // a refused scan changes nothing
 }

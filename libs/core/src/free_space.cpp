@@ -7,6 +7,7 @@
 #include <cstring>
 #include <limits>
 #include <stdexcept>
+#include <string>
 
 #include "cleanmap/core/cell_key.h"
 #include "cleanmap/core/fast_math.h"
@@ -33,19 +34,34 @@ inline uint64_t blockKey(int64_t x, int64_t y, int64_t z) {
 // on the first write: about a third of a block's voxels are ever marked, in clumps along the
 // surfaces and beams, so many sub-blocks are never needed (issue #16: the map holds 43 % less;
 // it is what grows with the area mapped, doc/BENCHMARK.md).
+//
+// A voxel is 16 bytes, four to a cache line and none across two (its sub-block is aligned): the
+// counting pass below and the map's lookups miss the cache once per voxel, not up to twice, and
+// the map, mostly voxels, holds a fifth less than with 32-bit scan indices (doc/BENCHMARK.md,
+// "Memory over distance"). Scan indices are kept in 24 bits, 0 for none (the last ones plus one,
+// the first as kMaxScan + 1 minus it, so that every update is a maximum), so a map counts up to
+// kMaxScan scans (insertScan refuses more). The insertion runs about 9 % more instructions for
+// the bit-fields (callgrind), the whole process the same time (doc/BENCHMARK.md).
 struct FreeSpaceMap::Voxel {
-  int32_t first = -1, last = -1;  // the first and last scan that saw it empty
-  int32_t last_hit = -1;          // the last scan that returned from it
-  uint16_t count = 0;             // scans that saw it empty (saturating)
-  uint16_t hits = 0;              // scans that returned from it (saturating)
+  uint16_t count;  // scans that saw it empty (saturating)
+  uint16_t hits;   // scans that returned from it (saturating)
   // Runs of empty scans (saturating at 255; scans come in order within an accumulator): those
   // before the first return, those since the last, and whether a run of at least between_scans
-  // lay between two returns.
-  uint8_t lead = 0, trail = 0;
-  uint8_t emptied_between = 0;
+  // lay between two returns. Each shares a 32-bit word with a scan index.
+  uint32_t first_c : 24;  // kMaxScan + 1 - the first scan that saw it empty (0: none): a maximum
+  uint32_t lead : 8;
+  uint32_t last1 : 24;  // 1 + the last scan that saw it empty
+  uint32_t trail : 8;
+  uint32_t last_hit1 : 24;  // 1 + the last scan that returned from it
+  uint32_t emptied_between : 8;
+  int32_t first() const {
+    return first_c ? static_cast<int32_t>(kMaxScan + 1 - int64_t(first_c)) : -1;
+  }
+  int32_t last() const { return static_cast<int32_t>(last1) - 1; }
+  int32_t lastHit() const { return static_cast<int32_t>(last_hit1) - 1; }
 };
 
-struct FreeSpaceMap::SubBlock {
+struct alignas(64) FreeSpaceMap::SubBlock {
   Voxel v[kSubVoxels];
 };
 
@@ -170,7 +186,9 @@ double freeSpaceAzimuthBin(const std::vector<PointXYZI>& points, double spacing,
   return azimuthBin(points, azimuth, spacing, occupancy, bits);
 }
 
-FreeSpaceMap::FreeSpaceMap(const MapParams& p) : p_(p), inv_(1.0 / p.voxel) {}
+FreeSpaceMap::FreeSpaceMap(const MapParams& p) : p_(p), inv_(1.0 / p.voxel) {
+  static_assert(sizeof(Voxel) == 16 && (1 << 24) - 2 == kMaxScan, "four voxels to a cache line");
+}
 FreeSpaceMap::~FreeSpaceMap() = default;
 FreeSpaceMap::FreeSpaceMap(const FreeSpaceMap& o)
     : p_(o.p_), inv_(o.inv_), marked_(o.marked_), bin_min_(o.bin_min_), bin_max_(o.bin_max_) {
@@ -236,6 +254,10 @@ void FreeSpaceMap::insertScan(const std::vector<PointXYZI>& points, const Eigen:
                               int64_t scan, const std::vector<uint8_t>* moving, Stretches grazing) {
   if (moving && moving->size() != points.size())
     throw std::invalid_argument("FreeSpaceMap::insertScan: one moving flag per point needed");
+  if (scan < 0 || scan > kMaxScan)
+    throw std::out_of_range("FreeSpaceMap::insertScan: scan index " + std::to_string(scan) +
+                            " outside 0.." + std::to_string(kMaxScan) +
+                            " (the free space counts scans in 24 bits): split the sequence");
   const Eigen::Vector3d o = pose.translation();
   recent_.fill(Recent{});  // its blocks are restamped on their first lookup of this scan
   // The scan-conflict rule: the voxels this scan returns from are not seen empty by it.
@@ -398,7 +420,8 @@ void FreeSpaceMap::insertScan(const std::vector<PointXYZI>& points, const Eigen:
   // from and those it saw empty (never the same: a return's voxel is near) are updated here,
   // block by block in memory order, the next block's voxels fetched while this one's are
   // written, instead of one cache miss per return and per step (issue #16).
-  const auto s32 = static_cast<int32_t>(scan);
+  const auto s1 = static_cast<uint32_t>(scan + 1);  // as the voxels keep it
+  const auto sc = static_cast<uint32_t>(kMaxScan + 1 - scan);
   auto prefetch = [](const Block& tb) {
     for (int w = 0; w < kVoxels / 64; ++w)
       for (uint64_t m = tb.hit[w] | tb.seen[w]; m; m &= m - 1) {
@@ -414,20 +437,26 @@ void FreeSpaceMap::insertScan(const std::vector<PointXYZI>& points, const Eigen:
     Block* tb = touched_[i];
     for (int w = 0; w < kVoxels / 64; ++w) {
       for (uint64_t m = tb->hit[w]; m; m &= m - 1) {
-        auto& v = voxel(*tb, w * 64 + __builtin_ctzll(m));
-        if (v.hits > 0 && p_.between_scans > 0 && v.trail >= p_.between_scans)
+        // Updated in registers, stored once: a bit-field's own read-modify-write would chain
+        // each field's store into the next field's load.
+        Voxel& slot = voxel(*tb, w * 64 + __builtin_ctzll(m));
+        Voxel v = slot;
+        if (v.hits > 0 && p_.between_scans > 0 && int(v.trail) >= p_.between_scans)
           v.emptied_between = 1;  // something stood here, left, and something came again
         v.trail = 0;
         if (v.hits < 0xFFFF) ++v.hits;
-        v.last_hit = std::max(v.last_hit, s32);
+        if (s1 > v.last_hit1) v.last_hit1 = s1;
+        slot = v;
       }
       for (uint64_t m = tb->seen[w]; m; m &= m - 1) {
-        auto& x = voxel(*tb, w * 64 + __builtin_ctzll(m));
+        Voxel& slot = voxel(*tb, w * 64 + __builtin_ctzll(m));
+        Voxel x = slot;
         if (x.count < 0xFFFF) ++x.count;
         if (x.trail < 0xFF) ++x.trail;
         if (x.hits == 0 && x.lead < 0xFF) ++x.lead;
-        if (x.first < 0 || s32 < x.first) x.first = s32;
-        x.last = std::max(x.last, s32);
+        if (sc > x.first_c) x.first_c = sc;
+        if (s1 > x.last1) x.last1 = s1;
+        slot = x;
         ++marked_;
       }
     }
@@ -443,9 +472,9 @@ FreeEvidence evidenceOf(const Voxel* v) {
   e.count = static_cast<int>(v->count);
   e.hits = static_cast<int>(v->hits);
   e.emptied_between = v->emptied_between != 0;
-  e.first = v->first;
-  e.last = v->last;
-  e.last_hit = v->last_hit;
+  e.first = v->first();
+  e.last = v->last();
+  e.last_hit = v->lastHit();
   e.lead = static_cast<int>(v->lead);
   return e;
 }
@@ -482,23 +511,24 @@ void FreeSpaceMap::merge(const FreeSpaceMap& o) {
       }
       // The runs join in scan order: the chunks own disjoint ranges of scans, so the one whose
       // last activity is earlier holds only earlier scans.
-      const bool mine_first = std::max(m.last, m.last_hit) < std::max(theirs.last, theirs.last_hit);
+      const bool mine_first =
+          std::max(m.last1, m.last_hit1) < std::max(theirs.last1, theirs.last_hit1);
       const Voxel& a = mine_first ? m : theirs;
       const Voxel& b = mine_first ? theirs : m;
-      const auto sat = [](int v) { return static_cast<uint8_t>(std::min(v, 0xFF)); };
-      const uint8_t lead = a.hits ? a.lead : sat(a.lead + b.lead);
-      const uint8_t trail = b.hits ? b.trail : sat(a.trail + b.trail);
-      const bool between =
-          a.emptied_between || b.emptied_between ||
-          (a.hits && b.hits && p_.between_scans > 0 && a.trail + b.lead >= p_.between_scans);
+      const auto sat = [](uint32_t v, uint32_t most) { return std::min(v, most); };
+      const uint32_t lead = a.hits ? uint32_t(a.lead) : sat(a.lead + b.lead, 0xFF);
+      const uint32_t trail = b.hits ? uint32_t(b.trail) : sat(a.trail + b.trail, 0xFF);
+      const bool between = a.emptied_between || b.emptied_between ||
+                           (a.hits && b.hits && p_.between_scans > 0 &&
+                            int64_t(a.trail + b.lead) >= p_.between_scans);
       m.lead = lead;
       m.trail = trail;
       m.emptied_between = between;
-      m.count = static_cast<uint16_t>(std::min(0xFFFF, m.count + theirs.count));
-      m.hits = static_cast<uint16_t>(std::min(0xFFFF, m.hits + theirs.hits));
-      if (theirs.first >= 0 && (m.first < 0 || theirs.first < m.first)) m.first = theirs.first;
-      m.last = std::max(m.last, theirs.last);
-      m.last_hit = std::max(m.last_hit, theirs.last_hit);
+      m.count = static_cast<uint16_t>(sat(m.count + theirs.count, 0xFFFF));
+      m.hits = static_cast<uint16_t>(sat(m.hits + theirs.hits, 0xFFFF));
+      m.first_c = std::max(m.first_c, theirs.first_c);
+      m.last1 = std::max(m.last1, theirs.last1);
+      m.last_hit1 = std::max(m.last_hit1, theirs.last_hit1);
     }
   });
   marked_ += o.marked_;

@@ -71,8 +71,11 @@ class FreeSpaceMap {
   /// flat_slope, margin, graze_reach and the pose's rotation (the pipeline's, once per scan);
   /// otherwise the map computes them.
   using Stretches = GrazingSpans;
+  /// Throws std::out_of_range for a scan index outside [0, kMaxScan] (the voxels keep 24 bits).
   void insertScan(const std::vector<PointXYZI>& points, const Eigen::Isometry3d& pose, int64_t scan,
                   const std::vector<uint8_t>* moving = nullptr, Stretches grazing = {});
+  /// The largest scan index a map counts: 16,777,214 (19 days of a 10 Hz lidar in one run).
+  static constexpr int64_t kMaxScan = (int64_t(1) << 24) - 2;
   /// The evidence of the voxel holding world point p.
   FreeEvidence evidence(const Eigen::Vector3f& p) const;
   /// evidence() for many points in a row (below).
