@@ -187,7 +187,7 @@ double freeSpaceAzimuthBin(const std::vector<PointXYZI>& points, double spacing,
 }
 
 FreeSpaceMap::FreeSpaceMap(const MapParams& p) : p_(p), inv_(1.0 / p.voxel) {
-  static_assert(sizeof(Voxel) == 16 && (1 << 24) - 2 == kMaxScan, "four voxels to a cache line");
+  static_assert(sizeof(Voxel) == 16, "four voxels to a cache line");
 }
 FreeSpaceMap::~FreeSpaceMap() = default;
 FreeSpaceMap::FreeSpaceMap(const FreeSpaceMap& o)
@@ -515,17 +515,17 @@ void FreeSpaceMap::merge(const FreeSpaceMap& o) {
           std::max(m.last1, m.last_hit1) < std::max(theirs.last1, theirs.last_hit1);
       const Voxel& a = mine_first ? m : theirs;
       const Voxel& b = mine_first ? theirs : m;
-      const auto sat = [](uint32_t v, uint32_t most) { return std::min(v, most); };
-      const uint32_t lead = a.hits ? uint32_t(a.lead) : sat(a.lead + b.lead, 0xFF);
-      const uint32_t trail = b.hits ? uint32_t(b.trail) : sat(a.trail + b.trail, 0xFF);
-      const bool between = a.emptied_between || b.emptied_between ||
-                           (a.hits && b.hits && p_.between_scans > 0 &&
-                            int64_t(a.trail + b.lead) >= p_.between_scans);
+      const auto sat = [](int v) { return std::min(v, 0xFF); };  // bit-fields promote to int
+      const int lead = a.hits ? int(a.lead) : sat(a.lead + b.lead);
+      const int trail = b.hits ? int(b.trail) : sat(a.trail + b.trail);
+      const bool between =
+          a.emptied_between || b.emptied_between ||
+          (a.hits && b.hits && p_.between_scans > 0 && a.trail + b.lead >= p_.between_scans);
       m.lead = lead;
       m.trail = trail;
       m.emptied_between = between;
-      m.count = static_cast<uint16_t>(sat(m.count + theirs.count, 0xFFFF));
-      m.hits = static_cast<uint16_t>(sat(m.hits + theirs.hits, 0xFFFF));
+      m.count = static_cast<uint16_t>(std::min(0xFFFF, m.count + theirs.count));
+      m.hits = static_cast<uint16_t>(std::min(0xFFFF, m.hits + theirs.hits));
       m.first_c = std::max(m.first_c, theirs.first_c);
       m.last1 = std::max(m.last1, theirs.last1);
       m.last_hit1 = std::max(m.last_hit1, theirs.last_hit1);
