@@ -54,7 +54,7 @@ Writes into DIR:
                     load libcleanmap_maps.so first)
   maps.3Dscene      every map's 3D view, for SceneViewer3D
   map_*             each map's own files (saveMetricMapRepresentationToFile)
-A cleanmap_moving layer's free space (static_map.clean) grows with the ground covered (0.5-1.0 GiB
+A cleanmap_moving layer's free space (static_map.clean) grows with the ground covered (0.4-0.8 GiB
 per km of street); one warning line when it passes half the memory (CLEANMAP_MEMORY_MIB=N sets it).
 Exit status: 0 done, 1 error (one line), 2 bad command line.
 )";

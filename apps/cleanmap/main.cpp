@@ -131,7 +131,7 @@ INPUT                a KITTI odometry/SemanticKITTI or raw folder, an MRPT .rawl
 --quiet              no progress line (there is none when stderr is not a terminal)
 Scans without any valid point (0-byte .bin, all NaN) are kept as empty scans: labelled 0,
 counted in report.json (empty_scans) and in one warning line.
-Memory grows with the ground covered (the free space of static_map.clean: 0.5-1.0 GiB per km of
+Memory grows with the ground covered (the free space of static_map.clean: 0.4-0.8 GiB per km of
 street); one warning line when it passes half the memory (CLEANMAP_MEMORY_MIB=N sets it).
 Exit status: 0 done, 1 error (one line naming the file), 2 bad command line, 130 / 143
 interrupted by SIGINT / SIGTERM (nothing written to DIR).

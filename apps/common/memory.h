@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: BSD-3-Clause
 // DESIGN §2e: the free space that cleans the map is kept for the whole run and grows with the
-// ground covered (0.5-1.0 GiB per km of street, doc/BENCHMARK.md "Memory over distance"). The
+// ground covered (0.4-0.8 GiB per km of street, doc/BENCHMARK.md "Memory over distance"). The
 // apps that fill it warn once, in one line, when it passes half of the memory here.
 #pragma once
 #include <unistd.h>
@@ -52,7 +52,7 @@ class FreeSpaceWarning {
     warned_ = true;
     std::fprintf(stderr,
                  "%s%s: warning: the free-space map holds %s after %zu scan%s, over half of the %s "
-                 "of memory here; it grows with the ground covered (0.5-1.0 GiB per km of "
+                 "of memory here; it grows with the ground covered (0.4-0.8 GiB per km of "
                  "street): split a longer drive %s, or run without it (static_map.clean = 0)\n",
                  newline ? "\n" : "", app_.c_str(), size(held).c_str(), scans,
                  scans == 1 ? "" : "s", size(memory_).c_str(), split_.c_str());

@@ -31,7 +31,7 @@ Outputs, in the ini's logOutput_dir, are icp-slam's: _finalmap_.simplemap, the e
 and _finalmaps_.txt_NN_<map> for every map; for the cleanmap_moving layer
 _static.ply / _moving.ply / _trajectory.txt (its last K scans decided). See doc/MRPT.md and
 config/icp_slam_kitti.ini. The cleanmap_moving layer's free space (static_map.clean) grows with
-the ground covered (0.5-1.0 GiB per km of street); one warning line when it passes half the
+the ground covered (0.4-0.8 GiB per km of street); one warning line when it passes half the
 memory (CLEANMAP_MEMORY_MIB=N sets it).
 )";
 

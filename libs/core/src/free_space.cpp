@@ -18,7 +18,7 @@ constexpr int kBits = 3;  // blocks of 8 x 8 x 8 voxels
 constexpr int kSide = 1 << kBits;
 constexpr int kVoxels = kSide * kSide * kSide;
 static_assert(kBits == 3,
-              "Block::subOf / innerOf split 8 x 8 x 8 blocks into 4 x 4 x 4 sub-blocks");
+              "Block::subOf / innerOf split 8 x 8 x 8 blocks into 2 x 2 x 2 sub-blocks");
 
 inline int localIndex(int64_t x, int64_t y, int64_t z) {
   return static_cast<int>(((x & (kSide - 1)) << (2 * kBits)) | ((y & (kSide - 1)) << kBits) |
@@ -30,10 +30,11 @@ inline uint64_t blockKey(int64_t x, int64_t y, int64_t z) {
 }
 }  // namespace
 
-// A block's masks are whole; its voxels' counters come in sub-blocks of 4 x 4 x 4, allocated
-// on the first write: about a third of a block's voxels are ever marked, in clumps along the
-// surfaces and beams, so many sub-blocks are never needed (issue #16: the map holds 43 % less;
-// it is what grows with the area mapped, doc/BENCHMARK.md).
+// A block's masks are whole; its voxels' counters come in sub-blocks of 2 x 2 x 2, allocated
+// on the first write and numbered in 32 bits: about a third of a block's voxels are ever marked,
+// in clumps along the surfaces and beams, so most sub-blocks are never needed (issue #16; the
+// free space is what grows with the ground covered: 22 % less than with 4 x 4 x 4 sub-blocks and
+// pointers, the same time, doc/BENCHMARK.md "Sub-blocks of 2 x 2 x 2").
 //
 // A voxel is 16 bytes, four to a cache line and none across two (its sub-block is aligned): the
 // counting pass below and the map's lookups miss the cache once per voxel, not up to twice, and
@@ -70,7 +71,7 @@ struct FreeSpaceMap::Block {
   uint64_t hit[kVoxels / 64] = {};   // voxels holding a return of that scan (not marked by it)
   uint64_t seen[kVoxels / 64] = {};  // voxels that scan has already counted
   uint64_t near[kVoxels / 64] = {};  // voxels within hit_inflate of a return of that scan
-  SubBlock* sub[kSubBlocks] = {};    // null: none of its voxels written yet (all default)
+  uint32_t sub[kSubBlocks] = {};     // 1 + its number in the pool; 0: none of its voxels written
   void restamp(int64_t scan) {
     if (stamp == scan) return;
     stamp = scan;
@@ -80,29 +81,39 @@ struct FreeSpaceMap::Block {
   }
   static void set(uint64_t* m, int i) { m[i >> 6] |= uint64_t(1) << (i & 63); }
   // A voxel's local index (x << 6 | y << 3 | z) split into its sub-block and its place there.
-  static int subOf(int li) { return ((li >> 8) << 2) | (((li >> 5) & 1) << 1) | ((li >> 2) & 1); }
-  static int innerOf(int li) { return ((li >> 6 & 3) << 4) | ((li >> 3 & 3) << 2) | (li & 3); }
-  const Voxel* find(int li) const {
-    const SubBlock* sb = sub[subOf(li)];
-    return sb ? &sb->v[innerOf(li)] : nullptr;
-  }
+  static int subOf(int li) { return ((li >> 7) << 4) | ((li >> 4 & 3) << 2) | (li >> 1 & 3); }
+  static int innerOf(int li) { return ((li >> 6 & 1) << 2) | ((li >> 3 & 1) << 1) | (li & 1); }
 };
 
-FreeSpaceMap::SubBlock* FreeSpaceMap::newSub() {
+uint32_t FreeSpaceMap::newSub() {
+  if (subs_ == std::numeric_limits<uint32_t>::max())  // 512 GiB of sub-blocks
+    throw std::length_error("FreeSpaceMap: more sub-blocks than 32-bit numbers: split the drive");
   if (pool_.empty() || pool_used_ == kPoolChunk) {
     pool_.push_back(std::make_unique<SubBlock[]>(kPoolChunk));
     pool_used_ = 0;
   }
-  ++subs_;
-  return &pool_.back()[pool_used_++];
+  ++pool_used_;
+  return static_cast<uint32_t>(++subs_);
+}
+
+inline FreeSpaceMap::SubBlock& FreeSpaceMap::sub(uint32_t s) {
+  return pool_[(s - 1) / kPoolChunk][(s - 1) % kPoolChunk];
+}
+inline const FreeSpaceMap::SubBlock& FreeSpaceMap::sub(uint32_t s) const {
+  return pool_[(s - 1) / kPoolChunk][(s - 1) % kPoolChunk];
+}
+
+inline const FreeSpaceMap::Voxel* FreeSpaceMap::find(const Block& b, int li) const {
+  const uint32_t s = b.sub[Block::subOf(li)];
+  return s ? &sub(s).v[Block::innerOf(li)] : nullptr;
 }
 
 // Inline (private, this file only): the counting pass calls it once per voxel, and an exported
 // function would be called through the PLT.
 inline FreeSpaceMap::Voxel& FreeSpaceMap::voxel(Block& b, int li) {
-  SubBlock*& sb = b.sub[Block::subOf(li)];
-  if (!sb) sb = newSub();
-  return sb->v[Block::innerOf(li)];
+  uint32_t& s = b.sub[Block::subOf(li)];
+  if (!s) s = newSub();
+  return sub(s).v[Block::innerOf(li)];
 }
 
 bool removedByPolicy(const FreeEvidence& e, int64_t scan, const MapParams& p) {
@@ -191,14 +202,22 @@ FreeSpaceMap::FreeSpaceMap(const MapParams& p) : p_(p), inv_(1.0 / p.voxel) {
 }
 FreeSpaceMap::~FreeSpaceMap() = default;
 FreeSpaceMap::FreeSpaceMap(const FreeSpaceMap& o)
-    : p_(o.p_), inv_(o.inv_), marked_(o.marked_), bin_min_(o.bin_min_), bin_max_(o.bin_max_) {
+    : p_(o.p_),
+      inv_(o.inv_),
+      marked_(o.marked_),
+      bin_min_(o.bin_min_),
+      bin_max_(o.bin_max_),
+      pool_used_(o.pool_used_),
+      subs_(o.subs_) {
   blocks_.reserve(o.blocks_.size());
   o.blocks_.forEach([&](uint64_t k, const std::unique_ptr<Block>& b) {
-    auto& mine = blocks_[k];
-    mine = std::make_unique<Block>(*b);
-    for (auto& sb : mine->sub)
-      if (sb) sb = &(*newSub() = *sb);
+    blocks_[k] = std::make_unique<Block>(*b);  // the same sub-block numbers: the pool is copied
   });
+  pool_.reserve(o.pool_.size());
+  for (const auto& chunk : o.pool_) {
+    pool_.push_back(std::make_unique<SubBlock[]>(kPoolChunk));
+    std::copy(chunk.get(), chunk.get() + kPoolChunk, pool_.back().get());
+  }
 }
 
 FreeSpaceMap::Block& FreeSpaceMap::block(uint64_t key, int64_t scan) {
@@ -422,11 +441,11 @@ void FreeSpaceMap::insertScan(const std::vector<PointXYZI>& points, const Eigen:
   // written, instead of one cache miss per return and per step (issue #16).
   const auto s1 = static_cast<uint32_t>(scan + 1);  // as the voxels keep it
   const auto sc = static_cast<uint32_t>(kMaxScan + 1 - scan);
-  auto prefetch = [](const Block& tb) {
+  auto prefetch = [this](const Block& tb) {
     for (int w = 0; w < kVoxels / 64; ++w)
       for (uint64_t m = tb.hit[w] | tb.seen[w]; m; m &= m - 1) {
         const int li = w * 64 + __builtin_ctzll(m);
-        if (const Voxel* x = tb.find(li)) __builtin_prefetch(x, 1);
+        if (const Voxel* x = find(tb, li)) __builtin_prefetch(x, 1);
       }
   };
   const std::size_t nt = touched_.size();
@@ -493,7 +512,7 @@ FreeEvidence FreeSpaceMap::Lookup::operator()(const Eigen::Vector3f& p) {
     key_ = k;
     block_ = m_.findBlock(k);
   }
-  return evidenceOf(block_ ? block_->find(localIndex(x, y, z)) : nullptr);
+  return evidenceOf(block_ ? m_.find(*block_, localIndex(x, y, z)) : nullptr);
 }
 
 void FreeSpaceMap::merge(const FreeSpaceMap& o) {
@@ -501,7 +520,7 @@ void FreeSpaceMap::merge(const FreeSpaceMap& o) {
     auto& mine = blocks_[k];
     if (!mine) mine = std::make_unique<Block>();
     for (int i = 0; i < kVoxels; ++i) {
-      const Voxel* tv = ob->find(i);
+      const Voxel* tv = o.find(*ob, i);
       if (!tv || (tv->count == 0 && tv->hits == 0)) continue;
       const Voxel& theirs = *tv;
       Voxel& m = voxel(*mine, i);

@@ -87,7 +87,7 @@ class FreeSpaceMap {
 
   std::size_t blocks() const { return blocks_.size(); }
   std::size_t bytes() const;                            ///< memory held by the voxels
-  std::size_t subBlocks() const { return subs_; }       ///< 4 x 4 x 4 voxel groups written
+  std::size_t subBlocks() const { return subs_; }       ///< 2 x 2 x 2 voxel groups written
   std::size_t voxelsMarked() const { return marked_; }  ///< voxel visits that counted, so far
   /// The narrowest and widest azimuth bin the scans so far were walked with
   /// (freeSpaceAzimuthBin); 0 before any scan, or with beam_spacing 0.
@@ -115,10 +115,13 @@ class FreeSpaceMap {
   };
 
  private:
-  static constexpr int kSubVoxels = 64, kSubBlocks = 8;  // 4 x 4 x 4 voxels, 8 per block
-  static constexpr std::size_t kPoolChunk = 256;         // sub-blocks allocated at a time
-  SubBlock* newSub();                                    // a default one, from the pool
-  Voxel& voxel(Block& b, int li);                        // allocates its sub-block if needed
+  static constexpr int kSubVoxels = 8, kSubBlocks = 64;  // 2 x 2 x 2 voxels, 64 per block
+  static constexpr std::size_t kPoolChunk = 2048;        // sub-blocks allocated at a time
+  uint32_t newSub();          // a default one, from the pool: 1 + its number there
+  SubBlock& sub(uint32_t s);  // newSub()'s number s
+  const SubBlock& sub(uint32_t s) const;
+  const Voxel* find(const Block& b, int li) const;  // null: its sub-block is not written yet
+  Voxel& voxel(Block& b, int li);                   // allocates its sub-block if needed
   Block& block(uint64_t key, int64_t scan);
   const Block* findBlock(uint64_t key) const;
   void markNear(const std::array<int64_t, 6>& box, int64_t scan);
@@ -139,7 +142,7 @@ class FreeSpaceMap {
   std::size_t marked_ = 0;
   GrazingStretches grazing_;  // grazing beams, per scan (DESIGN §2e)
   double bin_min_ = std::numeric_limits<double>::infinity(), bin_max_ = 0;
-  // The sub-blocks, in chunks that never move (blocks point into them); freed with the map.
+  // The sub-blocks, in chunks that never move (blocks number them); freed with the map.
   std::vector<std::unique_ptr<SubBlock[]>> pool_;
   std::size_t pool_used_ = 0, subs_ = 0;
 };
