@@ -30,11 +30,12 @@ inline uint64_t blockKey(int64_t x, int64_t y, int64_t z) {
 }
 }  // namespace
 
-// A block's masks are whole; its voxels' counters come in sub-blocks of 2 x 2 x 2, allocated
-// on the first write and numbered in 32 bits: about a third of a block's voxels are ever marked,
-// in clumps along the surfaces and beams, so most sub-blocks are never needed (issue #16; the
-// free space is what grows with the ground covered: 22 % less than with 4 x 4 x 4 sub-blocks and
-// pointers, the same time, doc/BENCHMARK.md "Sub-blocks of 2 x 2 x 2").
+// A block holds only its voxels' counters, in sub-blocks of 2 x 2 x 2 allocated on the first
+// write and numbered in 32 bits: about a third of a block's voxels are ever marked, in clumps
+// along the surfaces and beams, so most sub-blocks are never needed; the scan's bits are kept
+// apart (Marks). The free space is what grows with the ground covered: a quarter less than with
+// 4 x 4 x 4 sub-blocks, pointers and the bits in the block, the same time (issue #16;
+// doc/BENCHMARK.md "Sub-blocks of 2 x 2 x 2").
 //
 // A voxel is 16 bytes, four to a cache line and none across two (its sub-block is aligned): the
 // counting pass below and the map's lookups miss the cache once per voxel, not up to twice, and
@@ -66,20 +67,20 @@ struct alignas(64) FreeSpaceMap::SubBlock {
   Voxel v[kSubVoxels];
 };
 
-struct FreeSpaceMap::Block {
-  int64_t stamp = std::numeric_limits<int64_t>::min();  // the scan the masks below are about
-  uint64_t hit[kVoxels / 64] = {};   // voxels holding a return of that scan (not marked by it)
-  uint64_t seen[kVoxels / 64] = {};  // voxels that scan has already counted
-  uint64_t near[kVoxels / 64] = {};  // voxels within hit_inflate of a return of that scan
-  uint32_t sub[kSubBlocks] = {};     // 1 + its number in the pool; 0: none of its voxels written
-  void restamp(int64_t scan) {
-    if (stamp == scan) return;
-    stamp = scan;
-    std::memset(hit, 0, sizeof hit);
-    std::memset(seen, 0, sizeof seen);
-    std::memset(near, 0, sizeof near);
-  }
+// What the scan being inserted did to one block, a bit per voxel (a mask word is one x plane of
+// 8 y x 8 z voxels). Kept apart from the blocks, in chunks reused scan after scan, in the order
+// the scan visits its blocks: the map holds only the counters.
+struct FreeSpaceMap::Marks {
+  uint64_t hit[kVoxels / 64];   // voxels holding a return of that scan (not marked by it)
+  uint64_t seen[kVoxels / 64];  // voxels that scan has already counted
+  uint64_t near[kVoxels / 64];  // voxels within hit_inflate of a return of that scan
+  Block* block;
   static void set(uint64_t* m, int i) { m[i >> 6] |= uint64_t(1) << (i & 63); }
+};
+
+struct FreeSpaceMap::Block {
+  Marks* marks = nullptr;         // the scan being inserted has visited it (null between scans)
+  uint32_t sub[kSubBlocks] = {};  // 1 + its number in the pool; 0: none of its voxels written
   // A voxel's local index (x << 6 | y << 3 | z) split into its sub-block and its place there.
   static int subOf(int li) { return ((li >> 7) << 4) | ((li >> 4 & 3) << 2) | (li >> 1 & 3); }
   static int innerOf(int li) { return ((li >> 6 & 1) << 2) | ((li >> 3 & 1) << 1) | (li & 1); }
@@ -220,20 +221,28 @@ FreeSpaceMap::FreeSpaceMap(const FreeSpaceMap& o)
   }
 }
 
-FreeSpaceMap::Block& FreeSpaceMap::block(uint64_t key, int64_t scan) {
-  auto& b = blocks_[key];
-  if (!b) b = std::make_unique<Block>();
-  if (b->stamp != scan) {
-    b->restamp(scan);
-    touched_.push_back(b.get());
-  }
-  return *b;
+inline FreeSpaceMap::Marks& FreeSpaceMap::marked(std::size_t i) {
+  return marks_[i / kMarksChunk][i % kMarksChunk];
 }
 
-FreeSpaceMap::Block& FreeSpaceMap::recentBlock(uint64_t key, int64_t scan) {
+FreeSpaceMap::Marks& FreeSpaceMap::marksOf(uint64_t key) {
+  auto& b = blocks_[key];
+  if (!b) b = std::make_unique<Block>();
+  if (!b->marks) {
+    if (marks_used_ == marks_.size() * kMarksChunk)
+      marks_.push_back(std::make_unique<Marks[]>(kMarksChunk));
+    Marks& m = marked(marks_used_++);
+    std::memset(&m, 0, sizeof m);
+    m.block = b.get();
+    b->marks = &m;
+  }
+  return *b->marks;
+}
+
+FreeSpaceMap::Marks& FreeSpaceMap::recentMarks(uint64_t key) {
   Recent& r = recent_[(key * 0x9E3779B97F4A7C15ull) >> 54];
-  if (r.key != key) r = {key, &block(key, scan)};  // blocks never move: the pointer stays valid
-  return *r.block;
+  if (r.key != key) r = {key, &marksOf(key)};  // neither marks nor blocks move within a scan
+  return *r.marks;
 }
 
 const FreeSpaceMap::Block* FreeSpaceMap::findBlock(uint64_t key) const {
@@ -243,18 +252,19 @@ const FreeSpaceMap::Block* FreeSpaceMap::findBlock(uint64_t key) const {
 
 std::size_t FreeSpaceMap::bytes() const {
   return blocks_.size() * sizeof(Block) + pool_.size() * kPoolChunk * sizeof(SubBlock) +
+         marks_.size() * kMarksChunk * sizeof(Marks) +
          blocks_.capacity() * (sizeof(uint64_t) + sizeof(std::unique_ptr<Block>));
 }
 
 // Sets the near bits of a voxel box (inclusive x0 x1 y0 y1 z0 z1) block by block: a mask word
 // of a block is one x plane of 8 y x 8 z voxels, so the box's share of a plane is one mask.
-void FreeSpaceMap::markNear(const std::array<int64_t, 6>& box, int64_t scan) {
+void FreeSpaceMap::markNear(const std::array<int64_t, 6>& box) {
   // A block's first voxel is blk * kSide: a left shift of a negative index is undefined.
   constexpr int64_t kLast = kSide - 1;
   for (int64_t bx = box[0] >> kBits; bx <= box[1] >> kBits; ++bx)
     for (int64_t by = box[2] >> kBits; by <= box[3] >> kBits; ++by)
       for (int64_t bz = box[4] >> kBits; bz <= box[5] >> kBits; ++bz) {
-        Block& b = recentBlock(cellKey(bx, by, bz), scan);
+        Marks& b = recentMarks(cellKey(bx, by, bz));
         const auto lo = [](int64_t v, int64_t blk) { return std::max(v, blk * kSide) & kLast; };
         const auto hi = [](int64_t v, int64_t blk) {
           return std::min(v, blk * kSide + kLast) & kLast;
@@ -278,11 +288,11 @@ void FreeSpaceMap::insertScan(const std::vector<PointXYZI>& points, const Eigen:
                             " outside 0.." + std::to_string(kMaxScan) +
                             " (the free space counts scans in 24 bits): split the sequence");
   const Eigen::Vector3d o = pose.translation();
-  recent_.fill(Recent{});  // its blocks are restamped on their first lookup of this scan
+  recent_.fill(Recent{});  // a block's marks are made on its first lookup of this scan
   // The scan-conflict rule: the voxels this scan returns from are not seen empty by it.
   {
     uint64_t cached = ~uint64_t(0);
-    Block* b = nullptr;
+    Marks* b = nullptr;
     std::array<int64_t, 6> last_box{1, 0, 1, 0, 1, 0};  // empty
     for (std::size_t n = 0; n < points.size(); ++n) {
       const Eigen::Vector3d w = pose * points[n].xyz().cast<double>();
@@ -290,12 +300,12 @@ void FreeSpaceMap::insertScan(const std::vector<PointXYZI>& points, const Eigen:
                     z = floorToCell(w.z(), inv_);
       const uint64_t k = blockKey(x, y, z);
       if (k != cached) {
-        b = &recentBlock(k, scan);
+        b = &recentMarks(k);
         cached = k;
       }
       const int li = localIndex(x, y, z);
-      Block::set(b->near, li);
-      Block::set(b->hit, li);  // its counters are updated with the walk's, below
+      Marks::set(b->near, li);
+      Marks::set(b->hit, li);  // its counters are updated with the walk's, below
       if (p_.hit_inflate <= 0 || (moving && (*moving)[n])) continue;
       // The voxels within hit_inflate of the return (per axis) are not seen empty by this scan
       // either: a beam passing a surface's edge crosses the edge's voxel beside the return.
@@ -305,7 +315,7 @@ void FreeSpaceMap::insertScan(const std::vector<PointXYZI>& points, const Eigen:
                                        floorToCell(w.z() - h, inv_), floorToCell(w.z() + h, inv_)};
       if (box == last_box) continue;  // neighbours on a ring mostly share it
       last_box = box;
-      markNear(box, scan);
+      markNear(box);
     }
   }
   // Each beam, voxel by voxel (Amanatides & Woo), to the margin before its return; a beam longer
@@ -343,7 +353,7 @@ void FreeSpaceMap::insertScan(const std::vector<PointXYZI>& points, const Eigen:
   const std::vector<float>& skip_a = given ? *grazing.from : grazing_.from();
   const std::vector<float>& skip_b = given ? *grazing.to : grazing_.to();
   uint64_t cached = ~uint64_t(0);
-  Block* b = nullptr;
+  Marks* b = nullptr;
   for (std::size_t n = 0; n < points.size(); ++n) {
     const auto& p = points[n];
     const Eigen::Vector3d ps = p.xyz().cast<double>();
@@ -404,7 +414,7 @@ void FreeSpaceMap::insertScan(const std::vector<PointXYZI>& points, const Eigen:
     auto enter = [&] {
       const uint64_t k = cellKey(bx, by, bz);
       if (k != cached) {
-        b = &recentBlock(k, scan);
+        b = &recentMarks(k);
         cached = k;
       }
     };
@@ -441,21 +451,22 @@ void FreeSpaceMap::insertScan(const std::vector<PointXYZI>& points, const Eigen:
   // written, instead of one cache miss per return and per step (issue #16).
   const auto s1 = static_cast<uint32_t>(scan + 1);  // as the voxels keep it
   const auto sc = static_cast<uint32_t>(kMaxScan + 1 - scan);
-  auto prefetch = [this](const Block& tb) {
+  auto prefetch = [this](const Marks& tm) {
     for (int w = 0; w < kVoxels / 64; ++w)
-      for (uint64_t m = tb.hit[w] | tb.seen[w]; m; m &= m - 1) {
+      for (uint64_t m = tm.hit[w] | tm.seen[w]; m; m &= m - 1) {
         const int li = w * 64 + __builtin_ctzll(m);
-        if (const Voxel* x = find(tb, li)) __builtin_prefetch(x, 1);
+        if (const Voxel* x = find(*tm.block, li)) __builtin_prefetch(x, 1);
       }
   };
-  const std::size_t nt = touched_.size();
-  if (nt > 0) prefetch(*touched_[0]);
+  const std::size_t nt = marks_used_;
+  if (nt > 0) prefetch(marked(0));
   for (std::size_t i = 0; i < nt; ++i) {
-    if (i + 2 < nt) __builtin_prefetch(touched_[i + 2]->sub, 0);
-    if (i + 1 < nt) prefetch(*touched_[i + 1]);
-    Block* tb = touched_[i];
+    if (i + 2 < nt) __builtin_prefetch(marked(i + 2).block->sub, 0);
+    if (i + 1 < nt) prefetch(marked(i + 1));
+    const Marks& tm = marked(i);
+    Block* tb = tm.block;
     for (int w = 0; w < kVoxels / 64; ++w) {
-      for (uint64_t m = tb->hit[w]; m; m &= m - 1) {
+      for (uint64_t m = tm.hit[w]; m; m &= m - 1) {
         // Updated in registers, stored once: a bit-field's own read-modify-write would chain
         // each field's store into the next field's load.
         Voxel& slot = voxel(*tb, w * 64 + __builtin_ctzll(m));
@@ -467,7 +478,7 @@ void FreeSpaceMap::insertScan(const std::vector<PointXYZI>& points, const Eigen:
         if (s1 > v.last_hit1) v.last_hit1 = s1;
         slot = v;
       }
-      for (uint64_t m = tb->seen[w]; m; m &= m - 1) {
+      for (uint64_t m = tm.seen[w]; m; m &= m - 1) {
         Voxel& slot = voxel(*tb, w * 64 + __builtin_ctzll(m));
         Voxel x = slot;
         if (x.count < 0xFFFF) ++x.count;
@@ -479,8 +490,9 @@ void FreeSpaceMap::insertScan(const std::vector<PointXYZI>& points, const Eigen:
         ++marked_;
       }
     }
+    tb->marks = nullptr;  // the next scan starts its own
   }
-  touched_.clear();
+  marks_used_ = 0;
 }
 
 namespace {

@@ -99,6 +99,7 @@ class FreeSpaceMap {
   struct Voxel;
   struct SubBlock;
   struct Block;
+  struct Marks;
 
  public:
   /// evidence() for many points in a row, remembering the last block: consecutive points of a
@@ -122,23 +123,28 @@ class FreeSpaceMap {
   const SubBlock& sub(uint32_t s) const;
   const Voxel* find(const Block& b, int li) const;  // null: its sub-block is not written yet
   Voxel& voxel(Block& b, int li);                   // allocates its sub-block if needed
-  Block& block(uint64_t key, int64_t scan);
+  static constexpr std::size_t kMarksChunk = 256;   // blocks' marks allocated at a time
+  Marks& marksOf(uint64_t key);  // the block's marks for the scan being inserted (made if new)
+  Marks& marked(std::size_t i);  // the i-th block the scan being inserted visited
   const Block* findBlock(uint64_t key) const;
-  void markNear(const std::array<int64_t, 6>& box, int64_t scan);
+  void markNear(const std::array<int64_t, 6>& box);
   MapParams p_;
   double inv_;
   CellMap<std::unique_ptr<Block>> blocks_;
   std::vector<float> azimuth_;      // the scan being inserted: each return's fast::atan2(y, x)
   std::vector<uint64_t> bin_bits_;  // and its azimuth bins holding a return, per elevation band
-  std::vector<Block*> touched_;  // blocks the scan being inserted visits (its voxels updated last)
+  // The marks of the blocks the scan being inserted visits, in the order visited (their voxels
+  // are updated last); chunks kept from scan to scan.
+  std::vector<std::unique_ptr<Marks[]>> marks_;
+  std::size_t marks_used_ = 0;
   // The scan's recent blocks, direct-mapped by key (cleared per scan): neighbouring beams and
   // returns meet the same blocks, so most lookups end here in L1 (issue #16).
   struct Recent {
     uint64_t key = ~uint64_t(0);
-    Block* block = nullptr;
+    Marks* marks = nullptr;
   };
   std::array<Recent, 1024> recent_{};
-  Block& recentBlock(uint64_t key, int64_t scan);
+  Marks& recentMarks(uint64_t key);
   std::size_t marked_ = 0;
   GrazingStretches grazing_;  // grazing beams, per scan (DESIGN §2e)
   double bin_min_ = std::numeric_limits<double>::infinity(), bin_max_ = 0;
