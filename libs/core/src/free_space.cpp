@@ -86,27 +86,32 @@ struct FreeSpaceMap::Block {
   static int innerOf(int li) { return ((li >> 6 & 1) << 2) | ((li >> 3 & 1) << 1) | (li & 1); }
 };
 
-uint32_t FreeSpaceMap::newSub() {
-  if (subs_ == std::numeric_limits<uint32_t>::max())  // 512 GiB of sub-blocks
-    throw std::length_error("FreeSpaceMap: more sub-blocks than 32-bit numbers: split the drive");
-  if (pool_.empty() || pool_used_ == kPoolChunk) {
-    pool_.push_back(std::make_unique<SubBlock[]>(kPoolChunk));
-    pool_used_ = 0;
-  }
-  ++pool_used_;
-  return static_cast<uint32_t>(++subs_);
+template <class T, std::size_t N>
+T& FreeSpaceMap::Chunks<T, N>::add() {
+  if (n_ == chunks_.size() * N) chunks_.push_back(std::make_unique<T[]>(N));
+  return (*this)[n_++];
 }
 
-inline FreeSpaceMap::SubBlock& FreeSpaceMap::sub(uint32_t s) {
-  return pool_[(s - 1) / kPoolChunk][(s - 1) % kPoolChunk];
+template <class T, std::size_t N>
+void FreeSpaceMap::Chunks<T, N>::copyFrom(const Chunks& o) {
+  chunks_.clear();
+  for (const auto& c : o.chunks_) {
+    chunks_.push_back(std::make_unique<T[]>(N));
+    std::copy(c.get(), c.get() + N, chunks_.back().get());
+  }
+  n_ = o.n_;
 }
-inline const FreeSpaceMap::SubBlock& FreeSpaceMap::sub(uint32_t s) const {
-  return pool_[(s - 1) / kPoolChunk][(s - 1) % kPoolChunk];
+
+uint32_t FreeSpaceMap::newSub() {
+  if (subs_.size() == std::numeric_limits<uint32_t>::max())  // 512 GiB of sub-blocks
+    throw std::length_error("FreeSpaceMap: more sub-blocks than 32-bit numbers: split the drive");
+  subs_.add();
+  return static_cast<uint32_t>(subs_.size());
 }
 
 inline const FreeSpaceMap::Voxel* FreeSpaceMap::find(const Block& b, int li) const {
   const uint32_t s = b.sub[Block::subOf(li)];
-  return s ? &sub(s).v[Block::innerOf(li)] : nullptr;
+  return s ? &subs_[s - 1].v[Block::innerOf(li)] : nullptr;
 }
 
 // Inline (private, this file only): the counting pass calls it once per voxel, and an exported
@@ -114,7 +119,7 @@ inline const FreeSpaceMap::Voxel* FreeSpaceMap::find(const Block& b, int li) con
 inline FreeSpaceMap::Voxel& FreeSpaceMap::voxel(Block& b, int li) {
   uint32_t& s = b.sub[Block::subOf(li)];
   if (!s) s = newSub();
-  return sub(s).v[Block::innerOf(li)];
+  return subs_[s - 1].v[Block::innerOf(li)];
 }
 
 bool removedByPolicy(const FreeEvidence& e, int64_t scan, const MapParams& p) {
@@ -203,35 +208,19 @@ FreeSpaceMap::FreeSpaceMap(const MapParams& p) : p_(p), inv_(1.0 / p.voxel) {
 }
 FreeSpaceMap::~FreeSpaceMap() = default;
 FreeSpaceMap::FreeSpaceMap(const FreeSpaceMap& o)
-    : p_(o.p_),
-      inv_(o.inv_),
-      marked_(o.marked_),
-      bin_min_(o.bin_min_),
-      bin_max_(o.bin_max_),
-      pool_used_(o.pool_used_),
-      subs_(o.subs_) {
+    : p_(o.p_), inv_(o.inv_), marked_(o.marked_), bin_min_(o.bin_min_), bin_max_(o.bin_max_) {
   blocks_.reserve(o.blocks_.size());
   o.blocks_.forEach([&](uint64_t k, const std::unique_ptr<Block>& b) {
     blocks_[k] = std::make_unique<Block>(*b);  // the same sub-block numbers: the pool is copied
   });
-  pool_.reserve(o.pool_.size());
-  for (const auto& chunk : o.pool_) {
-    pool_.push_back(std::make_unique<SubBlock[]>(kPoolChunk));
-    std::copy(chunk.get(), chunk.get() + kPoolChunk, pool_.back().get());
-  }
-}
-
-inline FreeSpaceMap::Marks& FreeSpaceMap::marked(std::size_t i) {
-  return marks_[i / kMarksChunk][i % kMarksChunk];
+  subs_.copyFrom(o.subs_);
 }
 
 FreeSpaceMap::Marks& FreeSpaceMap::marksOf(uint64_t key) {
   auto& b = blocks_[key];
   if (!b) b = std::make_unique<Block>();
   if (!b->marks) {
-    if (marks_used_ == marks_.size() * kMarksChunk)
-      marks_.push_back(std::make_unique<Marks[]>(kMarksChunk));
-    Marks& m = marked(marks_used_++);
+    Marks& m = marks_.add();
     std::memset(&m, 0, sizeof m);
     m.block = b.get();
     b->marks = &m;
@@ -251,8 +240,7 @@ const FreeSpaceMap::Block* FreeSpaceMap::findBlock(uint64_t key) const {
 }
 
 std::size_t FreeSpaceMap::bytes() const {
-  return blocks_.size() * sizeof(Block) + pool_.size() * kPoolChunk * sizeof(SubBlock) +
-         marks_.size() * kMarksChunk * sizeof(Marks) +
+  return blocks_.size() * sizeof(Block) + subs_.bytes() + marks_.bytes() +
          blocks_.capacity() * (sizeof(uint64_t) + sizeof(std::unique_ptr<Block>));
 }
 
@@ -458,12 +446,12 @@ void FreeSpaceMap::insertScan(const std::vector<PointXYZI>& points, const Eigen:
         if (const Voxel* x = find(*tm.block, li)) __builtin_prefetch(x, 1);
       }
   };
-  const std::size_t nt = marks_used_;
-  if (nt > 0) prefetch(marked(0));
+  const std::size_t nt = marks_.size();
+  if (nt > 0) prefetch(marks_[0]);
   for (std::size_t i = 0; i < nt; ++i) {
-    if (i + 2 < nt) __builtin_prefetch(marked(i + 2).block->sub, 0);
-    if (i + 1 < nt) prefetch(marked(i + 1));
-    const Marks& tm = marked(i);
+    if (i + 2 < nt) __builtin_prefetch(marks_[i + 2].block->sub, 0);
+    if (i + 1 < nt) prefetch(marks_[i + 1]);
+    const Marks& tm = marks_[i];
     Block* tb = tm.block;
     for (int w = 0; w < kVoxels / 64; ++w) {
       for (uint64_t m = tm.hit[w]; m; m &= m - 1) {
@@ -492,7 +480,7 @@ void FreeSpaceMap::insertScan(const std::vector<PointXYZI>& points, const Eigen:
     }
     tb->marks = nullptr;  // the next scan starts its own
   }
-  marks_used_ = 0;
+  marks_.clear();
 }
 
 namespace {

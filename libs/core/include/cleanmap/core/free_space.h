@@ -86,9 +86,9 @@ class FreeSpaceMap {
   void merge(const FreeSpaceMap& o);
 
   std::size_t blocks() const { return blocks_.size(); }
-  std::size_t bytes() const;                            ///< memory held by the voxels
-  std::size_t subBlocks() const { return subs_; }       ///< 2 x 2 x 2 voxel groups written
-  std::size_t voxelsMarked() const { return marked_; }  ///< voxel visits that counted, so far
+  std::size_t bytes() const;                              ///< memory held by the voxels
+  std::size_t subBlocks() const { return subs_.size(); }  ///< 2 x 2 x 2 voxel groups written
+  std::size_t voxelsMarked() const { return marked_; }    ///< voxel visits that counted, so far
   /// The narrowest and widest azimuth bin the scans so far were walked with
   /// (freeSpaceAzimuthBin); 0 before any scan, or with beam_spacing 0.
   double azimuthBinMin() const { return bin_max_ > 0 ? bin_min_ : 0.0; }
@@ -117,15 +117,26 @@ class FreeSpaceMap {
 
  private:
   static constexpr int kSubVoxels = 8, kSubBlocks = 64;  // 2 x 2 x 2 voxels, 64 per block
-  static constexpr std::size_t kPoolChunk = 2048;        // sub-blocks allocated at a time
-  uint32_t newSub();          // a default one, from the pool: 1 + its number there
-  SubBlock& sub(uint32_t s);  // newSub()'s number s
-  const SubBlock& sub(uint32_t s) const;
+  // Objects in chunks of N that never move, numbered in the order added.
+  template <class T, std::size_t N>
+  class Chunks {
+   public:
+    T& add();  // value-initialized in a new chunk; after clear(), as it was left
+    T& operator[](std::size_t i) { return chunks_[i / N][i % N]; }
+    const T& operator[](std::size_t i) const { return chunks_[i / N][i % N]; }
+    std::size_t size() const { return n_; }
+    void clear() { n_ = 0; }  // the chunks are kept for the next ones
+    std::size_t bytes() const { return chunks_.size() * N * sizeof(T); }
+    void copyFrom(const Chunks& o);  // the same objects under the same numbers
+
+   private:
+    std::vector<std::unique_ptr<T[]>> chunks_;
+    std::size_t n_ = 0;
+  };
+  uint32_t newSub();                                // a default one: 1 + its number in subs_
   const Voxel* find(const Block& b, int li) const;  // null: its sub-block is not written yet
   Voxel& voxel(Block& b, int li);                   // allocates its sub-block if needed
-  static constexpr std::size_t kMarksChunk = 256;   // blocks' marks allocated at a time
   Marks& marksOf(uint64_t key);  // the block's marks for the scan being inserted (made if new)
-  Marks& marked(std::size_t i);  // the i-th block the scan being inserted visited
   const Block* findBlock(uint64_t key) const;
   void markNear(const std::array<int64_t, 6>& box);
   MapParams p_;
@@ -135,8 +146,7 @@ class FreeSpaceMap {
   std::vector<uint64_t> bin_bits_;  // and its azimuth bins holding a return, per elevation band
   // The marks of the blocks the scan being inserted visits, in the order visited (their voxels
   // are updated last); chunks kept from scan to scan.
-  std::vector<std::unique_ptr<Marks[]>> marks_;
-  std::size_t marks_used_ = 0;
+  Chunks<Marks, 256> marks_;
   // The scan's recent blocks, direct-mapped by key (cleared per scan): neighbouring beams and
   // returns meet the same blocks, so most lookups end here in L1 (issue #16).
   struct Recent {
@@ -148,9 +158,7 @@ class FreeSpaceMap {
   std::size_t marked_ = 0;
   GrazingStretches grazing_;  // grazing beams, per scan (DESIGN §2e)
   double bin_min_ = std::numeric_limits<double>::infinity(), bin_max_ = 0;
-  // The sub-blocks, in chunks that never move (blocks number them); freed with the map.
-  std::vector<std::unique_ptr<SubBlock[]>> pool_;
-  std::size_t pool_used_ = 0, subs_ = 0;
+  Chunks<SubBlock, 2048> subs_;  // the sub-blocks (blocks number them); freed with the map
 };
 
 }  // namespace cleanmap
