@@ -64,7 +64,7 @@ class LaserPipeline {
   /// DESIGN §2e: the memory the free space held when its last finished insertion ended (bytes;
   /// 0 with static_map.clean off). It does not wait, so it may lag the scans decided by the
   /// insertions still queued; any thread may ask it while scans are pushed. It grows with the
-  /// ground covered, not the scans (about 0.5-1.0 GiB per km of street, doc/BENCHMARK.md).
+  /// ground covered, not the scans (about 0.4-0.8 GiB per km of street, doc/BENCHMARK.md).
   std::size_t freeSpaceBytes() const { return free_bytes_.load(std::memory_order_relaxed); }
   /// DESIGN §2f: only the scans with an index in [first, last] add to the free space: a chunk
   /// of a long drive inserts the scans it owns, not its overlap with the chunks beside it, so the
