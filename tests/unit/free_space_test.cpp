@@ -9,6 +9,10 @@
 
 #include "cleanmap/core/free_space.h"
 
+#if defined(__GLIBC__)
+#include <malloc.h>
+#endif
+
 using namespace cleanmap;
 
 namespace {
@@ -493,4 +497,45 @@ TEST(FreeSpace, ScanIndicesUpToTheLargestItCountsAndAClearErrorBeyond) {
     }
   }
   EXPECT_EQ(fs.evidence({10.05f, 0.f, 0.f}), e);  // a refused scan changes nothing
+}
+
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+#define CLEANMAP_SANITIZED 1
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer) || __has_feature(thread_sanitizer)
+#define CLEANMAP_SANITIZED 1
+#endif
+#endif
+
+TEST(FreeSpace, TheVoxelsLiveInPagesOfTheirOwnNotInMallocsHeap) {
+  // The map's memory lives the whole run: carved from the holes a scan's freed buffers leave in
+  // malloc's arenas, it pinned them and the arenas grew with the drive (doc/BENCHMARK.md, "The
+  // free space in pages of its own"). Its blocks and voxels are in pages from the kernel; the
+  // heap holds only its key table and per-scan scratch.
+#if !defined(__GLIBC__) || defined(CLEANMAP_SANITIZED)
+  GTEST_SKIP() << "needs glibc's own malloc (mallinfo2)";
+#else
+  FreeSpaceMap fs(params());
+  fs.insertScan(ring(20.f), at(0), 0);  // the per-scan scratch sized once
+  const std::size_t heap0 = mallinfo2().uordblks, map0 = fs.bytes();
+  for (int k = 1; k <= 40; ++k) fs.insertScan(ring(20.f), at(1.5 * k), k);  // 60 m of new street
+  const std::size_t heap1 = mallinfo2().uordblks, map = fs.bytes() - map0;
+  const std::size_t heap = heap1 > heap0 ? heap1 - heap0 : 0;
+  EXPECT_GT(map, std::size_t(1) << 20);  // the map grew
+  EXPECT_LT(heap, map / 8) << "heap +" << heap << " B, map +" << map << " B";
+  // Copies go on as the original does, each in pages of its own: one left alone is unchanged.
+  std::vector<FreeEvidence> before;
+  for (float x = -15; x <= 75; x += 0.2f) before.push_back(fs.evidence({x, 0.5f, 0.05f}));
+  FreeSpaceMap copy(fs), idle(fs);
+  copy.insertScan(ring(18.f), at(0), 41);
+  fs.insertScan(ring(18.f), at(0), 41);
+  std::size_t i = 0, checked = 0;
+  for (float x = -15; x <= 75; x += 0.2f, ++i) {
+    const Eigen::Vector3f q(x, 0.5f, 0.05f);
+    ASSERT_EQ(idle.evidence(q), before[i]);
+    ASSERT_EQ(copy.evidence(q), fs.evidence(q));
+    checked += copy.evidence(q).count > before[i].count;
+  }
+  EXPECT_GT(checked, 100u);
+#endif
 }

@@ -1,13 +1,20 @@
 // SPDX-License-Identifier: BSD-3-Clause
 #include "cleanmap/core/free_space.h"
 
+#include <sys/mman.h>
+
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdint>
+#include <cstdlib>
 #include <cstring>
 #include <limits>
+#include <memory>
+#include <new>
 #include <stdexcept>
 #include <string>
+#include <type_traits>
 
 #include "cleanmap/core/cell_key.h"
 #include "cleanmap/core/fast_math.h"
@@ -86,20 +93,63 @@ struct FreeSpaceMap::Block {
   static int innerOf(int li) { return ((li >> 6 & 1) << 2) | ((li >> 3 & 1) << 1) | (li & 1); }
 };
 
-template <class T, std::size_t N>
-T& FreeSpaceMap::Chunks<T, N>::add() {
-  if (n_ == chunks_.size() * N) chunks_.push_back(std::make_unique<T[]>(N));
-  return (*this)[n_++];
+namespace {
+// Whether malloc backs its heap with transparent huge pages (glibc.malloc.hugetlb=1, which the
+// apps set: apps/common/cli.h): the chunks then ask for them too, as they had from the heap.
+bool hugePagesLikeMalloc() {
+  static const bool on = [] {
+    const char* t = std::getenv("GLIBC_TUNABLES");
+    return t && std::strstr(t, "glibc.malloc.hugetlb=1") != nullptr;
+  }();
+  return on;
 }
 
-template <class T, std::size_t N>
-void FreeSpaceMap::Chunks<T, N>::copyFrom(const Chunks& o) {
-  chunks_.clear();
-  for (const auto& c : o.chunks_) {
-    chunks_.push_back(std::make_unique<T[]>(N));
-    std::copy(c.get(), c.get() + N, chunks_.back().get());
+// `bytes` (a multiple of 2 MiB) of zeroed pages aligned to 2 MiB (where a huge page can back
+// them), from the kernel.
+void* mapPages(std::size_t bytes) {
+  constexpr std::size_t kAlign = std::size_t(2) << 20;
+  void* p =
+      mmap(nullptr, bytes + kAlign, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
+  if (p == MAP_FAILED) throw std::bad_alloc();
+  const auto start = reinterpret_cast<std::uintptr_t>(p);
+  const std::uintptr_t aligned = (start + kAlign - 1) & ~(kAlign - 1);
+  if (aligned > start) munmap(p, aligned - start);
+  if (const std::size_t tail = start + kAlign - aligned)
+    munmap(reinterpret_cast<void*>(aligned + bytes), tail);
+  void* q = reinterpret_cast<void*>(aligned);
+  if (hugePagesLikeMalloc()) madvise(q, bytes, MADV_HUGEPAGE);
+  return q;
+}
+}  // namespace
+
+template <class T>
+FreeSpaceMap::Chunks<T>::~Chunks() {
+  static_assert(std::is_trivially_destructible_v<T> && N > 0);
+  for (T* c : chunks_) munmap(c, kBytes);
+}
+
+template <class T>
+T& FreeSpaceMap::Chunks<T>::add() {
+  if (n_ == chunks_.size() * N) {
+    chunks_.reserve(chunks_.size() + 1);  // no leak if it throws
+    chunks_.push_back(static_cast<T*>(mapPages(kBytes)));
   }
-  n_ = o.n_;
+  most_ = std::max(most_, n_ + 1);
+  return *new (&(*this)[n_++]) T();
+}
+
+template <class T>
+void FreeSpaceMap::Chunks<T>::copyFrom(const Chunks& o) {
+  for (T* c : chunks_) munmap(c, kBytes);
+  chunks_.clear();
+  n_ = most_ = 0;
+  chunks_.reserve(o.chunks_.size());
+  for (std::size_t c = 0; c * N < o.n_; ++c) {
+    chunks_.push_back(static_cast<T*>(mapPages(kBytes)));
+    const std::size_t k = std::min(N, o.n_ - c * N);
+    std::uninitialized_copy(o.chunks_[c], o.chunks_[c] + k, chunks_.back());
+  }
+  n_ = most_ = o.n_;
 }
 
 uint32_t FreeSpaceMap::newSub() {
@@ -209,23 +259,19 @@ FreeSpaceMap::FreeSpaceMap(const MapParams& p) : p_(p), inv_(1.0 / p.voxel) {
 FreeSpaceMap::~FreeSpaceMap() = default;
 FreeSpaceMap::FreeSpaceMap(const FreeSpaceMap& o)
     : p_(o.p_), inv_(o.inv_), marked_(o.marked_), bin_min_(o.bin_min_), bin_max_(o.bin_max_) {
-  blocks_.reserve(o.blocks_.size());
-  o.blocks_.forEach([&](uint64_t k, const std::unique_ptr<Block>& b) {
-    blocks_[k] = std::make_unique<Block>(*b);  // the same sub-block numbers: the pool is copied
-  });
+  blocks_ = o.blocks_;  // the same numbers: the pools are copied
+  pool_.copyFrom(o.pool_);
   subs_.copyFrom(o.subs_);
 }
 
 FreeSpaceMap::Marks& FreeSpaceMap::marksOf(uint64_t key) {
-  auto& b = blocks_[key];
-  if (!b) b = std::make_unique<Block>();
-  if (!b->marks) {
+  Block& b = blockOf(key);
+  if (!b.marks) {
     Marks& m = marks_.add();
-    std::memset(&m, 0, sizeof m);
-    m.block = b.get();
-    b->marks = &m;
+    m.block = &b;
+    b.marks = &m;
   }
-  return *b->marks;
+  return *b.marks;
 }
 
 FreeSpaceMap::Marks& FreeSpaceMap::recentMarks(uint64_t key) {
@@ -235,13 +281,22 @@ FreeSpaceMap::Marks& FreeSpaceMap::recentMarks(uint64_t key) {
 }
 
 const FreeSpaceMap::Block* FreeSpaceMap::findBlock(uint64_t key) const {
-  const auto* b = blocks_.find(key);
-  return b ? b->get() : nullptr;
+  const uint32_t* n = blocks_.find(key);
+  return n ? &pool_[*n - 1] : nullptr;
+}
+
+FreeSpaceMap::Block& FreeSpaceMap::blockOf(uint64_t key) {
+  if (const uint32_t* n = blocks_.find(key)) return pool_[*n - 1];
+  if (pool_.size() == std::numeric_limits<uint32_t>::max())
+    throw std::length_error("FreeSpaceMap: more blocks than 32-bit numbers: split the drive");
+  Block& b = pool_.add();  // numbered only once it exists: a failed add leaves no number
+  blocks_[key] = static_cast<uint32_t>(pool_.size());
+  return b;
 }
 
 std::size_t FreeSpaceMap::bytes() const {
-  return blocks_.size() * sizeof(Block) + subs_.bytes() + marks_.bytes() +
-         blocks_.capacity() * (sizeof(uint64_t) + sizeof(std::unique_ptr<Block>));
+  return pool_.bytes() + subs_.bytes() + marks_.bytes() +
+         blocks_.capacity() * (sizeof(uint64_t) + sizeof(uint32_t));
 }
 
 // Sets the near bits of a voxel box (inclusive x0 x1 y0 y1 z0 z1) block by block: a mask word
@@ -516,14 +571,14 @@ FreeEvidence FreeSpaceMap::Lookup::operator()(const Eigen::Vector3f& p) {
 }
 
 void FreeSpaceMap::merge(const FreeSpaceMap& o) {
-  o.blocks_.forEach([&](uint64_t k, const std::unique_ptr<Block>& ob) {
-    auto& mine = blocks_[k];
-    if (!mine) mine = std::make_unique<Block>();
+  o.blocks_.forEach([&](uint64_t k, uint32_t on) {
+    const Block& ob = o.pool_[on - 1];
+    Block& mine = blockOf(k);
     for (int i = 0; i < kVoxels; ++i) {
-      const Voxel* tv = o.find(*ob, i);
+      const Voxel* tv = o.find(ob, i);
       if (!tv || (tv->count == 0 && tv->hits == 0)) continue;
       const Voxel& theirs = *tv;
-      Voxel& m = voxel(*mine, i);
+      Voxel& m = voxel(mine, i);
       if (m.count == 0 && m.hits == 0) {
         m = theirs;
         continue;

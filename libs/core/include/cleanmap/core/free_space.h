@@ -117,36 +117,45 @@ class FreeSpaceMap {
 
  private:
   static constexpr int kSubVoxels = 8, kSubBlocks = 64;  // 2 x 2 x 2 voxels, 64 per block
-  // Objects in chunks of N that never move, numbered in the order added.
-  template <class T, std::size_t N>
+  // Objects in chunks of 2 MiB that never move, numbered in the order added. The chunks are pages
+  // of their own, outside malloc's arenas: the map's memory lives the whole run, and carved from
+  // the holes a scan's freed buffers leave it would pin them, the arenas growing with the drive
+  // (doc/BENCHMARK.md, "The free space in pages of its own"). Untouched pages cost no memory.
+  template <class T>
   class Chunks {
    public:
-    T& add();  // value-initialized in a new chunk; after clear(), as it was left
+    static constexpr std::size_t kBytes = std::size_t(2) << 20, N = kBytes / sizeof(T);
+    Chunks() = default;
+    Chunks(const Chunks&) = delete;
+    Chunks& operator=(const Chunks&) = delete;
+    ~Chunks();
+    T& add();  // a value-initialized one
     T& operator[](std::size_t i) { return chunks_[i / N][i % N]; }
     const T& operator[](std::size_t i) const { return chunks_[i / N][i % N]; }
     std::size_t size() const { return n_; }
     void clear() { n_ = 0; }  // the chunks are kept for the next ones
-    std::size_t bytes() const { return chunks_.size() * N * sizeof(T); }
+    std::size_t bytes() const { return most_ * sizeof(T); }  // of the pages written so far
     void copyFrom(const Chunks& o);  // the same objects under the same numbers
 
    private:
-    std::vector<std::unique_ptr<T[]>> chunks_;
-    std::size_t n_ = 0;
+    std::vector<T*> chunks_;
+    std::size_t n_ = 0, most_ = 0;
   };
   uint32_t newSub();                                // a default one: 1 + its number in subs_
   const Voxel* find(const Block& b, int li) const;  // null: its sub-block is not written yet
   Voxel& voxel(Block& b, int li);                   // allocates its sub-block if needed
   Marks& marksOf(uint64_t key);  // the block's marks for the scan being inserted (made if new)
   const Block* findBlock(uint64_t key) const;
+  Block& blockOf(uint64_t key);  // made if new
   void markNear(const std::array<int64_t, 6>& box);
   MapParams p_;
   double inv_;
-  CellMap<std::unique_ptr<Block>> blocks_;
+  CellMap<uint32_t> blocks_;        // block key -> 1 + its number in pool_
   std::vector<float> azimuth_;      // the scan being inserted: each return's fast::atan2(y, x)
   std::vector<uint64_t> bin_bits_;  // and its azimuth bins holding a return, per elevation band
   // The marks of the blocks the scan being inserted visits, in the order visited (their voxels
   // are updated last); chunks kept from scan to scan.
-  Chunks<Marks, 256> marks_;
+  Chunks<Marks> marks_;
   // The scan's recent blocks, direct-mapped by key (cleared per scan): neighbouring beams and
   // returns meet the same blocks, so most lookups end here in L1 (issue #16).
   struct Recent {
@@ -158,7 +167,8 @@ class FreeSpaceMap {
   std::size_t marked_ = 0;
   GrazingStretches grazing_;  // grazing beams, per scan (DESIGN §2e)
   double bin_min_ = std::numeric_limits<double>::infinity(), bin_max_ = 0;
-  Chunks<SubBlock, 2048> subs_;  // the sub-blocks (blocks number them); freed with the map
+  Chunks<Block> pool_;     // the blocks (blocks_ numbers them)
+  Chunks<SubBlock> subs_;  // the sub-blocks (blocks number them)
 };
 
 }  // namespace cleanmap
