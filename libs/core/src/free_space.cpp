@@ -96,7 +96,7 @@ struct FreeSpaceMap::Block {
 namespace {
 // Whether malloc backs its heap with transparent huge pages (glibc.malloc.hugetlb=1, which the
 // apps set: apps/common/cli.h): the chunks then ask for them too, as they had from the heap.
-bool hugePagesLikeMalloc() {
+[[maybe_unused]] bool hugePagesLikeMalloc() {
   static const bool on = [] {
     const char* t = std::getenv("GLIBC_TUNABLES");
     return t && std::strstr(t, "glibc.malloc.hugetlb=1") != nullptr;
@@ -104,9 +104,22 @@ bool hugePagesLikeMalloc() {
   return on;
 }
 
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+#define CLEANMAP_CHUNKS_ON_HEAP 1  // where the sanitizers watch every access
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer) || __has_feature(thread_sanitizer)
+#define CLEANMAP_CHUNKS_ON_HEAP 1
+#endif
+#endif
+
 // `bytes` (a multiple of 2 MiB) of zeroed pages aligned to 2 MiB (where a huge page can back
 // them), from the kernel.
 void* mapPages(std::size_t bytes) {
+#ifdef CLEANMAP_CHUNKS_ON_HEAP
+  void* p = std::aligned_alloc(64, bytes);  // SubBlock's alignment
+  if (!p) throw std::bad_alloc();
+  return std::memset(p, 0, bytes);
+#else
   constexpr std::size_t kAlign = std::size_t(2) << 20;
   void* p =
       mmap(nullptr, bytes + kAlign, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
@@ -117,15 +130,27 @@ void* mapPages(std::size_t bytes) {
   if (const std::size_t tail = start + kAlign - aligned)
     munmap(reinterpret_cast<void*>(aligned + bytes), tail);
   void* q = reinterpret_cast<void*>(aligned);
+#ifdef MADV_HUGEPAGE
   if (hugePagesLikeMalloc()) madvise(q, bytes, MADV_HUGEPAGE);
+#endif
   return q;
+#endif
+}
+
+void unmapPages(void* p, std::size_t bytes) {
+#ifdef CLEANMAP_CHUNKS_ON_HEAP
+  (void)bytes;
+  std::free(p);
+#else
+  munmap(p, bytes);
+#endif
 }
 }  // namespace
 
 template <class T>
 FreeSpaceMap::Chunks<T>::~Chunks() {
   static_assert(std::is_trivially_destructible_v<T> && N > 0);
-  for (T* c : chunks_) munmap(c, kBytes);
+  for (T* c : chunks_) unmapPages(c, kBytes);
 }
 
 template <class T>
@@ -140,7 +165,7 @@ T& FreeSpaceMap::Chunks<T>::add() {
 
 template <class T>
 void FreeSpaceMap::Chunks<T>::copyFrom(const Chunks& o) {
-  for (T* c : chunks_) munmap(c, kBytes);
+  for (T* c : chunks_) unmapPages(c, kBytes);
   chunks_.clear();
   n_ = most_ = 0;
   chunks_.reserve(o.chunks_.size());
