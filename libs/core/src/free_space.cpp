@@ -177,11 +177,13 @@ void FreeSpaceMap::Chunks<T>::copyFrom(const Chunks& o) {
   n_ = most_ = o.n_;
 }
 
-uint32_t FreeSpaceMap::newSub() {
-  if (subs_.size() == std::numeric_limits<uint32_t>::max())  // 512 GiB of sub-blocks
-    throw std::length_error("FreeSpaceMap: more sub-blocks than 32-bit numbers: split the drive");
-  subs_.add();
-  return static_cast<uint32_t>(subs_.size());
+template <class T>
+uint32_t FreeSpaceMap::addNumbered(Chunks<T>& c, const char* what) {
+  if (c.size() == std::numeric_limits<uint32_t>::max())  // 512 GiB of sub-blocks, 1 TiB of blocks
+    throw std::length_error(std::string("FreeSpaceMap: more ") + what +
+                            " than 32-bit numbers: split the drive");
+  c.add();
+  return static_cast<uint32_t>(c.size());
 }
 
 inline const FreeSpaceMap::Voxel* FreeSpaceMap::find(const Block& b, int li) const {
@@ -193,7 +195,7 @@ inline const FreeSpaceMap::Voxel* FreeSpaceMap::find(const Block& b, int li) con
 // function would be called through the PLT.
 inline FreeSpaceMap::Voxel& FreeSpaceMap::voxel(Block& b, int li) {
   uint32_t& s = b.sub[Block::subOf(li)];
-  if (!s) s = newSub();
+  if (!s) s = addNumbered(subs_, "sub-blocks");
   return subs_[s - 1].v[Block::innerOf(li)];
 }
 
@@ -312,11 +314,9 @@ const FreeSpaceMap::Block* FreeSpaceMap::findBlock(uint64_t key) const {
 
 FreeSpaceMap::Block& FreeSpaceMap::blockOf(uint64_t key) {
   if (const uint32_t* n = blocks_.find(key)) return pool_[*n - 1];
-  if (pool_.size() == std::numeric_limits<uint32_t>::max())
-    throw std::length_error("FreeSpaceMap: more blocks than 32-bit numbers: split the drive");
-  Block& b = pool_.add();  // numbered only once it exists: a failed add leaves no number
-  blocks_[key] = static_cast<uint32_t>(pool_.size());
-  return b;
+  const uint32_t n = addNumbered(pool_, "blocks");  // a failed add leaves no number in blocks_
+  blocks_[key] = n;
+  return pool_[n - 1];
 }
 
 std::size_t FreeSpaceMap::bytes() const {

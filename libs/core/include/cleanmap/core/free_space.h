@@ -141,7 +141,10 @@ class FreeSpaceMap {
     std::vector<T*> chunks_;
     std::size_t n_ = 0, most_ = 0;
   };
-  uint32_t newSub();                                // a default one: 1 + its number in subs_
+  // A new (value-initialized) object of `c` and its number, 1 + its place: the blocks and
+  // sub-blocks are numbered in 32 bits (0: none); beyond, a one-line error naming `what`.
+  template <class T>
+  static uint32_t addNumbered(Chunks<T>& c, const char* what);
   const Voxel* find(const Block& b, int li) const;  // null: its sub-block is not written yet
   Voxel& voxel(Block& b, int li);                   // allocates its sub-block if needed
   Marks& marksOf(uint64_t key);  // the block's marks for the scan being inserted (made if new)
