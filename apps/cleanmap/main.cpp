@@ -17,6 +17,7 @@
 #include "../common/memory.h"
 #include "cleanmap/core/error.h"
 #include "cleanmap/core/params.h"
+#include "cleanmap/core/sanitized.h"
 
 #include "cleanmap/core/stopwatch.h"
 #include "cleanmap/io/config.h"
@@ -45,15 +46,6 @@ struct Interrupted {
 void checkSignal() {
   if (g_signal) throw Interrupted{static_cast<int>(g_signal)};
 }
-
-#if defined(__has_feature)
-#if __has_feature(address_sanitizer) || __has_feature(thread_sanitizer)
-#define CLEANMAP_SANITIZED 1
-#endif
-#endif
-#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
-#define CLEANMAP_SANITIZED 1
-#endif
 
 // Ends the process once its outputs are published: streams flushed, no destructors, no library
 // finalizers. Under AddressSanitizer or ThreadSanitizer the process returns normally, so the leak

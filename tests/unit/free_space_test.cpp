@@ -8,6 +8,7 @@
 #include <string>
 
 #include "cleanmap/core/free_space.h"
+#include "cleanmap/core/sanitized.h"
 
 #if defined(__GLIBC__)
 #include <malloc.h>
@@ -498,14 +499,6 @@ TEST(FreeSpace, ScanIndicesUpToTheLargestItCountsAndAClearErrorBeyond) {
   }
   EXPECT_EQ(fs.evidence({10.05f, 0.f, 0.f}), e);  // a refused scan changes nothing
 }
-
-#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
-#define CLEANMAP_SANITIZED 1
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer) || __has_feature(thread_sanitizer)
-#define CLEANMAP_SANITIZED 1
-#endif
-#endif
 
 TEST(FreeSpace, TheVoxelsLiveInPagesOfTheirOwnNotInMallocsHeap) {
   // The map's memory lives the whole run: carved from the holes a scan's freed buffers leave in

@@ -18,6 +18,7 @@
 
 #include "cleanmap/core/cell_key.h"
 #include "cleanmap/core/fast_math.h"
+#include "cleanmap/core/sanitized.h"
 
 namespace cleanmap {
 namespace {
@@ -104,18 +105,10 @@ namespace {
   return on;
 }
 
-#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
-#define CLEANMAP_CHUNKS_ON_HEAP 1  // where the sanitizers watch every access
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer) || __has_feature(thread_sanitizer)
-#define CLEANMAP_CHUNKS_ON_HEAP 1
-#endif
-#endif
-
 // `bytes` (a multiple of 2 MiB) of zeroed pages aligned to 2 MiB (where a huge page can back
 // them), from the kernel.
 void* mapPages(std::size_t bytes) {
-#ifdef CLEANMAP_CHUNKS_ON_HEAP
+#ifdef CLEANMAP_SANITIZED                   // on the heap, where the sanitizers watch every access
   void* p = std::aligned_alloc(64, bytes);  // SubBlock's alignment
   if (!p) throw std::bad_alloc();
   return std::memset(p, 0, bytes);
@@ -138,7 +131,7 @@ void* mapPages(std::size_t bytes) {
 }
 
 void unmapPages(void* p, std::size_t bytes) {
-#ifdef CLEANMAP_CHUNKS_ON_HEAP
+#ifdef CLEANMAP_SANITIZED
   (void)bytes;
   std::free(p);
 #else
