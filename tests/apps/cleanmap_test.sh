@@ -270,6 +270,18 @@ diff -rq "$scratch/ini/labels" "$scratch/noini/labels" >/dev/null || fail "confi
 out=$("$bin/cleanmap" "$seq" -o "$scratch/ini1" --quiet --last 6 -c "$ini" --threads 1) ||
   fail "run with --threads 1 failed"
 grep -q "cleanmap: 7 scans in .*; results in $scratch/ini1" <<<"$out" || fail "the run's summary line is missing: $out"
+# The line and report.json `process` say the whole command: the scans, the start-up before them
+# and the map's final decision after them add up to it, and its CPU is that of a run.
+grep -q "cleanmap: 7 scans in [0-9.]* s, [0-9.]* s in all (start-up [0-9.]* s, the map's final decision and files [0-9.]* s)" <<<"$out" ||
+  fail "the summary line does not say the whole run's time: $out"
+python3 - "$scratch/ini1/report.json" <<'PY' || fail "report.json process does not add up"
+import json, sys
+r = json.load(open(sys.argv[1]))
+p = r["process"]
+assert p["start_s"] > 0 and p["end_s"] > 0 and p["cpu_s"] > 0, p
+assert abs(p["start_s"] + r["wall_s"] + p["end_s"] - p["wall_s"]) < 1e-6, (p, r["wall_s"])
+assert p["wall_s"] < 600, p
+PY
 "$bin/cleanmap" "$seq" -o "$scratch/ini2" --quiet --last 6 -c "$ini" --threads 2 >/dev/null ||
   fail "run with --threads 2 failed"
 for f in ground_model.ply ground_model.txt; do

@@ -147,6 +147,60 @@ TEST(Output, TheSteadyIntervalIsTheTimeBetweenDecisions) {
   EXPECT_NEAR(t.at("mean_ms").get<double>(), 30.0, 1e-6);
 }
 
+// The process's clocks (report.json `process`): its age runs with the wall clock and began before
+// this test program's code was loaded; its CPU counts the work of its threads.
+const auto kLoaded = std::chrono::steady_clock::now();
+
+TEST(Output, TheProcessClocksRunFromTheProcesssStart) {
+  const auto age0 = io::processAgeSeconds();
+  ASSERT_TRUE(age0.has_value()) << "/proc/self/stat is unreadable";
+  const double since_loaded =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - kLoaded).count();
+  EXPECT_GE(*age0, since_loaded - 0.011);  // the start time is in 10 ms ticks
+  EXPECT_LT(*age0, 3600.0);
+  const double cpu0 = io::processCpuSeconds();
+  std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  const auto age1 = io::processAgeSeconds();
+  ASSERT_TRUE(age1.has_value());
+  EXPECT_GE(*age1 - *age0, 0.099);
+  EXPECT_LT(*age1 - *age0, 5.0);
+  // 100 ms of arithmetic on another thread: the process's CPU grows by most of it (a loaded
+  // machine may lend the thread less than the whole core, never more).
+  std::thread busy([] {
+    const auto until = std::chrono::steady_clock::now() + std::chrono::milliseconds(100);
+    volatile double x = 0;
+    while (std::chrono::steady_clock::now() < until) x = x + 1;
+  });
+  busy.join();
+  EXPECT_GT(io::processCpuSeconds() - cpu0, 0.02);
+}
+
+// report.json `process`: the command's whole time, of which `wall_s` (the scans) is a part. A
+// writer made, 60 ms of other work, then the scans said to take 10 ms: 50 ms and more are left to
+// the end (in the app, the map's final decision and files).
+TEST(Output, TheReportSaysTheWholeProcessAndItsParts) {
+  const auto dir = test::scratchDir("output_process");
+  {
+    io::OutputWriter w((dir / "out").string(), "input", PipelineParams{});
+    ASSERT_TRUE(w.startSeconds().has_value());
+    std::this_thread::sleep_for(std::chrono::milliseconds(60));
+    for (std::size_t i = 0; i < 4; ++i) w.write(result(i, 5), std::nullopt);
+    w.finish(0.01);
+  }
+  const auto j = nlohmann::json::parse(io::readTextFile((dir / "out/report.json").string()));
+  const auto& p = j.at("process");
+  const double all = p.at("wall_s").get<double>(), start = p.at("start_s").get<double>();
+  EXPECT_GE(start, 0.0);
+  EXPECT_GE(all, start + 0.01 + 0.05);
+  EXPECT_GE(p.at("end_s").get<double>(), 0.05);
+  EXPECT_NEAR(p.at("end_s").get<double>(), all - start - 0.01, 1e-9);
+  EXPECT_NEAR(p.at("wall_per_scan_ms").get<double>(), 1000 * all / 4, 1e-9);
+  EXPECT_GT(p.at("cpu_s").get<double>(), 0.0);
+  EXPECT_NEAR(p.at("cpu_per_scan_ms").get<double>(), 1000 * p.at("cpu_s").get<double>() / 4, 1e-9);
+  EXPECT_NE(io::readTextFile((dir / "out/report.md").string()).find(" s in all"),
+            std::string::npos);
+}
+
 // report.json `map.clean_passes_ms`: the map's decision pass by pass (DESIGN §2e, "Objects"). With
 // the objects decided both ways the three passes run, each a part of `clean_ms`; one way (the
 // objects off), the writing pass is the whole decision.

@@ -67,6 +67,47 @@ double peakRssMiB() {
   return static_cast<double>(ru.ru_maxrss) / 1024.0;
 }
 
+std::optional<double> processAgeSeconds() {
+#if defined(__linux__)
+  // Field 22 of /proc/self/stat, the start in clock ticks since boot; the fields are counted
+  // after the command's name, which is in parentheses and may hold spaces or parentheses.
+  std::FILE* f = std::fopen("/proc/self/stat", "r");
+  if (!f) return std::nullopt;
+  char buf[1024];
+  const std::size_t n = std::fread(buf, 1, sizeof buf - 1, f);
+  std::fclose(f);
+  buf[n] = '\0';
+  const char* p = std::strrchr(buf, ')');
+  if (!p) return std::nullopt;
+  ++p;
+  for (int field = 3; field <= 22; ++field) {  // p: before the space ahead of `field`
+    while (*p == ' ') ++p;
+    if (*p == '\0') return std::nullopt;
+    if (field == 22) break;
+    while (*p != ' ' && *p != '\0') ++p;
+  }
+  char* end = nullptr;
+  const unsigned long long ticks = std::strtoull(p, &end, 10);
+  const long hz = sysconf(_SC_CLK_TCK);
+  timespec now{};
+  if (end == p || hz <= 0 || clock_gettime(CLOCK_BOOTTIME, &now) != 0) return std::nullopt;
+  const double age = static_cast<double>(now.tv_sec) + 1e-9 * static_cast<double>(now.tv_nsec) -
+                     static_cast<double>(ticks) / static_cast<double>(hz);
+  return age >= 0 ? std::optional<double>(age) : std::nullopt;
+#else
+  return std::nullopt;
+#endif
+}
+
+double processCpuSeconds() {
+  rusage ru{};
+  getrusage(RUSAGE_SELF, &ru);
+  const auto sec = [](const timeval& t) {
+    return static_cast<double>(t.tv_sec) + 1e-6 * static_cast<double>(t.tv_usec);
+  };
+  return sec(ru.ru_utime) + sec(ru.ru_stime);
+}
+
 bool isCleanmapRun(const std::string& dir) {
   const fs::path report = fs::path(dir) / "report.json";
   std::error_code ec;
@@ -88,7 +129,7 @@ void checkOutputFolder(const std::string& outdir, const OutputOptions& opts) {
 
 OutputWriter::OutputWriter(const std::string& outdir, const std::string& input,
                            const PipelineParams& params, const OutputOptions& opts)
-    : dir_(outdir), input_(input), params_(params) {
+    : dir_(outdir), input_(input), params_(params), started_s_(processAgeSeconds()) {
   while (dir_.size() > 1 && dir_.back() == '/') dir_.pop_back();
   checkOutputFolder(dir_, opts);
   staged_ = std::make_unique<StagedFolder>(dir_, "cleanmap");
@@ -725,6 +766,21 @@ void OutputWriter::finish(double wall_s, const FreeSpaceMap* free_space) {
   if (!output_ms_.empty()) j["output_ms"] = output_ms_;
   j["threads"] = params_.threads;
   j["peak_rss_mib"] = peakRssMiB();
+  // The whole process up to this report, as a user times the command (issue #16's bars): wall_s
+  // above is the scans' alone, without the start-up before them (libraries, configuration, the
+  // input opened) and the map's final decision and files after them.
+  const double cpu_s = processCpuSeconds();
+  const std::optional<double> age_s = processAgeSeconds();
+  const double n_scans = static_cast<double>(std::max<std::size_t>(stats_.size(), 1));
+  j["process"] = {{"cpu_s", cpu_s}, {"cpu_per_scan_ms", 1000 * cpu_s / n_scans}};
+  if (age_s) {
+    j["process"]["wall_s"] = *age_s;
+    j["process"]["wall_per_scan_ms"] = 1000 * *age_s / n_scans;
+    if (started_s_) {
+      j["process"]["start_s"] = *started_s_;
+      j["process"]["end_s"] = std::max(0.0, *age_s - *started_s_ - wall_s);
+    }
+  }
   j["params_ini"] = toIni(params_);
   if (has_eval_) {
     j["evaluation"] = countsJson(eval_);
@@ -737,7 +793,9 @@ void OutputWriter::finish(double wall_s, const FreeSpaceMap* free_space) {
   writeFileAtomic(staging_ + "/report.md", [&](std::ostream& os) {
     char buf[512];
     os << "# cleanmap run report\n\nInput: `" << input_ << "`, " << stats_.size() << " scans, "
-       << params_.threads << " threads, wall " << wall_s << " s, peak RSS " << peakRssMiB()
+       << params_.threads << " threads, wall " << wall_s << " s";
+    if (age_s) os << " (the scans; " << *age_s << " s in all)";
+    os << ", CPU " << cpu_s << " s, peak RSS " << peakRssMiB()
        << " MiB.\n\n## Counts\n| points | in crop | ground | duplicates | tested | moving | static "
           "| empty scans | total conflicts | conflicting scan votes | no evidence |\n"
           "|---|---|---|---|---|---|---|---|---|---|---|\n";

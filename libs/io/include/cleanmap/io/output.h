@@ -99,6 +99,9 @@ class OutputWriter {
     return staging_;
   }  ///< where files are written until finish()
   std::size_t scans() const { return stats_.size(); }
+  /// The process's age when this writer was made, just before the first scan is read: the
+  /// start-up (processAgeSeconds; nullopt where unknown).
+  std::optional<double> startSeconds() const { return started_s_; }
   /// DESIGN §2a: the sensor's height above the ground measured over the run so far (the median of
   /// the scans' measurements), nullopt if no scan could be measured.
   std::optional<double> measuredSensorHeight() const;
@@ -147,9 +150,16 @@ class OutputWriter {
   std::map<std::string, double> output_ms_;
   std::size_t relabelled_static_ = 0, relabelled_moving_ = 0;
   bool has_relabel_truth_ = false;
+  std::optional<double> started_s_;  // the process's age when the writer was made (its start-up)
 };
 
 /// Peak resident memory of this process, MiB.
 double peakRssMiB();
+/// Seconds since the kernel started this process (so the loading of its libraries counts, and a
+/// launcher's exec of it): /proc/self/stat's start time against CLOCK_BOOTTIME, 10 ms steps.
+/// nullopt where that cannot be read (not Linux, no /proc).
+std::optional<double> processAgeSeconds();
+/// User + system CPU seconds of every thread of this process so far, ended threads included.
+double processCpuSeconds();
 
 }  // namespace cleanmap::io
