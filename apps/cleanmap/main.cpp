@@ -1,7 +1,6 @@
 // SPDX-License-Identifier: BSD-3-Clause
 // cleanmap: moving-object removal over a KITTI folder or an MRPT rawlog (DESIGN §2, §4).
 #include <unistd.h>
-#include <algorithm>
 #include <chrono>
 
 #include <csignal>
@@ -480,14 +479,13 @@ int main(int argc, char** argv) {
                    n, out.scans(), why.c_str());
     }
     // The scans' time, and the command's: the start-up before them and the map's final decision
-    // after them take a fifth to a third of a short run (report.json `process`).
-    const auto age = cleanmap::io::processAgeSeconds();
-    const auto start = out.startSeconds();
-    if (age && start)
+    // after them take a fifth to a third of a short run (report.json `process`, the same values).
+    const auto& pt = out.processTimes();
+    if (pt.wall_s && pt.end_s)
       std::printf(
           "cleanmap: %zu scans in %.1f s, %.1f s in all (start-up %.1f s, the map's final "
           "decision and files %.1f s); results in %s\n",
-          out.scans(), wall, *age, *start, std::max(0.0, *age - *start - wall), outdir.c_str());
+          out.scans(), wall, *pt.wall_s, *out.startSeconds(), *pt.end_s, outdir.c_str());
     else
       std::printf("cleanmap: %zu scans in %.1f s; results in %s\n", out.scans(), wall,
                   outdir.c_str());

@@ -769,16 +769,20 @@ void OutputWriter::finish(double wall_s, const FreeSpaceMap* free_space) {
   // The whole process up to this report, as a user times the command (issue #16's bars): wall_s
   // above is the scans' alone, without the start-up before them (libraries, configuration, the
   // input opened) and the map's final decision and files after them.
-  const double cpu_s = processCpuSeconds();
-  const std::optional<double> age_s = processAgeSeconds();
+  process_.cpu_s = processCpuSeconds();
+  process_.wall_s = processAgeSeconds();
+  if (process_.wall_s && started_s_)
+    process_.end_s = std::max(0.0, *process_.wall_s - *started_s_ - wall_s);
+  const double cpu_s = process_.cpu_s;
+  const std::optional<double> age_s = process_.wall_s;
   const double n_scans = static_cast<double>(std::max<std::size_t>(stats_.size(), 1));
   j["process"] = {{"cpu_s", cpu_s}, {"cpu_per_scan_ms", 1000 * cpu_s / n_scans}};
   if (age_s) {
     j["process"]["wall_s"] = *age_s;
     j["process"]["wall_per_scan_ms"] = 1000 * *age_s / n_scans;
-    if (started_s_) {
+    if (process_.end_s) {
       j["process"]["start_s"] = *started_s_;
-      j["process"]["end_s"] = std::max(0.0, *age_s - *started_s_ - wall_s);
+      j["process"]["end_s"] = *process_.end_s;
     }
   }
   j["params_ini"] = toIni(params_);

@@ -102,6 +102,13 @@ class OutputWriter {
   /// The process's age when this writer was made, just before the first scan is read: the
   /// start-up (processAgeSeconds; nullopt where unknown).
   std::optional<double> startSeconds() const { return started_s_; }
+  /// report.json `process` as finish() wrote it: the whole command's wall (its age, nullopt where
+  /// unknown) and the map's end after the scans (nullopt where the start is unknown).
+  struct ProcessTimes {
+    double cpu_s = 0;
+    std::optional<double> wall_s, end_s;
+  };
+  const ProcessTimes& processTimes() const { return process_; }
   /// DESIGN §2a: the sensor's height above the ground measured over the run so far (the median of
   /// the scans' measurements), nullopt if no scan could be measured.
   std::optional<double> measuredSensorHeight() const;
@@ -151,6 +158,7 @@ class OutputWriter {
   std::size_t relabelled_static_ = 0, relabelled_moving_ = 0;
   bool has_relabel_truth_ = false;
   std::optional<double> started_s_;  // the process's age when the writer was made (its start-up)
+  ProcessTimes process_;             // set by finish()
 };
 
 /// Peak resident memory of this process, MiB.
