@@ -21,6 +21,7 @@
 
 #include "../common/cli.h"
 #include "../common/memory.h"
+#include "../common/process_times.h"
 #include "cleanmap/core/error.h"
 #include "cleanmap/core/free_space.h"
 #include "cleanmap/io/files.h"
@@ -211,8 +212,9 @@ int main(int argc, char** argv) {
       throw cleanmap::Error((staging / "maps.3Dscene").string(), "cannot be written");
     maps.saveMetricMapRepresentationToFile((staging / "map").string());
     staged.publish();
-    std::printf("cleanmap-build-map: %zu scans into %zu maps; results in %s\n", scans,
-                maps.maps.size(), outdir.c_str());
+    // The whole command, as `time` sees it (its re-execution and MRPT's loading included).
+    std::printf("cleanmap-build-map: %zu scans into %zu maps%s; results in %s\n", scans,
+                maps.maps.size(), cleanmap::cli::processTimesText().c_str(), outdir.c_str());
   } catch (const std::exception& e) {
     std::cerr << "cleanmap-build-map: error: "
               << cleanmap::io::messageWithoutStaging(cleanmap::cli::errorLine(e), outdir,

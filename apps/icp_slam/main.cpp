@@ -16,6 +16,7 @@
 
 #include "../common/cli.h"
 #include "../common/memory.h"
+#include "../common/process_times.h"
 #include "cleanmap/maps/map_config.h"
 #include "cleanmap/maps/moving_objects_map.h"
 
@@ -78,6 +79,9 @@ class App : public ::mrpt::apps::ICP_SLAM_App_Rawlog {
     return true;
   }
 
+ public:
+  std::size_t entries() const { return entries_; }
+
  private:
   cleanmap::cli::FreeSpaceWarning memory_warning_{"cleanmap-icp-slam", "(rawlog-edit --cut)"};
   std::size_t entries_ = 0;
@@ -100,6 +104,10 @@ int main(int argc, char** argv) {
     app.quits_with_esc_key = false;
     app.initialize(argc, argv);
     app.run();
+    // The whole command (the ini's logOutput_dir is required by MRPT's run()).
+    std::printf("cleanmap-icp-slam: %zu rawlog entries%s; results in %s\n", app.entries(),
+                cleanmap::cli::processTimesText().c_str(),
+                app.params.read_string("MappingApplication", "logOutput_dir", "log_out").c_str());
   } catch (const std::exception& e) {
     std::cerr << "cleanmap-icp-slam: error: " << cleanmap::cli::errorLine(e) << "\n";
     return 1;

@@ -20,8 +20,19 @@ n=$(ls "$city/velodyne" | wc -l)
 # layer's free space grows with the ground covered (DESIGN §2e): past half the memory (here set
 # to 1 MiB) one warning, and the SLAM goes on.
 sed "s|^logOutput_dir = .*|logOutput_dir = $scratch/slam|" "$config/icp_slam_kitti.ini" >"$scratch/slam.ini"
+t0=$(date +%s.%N)
 CLEANMAP_MEMORY_MIB=1 "$bin/cleanmap-icp-slam" "$scratch/slam.ini" "$scratch/city.rawlog" >"$scratch/slam.log" 2>"$scratch/slam.err" ||
   fail "cleanmap-icp-slam failed: $(tail -1 "$scratch/slam.err")"
+t1=$(date +%s.%N)
+# Its last line says what it read and the whole command's time, as this script measured it
+# (within the exit after the line and the clocks' 10 ms steps).
+line=$(tail -1 "$scratch/slam.log")
+[[ $line =~ ^cleanmap-icp-slam:\ ([0-9]+)\ rawlog\ entries\ in\ ([0-9.]+)\ s\ \(CPU\ ([0-9.]+)\ s\)\;\ results\ in\ $scratch/slam$ ]] ||
+  fail "ICP-SLAM's last line: $line"
+m=$(awk -v a="$t0" -v b="$t1" 'BEGIN {print b - a}')
+awk -v e="${BASH_REMATCH[1]}" -v w="${BASH_REMATCH[2]}" -v c="${BASH_REMATCH[3]}" -v n="$n" -v m="$m" \
+  'BEGIN {exit !(e >= n && w > 0.5 * m - 0.2 && w <= m + 0.1 && c > 0)}' ||
+  fail "ICP-SLAM's line against $n scans in $m s: $line"
 [[ $(grep -c "^cleanmap-icp-slam: warning: the free-space map holds [0-9]* MiB after [0-9]* scans\?, over half of the 1 MiB of memory here; .* (static_map.clean = 0)$" "$scratch/slam.err") -eq 1 ]] ||
   fail "not one memory warning from ICP-SLAM: $(head -3 "$scratch/slam.err")"
 # Tracking: the distance driven after the last scan matches KITTI's ground truth within 3 %
@@ -67,8 +78,16 @@ expect_error 1 "unknown map 'cleanmap_movng'" "$bin/cleanmap-icp-slam" "$scratch
 # The map builder, from the posed rawlog and from a .simplemap. Its moving layer's free space
 # grows with the ground covered (DESIGN §2e): past half the memory (here set to 1 MiB) one warning,
 # and the build goes on.
-CLEANMAP_MEMORY_MIB=1 "$bin/cleanmap-build-map" "$scratch/city.rawlog" -c "$config/cleanmap.ini" -o "$scratch/built" >/dev/null 2>"$scratch/built.err" ||
+t0=$(date +%s.%N)
+CLEANMAP_MEMORY_MIB=1 "$bin/cleanmap-build-map" "$scratch/city.rawlog" -c "$config/cleanmap.ini" -o "$scratch/built" >"$scratch/built.log" 2>"$scratch/built.err" ||
   fail "cleanmap-build-map on a rawlog failed"
+t1=$(date +%s.%N)
+line=$(tail -1 "$scratch/built.log")
+[[ $line =~ ^cleanmap-build-map:\ $n\ scans\ into\ 2\ maps\ in\ ([0-9.]+)\ s\ \(CPU\ ([0-9.]+)\ s\)\;\ results\ in\ $scratch/built$ ]] ||
+  fail "the builder's last line: $line"
+m=$(awk -v a="$t0" -v b="$t1" 'BEGIN {print b - a}')
+awk -v w="${BASH_REMATCH[1]}" -v c="${BASH_REMATCH[2]}" -v m="$m" \
+  'BEGIN {exit !(w > 0.5 * m - 0.2 && w <= m + 0.1 && c > 0)}' || fail "the builder's line against $m s: $line"
 [[ $(grep -c "^cleanmap-build-map: warning: the free-space map holds [0-9]* MiB after [0-9]* scans\?, over half of the 1 MiB of memory here; .* (static_map.clean = 0)$" "$scratch/built.err") -eq 1 ]] ||
   fail "not one memory warning from the builder: $(cat "$scratch/built.err")"
 [[ $(grep -vc '^#' "$scratch"/built/*_trajectory.txt) -eq $n ]] || fail "the builder decided too few scans"
