@@ -11,6 +11,7 @@ each moving object's points labelled moving. Variants:
   mov_slow  every mover at 0.5x     mov_fast  every mover at 1.5x
   noisy     twice the range noise   hdl32     an HDL-32E instead of the scene's lidar
   vlp16     a VLP-16 instead of the scene's lidar (not in the default list)
+  os1_64, os1_128  an Ouster OS1-64 / OS1-128 instead (1024 columns; not in the default list)
   accel     movers pull away and brake at 2 m/s2 instead of changing speed at once (not in the
             default list; only scenes whose movers wait or stop change)
 The bars the named tests check are for the shipped scenes; this looks around them. A run's
@@ -29,8 +30,9 @@ import sys
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 VARIANTS = ["base", "seed", "ego_slow", "ego_fast", "mov_slow", "mov_fast", "noisy", "hdl32"]
-OPTIONAL = ["vlp16", "accel"]  # variants run only when named
-SENSORS = {"hdl32": "hdl32", "vlp16": "vlp16"}  # variant -> the [sensor] model preset it uses
+OPTIONAL = ["vlp16", "os1_64", "os1_128", "accel"]  # variants run only when named
+# variant -> the [sensor] model preset it uses
+SENSORS = {"hdl32": "hdl32", "vlp16": "vlp16", "os1_64": "os1-64", "os1_128": "os1-128"}
 # (section, key) -> factor, per variant
 SCALE = {
     "ego_slow": ("ego", "speed", 0.6),
