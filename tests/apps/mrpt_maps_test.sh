@@ -27,7 +27,7 @@ t1=$(date +%s.%N)
 # Its last line says what it read and the whole command's time, as this script measured it
 # (within the exit after the line and the clocks' 10 ms steps).
 line=$(tail -1 "$scratch/slam.log")
-[[ $line =~ ^cleanmap-icp-slam:\ ([0-9]+)\ rawlog\ entries\ in\ ([0-9.]+)\ s\ \(CPU\ ([0-9.]+)\ s\)\;\ results\ in\ $scratch/slam$ ]] ||
+[[ $line =~ ^cleanmap-icp-slam:\ ([0-9]+)\ rawlog\ entries\ in\ ([0-9.]+)\ s\ \(CPU\ ([0-9.]+)\ s\)\;\ results\ in\ "$scratch"/slam$ ]] ||
   fail "ICP-SLAM's last line: $line"
 m=$(awk -v a="$t0" -v b="$t1" 'BEGIN {print b - a}')
 awk -v e="${BASH_REMATCH[1]}" -v w="${BASH_REMATCH[2]}" -v c="${BASH_REMATCH[3]}" -v n="$n" -v m="$m" \
@@ -83,7 +83,7 @@ CLEANMAP_MEMORY_MIB=1 "$bin/cleanmap-build-map" "$scratch/city.rawlog" -c "$conf
   fail "cleanmap-build-map on a rawlog failed"
 t1=$(date +%s.%N)
 line=$(tail -1 "$scratch/built.log")
-[[ $line =~ ^cleanmap-build-map:\ $n\ scans\ into\ 2\ maps\ in\ ([0-9.]+)\ s\ \(CPU\ ([0-9.]+)\ s\)\;\ results\ in\ $scratch/built$ ]] ||
+[[ $line =~ ^cleanmap-build-map:\ $n\ scans\ into\ 2\ maps\ in\ ([0-9.]+)\ s\ \(CPU\ ([0-9.]+)\ s\)\;\ results\ in\ "$scratch"/built$ ]] ||
   fail "the builder's last line: $line"
 m=$(awk -v a="$t0" -v b="$t1" 'BEGIN {print b - a}')
 awk -v w="${BASH_REMATCH[1]}" -v c="${BASH_REMATCH[2]}" -v m="$m" \

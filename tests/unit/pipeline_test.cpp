@@ -830,6 +830,95 @@ TEST(MovingTest, BeamsPassingOverAnEdgeDoNotVote) {
 
 namespace {
 
+// An Ouster-like lidar at the origin: rings 0.53 degrees apart (-2.65 .. +2.65), columns every
+// 0.35 degrees within +-10 degrees starting at `phase`; each ray returns at range(az_rad, u)
+// metres along its unit direction u.
+template <class F>
+std::vector<PointXYZI> coarseColumns(double phase_deg, F&& range) {
+  constexpr double kDeg = M_PI / 180.0;
+  std::vector<PointXYZI> scan;
+  for (int k = -5; k <= 5; ++k)
+    for (int a = -28; a <= 28; ++a) {
+      const double el = 0.53 * k * kDeg, az = (phase_deg + 0.35 * a) * kDeg;
+      const Eigen::Vector3d u(std::cos(el) * std::cos(az), std::cos(el) * std::sin(az),
+                              std::sin(el));
+      const double r = range(az, u);
+      if (std::isfinite(r)) {
+        const Eigen::Vector3d h = u * r;
+        scan.push_back({float(h.x()), float(h.y()), float(h.z()), 0.5f});
+      }
+    }
+  return scan;
+}
+
+// The range along u (azimuth az) to a vertical cylinder of radius rc > 0 around (cx, 0), or
+// where the ray misses it, to the wall x = 24.
+double poleOrWall(double az, const Eigen::Vector3d& u, double cx, double rc) {
+  const double b = std::cos(az) * cx, disc = b * b - (cx * cx - rc * rc);
+  const double horizontal = rc > 0 && disc >= 0 ? b - std::sqrt(disc) : 24.0 / std::cos(az);
+  return horizontal / std::hypot(u.x(), u.y());
+}
+
+}  // namespace
+
+TEST(MovingTest, APoleNarrowerThanAColumnGetsNoVote) {
+  // DESIGN §2b, "Coarse columns": an Ouster at 1024 columns (0.35 degrees) and a pole of 4 cm
+  // radius 20 m ahead (0.23 degrees wide) before a wall at 24 m. P's own scan hits the pole with
+  // its column at 0 degrees; its neighbours at +-0.35 pass it to the wall: P is isolated. A
+  // scan whose columns lie at +-0.175 degrees passes the pole on both sides (6 cm from its
+  // axis) and would call it moving; with kColumnIsolated it votes nothing. The HDL-64E's
+  // columns (column_step 0) never isolate a point.
+  constexpr double kDeg = M_PI / 180.0;
+  const DsParams p;
+  const MovingTest t(p);
+  auto pole = [](double cx, double rc) {
+    return [cx, rc](double az, const Eigen::Vector3d& u) { return poleOrWall(az, u, cx, rc); };
+  };
+  const auto own_scan = coarseColumns(0.0, pole(20.0, 0.04));
+  const BeamIndex own_idx(own_scan, t.searchRadius());
+  const WindowScan own{&own_idx, Eigen::Isometry3d::Identity(), 0.0, 0.53 * kDeg, 0, 0.35 * kDeg};
+  const Eigen::Vector3f on_pole(19.96f, 0.0f, 0.0f), on_wall(24.0f, 24.0f * 0.0524f, 0.0f);
+  EXPECT_EQ(t.edgesOf(on_pole, own), kColumnIsolated);
+  EXPECT_EQ(t.edgesOf(on_wall, own), 0);
+  WindowScan fine = own;
+  fine.column_step = 0.0;
+  EXPECT_EQ(t.edgesOf(on_pole, fine), 0);
+  // A trunk of 0.3 m radius: its neighbouring columns return from it, 2.5 cm further.
+  const auto trunk_scan = coarseColumns(0.0, pole(20.0, 0.3));
+  const BeamIndex trunk_idx(trunk_scan, t.searchRadius());
+  const WindowScan trunk{&trunk_idx, Eigen::Isometry3d::Identity(), 0.0, 0.53 * kDeg, 0,
+                         0.35 * kDeg};
+  EXPECT_EQ(t.edgesOf(Eigen::Vector3f(19.7f, 0.0f, 0.0f), trunk), 0);
+  // A wall seen 15 degrees from grazing: one neighbour 0.44 m nearer, the other 0.47 m further.
+  const double s15 = std::sin(15 * kDeg), c15 = std::cos(15 * kDeg);
+  const auto oblique_scan = coarseColumns(0.0, [&](double az, const Eigen::Vector3d& u) {
+    // the line through (20, 0) along (c15, s15): t (cos az, sin az) on it
+    const double horizontal = 20.0 * s15 / (s15 * std::cos(az) - c15 * std::sin(az));
+    return horizontal > 0 ? horizontal / std::hypot(u.x(), u.y())
+                          : std::numeric_limits<double>::infinity();
+  });
+  const BeamIndex oblique_idx(oblique_scan, t.searchRadius());
+  const WindowScan oblique{&oblique_idx, Eigen::Isometry3d::Identity(), 0.0, 0.53 * kDeg, 0,
+                           0.35 * kDeg};
+  EXPECT_EQ(t.edgesOf(Eigen::Vector3f(20.0f, 0.0f, 0.0f), oblique), 0);
+  // The straddling scan.
+  const auto straddle_scan = coarseColumns(0.175, pole(20.0, 0.04));
+  const BeamIndex straddle_idx(straddle_scan, t.searchRadius());
+  const WindowScan straddle{&straddle_idx, Eigen::Isometry3d::Identity(), 0.0, 0.53 * kDeg};
+  const Eigen::Vector3d P = on_pole.cast<double>();
+  EXPECT_TRUE(t.isMoving(P, {straddle}, nullptr));
+  EXPECT_FALSE(t.isMoving(P, {straddle}, nullptr, kColumnIsolated));
+  EXPECT_EQ(t.scanMass(P, straddle, nullptr, nullptr, kColumnIsolated).u, 1.0);
+  // Where the pole has gone, the own scan's neighbours still pass: it is the rule's price.
+  const auto gone_scan = coarseColumns(0.0, pole(20.0, 0.0));  // rc 0: the wall alone
+  const BeamIndex gone_idx(gone_scan, t.searchRadius());
+  const WindowScan gone{&gone_idx, Eigen::Isometry3d::Identity(), 0.0, 0.53 * kDeg};
+  EXPECT_TRUE(t.isMoving(P, {gone}, nullptr));
+  EXPECT_FALSE(t.isMoving(P, {gone}, nullptr, kColumnIsolated));
+}
+
+namespace {
+
 // A dense lidar at the origin (rings 0.2 degrees apart from -3 to +2 degrees, columns every 0.1
 // degree within +-4 degrees) before a wall at x = 20; with `roof`, a car's roof 0.25 m under the
 // sensor (x 8 .. 12, |y| <= 0.9) and its front face at x = 8 below it.

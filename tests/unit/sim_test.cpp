@@ -142,6 +142,25 @@ TEST(SimLidar, ResolutionOfSparseLidarsIsMeasuredInTheScan) {
   EXPECT_FALSE(measureResolution({}));
 }
 
+// DESIGN §2d: an Ouster at 1024 columns has rings as close as the HDL-64E's (0.53 and 0.35
+// degrees) but columns twice as coarse (0.35 degrees): it is measured, not taken for the
+// reference. Session 91 found the OS1-64 run at density 1 (min_moving 20 for its 0.41).
+TEST(SimLidar, AnOusterAt1024ColumnsIsMeasuredNotTakenForAnHdl64) {
+  auto sc = sim::defaultScenario();
+  for (const auto m : {SensorModel::kOs1_64, SensorModel::kOs1_128}) {
+    sc.sensor.elevations = ringElevations(m);
+    sc.sensor.azimuth_step_deg = sensorPreset(m).azimuth_step_deg;
+    const auto r = measureResolution(sim::simulateScan(sc, 5, 2).points);
+    ASSERT_TRUE(r) << sensorPreset(m).name;
+    const auto want = presetResolution(m);
+    EXPECT_NEAR(r->vertical_deg, want.vertical_deg, 0.02) << sensorPreset(m).name;
+    EXPECT_NEAR(r->azimuth_deg, want.azimuth_deg, 0.01) << sensorPreset(m).name;
+    EXPECT_NEAR(densityScale(*r), densityScale(want), 0.03) << sensorPreset(m).name;
+  }
+  EXPECT_NEAR(densityScale(presetResolution(SensorModel::kOs1_64)), 0.41, 0.01);
+  EXPECT_NEAR(densityScale(presetResolution(SensorModel::kOs1_128)), 0.60, 0.01);
+}
+
 // Every k-th laser of a KITTI HDL-64E scan.
 std::vector<PointXYZI> keepEveryKthRing(const std::vector<PointXYZI>& pts, int k) {
   std::vector<PointXYZI> out;

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 #include <optional>
 #include <tuple>
 #include <type_traits>
@@ -116,20 +117,56 @@ void forEachFilteredRun(const BeamIndex& index, const Eigen::Vector3f& dir, doub
 }  // namespace
 
 uint8_t MovingTest::edgesOf(const Eigen::Vector3f& p, const WindowScan& own) const {
-  if (!own.beams || !(own.ring_gap > radius_)) return 0;
+  const bool rings = own.ring_gap > radius_, columns = own.column_step > 0;
+  if (!own.beams || !(rings || columns)) return 0;
   const float d = p.norm();
   Eigen::Vector3f east, up;
   if (!(d > 1e-3f)) return 0;
   const Eigen::Vector3f dir = p / d;
   if (!acrossAxes(dir, east, up)) return 0;
-  const auto gap = static_cast<float>(own.ring_gap);
-  const float tol = std::max(static_cast<float>(2.0 * model_.sigma), d * gap);
-  bool above = false, below = false;
-  forEachInBand(*own.beams, dir, east, up, static_cast<float>(radius_), 0.5f * gap, 1.5f * gap,
-                [&](const BeamIndex::Beam& q, float el) {
-                  if (std::abs(q.range - d) <= tol) (el > 0.0f ? above : below) = true;
-                });
-  return static_cast<uint8_t>((above ? 0 : kTopEdge) | (below ? 0 : kBottomEdge));
+  uint8_t bits = 0;
+  if (rings) {
+    const auto gap = static_cast<float>(own.ring_gap);
+    const float tol = std::max(static_cast<float>(2.0 * model_.sigma), d * gap);
+    bool above = false, below = false;
+    forEachInBand(*own.beams, dir, east, up, static_cast<float>(radius_), 0.5f * gap, 1.5f * gap,
+                  [&](const BeamIndex::Beam& q, float el) {
+                    if (std::abs(q.range - d) <= tol) (el > 0.0f ? above : below) = true;
+                  });
+    bits |= static_cast<uint8_t>((above ? 0 : kTopEdge) | (below ? 0 : kBottomEdge));
+  }
+  if (columns) bits |= columnIsolated(dir, d, east, up, own) ? kColumnIsolated : 0;
+  return bits;
+}
+
+// DESIGN §2b, "Coarse columns": the nearest return of P's ring 0.5-1.5 column steps to either
+// side of P's direction (within half a ring step in elevation, or half a column step where the
+// rings are not measured); P is isolated where both lie beyond it, or are missing.
+bool MovingTest::columnIsolated(const Eigen::Vector3f& dir, float d, const Eigen::Vector3f& east,
+                                const Eigen::Vector3f& up, const WindowScan& own) const {
+  const auto step = static_cast<float>(own.column_step);
+  const float el_half =
+      0.5f * static_cast<float>(own.ring_gap > 0 ? own.ring_gap : own.column_step);
+  constexpr float kNone = std::numeric_limits<float>::infinity();
+  float a_left = kNone, a_right = kNone, r_left = kNone, r_right = kNone;
+  own.beams->forEachNearBox(dir, 1.01 * 1.5 * step, 1.01 * el_half + 2e-4,
+                            [&](const BeamIndex::Beam& q) {
+                              const float a = q.dir.dot(east), el = q.dir.dot(up);
+                              if (!(dir.dot(q.dir) > 0.0f) || std::abs(el) > el_half ||
+                                  std::abs(a) < 0.5f * step || std::abs(a) > 1.5f * step)
+                                return;
+                              if (a > 0.0f && a < a_left) {
+                                a_left = a;
+                                r_left = q.range;
+                              } else if (a < 0.0f && -a < a_right) {
+                                a_right = -a;
+                                r_right = q.range;
+                              }
+                            });
+  const float tol = std::max(static_cast<float>(2.0 * model_.sigma), d * step);
+  const float beyond_left = r_left - d, beyond_right = r_right - d;  // inf where missing
+  return beyond_left > tol + std::max(0.0f, -beyond_right) &&
+         beyond_right > tol + std::max(0.0f, -beyond_left);
 }
 
 // Issue #15 (DESIGN §2b, "Sparse lidars"). A sparse scan's rings lie further apart than the cone,
@@ -186,6 +223,7 @@ double MovingTest::ringVote(const Eigen::Vector3f& dir, float d, const WindowSca
 ds::Mass MovingTest::scanMassAt(const Eigen::Vector3d& pl, double d, const WindowScan& s,
                                 MovingTestStats* stats, uint8_t edges) const {
   ds::Mass m;
+  if (edges & kColumnIsolated) return m;  // DESIGN §2b, "Coarse columns": no vote
   const Eigen::Vector3f dir = (pl / d).cast<float>();
   // Issue #15: on an edge's open side (edgesOf) a beam passing P may pass over the edge; such
   // beams are left out.

@@ -134,7 +134,6 @@ std::optional<AngularResolution> measureResolution(const std::vector<PointXYZI>&
     gaps.push_back(rings[k].el_sum / double(rings[k].n) -
                    rings[k - 1].el_sum / double(rings[k - 1].n));
   const double vertical = median(std::move(gaps));
-  if (vertical < 0.8) return std::nullopt;
   // The azimuth step: per ring, the median gap between neighbouring returns; the median over
   // rings, so that a run where several lasers blur together (a smaller gap) is outvoted.
   std::vector<std::vector<float>> az(rings.size());
@@ -153,7 +152,12 @@ std::optional<AngularResolution> measureResolution(const std::vector<PointXYZI>&
     if (steps.size() >= 100) ring_steps.push_back(median(std::move(steps)));
   }
   if (ring_steps.size() < 4) return std::nullopt;
-  return AngularResolution{vertical, median(std::move(ring_steps))};
+  const double azimuth = median(std::move(ring_steps));
+  // Rings closer than 0.8 degrees may be the HDL-64E's blurring together (KITTI's do): the scale
+  // stays 1 there, unless the columns are clearly coarser than the HDL-64E's 0.17-0.18 degrees
+  // (an Ouster at 1024 columns: 0.35), whose rings stand apart.
+  if (vertical < kDenseRingsDeg && !(azimuth > kCoarseColumnsDeg)) return std::nullopt;
+  return AngularResolution{vertical, azimuth};
 }
 
 double densityScale(const AngularResolution& r) {

@@ -179,9 +179,10 @@ struct LaserPipeline::Prepared {
                               : FreeSpaceMap::Stretches{&graze_from, &graze_to};
   }
   double ground_measured = std::numeric_limits<double>::quiet_NaN();  // estimateGroundHeight
-  double ground_z = 0;  // h_G below the sensor used for this scan (DESIGN §2a)
-  double density = 1;   // returns per solid angle relative to the HDL-64E (DESIGN §2d)
-  double ring_gap = 0;  // rad between rings, where sparse (measured or preset; 0: dense, §2b)
+  double ground_z = 0;     // h_G below the sensor used for this scan (DESIGN §2a)
+  double density = 1;      // returns per solid angle relative to the HDL-64E (DESIGN §2d)
+  double ring_gap = 0;     // rad between rings, where sparse (measured or preset; 0: dense, §2b)
+  double column_step = 0;  // rad between columns, where coarse (kCoarseColumnsDeg; 0: not, §2b)
   Eigen::Isometry3d world_to_sensor;
   PoseInfo pose_info;
   ScanStats stats;
@@ -196,6 +197,7 @@ struct LaserPipeline::Prepared {
     WindowScan o;
     o.beams = beams.empty() ? nullptr : &beams;
     o.ring_gap = ring_gap;
+    o.column_step = column_step;
     return o;
   }
 };
@@ -587,6 +589,7 @@ std::unique_ptr<LaserPipeline::Prepared> LaserPipeline::prepare(Registered&& r,
   if (res) {
     s->density = densityScale(*res);
     s->ring_gap = res->vertical_deg * M_PI / 180.0;
+    if (res->azimuth_deg > kCoarseColumnsDeg) s->column_step = res->azimuth_deg * M_PI / 180.0;
   }
   s->ground = segmentGround(gpts, p_.ground, std::max(p_.filter.crop_tau, r_map), s->ground_z);
   s->in_crop.resize(pts.size());

@@ -27,6 +27,10 @@ struct WindowScan {
   /// Scans from P's own scan to this one (negative: before it). The empty-run rule
   /// (DsParams::empty_run) reads each side of the window from its far end; 0 = not known.
   int offset = 0;
+  /// rad; the azimuth step between this scan's columns where it is clearly coarser than the
+  /// HDL-64E's (kCoarseColumnsDeg: an Ouster at 1024 columns), 0 otherwise. Read only of P's own
+  /// scan (MovingTest::edgesOf, kColumnIsolated).
+  double column_step = 0.0;
 };
 
 // One per worker thread: aligned to a cache line so workers never share one (issue #16).
@@ -51,8 +55,12 @@ enum class BeamMath { kFast, kReference };
 /// above P's direction returns nowhere near P's range (kTopEdge), or the ring just below returns
 /// nowhere near it (kBottomEdge). MovingTest::edgesOf. kFlatSurface: P lies on a flat surface of
 /// its own scan (GrazingStretches::flat): a window scan's beam that grazes a flat surface of its
-/// own where it passes P does not vote (DESIGN §2b, grazing beams).
-enum EdgeBits : uint8_t { kTopEdge = 1, kBottomEdge = 2, kFlatSurface = 4 };
+/// own where it passes P does not vote (DESIGN §2b, grazing beams). kColumnIsolated: P's own
+/// scan, whose columns are coarse (WindowScan::column_step), returns from beyond P in the
+/// neighbouring columns on both sides: P lies on something narrower than a column step, which
+/// another scan's columns may straddle, so no window scan votes at P (DESIGN §2b, "Coarse
+/// columns").
+enum EdgeBits : uint8_t { kTopEdge = 1, kBottomEdge = 2, kFlatSurface = 4, kColumnIsolated = 8 };
 
 class MovingTest {
  public:
@@ -83,6 +91,10 @@ class MovingTest {
   /// from facing the ray). Where it does not, the surface ends between the two rings, at a
   /// height this scan cannot tell: a beam of another scan passing P on that side may pass
   /// over the edge of a static object (DESIGN §2b).
+  /// With coarse columns (own.column_step > 0), also kColumnIsolated where the returns of P's
+  /// ring in the nearest column on each side (0.5-1.5 steps away in azimuth) lie beyond P by
+  /// more than max(2 sigma, d * step) plus what the other side comes nearer than P (a surface
+  /// seen obliquely recedes on one side as far as it approaches on the other), or are missing.
   uint8_t edgesOf(const Eigen::Vector3f& p, const WindowScan& own) const;
   double searchRadius() const { return radius_; }
   /// The order in which to test points, given in the sensor frame of their scan (issue #16): in
@@ -129,6 +141,9 @@ class MovingTest {
   // Issue #15: the empty mass a sparse scan's rings around P give it (0: no vote; DESIGN §2b).
   double ringVote(const Eigen::Vector3f& dir, float d, const WindowScan& s) const;
   static constexpr float kRingFront = 1.0f;  // m; see ringVote
+  // edgesOf's kColumnIsolated of P (direction `dir`, range d, axes east / up) in its own scan.
+  bool columnIsolated(const Eigen::Vector3f& dir, float d, const Eigen::Vector3f& east,
+                      const Eigen::Vector3f& up, const WindowScan& own) const;
   DsParams p_;
   BeamMath math_;
   ds::BeamModel model_;

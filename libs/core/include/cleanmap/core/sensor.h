@@ -42,12 +42,18 @@ struct AngularResolution {
 };
 /// A preset's: its field of view over rings - 1, and its azimuth step.
 AngularResolution presetResolution(SensorModel m);
+/// Rings closer than this (degrees) are measured only with columns coarser than
+/// kCoarseColumnsDeg (measureResolution).
+constexpr double kDenseRingsDeg = 0.8;
+/// 1.5 times the HDL-64E's column step at 10 Hz (0.18 degrees): coarser columns are not its.
+constexpr double kCoarseColumnsDeg = 0.27;
 /// Measured in one scan (sensor frame) from the elevations and azimuths of its returns 5-100 m
 /// away horizontally: rings are runs of 0.05-degree elevation bins with returns, separated by
 /// empty bins, holding at least an eighth of a typical ring's returns; the azimuth step is the
 /// median over rings of each ring's median gap. nullopt where fewer than 8 rings stand apart, or
-/// they lie less than 0.8 degrees apart (dense sensors such as the HDL-64E, whose rings blur
-/// together; KITTI's do).
+/// they lie less than kDenseRingsDeg apart with columns no coarser than kCoarseColumnsDeg (the
+/// HDL-64E, whose rings blur together, KITTI's included: the reference density). An Ouster at
+/// 1024 columns (0.35 degrees) is measured.
 std::optional<AngularResolution> measureResolution(const std::vector<PointXYZI>& points);
 /// Returns per solid angle relative to the HDL-64E's (DESIGN §2d): what a point count tuned on it
 /// (object.min_moving) is multiplied by for this sensor.
