@@ -8,9 +8,11 @@ full turn starting at the scan's first azimuth th0, turning towards increasing a
 point's ring is the number of whole turns between th0 and its unwrapped azimuth (the azimuth
 jumps by -2 pi once per turn). Checked on the three labelled sets: 64 rings in every scan.
 
-usage: decimate_kitti_rings.py SRC DST [K [OFFSET]]   (poses, calib, times, objects.json are
-copied; rings OFFSET, OFFSET + K, ... are kept, OFFSET 0 by default: another OFFSET gives another
-sparse lidar of the same scene)
+usage: decimate_kitti_rings.py SRC DST [K [OFFSET]] [--columns C]   (poses, calib, times,
+objects.json are copied; rings OFFSET, OFFSET + K, ... are kept, OFFSET 0 by default: another
+OFFSET gives another sparse lidar of the same scene; --columns C keeps, of every ring, the returns
+whose azimuth lies in every C-th step of the HDL-64E's (360 / 2083 degrees): C = 2 gives columns
+0.35 degrees apart, an Ouster's at 1024 columns)
 Standard library only; about a minute per 30 scans.
 """
 import math
@@ -20,12 +22,23 @@ import struct
 import sys
 
 
+HDL64_STEP = 2 * math.pi / 2083  # rad between the HDL-64E's columns at 10 Hz
+
+
 def main():
-    if len(sys.argv) not in (3, 4, 5):
+    args = sys.argv[1:]
+    columns = 1
+    if "--columns" in args:
+        i = args.index("--columns")
+        if i + 1 >= len(args) or not args[i + 1].isdigit() or int(args[i + 1]) < 1:
+            sys.exit("--columns needs a whole number C >= 1")
+        columns = int(args[i + 1])
+        del args[i:i + 2]
+    if len(args) not in (2, 3, 4):
         sys.exit(__doc__)
-    src, dst = sys.argv[1], sys.argv[2]
-    keep = int(sys.argv[3]) if len(sys.argv) >= 4 else 4
-    offset = int(sys.argv[4]) if len(sys.argv) == 5 else 0
+    src, dst = args[0], args[1]
+    keep = int(args[2]) if len(args) >= 3 else 4
+    offset = int(args[3]) if len(args) == 4 else 0
     if keep < 1 or not 0 <= offset < keep:
         sys.exit(f"K must be >= 1 and 0 <= OFFSET < K (got K {keep}, OFFSET {offset})")
     velo = os.path.join(src, "velodyne")
@@ -61,7 +74,8 @@ def main():
             prev = a
             ring = int(math.floor((a + 2 * math.pi * turns - th0) / (2 * math.pi) + 1e-9))
             top = max(top, ring)
-            if ring % keep == offset:
+            column = int(math.floor((a + math.pi) / HDL64_STEP))
+            if ring % keep == offset and column % columns == 0:
                 out += data[16 * i:16 * i + 16]
                 if has_labels:
                     out_labels += labels[4 * i:4 * i + 4]
@@ -72,7 +86,7 @@ def main():
             with open(os.path.join(dst, "labels", name[:-4] + ".label"), "wb") as o:
                 o.write(out_labels)
     print(f"{src}: {len(rings)} scans, rings per scan {min(rings)}-{max(rings)}, kept every {keep}"
-          f" from ring {offset}")
+          f" from ring {offset}" + (f", every {columns} columns" if columns > 1 else ""))
 
 
 if __name__ == "__main__":

@@ -30,9 +30,11 @@ import sys
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 VARIANTS = ["base", "seed", "ego_slow", "ego_fast", "mov_slow", "mov_fast", "noisy", "hdl32"]
-OPTIONAL = ["vlp16", "os1_64", "os1_128", "accel"]  # variants run only when named
+OPTIONAL = ["vlp16", "os1_64", "os1_128", "os1_64_512", "accel"]  # run only when named
 # variant -> the [sensor] model preset it uses
-SENSORS = {"hdl32": "hdl32", "vlp16": "vlp16", "os1_64": "os1-64", "os1_128": "os1-128"}
+SENSORS = {"hdl32": "hdl32", "vlp16": "vlp16", "os1_64": "os1-64", "os1_128": "os1-128",
+           "os1_64_512": "os1-64"}
+COLUMNS = {"os1_64_512": 360 / 512}  # a preset at another column count (degrees between columns)
 # (section, key) -> factor, per variant
 SCALE = {
     "ego_slow": ("ego", "speed", 0.6),
@@ -76,6 +78,8 @@ def perturb(text, variant):
         text = text.replace("[sensor]", "[sensor]\nrange_noise = 0.02", 1)  # twice the default
     if variant in SENSORS:
         text = text.replace("[sensor]", f"[sensor]\nmodel = {SENSORS[variant]}", 1)
+    if variant in COLUMNS:
+        text = text.replace("[sensor]", f"[sensor]\nazimuth_step_deg = {COLUMNS[variant]:g}", 1)
     if variant == "accel":
         text = re.sub(r"^(\s*\[mover\][^\n]*)$", r"\1\naccel = 2", text, flags=re.M)
     return text

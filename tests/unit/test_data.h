@@ -116,6 +116,19 @@ inline std::vector<std::size_t> kittiRingsKept(const std::vector<PointXYZI>& pts
   return out;
 }
 
+/// The indices of the points of a KITTI HDL-64E scan whose azimuth lies in every c-th of its
+/// column steps (360 / 2083 degrees): c = 2 gives columns 0.35 degrees apart, an Ouster's at
+/// 1024 columns, with the HDL-64E's rings (datasets/decimate_kitti_rings.py --columns).
+inline std::vector<std::size_t> kittiColumnsKept(const std::vector<PointXYZI>& pts, int c) {
+  const double step = 2 * M_PI / 2083;
+  std::vector<std::size_t> out;
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    const double a = std::atan2(pts[i].y, pts[i].x);
+    if (static_cast<int>(std::floor((a + M_PI) / step)) % c == 0) out.push_back(i);
+  }
+  return out;
+}
+
 /// Mean translation error of the relative poses over `d` scans, as a share of the path; `poses`
 /// holds (estimated, true) per scan.
 inline double relativeError(
