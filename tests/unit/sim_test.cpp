@@ -121,33 +121,14 @@ TEST(SimLidar, ScansHaveTheRingsOfTheirModel) {
 }
 
 // DESIGN §2d: a sparse lidar's angular resolution is measured from its scan; the HDL-64E's rings
-// blur together (0.33-0.5 degrees apart) and count as the reference density.
+// blur together (0.33-0.5 degrees apart) and count as the reference density. An Ouster at 1024
+// columns has rings as close (0.53, 0.35 degrees) but columns twice as coarse (0.35 degrees):
+// it is measured, not taken for the reference (session 91 found the OS1-64 run at density 1,
+// object.min_moving 20 for its 0.41).
 TEST(SimLidar, ResolutionOfSparseLidarsIsMeasuredInTheScan) {
   auto sc = sim::defaultScenario();
-  for (const auto m : {SensorModel::kVlp16, SensorModel::kHdl32}) {
-    sc.sensor.elevations = ringElevations(m);
-    sc.sensor.azimuth_step_deg = sensorPreset(m).azimuth_step_deg;
-    const auto r = measureResolution(sim::simulateScan(sc, 5, 2).points);
-    ASSERT_TRUE(r) << sensorPreset(m).name;
-    const auto want = presetResolution(m);
-    EXPECT_NEAR(r->vertical_deg, want.vertical_deg, 0.02) << sensorPreset(m).name;
-    EXPECT_NEAR(r->azimuth_deg, want.azimuth_deg, 0.01) << sensorPreset(m).name;
-    EXPECT_NEAR(densityScale(*r), densityScale(want), 0.02);
-  }
-  EXPECT_NEAR(densityScale(presetResolution(SensorModel::kVlp16)), 0.19, 0.01);
-  EXPECT_DOUBLE_EQ(densityScale(presetResolution(SensorModel::kHdl64)), 1.0);
-  sc.sensor.elevations = ringElevations(SensorModel::kHdl64);
-  sc.sensor.azimuth_step_deg = 0.18;
-  EXPECT_FALSE(measureResolution(sim::simulateScan(sc, 5, 2).points));
-  EXPECT_FALSE(measureResolution({}));
-}
-
-// DESIGN §2d: an Ouster at 1024 columns has rings as close as the HDL-64E's (0.53 and 0.35
-// degrees) but columns twice as coarse (0.35 degrees): it is measured, not taken for the
-// reference. Session 91 found the OS1-64 run at density 1 (min_moving 20 for its 0.41).
-TEST(SimLidar, AnOusterAt1024ColumnsIsMeasuredNotTakenForAnHdl64) {
-  auto sc = sim::defaultScenario();
-  for (const auto m : {SensorModel::kOs1_64, SensorModel::kOs1_128}) {
+  for (const auto m :
+       {SensorModel::kVlp16, SensorModel::kHdl32, SensorModel::kOs1_64, SensorModel::kOs1_128}) {
     sc.sensor.elevations = ringElevations(m);
     sc.sensor.azimuth_step_deg = sensorPreset(m).azimuth_step_deg;
     const auto r = measureResolution(sim::simulateScan(sc, 5, 2).points);
@@ -157,8 +138,14 @@ TEST(SimLidar, AnOusterAt1024ColumnsIsMeasuredNotTakenForAnHdl64) {
     EXPECT_NEAR(r->azimuth_deg, want.azimuth_deg, 0.01) << sensorPreset(m).name;
     EXPECT_NEAR(densityScale(*r), densityScale(want), 0.03) << sensorPreset(m).name;
   }
+  EXPECT_NEAR(densityScale(presetResolution(SensorModel::kVlp16)), 0.19, 0.01);
   EXPECT_NEAR(densityScale(presetResolution(SensorModel::kOs1_64)), 0.41, 0.01);
   EXPECT_NEAR(densityScale(presetResolution(SensorModel::kOs1_128)), 0.60, 0.01);
+  EXPECT_DOUBLE_EQ(densityScale(presetResolution(SensorModel::kHdl64)), 1.0);
+  sc.sensor.elevations = ringElevations(SensorModel::kHdl64);
+  sc.sensor.azimuth_step_deg = 0.18;
+  EXPECT_FALSE(measureResolution(sim::simulateScan(sc, 5, 2).points));
+  EXPECT_FALSE(measureResolution({}));
 }
 
 // Every k-th laser of a KITTI HDL-64E scan.
