@@ -4,10 +4,12 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <stdexcept>
 #include <string>
 
 #include "cleanmap/core/free_space.h"
+#include "cleanmap/core/grazing.h"
 #include "cleanmap/core/sanitized.h"
 
 #if defined(__GLIBC__)
@@ -473,6 +475,85 @@ TEST(FreeSpace, ASparseLidarDoesNotSeeEmptyARoofItPassesClose) {
     EXPECT_GT(counts(off, roof, top), 10) << roof;  // the rings above see the roof's voxels empty
     EXPECT_EQ(counts(params(), roof, top), 0) << roof;
     EXPECT_GT(counts(params(), roof, 1.9f), 20) << roof;  // 0.4 m over it: still seen empty
+  }
+}
+
+namespace {
+// Rings every 0.5 degree over -1.5..1.5 and columns `step_deg` apart over -90..0 degrees of
+// azimuth, beside a side (a wall, a parked car's) along x at y = -1.5 from x = 2 to 40, before a
+// facade at x = 60: each beam's first hit.
+std::vector<PointXYZI> sidePassedClose(double step_deg) {
+  std::vector<PointXYZI> pts;
+  for (int e = -3; e <= 3; ++e)
+    for (double a = -90 + step_deg / 2; a < 0; a += step_deg) {
+      const double el = e * 0.5 * M_PI / 180, az = a * M_PI / 180;
+      const Eigen::Vector3d d(std::cos(el) * std::cos(az), std::cos(el) * std::sin(az),
+                              std::sin(el));
+      double t = 60 / d.x();
+      if (const double ts = -1.5 / d.y(); d.x() * ts >= 2 && d.x() * ts <= 40) t = ts;
+      const Eigen::Vector3d q = t * d;
+      pts.push_back({float(q.x()), float(q.y()), float(q.z()), 0.f});
+    }
+  return pts;
+}
+}  // namespace
+
+TEST(FreeSpace, BeamsEndingOnASideAtAGrazingAngleDoNotSeeItEmpty) {
+  // DESIGN §2e, grazing sides: a side 1.5 m beside the sensor is met at sin(alpha) = 1.5 / x. An
+  // Ouster at 512 columns (0.70 degrees) returns from it every x^2 0.0123 / 1.5 m along it, over
+  // 2 hit_inflate apart beyond 9 m; each beam runs within margin of the side for 0.32 x / 1.5 m
+  // before its end, through the side's voxels between the returns' protected neighbourhoods: the
+  // side's surface 10-35 m ahead was seen empty. With grazing sides it is not; the space 0.6 m
+  // off it still is. Columns of 0.17 degrees (an HDL-64E's) return every 0.2 m at 10 m and
+  // protect the side by their neighbourhoods alone out to 18 m, not beyond. A moving return's
+  // beam marks its stretch (what a mover leaves, as hit_inflate).
+  const auto seen = [&](const MapParams& q, double step_deg, float y, bool moving = false) {
+    const auto pts = sidePassedClose(step_deg);
+    std::vector<uint8_t> flags(pts.size(), moving ? 1 : 0);
+    FreeSpaceMap fs(q);
+    fs.insertScan(pts, at(0), 0, &flags);
+    int n = 0;
+    for (float x = 10.f; x <= 35.f; x += 0.1f)
+      for (const float z : {-0.1f, 0.1f}) n += fs.evidence({x, y, z}).count;
+    return n;
+  };
+  MapParams off = params();
+  off.grazing_sides = false;
+  const double ouster = 360.0 / 512, hdl64 = 360.0 / 2083;
+  EXPECT_GT(seen(off, ouster, -1.5f), 60);  // measured 124 of 502
+  EXPECT_EQ(seen(params(), ouster, -1.5f), 0);
+  EXPECT_GT(seen(off, hdl64, -1.5f), 20);  // measured 40, all beyond 18 m
+  EXPECT_EQ(seen(params(), ouster, -0.9f), seen(off, ouster, -0.9f));  // 0.6 m off it
+  EXPECT_GT(seen(params(), ouster, -0.9f), 250);
+  EXPECT_EQ(seen(params(), hdl64, -1.5f), 0);
+  EXPECT_GT(seen(params(), ouster, -1.5f, true), 60);  // measured 138
+  // The stretches (GrazingStretches::side): only on the side, only where its returns lie more
+  // than 2 hit_inflate apart (9 m out at 0.70 degrees, 18 m at 0.17; the facade too, met at a
+  // grazing angle far to the side).
+  const MapParams m;
+  for (const double step : {ouster, hdl64}) {
+    const auto pts = sidePassedClose(step);
+    std::vector<float> azimuth(pts.size());
+    for (std::size_t n = 0; n < pts.size(); ++n) azimuth[n] = std::atan2(pts[n].y, pts[n].x);
+    const double bin = freeSpaceAzimuthBin(pts, m.beam_spacing);  // as the map bins it
+    GrazingStretches g;
+    g.compute(pts, Eigen::Matrix3f::Identity(), azimuth, m.flat_slope, m.margin, m.graze_reach, bin,
+              m.hit_inflate);
+    ASSERT_EQ(g.side().size(), pts.size());
+    const double gate = std::sqrt(2 * m.hit_inflate * 1.5 / bin);  // x^2 bin / 1.5 = 2 hit_inflate
+    std::size_t on = 0, wrong = 0;                                 // of the side's returns
+    for (std::size_t n = 0; n < pts.size(); ++n) {
+      const bool side = std::abs(pts[n].y + 1.5f) < 1e-3f;
+      const bool stretch = std::isfinite(g.side()[n]);
+      if (side && pts[n].x > gate + 1 && pts[n].x < 38) {
+        on += stretch;
+        wrong += !stretch;
+      } else if (side && stretch && pts[n].x < gate - 1) {
+        ++wrong;
+      }
+    }
+    EXPECT_GT(on, 50u) << step;  // measured 70 / 98
+    EXPECT_EQ(wrong, 0u) << step;
   }
 }
 

@@ -273,6 +273,12 @@ double freeSpaceAzimuthBin(const std::vector<PointXYZI>& points, double spacing,
   return azimuthBin(points, azimuth, spacing, occupancy, bits);
 }
 
+double freeSpaceAzimuthBin(const std::vector<PointXYZI>& points, const std::vector<float>& azimuth,
+                           double spacing) {
+  std::vector<uint64_t> bits;
+  return azimuthBin(points, azimuth, spacing, nullptr, bits);
+}
+
 FreeSpaceMap::FreeSpaceMap(const MapParams& p) : p_(p), inv_(1.0 / p.voxel) {
   static_assert(sizeof(Voxel) == 16, "four voxels to a cache line");
 }
@@ -410,9 +416,11 @@ void FreeSpaceMap::insertScan(const std::vector<PointXYZI>& points, const Eigen:
                      grazing.to->size() == points.size();
   if (p_.flat_slope > 0 && !given)
     grazing_.compute(points, pose.linear().cast<float>(), azimuth_, p_.flat_slope, p_.margin,
-                     p_.graze_reach);
+                     p_.graze_reach, p_.grazing_sides ? spacing : 0.0, p_.hit_inflate);
   const std::vector<float>& skip_a = given ? *grazing.from : grazing_.from();
   const std::vector<float>& skip_b = given ? *grazing.to : grazing_.to();
+  const std::vector<float>* side = given ? grazing.side : &grazing_.side();
+  if (side && side->size() != points.size()) side = nullptr;
   uint64_t cached = ~uint64_t(0);
   Marks* b = nullptr;
   for (std::size_t n = 0; n < points.size(); ++n) {
@@ -443,6 +451,12 @@ void FreeSpaceMap::insertScan(const std::vector<PointXYZI>& points, const Eigen:
     if (p_.flat_slope > 0 && skip_b[n] > skip_a[n]) {
       ua = (skip_a[n] - t0) * inv_;
       ub = (skip_b[n] - t0) * inv_;
+    }
+    // Grazing sides (DESIGN §2e): from there to the beam's end, unless the return is moving.
+    if (p_.flat_slope > 0 && p_.grazing_sides && side && (*side)[n] < r &&
+        !(moving && (*moving)[n])) {
+      ua = std::min(ua, (double((*side)[n]) - t0) * inv_);
+      ub = std::numeric_limits<double>::infinity();
     }
     const Eigen::Vector3d d = R * (ps / r);
     const Eigen::Vector3d a = (o + t0 * d) * inv_;  // voxel units

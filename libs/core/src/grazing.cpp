@@ -23,7 +23,8 @@ namespace cleanmap {
 // below it in its column is taken to lie on a level surface (unseen below).
 void GrazingStretches::compute(const std::vector<PointXYZI>& points, const Eigen::Matrix3f& R,
                                const std::vector<float>& azimuth, double flat_slope,
-                               double margin_m, double reach_m) {
+                               double margin_m, double reach_m, double column_step,
+                               double hit_inflate) {
   constexpr float kAzBin = 0.012f;    // rad
   constexpr float kElBand = 0.0017f;  // of the elevation's tangent: 0.1 degree near the horizon
   constexpr float kElLow = -1.f;      // tangents -1 to +0.27: -45 to +15 degrees
@@ -44,6 +45,8 @@ void GrazingStretches::compute(const std::vector<PointXYZI>& points, const Eigen
   band_.resize(np);
   rho_.resize(np);
   zw_.resize(np);
+  xw_.resize(np);
+  yw_.resize(np);
   int band_lo = kElBands, band_hi = -1;
   for (std::size_t n = 0; n < np; ++n) {
     const auto& q = points[n];
@@ -51,6 +54,8 @@ void GrazingStretches::compute(const std::vector<PointXYZI>& points, const Eigen
     const Eigen::Vector3f w = R * q.xyz();  // from the sensor, world axes
     rho_[n] = w.head<2>().norm();
     zw_[n] = w.z();
+    xw_[n] = w.x();
+    yw_[n] = w.y();
     if (!(rh > 0)) continue;
     const int az = std::clamp(static_cast<int>((azimuth[n] + float(M_PI)) / kAzBin), 0, naz - 1);
     const int el = static_cast<int>(std::floor((q.z / rh - kElLow) / kElBand));
@@ -142,8 +147,58 @@ void GrazingStretches::compute(const std::vector<PointXYZI>& points, const Eigen
       break;
     }
   }
+  side_.clear();
+  if (column_step > 0 && hit_inflate > 0)
+    sides(points, naz, m, float(column_step), float(hit_inflate));
   for (const int c : cell_)  // empty the grid for the next call
     if (c >= 0) grid_[static_cast<std::size_t>(c)] = UINT32_MAX;
+}
+
+// DESIGN §2e, grazing sides. A return n not on a flat surface, with a return of its band (or
+// the next) one or two columns away on each side (L, R) and n on the line through them
+// (horizontally, within 0.05 m + 0.5 % of its range): an upright surface, a wall or a car's side,
+// met at horizontal incidence alpha (sin alpha from the line's direction and n's azimuth). The
+// scan's returns lie about rho step / sin(alpha) apart along it; where that exceeds 2 hit_inflate
+// their neighbourhoods (protected from this scan's free space) leave gaps, and n's beam, running
+// within `margin` of the surface for margin / sin(alpha) of horizontal range before its end,
+// crosses the surface's voxels there. It marks nothing from that far back (not beyond one
+// column's gap past its nearer neighbour: the surface is seen from L to R) to its end.
+void GrazingStretches::sides(const std::vector<PointXYZI>& points, int naz, float m, float step,
+                             float hit_inflate) {
+  const std::size_t np = cell_.size();
+  side_.assign(np, std::numeric_limits<float>::infinity());
+  // The nearest return of n's band (or the one above or below it) 1-2 columns to side s.
+  const auto beside = [&](std::size_t n, int s) -> uint32_t {
+    const int col = cell_[n] % naz, el = band_[n];
+    for (int k = 1; k <= 2; ++k) {
+      const int c = ((col + s * k) % naz + naz) % naz;
+      for (const int e : {el, el - 1, el + 1}) {
+        if (e < 0 || e >= int(grid_.size() / std::size_t(naz))) continue;
+        const uint32_t q = grid_[std::size_t(e) * naz + c];
+        if (q != UINT32_MAX) return q;
+      }
+    }
+    return UINT32_MAX;
+  };
+  for (std::size_t n = 0; n < np; ++n) {
+    if (cell_[n] < 0 || !(rho_[n] > 0) || !std::isnan(slope_[n])) continue;
+    const uint32_t a = beside(n, -1), b = beside(n, +1);
+    if (a == UINT32_MAX || b == UINT32_MAX) continue;
+    const float ux = xw_[b] - xw_[a], uy = yw_[b] - yw_[a];
+    const float len = std::sqrt(ux * ux + uy * uy);
+    if (!(len > 1e-3f)) continue;
+    const float px = xw_[n] - xw_[a], py = yw_[n] - yw_[a];
+    const float along_ab = (px * ux + py * uy) / (len * len);
+    if (!(along_ab > 0 && along_ab < 1) ||
+        std::abs(px * uy - py * ux) / len > 0.05f + 0.005f * rho_[n])
+      continue;
+    const float sin_a = std::abs(ux * yw_[n] - uy * xw_[n]) / (len * rho_[n]);
+    if (!(rho_[n] * step > 2 * hit_inflate * sin_a)) continue;  // their neighbourhoods cover it
+    const float near = std::min(rho_[a], rho_[b]);
+    if (!(near < rho_[n])) continue;  // n is the surface's nearest point: met head-on
+    const float from = std::max(rho_[n] - m / std::max(sin_a, 1e-3f), 2 * near - rho_[n]);
+    side_[n] = std::max(0.f, from) * (points[n].xyz().norm() / rho_[n]);
+  }
 }
 
 }  // namespace cleanmap

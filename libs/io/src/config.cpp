@@ -176,6 +176,8 @@ std::map<std::string, Key> table(PipelineParams& p) {
       {"static_map.margin", d(p.map.margin)},
       {"static_map.flat_slope", d(p.map.flat_slope)},
       {"static_map.graze_reach", d(p.map.graze_reach)},
+      {"static_map.grazing_sides", Key{[&p](double v) { p.map.grazing_sides = v != 0; },
+                                       [&p] { return p.map.grazing_sides ? 1.0 : 0.0; }, true}},
       {"static_map.min_range", d(p.map.min_range)},
       {"static_map.beam_spacing", d(p.map.beam_spacing)},
       {"image.enabled", Key{[&p](double v) { p.image.enabled = v != 0; },

@@ -173,10 +173,11 @@ struct LaserPipeline::Prepared {
   std::vector<uint8_t> candidate;  // in the crop and not ground: what the stages decide
   std::vector<uint8_t> flat;       // kFlatSurface where on a flat top (DESIGN §2b); or empty
   // Its GrazingStretches (from, to), for the free space's insertion (computed once; or empty).
-  std::vector<float> graze_from, graze_to;
+  std::vector<float> graze_from, graze_to, graze_side;
   FreeSpaceMap::Stretches grazing() const {
     return graze_from.empty() ? FreeSpaceMap::Stretches{}
-                              : FreeSpaceMap::Stretches{&graze_from, &graze_to};
+                              : FreeSpaceMap::Stretches{&graze_from, &graze_to,
+                                                        graze_side.empty() ? nullptr : &graze_side};
   }
   double ground_measured = std::numeric_limits<double>::quiet_NaN();  // estimateGroundHeight
   double ground_z = 0;     // h_G below the sensor used for this scan (DESIGN §2a)
@@ -536,12 +537,17 @@ std::unique_ptr<LaserPipeline::Prepared> LaserPipeline::prepare(Registered&& r,
       const auto& pts = s->scan.points;
       std::vector<float> azimuth(pts.size());
       for (std::size_t n = 0; n < pts.size(); ++n) azimuth[n] = fast::atan2(pts[n].y, pts[n].x);
+      // The clean map's grazing sides need the lidar's column step, as its free space bins it.
+      const double step = p_.map.clean && p_.map.grazing_sides
+                              ? freeSpaceAzimuthBin(pts, azimuth, p_.map.beam_spacing)
+                              : 0.0;
       graze_.compute(pts, s->scan.pose.linear().cast<float>(), azimuth, p_.map.flat_slope,
-                     p_.map.margin, p_.map.graze_reach);
+                     p_.map.margin, p_.map.graze_reach, step, p_.map.hit_inflate);
       s->beams = BeamIndex(pts, test_.searchRadius(), BeamIndex::Binning::kFast, &graze_);
       if (p_.map.clean) {
         s->graze_from = graze_.from();
         s->graze_to = graze_.to();
+        s->graze_side = graze_.side();
       }
       s->flat.resize(pts.size());
       for (std::size_t n = 0; n < pts.size(); ++n)
@@ -878,7 +884,7 @@ void LaserPipeline::releasePoints() {
     s.points_released = true;
     for (auto* v : {&s.in_crop, &s.ground, &s.far, &s.candidate, &s.flat})
       std::vector<uint8_t>().swap(*v);
-    for (auto* v : {&s.graze_from, &s.graze_to}) std::vector<float>().swap(*v);
+    for (auto* v : {&s.graze_from, &s.graze_to, &s.graze_side}) std::vector<float>().swap(*v);
     std::vector<PointXYZI>().swap(s.scan.points);
     std::vector<uint32_t>().swap(s.scan.original_index);
   }

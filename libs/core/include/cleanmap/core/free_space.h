@@ -49,11 +49,16 @@ bool removedByPolicy(const FreeEvidence& e, int64_t scan, const MapParams& p);
 /// of at most 16 between two that do; `occupancy`, if given, receives that share.
 double freeSpaceAzimuthBin(const std::vector<PointXYZI>& points, double spacing,
                            double* occupancy = nullptr);
+/// The same with the points' azimuths given (fast::atan2(y, x) per point).
+double freeSpaceAzimuthBin(const std::vector<PointXYZI>& points, const std::vector<float>& azimuth,
+                           double spacing);
 
-/// A scan's GrazingStretches::from() / to(), given to FreeSpaceMap::insertScan.
+/// A scan's GrazingStretches::from() / to() (and side(), optional), given to
+/// FreeSpaceMap::insertScan.
 struct GrazingSpans {
   const std::vector<float>* from = nullptr;
   const std::vector<float>* to = nullptr;
+  const std::vector<float>* side = nullptr;
 };
 
 class FreeSpaceMap {
@@ -67,9 +72,10 @@ class FreeSpaceMap {
   /// world, `scan` its index in the sequence (each once; in increasing order, or the runs of empty
   /// scans mean nothing). `moving` (optional, per point): the returns decided moving, around which
   /// hit_inflate does not apply (a slow mover's own neighbourhood is what it leaves empty next).
-  /// `grazing` (optional): the scan's GrazingStretches::from() / to(), computed with this map's
-  /// flat_slope, margin, graze_reach and the pose's rotation (the pipeline's, once per scan);
-  /// otherwise the map computes them.
+  /// `grazing` (optional): the scan's GrazingStretches::from() / to() / side(), computed with this
+  /// map's flat_slope, margin, graze_reach, hit_inflate, the pose's rotation and the scan's
+  /// freeSpaceAzimuthBin (the pipeline's, once per scan); otherwise the map computes them. A
+  /// moving return's beam keeps its side stretch out (hit_inflate does not apply there either).
   using Stretches = GrazingSpans;
   /// Throws std::out_of_range for a scan index outside [0, kMaxScan] (the voxels keep 24 bits).
   void insertScan(const std::vector<PointXYZI>& points, const Eigen::Isometry3d& pose, int64_t scan,

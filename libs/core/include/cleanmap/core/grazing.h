@@ -18,13 +18,20 @@ class GrazingStretches {
   /// `points` in the sensor frame, `R` the sensor-to-world rotation (the world's z is up),
   /// `azimuth` per point (fast::atan2(y, x)). flat_slope: the largest rise of a flat surface;
   /// margin: how near the surface a beam runs; reach: how far beyond its last return a surface a
-  /// beam passes over is taken to go on (all as MapParams).
+  /// beam passes over is taken to go on (all as MapParams). column_step (rad between the lidar's
+  /// columns, e.g. freeSpaceAzimuthBin) and hit_inflate, where both are positive: side() too.
   void compute(const std::vector<PointXYZI>& points, const Eigen::Matrix3f& R,
-               const std::vector<float>& azimuth, double flat_slope, double margin, double reach);
+               const std::vector<float>& azimuth, double flat_slope, double margin, double reach,
+               double column_step = 0, double hit_inflate = 0);
   /// Per point, metres along its beam from the sensor: the stretch [from, to] that grazes a flat
   /// surface; to < from where there is none.
   const std::vector<float>& from() const { return skip_a_; }
   const std::vector<float>& to() const { return skip_b_; }
+  /// Per point, metres along its beam: where it ends on an upright surface met at a grazing angle
+  /// whose returns lie farther apart than 2 hit_inflate, the clean map's free space marks nothing
+  /// from there to its end (DESIGN §2e, "Grazing sides"); +infinity elsewhere. The moving-point
+  /// test does not use it. Empty where compute() had no column_step.
+  const std::vector<float>& side() const { return side_; }
   /// Whether point n lies on a flat surface (its rise from its lower neighbour in its column is
   /// at most flat_slope).
   bool flat(std::size_t n) const { return n < slope_.size() && !std::isnan(slope_[n]); }
@@ -36,6 +43,7 @@ class GrazingStretches {
   }
 
  private:
+  void sides(const std::vector<PointXYZI>& points, int naz, float m, float step, float hit_inflate);
   // The returns' cells of azimuth x elevation, each return's cell, lower neighbour, rise to it
   // where flat, horizontal range and height from the sensor (world frame); kept between scans.
   std::vector<uint32_t> grid_;  // UINT32_MAX between calls
@@ -43,7 +51,7 @@ class GrazingStretches {
   std::vector<uint16_t> band_;  // each return's band of elevation
   std::vector<uint32_t> lower_;
   std::vector<uint8_t> upright_above_;  // per cell: a return rises steeply from its return
-  std::vector<float> slope_, rho_, zw_, skip_a_, skip_b_;
+  std::vector<float> slope_, rho_, zw_, xw_, yw_, skip_a_, skip_b_, side_;
 };
 
 }  // namespace cleanmap

@@ -269,6 +269,11 @@ struct MapParams {
   /// m; how far beyond its last return a flat surface a beam passes over is taken to go on (the
   /// depth of a car's roof seen from afar): the beam marks nothing within `margin` of it that far.
   double graze_reach = 2.5;
+  /// Grazing sides (DESIGN §2e): a beam ending on an upright surface (a wall, a car's side) met at
+  /// horizontal incidence alpha, where the scan's returns lie more than 2 hit_inflate apart along
+  /// it (rho column step / sin alpha: coarse columns, far or grazing sides), marks nothing within
+  /// margin / sin alpha of its end, where it runs through that surface's voxels between returns.
+  bool grazing_sides = true;
   double min_range = 1.0;  ///< m; the first metre of every beam is not marked (the car itself)
   /// rad; azimuth step between the beams of a ring (HDL-64E: 0.0031; 0 = cast every beam whole).
   /// Near the sensor only every 2^L-th beam is cast, as far out as those alone are less than a
