@@ -269,14 +269,13 @@ double freeSpaceAzimuthBin(const std::vector<PointXYZI>& points, double spacing,
   std::vector<float> azimuth(points.size());
   for (std::size_t n = 0; n < points.size(); ++n)
     azimuth[n] = fast::atan2(points[n].y, points[n].x);
-  std::vector<uint64_t> bits;
-  return azimuthBin(points, azimuth, spacing, occupancy, bits);
+  return freeSpaceAzimuthBin(points, azimuth, spacing, occupancy);
 }
 
 double freeSpaceAzimuthBin(const std::vector<PointXYZI>& points, const std::vector<float>& azimuth,
-                           double spacing) {
+                           double spacing, double* occupancy) {
   std::vector<uint64_t> bits;
-  return azimuthBin(points, azimuth, spacing, nullptr, bits);
+  return azimuthBin(points, azimuth, spacing, occupancy, bits);
 }
 
 FreeSpaceMap::FreeSpaceMap(const MapParams& p) : p_(p), inv_(1.0 / p.voxel) {
@@ -419,8 +418,10 @@ void FreeSpaceMap::insertScan(const std::vector<PointXYZI>& points, const Eigen:
                      p_.graze_reach, p_.grazing_sides ? spacing : 0.0, p_.hit_inflate);
   const std::vector<float>& skip_a = given ? *grazing.from : grazing_.from();
   const std::vector<float>& skip_b = given ? *grazing.to : grazing_.to();
+  // Grazing sides (DESIGN §2e), where on and given for every point.
   const std::vector<float>* side = given ? grazing.side : &grazing_.side();
-  if (side && side->size() != points.size()) side = nullptr;
+  if (p_.flat_slope <= 0 || !p_.grazing_sides || (side && side->size() != points.size()))
+    side = nullptr;
   uint64_t cached = ~uint64_t(0);
   Marks* b = nullptr;
   for (std::size_t n = 0; n < points.size(); ++n) {
@@ -453,8 +454,7 @@ void FreeSpaceMap::insertScan(const std::vector<PointXYZI>& points, const Eigen:
       ub = (skip_b[n] - t0) * inv_;
     }
     // Grazing sides (DESIGN §2e): from there to the beam's end, unless the return is moving.
-    if (p_.flat_slope > 0 && p_.grazing_sides && side && (*side)[n] < r &&
-        !(moving && (*moving)[n])) {
+    if (side && (*side)[n] < r && !(moving && (*moving)[n])) {
       ua = std::min(ua, (double((*side)[n]) - t0) * inv_);
       ub = std::numeric_limits<double>::infinity();
     }

@@ -51,7 +51,7 @@ double freeSpaceAzimuthBin(const std::vector<PointXYZI>& points, double spacing,
                            double* occupancy = nullptr);
 /// The same with the points' azimuths given (fast::atan2(y, x) per point).
 double freeSpaceAzimuthBin(const std::vector<PointXYZI>& points, const std::vector<float>& azimuth,
-                           double spacing);
+                           double spacing, double* occupancy = nullptr);
 
 /// A scan's GrazingStretches::from() / to() (and side(), optional), given to
 /// FreeSpaceMap::insertScan.
