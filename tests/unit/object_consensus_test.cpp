@@ -8,6 +8,7 @@
 #include <random>
 #include <stdexcept>
 
+#include "cleanmap/core/grazing.h"
 #include "cleanmap/core/mover_feet.h"
 #include "cleanmap/core/object_consensus.h"
 #include "cleanmap/core/object_shift.h"
@@ -1677,4 +1678,101 @@ TEST(OutlineShift, RoofStripesAreNotOutline) {
   EXPECT_EQ(m.cells, 0u);
   EXPECT_EQ(m.shift, Eigen::Vector2f::Zero());
   EXPECT_EQ(outlineShift({}, other).cells, 0u);
+}
+
+namespace {
+
+// An Ouster-like scan (`columns` columns, 64 rings over -16.6 to +16.6 degrees, the sensor 1.73 m
+// over the road) of axis-aligned boxes (lo, hi) on the road; returns beyond 40 m are dropped.
+std::vector<PointXYZI> castScan(
+    int columns, const std::vector<std::pair<Eigen::Vector3d, Eigen::Vector3d>>& boxes) {
+  std::vector<PointXYZI> pts;
+  for (int c = 0; c < columns; ++c)
+    for (int r = 0; r < 64; ++r) {
+      const double az = (c + 0.5) * 2 * M_PI / columns - M_PI;
+      const double el = (-16.6 + r * 33.2 / 63) * M_PI / 180;
+      const Eigen::Vector3d d(std::cos(el) * std::cos(az), std::cos(el) * std::sin(az),
+                              std::sin(el));
+      double t = d.z() < 0 ? -1.73 / d.z() : 1e9;
+      for (const auto& [lo, hi] : boxes) {  // slab test
+        double t0 = 0, t1 = 1e9;
+        for (int k = 0; k < 3; ++k) {
+          if (std::abs(d[k]) < 1e-12) {
+            if (0 < lo[k] || 0 > hi[k]) t0 = 1e10;
+            continue;
+          }
+          const double a = lo[k] / d[k], b = hi[k] / d[k];
+          t0 = std::max(t0, std::min(a, b));
+          t1 = std::min(t1, std::max(a, b));
+        }
+        if (t0 <= t1 && t0 > 0) t = std::min(t, t0);
+      }
+      if (t > 40) continue;
+      const Eigen::Vector3d q = t * d;
+      pts.push_back({float(q.x()), float(q.y()), float(q.z()), 0.f});
+    }
+  return pts;
+}
+
+}  // namespace
+
+TEST(ObjectConsensus, CoarseColumnsJoinASideSeenAtAGrazingAngleNotAWalkerToTheWallBehindHim) {
+  // doc/OBJECTS.md rule 1, "Coarse columns": an Ouster at 512 columns (0.70 degrees) sees a car's
+  // side 4 m beside it at about 20 degrees of incidence, its columns 0.4 m apart along the side,
+  // more than the grouping's 0.3 m voxel: the side falls into slices apart from the car. Joined by
+  // the links of its columns (GrazingStretches::links), the car is one object. A walker 0.4 m in
+  // front of a wall, his face across it: his face's line runs on into the wall's return beside
+  // his back, three in a row; no link joins him to the wall, nor the road to anything.
+  const Eigen::Vector3d car_lo(7.9, 4.1, -1.68), car_hi(12.4, 5.9, -0.2);
+  const Eigen::Vector3d wall_lo(0, -6.15, -1.73), wall_hi(30, -5.85, 0.77);
+  const Eigen::Vector3d walker_lo(17.85, -5.45, -1.68), walker_hi(18.35, -4.85, 0.05);
+  const auto pts = castScan(512, {{car_lo, car_hi}, {wall_lo, wall_hi}, {walker_lo, walker_hi}});
+  const auto inside = [](const PointXYZI& p, const Eigen::Vector3d& lo, const Eigen::Vector3d& hi) {
+    const Eigen::Vector3d q(p.x, p.y, p.z);
+    return (q.array() >= lo.array() - 0.01).all() && (q.array() <= hi.array() + 0.01).all();
+  };
+  std::vector<uint8_t> member(pts.size()), car(pts.size()), wall(pts.size()), walker(pts.size());
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    car[i] = inside(pts[i], car_lo, car_hi);
+    wall[i] = inside(pts[i], wall_lo, wall_hi);
+    walker[i] = inside(pts[i], walker_lo, walker_hi);
+    member[i] = pts[i].z > -1.6f;  // off the road
+  }
+  std::vector<float> azimuth(pts.size());
+  for (std::size_t n = 0; n < pts.size(); ++n) azimuth[n] = std::atan2(pts[n].y, pts[n].x);
+  const MapParams m;
+  GrazingStretches g;
+  g.compute(pts, Eigen::Matrix3f::Identity(), azimuth, m.flat_slope, m.margin, m.graze_reach,
+            2 * M_PI / 512, 0.0, true);
+  const auto& links = g.links();
+  ASSERT_FALSE(links.empty());
+  std::size_t on_car = 0;
+  for (std::size_t k = 0; k + 1 < links.size(); k += 2) {
+    const uint32_t a = links[k], b = links[k + 1];
+    EXPECT_FALSE((walker[a] && wall[b]) || (wall[a] && walker[b]))
+        << pts[a].x << " " << pts[a].y << " - " << pts[b].x << " " << pts[b].y;
+    EXPECT_TRUE(pts[a].z > -1.7f && pts[b].z > -1.7f) << "a link on the road";
+    on_car += car[a] && car[b];
+  }
+  EXPECT_GT(on_car, 50u);
+  const ObjectParams p;
+  const auto components = [&](const std::vector<uint8_t>& of, const ObjectComponents& cc) {
+    std::vector<uint32_t> roots;
+    for (std::size_t i = 0; i < pts.size(); ++i)
+      if (of[i] && member[i]) roots.push_back(cc.root_of[cc.point_voxel[i]]);
+    std::sort(roots.begin(), roots.end());
+    return static_cast<std::size_t>(std::unique(roots.begin(), roots.end()) - roots.begin());
+  };
+  ObjectComponents apart, joined;
+  groupObjects(pts, member, p.voxel, apart);
+  groupObjects(pts, member, p.voxel, joined, {}, &links);
+  EXPECT_GT(components(car, apart), 1u);  // the side's slices
+  EXPECT_EQ(components(car, joined), 1u);
+  // The walker is not joined to the wall (0.4 m apart: neither are their voxels).
+  std::size_t shared = 0;
+  for (std::size_t i = 0; i < pts.size(); ++i)
+    for (std::size_t j = 0; walker[i] && member[i] && j < pts.size(); ++j)
+      shared += wall[j] && member[j] &&
+                joined.root_of[joined.point_voxel[i]] == joined.root_of[joined.point_voxel[j]];
+  EXPECT_EQ(shared, 0u);
 }

@@ -24,7 +24,7 @@ namespace cleanmap {
 void GrazingStretches::compute(const std::vector<PointXYZI>& points, const Eigen::Matrix3f& R,
                                const std::vector<float>& azimuth, double flat_slope,
                                double margin_m, double reach_m, double column_step,
-                               double hit_inflate) {
+                               double hit_inflate, bool links) {
   constexpr float kAzBin = 0.012f;    // rad
   constexpr float kElBand = 0.0017f;  // of the elevation's tangent: 0.1 degree near the horizon
   constexpr float kElLow = -1.f;      // tangents -1 to +0.27: -45 to +15 degrees
@@ -148,8 +148,9 @@ void GrazingStretches::compute(const std::vector<PointXYZI>& points, const Eigen
     }
   }
   side_.clear();
-  if (column_step > 0 && hit_inflate > 0)
-    sides(points, naz, m, float(column_step), float(hit_inflate));
+  links_.clear();
+  if (column_step > 0 && (hit_inflate > 0 || links))
+    sides(points, naz, m, float(column_step), float(hit_inflate), links);
   for (const int c : cell_)  // empty the grid for the next call
     if (c >= 0) grid_[static_cast<std::size_t>(c)] = UINT32_MAX;
 }
@@ -164,9 +165,17 @@ void GrazingStretches::compute(const std::vector<PointXYZI>& points, const Eigen
 // crosses the surface's voxels there. It marks nothing from that far back (not beyond one
 // column's gap past its nearer neighbour: the surface is seen from L to R) to its end.
 void GrazingStretches::sides(const std::vector<PointXYZI>& points, int naz, float m, float step,
-                             float hit_inflate) {
+                             float hit_inflate, bool links) {
   const std::size_t np = cell_.size();
-  side_.assign(np, std::numeric_limits<float>::infinity());
+  const bool mark = hit_inflate > 0;
+  if (mark) side_.assign(np, std::numeric_limits<float>::infinity());
+  // Per return on a line with its neighbours: the line's direction and the two neighbours.
+  if (links) {
+    dir_x_.assign(np, std::numeric_limits<float>::quiet_NaN());
+    dir_y_.resize(np);
+    next_a_.assign(np, UINT32_MAX);
+    next_b_.assign(np, UINT32_MAX);
+  }
   // The nearest return of n's band (or the one above or below it) 1-2 columns to side s.
   const auto beside = [&](std::size_t n, int s) -> uint32_t {
     const int col = cell_[n] % naz, el = band_[n];
@@ -183,6 +192,10 @@ void GrazingStretches::sides(const std::vector<PointXYZI>& points, int naz, floa
   for (std::size_t n = 0; n < np; ++n) {
     if (cell_[n] < 0 || !(rho_[n] > 0) || !std::isnan(slope_[n])) continue;
     const uint32_t a = beside(n, -1), b = beside(n, +1);
+    if (links) {
+      next_a_[n] = a;
+      next_b_[n] = b;
+    }
     if (a == UINT32_MAX || b == UINT32_MAX) continue;
     const float ux = xw_[b] - xw_[a], uy = yw_[b] - yw_[a];
     const float len = std::sqrt(ux * ux + uy * uy);
@@ -192,12 +205,41 @@ void GrazingStretches::sides(const std::vector<PointXYZI>& points, int naz, floa
     if (!(along_ab > 0 && along_ab < 1) ||
         std::abs(px * uy - py * ux) / len > 0.05f + 0.005f * rho_[n])
       continue;
+    if (links && !(lower_[n] == UINT32_MAX && zw_[n] < 0)) {  // not the lowest ring's road
+      dir_x_[n] = ux / len;
+      dir_y_[n] = uy / len;
+    }
+    if (!mark) continue;
     const float sin_a = std::abs(ux * yw_[n] - uy * xw_[n]) / (len * rho_[n]);
     if (!(rho_[n] * step > 2 * hit_inflate * sin_a)) continue;  // their neighbourhoods cover it
     const float near = std::min(rho_[a], rho_[b]);
     if (!(near < rho_[n])) continue;  // n is the surface's nearest point: met head-on
     const float from = std::max(rho_[n] - m / std::max(sin_a, 1e-3f), 2 * near - rho_[n]);
     side_[n] = std::max(0.f, from) * (points[n].xyz().norm() / rho_[n]);
+  }
+  // Links: two neighbours each on a line with its own neighbours, the two lines parallel (four
+  // returns in a row): one surface. Three alone are not enough: a walker's face across a wall
+  // runs on into the wall's return beside his back.
+  constexpr float kParallel = 0.1f;  // sine of the angle between the two lines
+  for (std::size_t n = 0; links && n < np; ++n) {
+    if (std::isnan(dir_x_[n])) continue;
+    for (const bool after : {false, true}) {
+      const uint32_t q = after ? next_b_[n] : next_a_[n];
+      if (std::isnan(dir_x_[q])) {
+        // q ends the line (a silhouette): beyond it nothing, or something farther
+        const uint32_t r = after ? next_b_[q] : next_a_[q];
+        if (q == UINT32_MAX || cell_[q] < 0 || !std::isnan(slope_[q]) ||
+            (lower_[q] == UINT32_MAX && zw_[q] < 0))
+          continue;  // flat, or the lowest ring's road
+        if (!(r == UINT32_MAX || rho_[r] > rho_[q] + kMaxLink)) continue;
+      } else if (std::abs(dir_x_[n] * dir_y_[q] - dir_y_[n] * dir_x_[q]) > kParallel) {
+        continue;
+      }
+      const float dx = xw_[q] - xw_[n], dy = yw_[q] - yw_[n];
+      if (dx * dx + dy * dy > kMaxLink * kMaxLink) continue;
+      links_.push_back(static_cast<uint32_t>(n));
+      links_.push_back(q);
+    }
   }
 }
 

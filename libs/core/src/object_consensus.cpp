@@ -151,7 +151,8 @@ void splitOnLowSurfaces(const std::vector<PointXYZI>& points, ObjectComponents& 
 }  // namespace
 
 void groupObjects(const std::vector<PointXYZI>& points, const std::vector<uint8_t>& member,
-                  double side, ObjectComponents& cc, const RingReach& reach) {
+                  double side, ObjectComponents& cc, const RingReach& reach,
+                  const std::vector<uint32_t>* column_links) {
   cc.side = side;
   cc.reach = reach;
   cc.voxel_of.clear();
@@ -202,10 +203,28 @@ void groupObjects(const std::vector<PointXYZI>& points, const std::vector<uint8_
     links.start.resize(cc.voxels.size() + 1);
     links.up.assign(cc.voxels.size(), UINT32_MAX);
   }
+  // Coarse columns: the voxel pairs of member returns of one surface in neighbouring columns
+  // (GrazingStretches::links), each once, smaller voxel first.
+  std::vector<std::pair<uint32_t, uint32_t>> across;
+  if (column_links)
+    for (std::size_t k = 0; k + 1 < column_links->size(); k += 2) {
+      const uint32_t a = (*column_links)[k], b = (*column_links)[k + 1];
+      if (a >= points.size() || b >= points.size()) continue;
+      const uint32_t va = cc.point_voxel[a], vb = cc.point_voxel[b];
+      if (va == UINT32_MAX || vb == UINT32_MAX || va == vb) continue;
+      across.emplace_back(std::min(va, vb), std::max(va, vb));
+    }
+  std::sort(across.begin(), across.end());
+  across.erase(std::unique(across.begin(), across.end()), across.end());
+  std::size_t next_across = 0;
   UnionFind uf(cc.voxels.size());
   for (uint32_t v = 0; v < cc.voxels.size(); ++v) {
     const Eigen::Vector3i& c = cc.voxels[v];
     if (split) links.start[v] = static_cast<uint32_t>(links.after.size());
+    for (; next_across < across.size() && across[next_across].first == v; ++next_across) {
+      uf.unite(v, across[next_across].second);
+      if (split) links.after.push_back(across[next_across].second);
+    }
     forEachNeighbour13([&](int dx, int dy, int dz) {
       const uint64_t key = cellKey(c.x() + dx, c.y() + dy, c.z() + dz);
       const std::size_t b = bit(key);

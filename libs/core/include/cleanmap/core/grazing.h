@@ -19,10 +19,11 @@ class GrazingStretches {
   /// `azimuth` per point (fast::atan2(y, x)). flat_slope: the largest rise of a flat surface;
   /// margin: how near the surface a beam runs; reach: how far beyond its last return a surface a
   /// beam passes over is taken to go on (all as MapParams). column_step (rad between the lidar's
-  /// columns, e.g. freeSpaceAzimuthBin) and hit_inflate, where both are positive: side() too.
+  /// columns, e.g. freeSpaceAzimuthBin) and hit_inflate, where both are positive: side() too;
+  /// column_step and `links`: links() too.
   void compute(const std::vector<PointXYZI>& points, const Eigen::Matrix3f& R,
                const std::vector<float>& azimuth, double flat_slope, double margin, double reach,
-               double column_step = 0, double hit_inflate = 0);
+               double column_step = 0, double hit_inflate = 0, bool links = false);
   /// Per point, metres along its beam from the sensor: the stretch [from, to] that grazes a flat
   /// surface; to < from where there is none.
   const std::vector<float>& from() const { return skip_a_; }
@@ -32,6 +33,13 @@ class GrazingStretches {
   /// from there to its end (DESIGN §2e, "Grazing sides"); +infinity elsewhere. The moving-point
   /// test does not use it. Empty where compute() had no column_step.
   const std::vector<float>& side() const { return side_; }
+  /// Pairs (n, q), flat: returns of one upright surface in neighbouring columns, q at most
+  /// kMaxLink away (horizontally), each on the line through its own two neighbours (as side())
+  /// with the two lines parallel, or q the line's last return before nothing or something over
+  /// kMaxLink farther (doc/OBJECTS.md rule 1, "Coarse columns"); empty unless compute() had
+  /// column_step and links.
+  const std::vector<uint32_t>& links() const { return links_; }
+  static constexpr float kMaxLink = 1.0f;  // m
   /// Whether point n lies on a flat surface (its rise from its lower neighbour in its column is
   /// at most flat_slope).
   bool flat(std::size_t n) const { return n < slope_.size() && !std::isnan(slope_[n]); }
@@ -43,7 +51,8 @@ class GrazingStretches {
   }
 
  private:
-  void sides(const std::vector<PointXYZI>& points, int naz, float m, float step, float hit_inflate);
+  void sides(const std::vector<PointXYZI>& points, int naz, float m, float step, float hit_inflate,
+             bool links);
   // The returns' cells of azimuth x elevation, each return's cell, lower neighbour, rise to it
   // where flat, horizontal range and height from the sensor (world frame); kept between scans.
   std::vector<uint32_t> grid_;  // UINT32_MAX between calls
@@ -52,6 +61,8 @@ class GrazingStretches {
   std::vector<uint32_t> lower_;
   std::vector<uint8_t> upright_above_;  // per cell: a return rises steeply from its return
   std::vector<float> slope_, rho_, zw_, xw_, yw_, skip_a_, skip_b_, side_;
+  std::vector<float> dir_x_, dir_y_;
+  std::vector<uint32_t> next_a_, next_b_, links_;
 };
 
 }  // namespace cleanmap

@@ -138,9 +138,12 @@ struct ObjectComponents {
 };
 
 /// Fills `out` (its buffers reused) with the components of the points with `member[i]`, in
-/// voxels of side `side`. Deterministic; O(points).
+/// voxels of side `side`. `column_links` (optional): pairs of point indices, flat
+/// (GrazingStretches::links), whose members' voxels also join (coarse columns, doc/OBJECTS.md
+/// rule 1); the low surfaces' split keeps them. Deterministic; O(points).
 void groupObjects(const std::vector<PointXYZI>& points, const std::vector<uint8_t>& member,
-                  double side, ObjectComponents& out, const RingReach& reach = {});
+                  double side, ObjectComponents& out, const RingReach& reach = {},
+                  const std::vector<uint32_t>* column_links = nullptr);
 
 /// Rule 2's width (doc/OBJECTS.md): per voxel, at its component's root (0 elsewhere), the spread
 /// of the component's voxels across their main horizontal axis, as the width of a uniform strip
