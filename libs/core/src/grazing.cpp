@@ -225,11 +225,11 @@ void GrazingStretches::sides(const std::vector<PointXYZI>& points, int naz, floa
     if (std::isnan(dir_x_[n])) continue;
     for (const bool after : {false, true}) {
       const uint32_t q = after ? next_b_[n] : next_a_[n];
+      // q is a return (n has a line only with both neighbours found)
       if (std::isnan(dir_x_[q])) {
         // q ends the line (a silhouette): beyond it nothing, or something farther
         const uint32_t r = after ? next_b_[q] : next_a_[q];
-        if (q == UINT32_MAX || cell_[q] < 0 || !std::isnan(slope_[q]) ||
-            (lower_[q] == UINT32_MAX && zw_[q] < 0))
+        if (!std::isnan(slope_[q]) || (lower_[q] == UINT32_MAX && zw_[q] < 0))
           continue;  // flat, or the lowest ring's road
         if (!(r == UINT32_MAX || rho_[r] > rho_[q] + kMaxLink)) continue;
       } else if (std::abs(dir_x_[n] * dir_y_[q] - dir_y_[n] * dir_x_[q]) > kParallel) {
