@@ -1776,3 +1776,49 @@ TEST(ObjectConsensus, CoarseColumnsJoinASideSeenAtAGrazingAngleNotAWalkerToTheWa
                 joined.root_of[joined.point_voxel[i]] == joined.root_of[joined.point_voxel[j]];
   EXPECT_EQ(shared, 0u);
 }
+
+TEST(ObjectConsensus, CoarseColumnsTurnACarsWholeSideNotOnlyTheSlicesWithMovingPoints) {
+  // doc/OBJECTS.md rule 2 above the foot: the motion spreads to the parts of a component that hold
+  // a moving point of their own. At 512 columns a car's side is slices that only its columns'
+  // links join (rule 1, "Coarse columns"); the parts are joined by them too, so a car found moving
+  // by its rear face turns its side with it (stop_and_go at 512 columns: 40-90 of a car's returns
+  // a scan kept static). Without the links inside the component, the slices stay static.
+  const Eigen::Vector3d car_lo(7.9, 4.1, -1.68), car_hi(12.4, 5.9, -0.2);
+  const auto pts = castScan(512, {{car_lo, car_hi}});
+  std::vector<uint8_t> member(pts.size()), car(pts.size()), moving(pts.size(), 0);
+  std::size_t n_car = 0, n_moving = 0;
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    const Eigen::Vector3d q(pts[i].x, pts[i].y, pts[i].z);
+    member[i] = pts[i].z > -1.6f;  // off the road
+    car[i] = member[i] && (q.array() >= car_lo.array() - 0.01).all() &&
+             (q.array() <= car_hi.array() + 0.01).all();
+    moving[i] = car[i] && pts[i].x < 8.0f;  // its rear face, as the windowed test finds it
+    n_car += car[i];
+    n_moving += moving[i];
+  }
+  const ObjectParams p;
+  ASSERT_GE(n_moving, static_cast<std::size_t>(p.min_moving));
+  ASSERT_GE(static_cast<double>(n_moving), p.moving_fraction * static_cast<double>(n_car));
+  ASSERT_LT(n_moving, n_car * 3 / 4);  // the side holds a quarter of its returns or more
+  std::vector<float> azimuth(pts.size());
+  for (std::size_t n = 0; n < pts.size(); ++n) azimuth[n] = std::atan2(pts[n].y, pts[n].x);
+  const MapParams m;
+  GrazingStretches g;
+  g.compute(pts, Eigen::Matrix3f::Identity(), azimuth, m.flat_slope, m.margin, m.graze_reach,
+            2 * M_PI / 512, 0.0, true);
+  ObjectComponents joined;
+  groupObjects(pts, member, p.voxel, joined, {}, &g.links());
+  ASSERT_FALSE(joined.across.empty());
+  const auto turned = [&](const ObjectComponents& cc) {
+    std::vector<uint8_t> mv = moving;
+    objectConsensus(pts, member, mv, p, nullptr, nullptr, {}, &cc);
+    std::size_t n = 0;
+    for (std::size_t i = 0; i < pts.size(); ++i) n += car[i] && mv[i];
+    return n;
+  };
+  EXPECT_EQ(turned(joined), n_car);       // the whole car (its lowest band has its body above it)
+  ObjectComponents parts_apart = joined;  // the same components, the parts without the links
+  parts_apart.across_start.clear();
+  parts_apart.across.clear();
+  EXPECT_LT(turned(parts_apart), n_car - n_car / 10);
+}

@@ -1064,6 +1064,29 @@ TEST(SimSensors, ACarThatStopsKeepsItsSlicesAtSixteenRings) {
   EXPECT_GE(stopped.recall(), 0.9);   // measured 0.98 (0 before)
 }
 
+// Coarse columns (doc/OBJECTS.md rules 1, 2 and 4): stop_and_go seen by an OS1-64 at 512
+// columns (0.70 degrees). The car's side, seen at 20-25 degrees of incidence, is column slices
+// that only its columns' links join. Turned moving by its rear face, the car's parts above its
+// foot must join as its component did, or the slices without a moving return of their own stay
+// static (26-90 of its 300-480 returns in each of scans 4-11, and 167-171 of its 206 in the
+// last two). In the scan it stops in, its side shows a column less than in the scan before, and
+// the centroids' difference is not its motion: it is the object the scan before moved whole by
+// its ends (267 returns lost before).
+TEST(SimSensors, ACarThatStopsKeepsItsSideAtFiveHundredTwelveColumns) {
+  auto sc = seenBy(scenario("stop_and_go"), SensorModel::kOs1_64);
+  sc.sensor.azimuth_step_deg = 360.0 / 512;
+  const auto r = runCase(sc);
+  EXPECT_GE(r.per_mover.at("stop_go_car").recall(), 0.93);  // measured 0.948 (0.833 before)
+  EXPECT_GE(r.all.precision(), 0.99);                       // measured 1.000
+  MosCounts driving, stops, standing;
+  for (std::size_t k = 0; k < 12; ++k) driving += r.per_frame.at(k);
+  stops = r.per_frame.at(12);
+  for (std::size_t k = 17; k < 23; ++k) standing += r.per_frame.at(k);
+  EXPECT_GE(driving.recall(), 0.98);  // measured 0.994 (0.916 before)
+  EXPECT_GE(stops.recall(), 0.9);     // measured 0.99 (0 before)
+  EXPECT_EQ(standing.fp, 0u);         // it stands: nothing of it moving
+}
+
 // doc/SCAN_CONFLICT.md, "A return at P": queue_stop_go seen by a VLP-16 from its standing ego.
 // The queue's first car stops 2.6 m beside the sensor. Its lowest ring is a bottom edge, so the
 // beams below P are left out, and the cone holds only beams of that ring returning at P's range:

@@ -216,15 +216,26 @@ void groupObjects(const std::vector<PointXYZI>& points, const std::vector<uint8_
     }
   std::sort(across.begin(), across.end());
   across.erase(std::unique(across.begin(), across.end()), across.end());
-  std::size_t next_across = 0;
+  // Kept (CSR) so that the groups inside a component join as the component did (forEachLinked).
+  cc.across_start.clear();
+  cc.across.clear();
+  if (!across.empty()) {
+    cc.across_start.assign(cc.voxels.size() + 1, 0);
+    for (const auto& [a, b] : across) {
+      ++cc.across_start[a + 1];
+      cc.across.push_back(b);
+    }
+    for (std::size_t v = 0; v < cc.voxels.size(); ++v) cc.across_start[v + 1] += cc.across_start[v];
+  }
   UnionFind uf(cc.voxels.size());
   for (uint32_t v = 0; v < cc.voxels.size(); ++v) {
     const Eigen::Vector3i& c = cc.voxels[v];
     if (split) links.start[v] = static_cast<uint32_t>(links.after.size());
-    for (; next_across < across.size() && across[next_across].first == v; ++next_across) {
-      uf.unite(v, across[next_across].second);
-      if (split) links.after.push_back(across[next_across].second);
-    }
+    if (!cc.across_start.empty())
+      for (uint32_t j = cc.across_start[v]; j < cc.across_start[v + 1]; ++j) {
+        uf.unite(v, cc.across[j]);
+        if (split) links.after.push_back(cc.across[j]);
+      }
     forEachNeighbour13([&](int dx, int dy, int dz) {
       const uint64_t key = cellKey(c.x() + dx, c.y() + dy, c.z() + dz);
       const std::size_t b = bit(key);

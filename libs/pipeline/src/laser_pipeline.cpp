@@ -1139,7 +1139,16 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
         q_prev[k] = (prev_pose_inverse_ * w.world[i]).cast<float>();
       }
       // Or found moved: a car moving about a voxel a scan no longer lies in its previous voxels.
-      const std::optional<WholeMatch> match = matchWholeObject(q_prev, prev, op.voxel, kMovedMatch);
+      std::optional<WholeMatch> match = matchWholeObject(q_prev, prev, op.voxel, kMovedMatch);
+      // Or found moved by its ends (doc/OBJECTS.md rule 4, "by its ends"): a car that brakes
+      // shows a column more or less of its side (0.4 m at 512 columns), and its centroid steps
+      // by what the columns hold, not by its motion. Only where the scans after it can show it
+      // leave (below): the looser match is not kept on the previous scan's word alone.
+      bool by_ends = false;
+      if (!match) {
+        match = matchWholeObjectByEnds(q_prev, prev, op.voxel, kMovedMatch);
+        by_ends = match.has_value();
+      }
       if (!match) return false;
       const std::size_t a = match->object;
       const Eigen::Vector3f moved_by = match->shift;  // the shift that found it (zero: in place)
@@ -1209,7 +1218,7 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
       // scans after it are too few to tell, a vehicle in stop-and-go traffic (0.5-1 m/s) moves
       // less than a voxel and the beam model's margin in half a window (0.5 s): it stays as the
       // previous scan had it.
-      if (!can_leave) return true;
+      if (!can_leave) return !by_ends;
       // Leaving: min_moving of its moving points are moving for the later scans (its rear, the
       // gaps between its parts: a long vehicle driving on with its ends out of view), or half of
       // all its points are for the far half of them: a car pulling away at 0.8 m/s moves 0.08 m

@@ -135,6 +135,9 @@ struct ObjectComponents {
   /// per voxel: its component is a piece of a structure that low surfaces joined (RingReach);
   /// empty where none is. Rule 2 may turn such a piece moving, not static (doc/OBJECTS.md).
   std::vector<uint8_t> piece;
+  /// Coarse columns (doc/OBJECTS.md rule 1): per voxel v, the voxels after it that column links
+  /// join to it, across[across_start[v] .. across_start[v + 1]); both empty where none were given.
+  std::vector<uint32_t> across_start, across;
 };
 
 /// Fills `out` (its buffers reused) with the components of the points with `member[i]`, in
@@ -172,8 +175,8 @@ void forEachAcrossRings(const ObjectComponents& cc, uint32_t v, F&& f) {
 }
 
 /// Calls f(voxel) for the voxels of `cc` linked to voxel v and coming after it: its forward
-/// 26-neighbours (forEachNeighbour13) and those forEachAcrossRings gives. Visiting every voxel
-/// meets each linked pair once.
+/// 26-neighbours (forEachNeighbour13), those forEachAcrossRings gives and those column links
+/// join (`cc.across`). Visiting every voxel meets each linked pair once.
 template <class F>
 void forEachLinked(const ObjectComponents& cc, uint32_t v, F&& f) {
   const Eigen::Vector3i& c = cc.voxels[v];
@@ -181,6 +184,8 @@ void forEachLinked(const ObjectComponents& cc, uint32_t v, F&& f) {
     if (const uint32_t* n = cc.voxel_of.find(cellKey(c.x() + dx, c.y() + dy, c.z() + dz))) f(*n);
   });
   forEachAcrossRings(cc, v, f);
+  if (!cc.across_start.empty())
+    for (uint32_t j = cc.across_start[v]; j < cc.across_start[v + 1]; ++j) f(cc.across[j]);
 }
 
 /// Groups `points[i]` with `member[i]` (in crop, not ground) into 26-connected voxel components
