@@ -1714,6 +1714,18 @@ std::vector<PointXYZI> castScan(
   return pts;
 }
 
+// The column links of a castScan at 512 columns (GrazingStretches::links, the default map's
+// parameters, the sensor level).
+std::vector<uint32_t> columnLinks512(const std::vector<PointXYZI>& pts) {
+  std::vector<float> azimuth(pts.size());
+  for (std::size_t n = 0; n < pts.size(); ++n) azimuth[n] = std::atan2(pts[n].y, pts[n].x);
+  const MapParams m;
+  GrazingStretches g;
+  g.compute(pts, Eigen::Matrix3f::Identity(), azimuth, m.flat_slope, m.margin, m.graze_reach,
+            2 * M_PI / 512, 0.0, true);
+  return g.links();
+}
+
 }  // namespace
 
 TEST(ObjectConsensus, CoarseColumnsJoinASideSeenAtAGrazingAngleNotAWalkerToTheWallBehindHim) {
@@ -1738,13 +1750,7 @@ TEST(ObjectConsensus, CoarseColumnsJoinASideSeenAtAGrazingAngleNotAWalkerToTheWa
     walker[i] = inside(pts[i], walker_lo, walker_hi);
     member[i] = pts[i].z > -1.6f;  // off the road
   }
-  std::vector<float> azimuth(pts.size());
-  for (std::size_t n = 0; n < pts.size(); ++n) azimuth[n] = std::atan2(pts[n].y, pts[n].x);
-  const MapParams m;
-  GrazingStretches g;
-  g.compute(pts, Eigen::Matrix3f::Identity(), azimuth, m.flat_slope, m.margin, m.graze_reach,
-            2 * M_PI / 512, 0.0, true);
-  const auto& links = g.links();
+  const std::vector<uint32_t> links = columnLinks512(pts);
   ASSERT_FALSE(links.empty());
   std::size_t on_car = 0;
   for (std::size_t k = 0; k + 1 < links.size(); k += 2) {
@@ -1800,14 +1806,9 @@ TEST(ObjectConsensus, CoarseColumnsTurnACarsWholeSideNotOnlyTheSlicesWithMovingP
   ASSERT_GE(n_moving, static_cast<std::size_t>(p.min_moving));
   ASSERT_GE(static_cast<double>(n_moving), p.moving_fraction * static_cast<double>(n_car));
   ASSERT_LT(n_moving, n_car * 3 / 4);  // the side holds a quarter of its returns or more
-  std::vector<float> azimuth(pts.size());
-  for (std::size_t n = 0; n < pts.size(); ++n) azimuth[n] = std::atan2(pts[n].y, pts[n].x);
-  const MapParams m;
-  GrazingStretches g;
-  g.compute(pts, Eigen::Matrix3f::Identity(), azimuth, m.flat_slope, m.margin, m.graze_reach,
-            2 * M_PI / 512, 0.0, true);
+  const std::vector<uint32_t> links = columnLinks512(pts);
   ObjectComponents joined;
-  groupObjects(pts, member, p.voxel, joined, {}, &g.links());
+  groupObjects(pts, member, p.voxel, joined, {}, &links);
   ASSERT_FALSE(joined.across.empty());
   const auto turned = [&](const ObjectComponents& cc) {
     std::vector<uint8_t> mv = moving;
