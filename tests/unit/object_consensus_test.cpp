@@ -1823,3 +1823,50 @@ TEST(ObjectConsensus, CoarseColumnsTurnACarsWholeSideNotOnlyTheSlicesWithMovingP
   parts_apart.across.clear();
   EXPECT_LT(turned(parts_apart), n_car - n_car / 10);
 }
+
+TEST(ObjectConsensus, ABodyAgainstAWallFillsItsVoxelsNotTheWall) {
+  // doc/OBJECTS.md rule 3, "A body fills its voxels": a walker against a 30 m wall is part of the
+  // wall's structure; the windowed test finds three of his four returns (his back, which the
+  // beams ending on the wall see occupied, and his feet are missed). In the voxels of his body
+  // where most returns moved, the others are his too; the wall's voxels hold none that moved.
+  std::vector<PointXYZI> pts;
+  std::vector<uint8_t> walker, moving;
+  for (float x = 0; x <= 30.f; x += 0.1f)
+    for (float z = 0; z <= 2.4f; z += 0.1f) {
+      pts.push_back({x, 0.f, z, 0.f});
+      walker.push_back(0);
+      moving.push_back(0);
+    }
+  int k = 0;
+  const auto add = [&](float x, float y, float z) {
+    pts.push_back({x, y, z, 0.f});
+    walker.push_back(1);
+    moving.push_back(k++ % 4 != 0);  // every fourth return missed
+  };
+  for (float z = 0; z <= 1.7f; z += 0.05f) {
+    for (float x = 10.f; x <= 10.5f; x += 0.05f) add(x, 0.6f, z);  // his front
+    for (float y = 0.35f; y < 0.6f; y += 0.05f) {                  // his sides
+      add(10.f, y, z);
+      add(10.5f, y, z);
+    }
+  }
+  const std::vector<uint8_t> member(pts.size(), 1);
+  const auto run = [&](double fill, std::size_t& on_walker, std::size_t& on_wall) {
+    ObjectParams p;
+    p.body_fill = fill;
+    std::vector<uint8_t> mv = moving;
+    const auto st = objectConsensus(pts, member, mv, p);
+    on_walker = on_wall = 0;
+    for (std::size_t i = 0; i < pts.size(); ++i) (walker[i] ? on_walker : on_wall) += mv[i];
+    return st;
+  };
+  const std::size_t n_walker = static_cast<std::size_t>(k);
+  std::size_t walker_off = 0, wall_off = 0, walker_on = 0, wall_on = 0;
+  run(0.0, walker_off, wall_off);
+  const auto st = run(ObjectParams{}.body_fill, walker_on, wall_on);
+  EXPECT_LT(walker_off, n_walker * 4 / 5);  // three in four: what the test found
+  EXPECT_EQ(walker_on, n_walker);           // all of him
+  EXPECT_EQ(st.body_points_filled, n_walker - walker_off);
+  EXPECT_EQ(wall_off, 0u);
+  EXPECT_EQ(wall_on, 0u);  // the wall stays static
+}
