@@ -802,27 +802,6 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
       ++st.points_removed;
     }
   }
-  // A body fills its voxels (doc/OBJECTS.md rule 3): a group of at least 5 min_moving moving
-  // points that are at least half of its voxels' points is a mover, and in its voxels (0.3 m, less
-  // than any mover) where most returns moved, the others are its own too: a walker's back 0.05 m
-  // before a wall, which the beams ending on the wall see occupied, and his feet.
-  if (p.body_fill <= 0) return st;
-  std::vector<uint32_t> in_voxel(voxels.size(), 0), fill_all(voxels.size(), 0);
-  for (std::size_t i = 0; i < points.size(); ++i)
-    if (point_voxel[i] != UINT32_MAX) ++in_voxel[point_voxel[i]];
-  for (uint32_t v = 0; v < voxels.size(); ++v)
-    if (moving_in[v]) fill_all[muf.find(v)] += in_voxel[v];
-  for (std::size_t i = 0; i < points.size(); ++i) {
-    const uint32_t v = point_voxel[i];
-    if (v == UINT32_MAX || moving[i] || !moving_in[v]) continue;
-    const uint32_t g = muf.find(v);
-    if (static_cast<int64_t>(group[g]) >= 5 * int64_t(p.min_moving) &&
-        2 * group[g] >= fill_all[g] &&
-        static_cast<double>(moving_in[v]) >= p.body_fill * static_cast<double>(in_voxel[v])) {
-      moving[i] = 1;
-      ++st.body_points_filled;
-    }
-  }
   return st;
 }
 

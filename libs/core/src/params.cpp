@@ -55,8 +55,6 @@ void validate(const PipelineParams& p, const std::string& name) {
           "object.ring_pool must be in [0, object.max_length] m (0 = off)");
   require(p.object.persist_radius >= 0 && p.object.persist_radius <= 10,
           "object.persist_radius must be in [0, 10] m (0 = off)");
-  require(p.object.body_fill >= 0 && p.object.body_fill <= 1,
-          "object.body_fill must be in [0, 1] (0 = off)");
   require(p.object.foot_height >= 0 && p.object.foot_height <= 2,
           "object.foot_height must be in [0, 2] m (0 = off)");
   const auto& r = p.registration;

@@ -48,7 +48,6 @@ ScanStats& ScanStats::operator+=(const ScanStats& o) {
   consensus_points += o.consensus_points;
   consensus_removed += o.consensus_removed;
   consensus_body_kept += o.consensus_body_kept;
-  consensus_body_filled += o.consensus_body_filled;
   consensus_foot_left += o.consensus_foot_left;
   mover_feet += o.mover_feet;
   mover_roofs += o.mover_roofs;

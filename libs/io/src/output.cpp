@@ -603,7 +603,6 @@ void OutputWriter::finish(double wall_s, const FreeSpaceMap* free_space) {
                  {"consensus_points_added", total.consensus_points},
                  {"consensus_points_removed", total.consensus_removed},
                  {"consensus_body_points_kept", total.consensus_body_kept},
-                 {"consensus_body_points_filled", total.consensus_body_filled},
                  {"consensus_foot_points_left", total.consensus_foot_left},
                  {"consensus_still_part_points_left", total.consensus_still_part_left},
                  {"consensus_wide_objects_left", total.consensus_wide_left},

@@ -1409,7 +1409,6 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
   s.stats.consensus_points = oc.points_added;
   s.stats.consensus_removed = oc.points_removed;
   s.stats.consensus_body_kept = oc.body_points_kept;
-  s.stats.consensus_body_filled = oc.body_points_filled;
   s.stats.consensus_foot_left = oc.foot_points_left;
   s.stats.consensus_still_part_left = oc.still_part_points_left;
   s.stats.consensus_wide_left = oc.wide_objects_left;

@@ -20,14 +20,13 @@
 namespace cleanmap {
 
 struct ObjectConsensusStats {
-  std::size_t objects = 0;             ///< connected groups of non-ground points
-  std::size_t moving_objects = 0;      ///< groups turned moving as a whole
-  std::size_t points_added = 0;        ///< points turned moving by the consensus
-  std::size_t points_removed = 0;      ///< moving points turned static (a few in a static object)
-  std::size_t persisted = 0;           ///< of moving_objects, those kept moving by the hysteresis
-  std::size_t body_points_kept = 0;    ///< moving points of a body a static component kept
-  std::size_t body_points_filled = 0;  ///< points a body's voxel turned moving (body_fill)
-  std::size_t foot_points_left = 0;    ///< points at a moving component's foot not turned moving
+  std::size_t objects = 0;           ///< connected groups of non-ground points
+  std::size_t moving_objects = 0;    ///< groups turned moving as a whole
+  std::size_t points_added = 0;      ///< points turned moving by the consensus
+  std::size_t points_removed = 0;    ///< moving points turned static (a few in a static object)
+  std::size_t persisted = 0;         ///< of moving_objects, those kept moving by the hysteresis
+  std::size_t body_points_kept = 0;  ///< moving points of a body a static component kept
+  std::size_t foot_points_left = 0;  ///< points at a moving component's foot not turned moving
   /// Points of a moving component's raised parts (joined to it only below the foot) with no
   /// moving point of their own, not turned moving.
   std::size_t still_part_points_left = 0;

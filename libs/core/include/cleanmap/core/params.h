@@ -157,10 +157,6 @@ struct ObjectParams {
   /// (GrazingStretches::links: four in a row on parallel lines, or a line's last return before
   /// nothing or a farther one), however far apart a grazing angle puts them. false = off.
   bool column_links = true;
-  /// Rule 3's bodies (doc/OBJECTS.md, "A body fills its voxels"): in a body's voxel holding at
-  /// least this share of moving returns, the others turn moving too (a walker's back against a
-  /// wall, his feet). 0 = off.
-  double body_fill = 0.5;
   /// Rule 7 (doc/OBJECTS.md, "Measured"): a vehicle-sized object the rules above leave static
   /// moves as a whole where its outline moved more than 0.35 m between the scans half a window
   /// before and after it (ConsensusRules::measured; the pipeline's measure).
