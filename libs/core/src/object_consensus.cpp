@@ -454,9 +454,16 @@ std::optional<WholeMatch> matchWholeObjectByEnds(const std::vector<Eigen::Vector
         const Eigen::Vector3f s(ex ? objects.hi[a].x() - hi.x() : objects.lo[a].x() - lo.x(),
                                 ey ? objects.hi[a].y() - hi.y() : objects.lo[a].y() - lo.y(), 0.0f);
         if (s.squaredNorm() <= max_shift * max_shift && holdsHalf(q, objects, inv, a, s))
-          return WholeMatch{a, s};
+          return WholeMatch{a, s, true};
       }
   return std::nullopt;
+}
+
+std::optional<WholeMatch> matchWholeObjectOrByEnds(const std::vector<Eigen::Vector3f>& q,
+                                                   const WholeObjects& objects, double side,
+                                                   float max_shift) {
+  if (auto m = matchWholeObject(q, objects, side, max_shift)) return m;
+  return matchWholeObjectByEnds(q, objects, side, max_shift);
 }
 
 ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,

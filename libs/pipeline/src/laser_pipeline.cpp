@@ -1139,17 +1139,14 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
         q_prev[k] = (prev_pose_inverse_ * w.world[i]).cast<float>();
       }
       // Or found moved: a car moving about a voxel a scan no longer lies in its previous voxels.
-      std::optional<WholeMatch> match = matchWholeObject(q_prev, prev, op.voxel, kMovedMatch);
       // Or found moved by its ends (doc/OBJECTS.md rule 4, "by its ends"): a car that brakes
       // shows a column more or less of its side (0.4 m at 512 columns), and its centroid steps
       // by what the columns hold, not by its motion. Only where the scans after it can show it
       // leave (below): the looser match is not kept on the previous scan's word alone.
-      bool by_ends = false;
-      if (!match) {
-        match = matchWholeObjectByEnds(q_prev, prev, op.voxel, kMovedMatch);
-        by_ends = match.has_value();
-      }
+      const std::optional<WholeMatch> match =
+          matchWholeObjectOrByEnds(q_prev, prev, op.voxel, kMovedMatch);
       if (!match) return false;
+      const bool by_ends = match->by_ends;
       const std::size_t a = match->object;
       const Eigen::Vector3f moved_by = match->shift;  // the shift that found it (zero: in place)
       const Eigen::Vector3f e = hi - lo, x = prev.extent[a];
@@ -1942,12 +1939,7 @@ void LaserPipeline::carryBack() {
       q.clear();
       for (const uint32_t k : members[o])
         q.push_back((a_to_b * a.whole[k].xyz().cast<double>()).cast<float>());
-      std::optional<WholeMatch> m = matchWholeObject(q, ob, op.voxel, kCarryMatch);
-      bool by_ends = false;
-      if (!m) {
-        m = matchWholeObjectByEnds(q, ob, op.voxel, kCarryMatch);
-        by_ends = m.has_value();
-      }
+      std::optional<WholeMatch> m = matchWholeObjectOrByEnds(q, ob, op.voxel, kCarryMatch);
       if (!m || dt <= 0) continue;
       // The same size in both (horizontal diagonal, within kSeedSize): a step of the centroids
       // between two sizes is what the two components hold, not the object's motion (a car that
@@ -1959,7 +1951,7 @@ void LaserPipeline::carryBack() {
       const float ea = oa.extent[o].head<2>().norm(), eb = ob.extent[m->object].head<2>().norm();
       Eigen::Vector3f at_b = ob.centroid[m->object];
       if (std::abs(ea - eb) > kSeedSize * std::max(ea, eb)) {
-        if (!by_ends) m = matchWholeObjectByEnds(q, ob, op.voxel, kCarryMatch);
+        if (!m->by_ends) m = matchWholeObjectByEnds(q, ob, op.voxel, kCarryMatch);
         if (!m || m->shift.head<2>().norm() <= op.voxel) continue;
         at_b = std::accumulate(q.begin(), q.end(), Eigen::Vector3f(Eigen::Vector3f::Zero())) /
                    static_cast<float>(q.size()) +
@@ -2012,7 +2004,6 @@ void LaserPipeline::carryBack() {
       Eigen::Vector3f lo = h.lo[c_at], hi = h.hi[c_at];
       const Eigen::Vector3f& sum = h.sum[c_at];
       std::optional<WholeMatch> match;
-      bool by_ends = false;
       // Only a component that can reach an object: its box and the object's overlap (the one
       // holding half of its points in the other's voxels, a voxel's quantisation aside), or do
       // once shifted by at most kCarryMatch; two points of overlapping boxes lie at most their
@@ -2041,11 +2032,7 @@ void LaserPipeline::carryBack() {
         }
         q.assign(h.at_next.begin() + static_cast<std::ptrdiff_t>(from),
                  h.at_next.begin() + static_cast<std::ptrdiff_t>(to));
-        match = matchWholeObject(q, next, op.voxel, kCarryMatch);
-        if (!match) {
-          match = matchWholeObjectByEnds(q, next, op.voxel, kCarryMatch);
-          by_ends = match.has_value();
-        }
+        match = matchWholeObjectOrByEnds(q, next, op.voxel, kCarryMatch);
       }
       if (match && track_of[match->object] != UINT32_MAX) {
         // Its points turn whole where it is that object's size; where it is larger (it holds
@@ -2074,7 +2061,7 @@ void LaserPipeline::carryBack() {
         for (const uint32_t k : part) c += h.points[h.order[k]].xyz();
         const double t = static_cast<double>(h.r.index);
         const Eigen::Vector2d here =
-            by_ends
+            m.by_ends
                 ? Eigen::Vector2d((next_world_to_sensor.inverse() *
                                    (next.centroid[m.object] - m.shift).cast<double>())
                                       .head<2>())

@@ -222,15 +222,16 @@ bool vehicleSized(const Eigen::Vector3f& lo, const Eigen::Vector3f& hi, double m
 /// lies within `max_shift` of theirs holding half of them shifted by the difference, or by its
 /// horizontal part alone (a sparse lidar's rings: a stripe joined in one scan and not the other
 /// moves the centroid up or down, not the vehicle). `object` is its index, `shift` the shift that
-/// found it (zero as they are); nullopt: none.
+/// found it (zero as they are), `by_ends` whether matchWholeObjectByEnds found it; nullopt: none.
 struct WholeMatch {
   std::size_t object = 0;
   Eigen::Vector3f shift = Eigen::Vector3f::Zero();
+  bool by_ends = false;
 };
 std::optional<WholeMatch> matchWholeObject(const std::vector<Eigen::Vector3f>& q,
                                            const WholeObjects& objects, double side,
                                            float max_shift);
-/// Rule 4 backwards only, "Its side comes and goes" (doc/OBJECTS.md): the first object of
+/// Rule 4 "by its ends", "Its side comes and goes" (doc/OBJECTS.md): the first object of
 /// `objects` holding half of `q` shifted level so that one end of their boxes meets the object's,
 /// in x and in y (lower or upper faces, four pairings), the shift within `max_shift`. A car seen
 /// from behind at an angle has its side, grazing, joined in one scan and a slice of its own in
@@ -239,6 +240,11 @@ std::optional<WholeMatch> matchWholeObject(const std::vector<Eigen::Vector3f>& q
 std::optional<WholeMatch> matchWholeObjectByEnds(const std::vector<Eigen::Vector3f>& q,
                                                  const WholeObjects& objects, double side,
                                                  float max_shift);
+/// Rule 4's match both ways (forward and backwards): matchWholeObject, and where it finds none,
+/// matchWholeObjectByEnds (`by_ends` set).
+std::optional<WholeMatch> matchWholeObjectOrByEnds(const std::vector<Eigen::Vector3f>& q,
+                                                   const WholeObjects& objects, double side,
+                                                   float max_shift);
 
 /// Per point: a member of a vehicle-sized component (as objectConsensus groups them). Under
 /// ConsensusRules{few_points_are_noise = false} no other point's decision can change, and
