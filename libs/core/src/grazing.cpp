@@ -25,10 +25,8 @@ void GrazingStretches::compute(const std::vector<PointXYZI>& points, const Eigen
                                const std::vector<float>& azimuth, double flat_slope,
                                double margin_m, double reach_m, double column_step,
                                double hit_inflate, bool links) {
-  constexpr float kAzBin = 0.012f;    // rad
   constexpr float kElBand = 0.0017f;  // of the elevation's tangent: 0.1 degree near the horizon
   constexpr float kElLow = -1.f;      // tangents -1 to +0.27: -45 to +15 degrees
-  constexpr int kElBands = 747, kMaxDown = 45;  // 4.4 degrees down near the horizon
   const int naz = static_cast<int>(std::ceil(2 * M_PI / kAzBin));
   const std::size_t np = points.size(), ncells = static_cast<std::size_t>(naz) * kElBands;
   // Cells band after band (cell = band * naz + column): a ring's returns in scan order fill
@@ -150,7 +148,8 @@ void GrazingStretches::compute(const std::vector<PointXYZI>& points, const Eigen
   side_.clear();
   links_.clear();
   if (column_step > 0 && (hit_inflate > 0 || links))
-    sides(points, naz, m, float(column_step), float(hit_inflate), links);
+    sides(points, azimuth, naz, m, float(column_step), float(hit_inflate), links,
+          float(flat_slope));
   for (const int c : cell_)  // empty the grid for the next call
     if (c >= 0) grid_[static_cast<std::size_t>(c)] = UINT32_MAX;
 }
@@ -164,11 +163,51 @@ void GrazingStretches::compute(const std::vector<PointXYZI>& points, const Eigen
 // within `margin` of the surface for margin / sin(alpha) of horizontal range before its end,
 // crosses the surface's voxels there. It marks nothing from that far back (not beyond one
 // column's gap past its nearer neighbour: the surface is seen from L to R) to its end.
-void GrazingStretches::sides(const std::vector<PointXYZI>& points, int naz, float m, float step,
-                             float hit_inflate, bool links) {
+void GrazingStretches::sides(const std::vector<PointXYZI>& points,
+                             const std::vector<float>& azimuth, int naz, float m, float step,
+                             float hit_inflate, bool links, float flat_slope) {
   const std::size_t np = cell_.size();
   const bool mark = hit_inflate > 0;
   if (mark) side_.assign(np, std::numeric_limits<float>::infinity());
+  // The links' columns: the lidar's own where they are finer than the cells' (a dense lidar's
+  // neighbouring columns lie in one cell; 1-2 cells away they lie up to 1.4 degrees apart, too
+  // far along a side seen at a grazing angle to link), the cells' otherwise.
+  const bool fine = links && step < kAzBin;
+  fine_links_ = fine;
+  const int naz_links = fine ? static_cast<int>(std::ceil(2 * M_PI / step)) : naz;
+  if (fine) {
+    const std::size_t ncells = static_cast<std::size_t>(naz_links) * kElBands;
+    if (fine_grid_.size() != ncells) fine_grid_.assign(ncells, UINT32_MAX);
+    fine_cell_.assign(np, -1);
+    for (std::size_t n = 0; n < np; ++n) {
+      if (cell_[n] < 0) continue;
+      const int az =
+          std::clamp(static_cast<int>((azimuth[n] + float(M_PI)) / step), 0, naz_links - 1);
+      fine_cell_[n] = band_[n] * naz_links + az;
+      fine_grid_[static_cast<std::size_t>(fine_cell_[n])] = static_cast<uint32_t>(n);
+    }
+  }
+  const std::vector<uint32_t>& link_grid = fine ? fine_grid_ : grid_;
+  const std::vector<int>& link_cell = fine ? fine_cell_ : cell_;
+  // Per return, in the links' columns: on a flat surface (its rise from the return below it in
+  // its column at most flat_slope), and the lowest ring's road (no return below, under the
+  // sensor). In the cells' columns a side's return seen at a grazing angle has its lower
+  // neighbour columns away, metres farther: a rise that reads as flat.
+  if (links) {
+    link_kind_.assign(np, 0);
+    for (std::size_t n = 0; n < np; ++n) {
+      if (cell_[n] < 0) continue;
+      uint32_t l = fine ? UINT32_MAX : lower_[n];
+      if (fine)
+        for (int e = band_[n] - 1, c = fine_cell_[n] - naz_links;
+             e >= std::max(0, band_[n] - kMaxDown) && l == UINT32_MAX; --e, c -= naz_links)
+          l = fine_grid_[static_cast<std::size_t>(c)];
+      const bool flat = fine ? l != UINT32_MAX && rho_[n] > rho_[l] + 1e-3f &&
+                                   std::abs((zw_[n] - zw_[l]) / (rho_[n] - rho_[l])) <= flat_slope
+                             : !std::isnan(slope_[n]);
+      link_kind_[n] = (flat ? kLinkFlat : 0) | (l == UINT32_MAX && zw_[n] < 0 ? kLinkRoad : 0);
+    }
+  }
   // Per return on a line with its neighbours: the line's direction and the two neighbours.
   if (links) {
     dir_x_.assign(np, std::numeric_limits<float>::quiet_NaN());
@@ -177,39 +216,46 @@ void GrazingStretches::sides(const std::vector<PointXYZI>& points, int naz, floa
     next_b_.assign(np, UINT32_MAX);
   }
   // The nearest return of n's band (or the one above or below it) 1-2 columns to side s.
-  const auto beside = [&](std::size_t n, int s) -> uint32_t {
-    const int col = cell_[n] % naz, el = band_[n];
+  const auto beside = [&](const std::vector<uint32_t>& grid, int cell, int columns, std::size_t n,
+                          int s) -> uint32_t {
+    const int col = cell % columns, el = band_[n];
     for (int k = 1; k <= 2; ++k) {
-      const int c = ((col + s * k) % naz + naz) % naz;
+      const int c = ((col + s * k) % columns + columns) % columns;
       for (const int e : {el, el - 1, el + 1}) {
-        if (e < 0 || e >= int(grid_.size() / std::size_t(naz))) continue;
-        const uint32_t q = grid_[std::size_t(e) * naz + c];
+        if (e < 0 || e >= kElBands) continue;
+        const uint32_t q = grid[std::size_t(e) * columns + c];
         if (q != UINT32_MAX) return q;
       }
     }
     return UINT32_MAX;
   };
-  for (std::size_t n = 0; n < np; ++n) {
-    if (cell_[n] < 0 || !(rho_[n] > 0) || !std::isnan(slope_[n])) continue;
-    const uint32_t a = beside(n, -1), b = beside(n, +1);
-    if (links) {
-      next_a_[n] = a;
-      next_b_[n] = b;
-    }
-    if (a == UINT32_MAX || b == UINT32_MAX) continue;
-    const float ux = xw_[b] - xw_[a], uy = yw_[b] - yw_[a];
-    const float len = std::sqrt(ux * ux + uy * uy);
-    if (!(len > 1e-3f)) continue;
+  // n on the line through a and b (horizontally): its direction (ux, uy) / len.
+  const auto online = [&](std::size_t n, uint32_t a, uint32_t b, float& ux, float& uy, float& len) {
+    if (a == UINT32_MAX || b == UINT32_MAX) return false;
+    ux = xw_[b] - xw_[a], uy = yw_[b] - yw_[a];
+    len = std::sqrt(ux * ux + uy * uy);
+    if (!(len > 1e-3f)) return false;
     const float px = xw_[n] - xw_[a], py = yw_[n] - yw_[a];
     const float along_ab = (px * ux + py * uy) / (len * len);
-    if (!(along_ab > 0 && along_ab < 1) ||
-        std::abs(px * uy - py * ux) / len > 0.05f + 0.005f * rho_[n])
-      continue;
-    if (links && !(lower_[n] == UINT32_MAX && zw_[n] < 0)) {  // not the lowest ring's road
-      dir_x_[n] = ux / len;
-      dir_y_[n] = uy / len;
+    return along_ab > 0 && along_ab < 1 &&
+           std::abs(px * uy - py * ux) / len <= 0.05f + 0.005f * rho_[n];
+  };
+  for (std::size_t n = 0; n < np; ++n) {
+    if (cell_[n] < 0 || !(rho_[n] > 0)) continue;
+    float ux = 0, uy = 0, len = 0;
+    if (links && !(link_kind_[n] & kLinkFlat)) {
+      const uint32_t a = beside(link_grid, link_cell[n], naz_links, n, -1);
+      const uint32_t b = beside(link_grid, link_cell[n], naz_links, n, +1);
+      next_a_[n] = a;
+      next_b_[n] = b;
+      if (online(n, a, b, ux, uy, len) && !(link_kind_[n] & kLinkRoad)) {
+        dir_x_[n] = ux / len;
+        dir_y_[n] = uy / len;
+      }
     }
-    if (!mark) continue;
+    if (!mark || !std::isnan(slope_[n])) continue;
+    const uint32_t a = beside(grid_, cell_[n], naz, n, -1), b = beside(grid_, cell_[n], naz, n, +1);
+    if (!online(n, a, b, ux, uy, len)) continue;
     const float sin_a = std::abs(ux * yw_[n] - uy * xw_[n]) / (len * rho_[n]);
     if (!(rho_[n] * step > 2 * hit_inflate * sin_a)) continue;  // their neighbourhoods cover it
     const float near = std::min(rho_[a], rho_[b]);
@@ -221,6 +267,7 @@ void GrazingStretches::sides(const std::vector<PointXYZI>& points, int naz, floa
   // returns in a row): one surface. Three alone are not enough: a walker's face across a wall
   // runs on into the wall's return beside his back.
   constexpr float kParallel = 0.1f;  // sine of the angle between the two lines
+  constexpr float kEven = 2.5f;      // a gap over the columns' spacing: one column missing
   for (std::size_t n = 0; links && n < np; ++n) {
     if (std::isnan(dir_x_[n])) continue;
     for (const bool after : {false, true}) {
@@ -229,18 +276,47 @@ void GrazingStretches::sides(const std::vector<PointXYZI>& points, int naz, floa
       if (std::isnan(dir_x_[q])) {
         // q ends the line (a silhouette): beyond it nothing, or something farther
         const uint32_t r = after ? next_b_[q] : next_a_[q];
-        if (!std::isnan(slope_[q]) || (lower_[q] == UINT32_MAX && zw_[q] < 0))
-          continue;  // flat, or the lowest ring's road
+        if (link_kind_[q]) continue;  // flat, or the lowest ring's road
         if (!(r == UINT32_MAX || rho_[r] > rho_[q] + kMaxLink)) continue;
       } else if (std::abs(dir_x_[n] * dir_y_[q] - dir_y_[n] * dir_x_[q]) > kParallel) {
         continue;
       }
       const float dx = xw_[q] - xw_[n], dy = yw_[q] - yw_[n];
-      if (dx * dx + dy * dy > kMaxLink * kMaxLink) continue;
+      const float gap2 = dx * dx + dy * dy;
+      if (gap2 > kMaxLink * kMaxLink) continue;
+      // Evenly spaced: one surface's returns in neighbouring columns lie about as far apart as
+      // the columns before them (the spacing grows slowly with the grazing angle); two surfaces
+      // in one line (a car's face and the next car's, aligned across a gap) jump.
+      const auto spacing2 = [&](uint32_t a, uint32_t b) {
+        const float ex = xw_[b] - xw_[a], ey = yw_[b] - yw_[a];
+        return ex * ex + ey * ey;
+      };
+      // And in one line, not two parallel ones a little apart (a cyclist's side along a parked
+      // car's at the curb): the returns beyond each end lie on the line through the other end.
+      const auto off = [&](uint32_t from, uint32_t to, uint32_t x) {  // x from line from -> to
+        const float ux = xw_[to] - xw_[from], uy = yw_[to] - yw_[from];
+        const float len = std::sqrt(ux * ux + uy * uy);
+        return len > 1e-3f ? std::abs((xw_[x] - xw_[from]) * uy - (yw_[x] - yw_[from]) * ux) / len
+                           : 0.f;
+      };
+      const uint32_t a = after ? next_a_[n] : next_b_[n];
+      const float tol = 0.05f + 0.005f * rho_[n];
+      if (off(a, n, q) > tol) continue;
+      if (!std::isnan(dir_x_[q])) {
+        const uint32_t r = after ? next_b_[q] : next_a_[q];
+        if (off(a, n, r) > tol || off(r, q, a) > tol) continue;
+      }
+      float even2 = spacing2(n, after ? next_a_[n] : next_b_[n]);
+      if (!std::isnan(dir_x_[q]))
+        even2 = std::max(even2, spacing2(q, after ? next_b_[q] : next_a_[q]));
+      if (gap2 > kEven * kEven * even2) continue;
       links_.push_back(static_cast<uint32_t>(n));
       links_.push_back(q);
     }
   }
+  if (fine)  // empty the cells for the next call
+    for (const int c : fine_cell_)
+      if (c >= 0) fine_grid_[static_cast<std::size_t>(c)] = UINT32_MAX;
 }
 
 }  // namespace cleanmap

@@ -152,7 +152,7 @@ void splitOnLowSurfaces(const std::vector<PointXYZI>& points, ObjectComponents& 
 
 void groupObjects(const std::vector<PointXYZI>& points, const std::vector<uint8_t>& member,
                   double side, ObjectComponents& cc, const RingReach& reach,
-                  const std::vector<uint32_t>* column_links) {
+                  const std::vector<uint32_t>* column_links, bool cap_links) {
   cc.side = side;
   cc.reach = reach;
   cc.voxel_of.clear();
@@ -231,11 +231,6 @@ void groupObjects(const std::vector<PointXYZI>& points, const std::vector<uint8_
   for (uint32_t v = 0; v < cc.voxels.size(); ++v) {
     const Eigen::Vector3i& c = cc.voxels[v];
     if (split) links.start[v] = static_cast<uint32_t>(links.after.size());
-    if (!cc.across_start.empty())
-      for (uint32_t j = cc.across_start[v]; j < cc.across_start[v + 1]; ++j) {
-        uf.unite(v, cc.across[j]);
-        if (split) links.after.push_back(cc.across[j]);
-      }
     forEachNeighbour13([&](int dx, int dy, int dz) {
       const uint64_t key = cellKey(c.x() + dx, c.y() + dy, c.z() + dz);
       const std::size_t b = bit(key);
@@ -249,6 +244,64 @@ void groupObjects(const std::vector<PointXYZI>& points, const std::vector<uint8_
     });
   }
   if (split) links.start[cc.voxels.size()] = static_cast<uint32_t>(links.after.size());
+  // The column links join what the voxels joined, smaller voxel first; capped, never into more
+  // than a vehicle's size (reach.max_length / max_height; doc/OBJECTS.md rule 1, "Dense
+  // columns"): at a dense lidar they are there to join a car's side met at a grazing angle to
+  // its car (its voxels join its walls elsewhere), and a hedge they carried past 25 m fell into
+  // pieces (rule 1, "Low surfaces"), whose alarms no rule turns static. At coarse columns they
+  // make the walls themselves, and capped they left pedestrian_wall's far walker a wall's piece
+  // of a vehicle's size to move (precision 0.976 -> 0.760 at 512 columns).
+  if (!cc.across.empty()) {
+    const bool cap = cap_links && reach.max_length > 0;
+    std::vector<Eigen::Vector3i> lo, hi;  // per root, in voxels
+    if (cap) {
+      lo.assign(cc.voxels.size(), Eigen::Vector3i::Constant(INT32_MAX));
+      hi.assign(cc.voxels.size(), Eigen::Vector3i::Constant(INT32_MIN));
+      for (uint32_t v = 0; v < cc.voxels.size(); ++v) {
+        const uint32_t r = uf.find(v);
+        lo[r] = lo[r].cwiseMin(cc.voxels[v]);
+        hi[r] = hi[r].cwiseMax(cc.voxels[v]);
+      }
+    }
+    std::vector<uint32_t> start(cc.voxels.size() + 1, 0), kept;
+    for (uint32_t v = 0; v < cc.voxels.size(); ++v) {
+      for (uint32_t j = cc.across_start[v]; j < cc.across_start[v + 1]; ++j) {
+        const uint32_t n = cc.across[j], ra = uf.find(v), rb = uf.find(n);
+        if (cap && ra != rb) {
+          const Eigen::Vector3i l = lo[ra].cwiseMin(lo[rb]), h = hi[ra].cwiseMax(hi[rb]);
+          const Eigen::Vector3d ext = (h - l + Eigen::Vector3i::Ones()).cast<double>() * side;
+          if (ext.head<2>().norm() > reach.max_length || ext.z() > reach.max_height) continue;
+          uf.unite(v, n);
+          lo[uf.find(v)] = l;
+          hi[uf.find(v)] = h;
+        } else {
+          uf.unite(v, n);
+        }
+        kept.push_back(n);
+      }
+      start[v + 1] = static_cast<uint32_t>(kept.size());
+    }
+    if (split && !kept.empty()) {  // the links kept, first in each voxel's list
+      std::vector<uint32_t> after;
+      after.reserve(links.after.size() + kept.size());
+      for (uint32_t v = 0; v < cc.voxels.size(); ++v) {
+        const uint32_t from = static_cast<uint32_t>(after.size());
+        after.insert(after.end(), kept.begin() + start[v], kept.begin() + start[v + 1]);
+        after.insert(after.end(), links.after.begin() + links.start[v],
+                     links.after.begin() + links.start[v + 1]);
+        links.start[v] = from;
+      }
+      links.start[cc.voxels.size()] = static_cast<uint32_t>(after.size());
+      links.after.swap(after);
+    }
+    if (kept.empty()) {
+      cc.across_start.clear();
+      cc.across.clear();
+    } else {
+      cc.across_start.swap(start);
+      cc.across.swap(kept);
+    }
+  }
   // A sparse lidar's slices (the components so far) at most reach.pool across join those of
   // their column across rings (RingReach).
   cc.pooled.clear();

@@ -174,8 +174,9 @@ struct LaserPipeline::Prepared {
   std::vector<uint8_t> flat;       // kFlatSurface where on a flat top (DESIGN §2b); or empty
   // Its GrazingStretches (from, to), for the free space's insertion (computed once; or empty).
   std::vector<float> graze_from, graze_to, graze_side;
-  // GrazingStretches::links where the columns are coarse (doc/OBJECTS.md rule 1); or empty.
+  // GrazingStretches::links (doc/OBJECTS.md rule 1, "Coarse columns"); or empty.
   std::vector<uint32_t> column_links;
+  bool column_links_capped = false;  // found in a dense lidar's own columns (groupObjects)
   FreeSpaceMap::Stretches grazing() const {
     return graze_from.empty() ? FreeSpaceMap::Stretches{}
                               : FreeSpaceMap::Stretches{&graze_from, &graze_to,
@@ -540,16 +541,19 @@ std::unique_ptr<LaserPipeline::Prepared> LaserPipeline::prepare(Registered&& r,
       std::vector<float> azimuth(pts.size());
       for (std::size_t n = 0; n < pts.size(); ++n) azimuth[n] = fast::atan2(pts[n].y, pts[n].x);
       // The clean map's grazing sides need the lidar's column step, as its free space bins it.
-      // The object rules' column links need it too, where the columns are coarse (rule 1).
+      // The object rules' column links need it too (rule 1, "Coarse columns").
       const bool sides = p_.map.clean && p_.map.grazing_sides;
       const bool links = p_.object.enabled && p_.object.column_links;
       const double step =
           sides || links ? freeSpaceAzimuthBin(pts, azimuth, p_.map.beam_spacing) : 0.0;
-      const bool coarse = links && step > kCoarseColumnsDeg * M_PI / 180.0;
+      const bool linked = links && step > 0;
       graze_.compute(pts, s->scan.pose.linear().cast<float>(), azimuth, p_.map.flat_slope,
-                     p_.map.margin, p_.map.graze_reach, sides || coarse ? step : 0.0,
-                     sides ? p_.map.hit_inflate : 0.0, coarse);
-      if (coarse) s->column_links = graze_.links();
+                     p_.map.margin, p_.map.graze_reach, sides || linked ? step : 0.0,
+                     sides ? p_.map.hit_inflate : 0.0, linked);
+      if (linked) {
+        s->column_links = graze_.links();
+        s->column_links_capped = graze_.fineLinks();
+      }
       s->beams = BeamIndex(pts, test_.searchRadius(), BeamIndex::Binning::kFast, &graze_);
       if (p_.map.clean) {
         s->graze_from = graze_.from();
@@ -1394,7 +1398,7 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
   }
   // Grouped here so that a held scan keeps its components for rule 4 backwards (hold()).
   groupObjects(s.scan.points, s.candidate, op.voxel, w.groups, rules.reach,
-               s.column_step > 0 && !s.column_links.empty() ? &s.column_links : nullptr);
+               !s.column_links.empty() ? &s.column_links : nullptr, s.column_links_capped);
   w.grouped = true;
   const auto oc = cleanmap::objectConsensus(s.scan.points, s.candidate, w.moving, op,
                                             near_prev.empty() ? nullptr : &near_prev, &w.whole,

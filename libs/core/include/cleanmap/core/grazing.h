@@ -33,13 +33,18 @@ class GrazingStretches {
   /// from there to its end (DESIGN §2e, "Grazing sides"); +infinity elsewhere. The moving-point
   /// test does not use it. Empty where compute() had no column_step.
   const std::vector<float>& side() const { return side_; }
-  /// Pairs (n, q), flat: returns of one upright surface in neighbouring columns, q at most
-  /// kMaxLink away (horizontally), each on the line through its own two neighbours (as side())
-  /// with the two lines parallel, or q the line's last return before nothing or something over
-  /// kMaxLink farther (doc/OBJECTS.md rule 1, "Coarse columns"); empty unless compute() had
-  /// column_step and links.
+  /// Pairs (n, q), flat: returns of one upright surface in neighbouring columns (of column_step
+  /// where it is finer than the cells'), q at most kMaxLink away (horizontally) and at most 2.5
+  /// times the spacing of the columns before them, each on the line through its own two
+  /// neighbours (as side()) with the two lines parallel and one (the returns beyond each end
+  /// within 0.05 m + 0.5 % of range of the line through the other end), or q the line's last
+  /// return before nothing or something over kMaxLink farther (doc/OBJECTS.md rule 1, "Coarse
+  /// columns"); empty unless compute() had column_step and links.
   const std::vector<uint32_t>& links() const { return links_; }
   static constexpr float kMaxLink = 1.0f;  // m
+  /// Whether links() were found in the lidar's own columns (column_step finer than the cells'
+  /// 0.69 degrees: a dense lidar), not in the cells'.
+  bool fineLinks() const { return fine_links_; }
   /// Whether point n lies on a flat surface (its rise from its lower neighbour in its column is
   /// at most flat_slope).
   bool flat(std::size_t n) const { return n < slope_.size() && !std::isnan(slope_[n]); }
@@ -51,8 +56,11 @@ class GrazingStretches {
   }
 
  private:
-  void sides(const std::vector<PointXYZI>& points, int naz, float m, float step, float hit_inflate,
-             bool links);
+  void sides(const std::vector<PointXYZI>& points, const std::vector<float>& azimuth, int naz,
+             float m, float step, float hit_inflate, bool links, float flat_slope);
+  static constexpr float kAzBin = 0.012f;  // rad: the cells' azimuth
+  static constexpr int kElBands = 747;     // the cells' bands of elevation
+  static constexpr int kMaxDown = 45;      // bands: 4.4 degrees down near the horizon
   // The returns' cells of azimuth x elevation, each return's cell, lower neighbour, rise to it
   // where flat, horizontal range and height from the sensor (world frame); kept between scans.
   std::vector<uint32_t> grid_;  // UINT32_MAX between calls
@@ -63,6 +71,12 @@ class GrazingStretches {
   std::vector<float> slope_, rho_, zw_, xw_, yw_, skip_a_, skip_b_, side_;
   std::vector<float> dir_x_, dir_y_;
   std::vector<uint32_t> next_a_, next_b_, links_;
+  // The links' cells where the lidar's columns are finer than kAzBin (UINT32_MAX between calls).
+  std::vector<uint32_t> fine_grid_;
+  std::vector<int> fine_cell_;
+  bool fine_links_ = false;
+  static constexpr uint8_t kLinkFlat = 1, kLinkRoad = 2;
+  std::vector<uint8_t> link_kind_;  // per return, in the links' columns: kLinkFlat | kLinkRoad
 };
 
 }  // namespace cleanmap

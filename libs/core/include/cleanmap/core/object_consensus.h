@@ -143,10 +143,12 @@ struct ObjectComponents {
 /// Fills `out` (its buffers reused) with the components of the points with `member[i]`, in
 /// voxels of side `side`. `column_links` (optional): pairs of point indices, flat
 /// (GrazingStretches::links), whose members' voxels also join (coarse columns, doc/OBJECTS.md
-/// rule 1); the low surfaces' split keeps them. Deterministic; O(points).
+/// rule 1); the low surfaces' split keeps them. `cap_links`: they join no more than a vehicle's
+/// size (reach.max_length, max_height), as where they were found in a dense lidar's own columns
+/// (GrazingStretches::fineLinks). Deterministic; O(points).
 void groupObjects(const std::vector<PointXYZI>& points, const std::vector<uint8_t>& member,
                   double side, ObjectComponents& out, const RingReach& reach = {},
-                  const std::vector<uint32_t>* column_links = nullptr);
+                  const std::vector<uint32_t>* column_links = nullptr, bool cap_links = false);
 
 /// Rule 2's width (doc/OBJECTS.md): per voxel, at its component's root (0 elsewhere), the spread
 /// of the component's voxels across their main horizontal axis, as the width of a uniform strip

@@ -152,10 +152,11 @@ struct ObjectParams {
   /// most this wide (horizontal diagonal: a walker's) joins the slices of its column up to 1.25
   /// ring steps above and below it. 0 = off (every lidar's objects are 26-connected voxels).
   double ring_pool = 1.0;
-  /// Rule 1 for coarse columns (doc/OBJECTS.md, "Coarse columns"): where the lidar's columns lie
-  /// over kCoarseColumnsDeg apart, returns of one upright surface in neighbouring columns join
-  /// (GrazingStretches::links: four in a row on parallel lines, or a line's last return before
-  /// nothing or a farther one), however far apart a grazing angle puts them. false = off.
+  /// Rule 1 for coarse columns (doc/OBJECTS.md, "Coarse columns"): returns of one upright surface
+  /// in the lidar's neighbouring columns join (GrazingStretches::links: four in a row on parallel
+  /// lines, or a line's last return before nothing or a farther one), however far apart a grazing
+  /// angle puts them (at 512 columns, or a dense lidar's side met at 10 degrees; at a dense lidar
+  /// into no more than a vehicle's size, max_length and max_height). false = off.
   bool column_links = true;
   /// Rule 7 (doc/OBJECTS.md, "Measured"): a vehicle-sized object the rules above leave static
   /// moves as a whole where its outline moved more than 0.35 m between the scans half a window
