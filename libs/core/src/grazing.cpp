@@ -177,7 +177,8 @@ void GrazingStretches::sides(const std::vector<PointXYZI>& points,
   const int naz_links = fine ? static_cast<int>(std::ceil(2 * M_PI / step)) : naz;
   if (fine) {
     const std::size_t ncells = static_cast<std::size_t>(naz_links) * kElBands;
-    if (fine_grid_.size() != ncells) fine_grid_.assign(ncells, UINT32_MAX);
+    // Grown only: the column step is measured per scan, and a cell past this scan's stays empty.
+    if (fine_grid_.size() < ncells) fine_grid_.assign(ncells, UINT32_MAX);
     fine_cell_.assign(np, -1);
     for (std::size_t n = 0; n < np; ++n) {
       if (cell_[n] < 0) continue;
