@@ -230,6 +230,8 @@ void GrazingStretches::sides(const std::vector<PointXYZI>& points,
     }
     return UINT32_MAX;
   };
+  // How far off a line a return of it may lie: 0.05 m + 0.5 % of its range.
+  const auto tolerance = [&](std::size_t n) { return 0.05f + 0.005f * rho_[n]; };
   // n on the line through a and b (horizontally): its direction (ux, uy) / len.
   const auto online = [&](std::size_t n, uint32_t a, uint32_t b, float& ux, float& uy, float& len) {
     if (a == UINT32_MAX || b == UINT32_MAX) return false;
@@ -238,25 +240,31 @@ void GrazingStretches::sides(const std::vector<PointXYZI>& points,
     if (!(len > 1e-3f)) return false;
     const float px = xw_[n] - xw_[a], py = yw_[n] - yw_[a];
     const float along_ab = (px * ux + py * uy) / (len * len);
-    return along_ab > 0 && along_ab < 1 &&
-           std::abs(px * uy - py * ux) / len <= 0.05f + 0.005f * rho_[n];
+    return along_ab > 0 && along_ab < 1 && std::abs(px * uy - py * ux) / len <= tolerance(n);
   };
   for (std::size_t n = 0; n < np; ++n) {
     if (cell_[n] < 0 || !(rho_[n] > 0)) continue;
     float ux = 0, uy = 0, len = 0;
+    uint32_t a = UINT32_MAX, b = UINT32_MAX;
+    bool on_line = false;
     if (links && !(link_kind_[n] & kLinkFlat)) {
-      const uint32_t a = beside(link_grid, link_cell[n], naz_links, n, -1);
-      const uint32_t b = beside(link_grid, link_cell[n], naz_links, n, +1);
+      a = beside(link_grid, link_cell[n], naz_links, n, -1);
+      b = beside(link_grid, link_cell[n], naz_links, n, +1);
       next_a_[n] = a;
       next_b_[n] = b;
-      if (online(n, a, b, ux, uy, len) && !(link_kind_[n] & kLinkRoad)) {
+      on_line = online(n, a, b, ux, uy, len);
+      if (on_line && !(link_kind_[n] & kLinkRoad)) {
         dir_x_[n] = ux / len;
         dir_y_[n] = uy / len;
       }
     }
     if (!mark || !std::isnan(slope_[n])) continue;
-    const uint32_t a = beside(grid_, cell_[n], naz, n, -1), b = beside(grid_, cell_[n], naz, n, +1);
-    if (!online(n, a, b, ux, uy, len)) continue;
+    if (fine || !links) {  // in the cells' columns (else the links' line above is this one)
+      a = beside(grid_, cell_[n], naz, n, -1);
+      b = beside(grid_, cell_[n], naz, n, +1);
+      on_line = online(n, a, b, ux, uy, len);
+    }
+    if (!on_line) continue;
     const float sin_a = std::abs(ux * yw_[n] - uy * xw_[n]) / (len * rho_[n]);
     if (!(rho_[n] * step > 2 * hit_inflate * sin_a)) continue;  // their neighbourhoods cover it
     const float near = std::min(rho_[a], rho_[b]);
@@ -269,14 +277,26 @@ void GrazingStretches::sides(const std::vector<PointXYZI>& points,
   // runs on into the wall's return beside his back.
   constexpr float kParallel = 0.1f;  // sine of the angle between the two lines
   constexpr float kEven = 2.5f;      // a gap over the columns' spacing: one column missing
+  const auto spacing2 = [&](uint32_t a, uint32_t b) {
+    const float ex = xw_[b] - xw_[a], ey = yw_[b] - yw_[a];
+    return ex * ex + ey * ey;
+  };
+  const auto off = [&](uint32_t from, uint32_t to, uint32_t x) {  // x from the line from -> to
+    const float ux = xw_[to] - xw_[from], uy = yw_[to] - yw_[from];
+    const float len = std::sqrt(ux * ux + uy * uy);
+    return len > 1e-3f ? std::abs((xw_[x] - xw_[from]) * uy - (yw_[x] - yw_[from]) * ux) / len
+                       : 0.f;
+  };
   for (std::size_t n = 0; links && n < np; ++n) {
     if (std::isnan(dir_x_[n])) continue;
     for (const bool after : {false, true}) {
-      const uint32_t q = after ? next_b_[n] : next_a_[n];
-      // q is a return (n has a line only with both neighbours found)
-      if (std::isnan(dir_x_[q])) {
+      // q is a return (n has a line only with both neighbours found), a n's other neighbour, r
+      // q's beyond it
+      const uint32_t q = after ? next_b_[n] : next_a_[n], a = after ? next_a_[n] : next_b_[n];
+      const uint32_t r = after ? next_b_[q] : next_a_[q];
+      const bool q_line = !std::isnan(dir_x_[q]);
+      if (!q_line) {
         // q ends the line (a silhouette): beyond it nothing, or something farther
-        const uint32_t r = after ? next_b_[q] : next_a_[q];
         if (link_kind_[q]) continue;  // flat, or the lowest ring's road
         if (!(r == UINT32_MAX || rho_[r] > rho_[q] + kMaxLink)) continue;
       } else if (std::abs(dir_x_[n] * dir_y_[q] - dir_y_[n] * dir_x_[q]) > kParallel) {
@@ -285,31 +305,14 @@ void GrazingStretches::sides(const std::vector<PointXYZI>& points,
       const float dx = xw_[q] - xw_[n], dy = yw_[q] - yw_[n];
       const float gap2 = dx * dx + dy * dy;
       if (gap2 > kMaxLink * kMaxLink) continue;
+      // In one line, not two parallel ones a little apart (a cyclist's side along a parked car's
+      // at the curb): the returns beyond each end lie on the line through the other end.
+      const float tol = tolerance(n);
+      if (off(a, n, q) > tol || (q_line && (off(a, n, r) > tol || off(r, q, a) > tol))) continue;
       // Evenly spaced: one surface's returns in neighbouring columns lie about as far apart as
       // the columns before them (the spacing grows slowly with the grazing angle); two surfaces
       // in one line (a car's face and the next car's, aligned across a gap) jump.
-      const auto spacing2 = [&](uint32_t a, uint32_t b) {
-        const float ex = xw_[b] - xw_[a], ey = yw_[b] - yw_[a];
-        return ex * ex + ey * ey;
-      };
-      // And in one line, not two parallel ones a little apart (a cyclist's side along a parked
-      // car's at the curb): the returns beyond each end lie on the line through the other end.
-      const auto off = [&](uint32_t from, uint32_t to, uint32_t x) {  // x from line from -> to
-        const float ux = xw_[to] - xw_[from], uy = yw_[to] - yw_[from];
-        const float len = std::sqrt(ux * ux + uy * uy);
-        return len > 1e-3f ? std::abs((xw_[x] - xw_[from]) * uy - (yw_[x] - yw_[from]) * ux) / len
-                           : 0.f;
-      };
-      const uint32_t a = after ? next_a_[n] : next_b_[n];
-      const float tol = 0.05f + 0.005f * rho_[n];
-      if (off(a, n, q) > tol) continue;
-      if (!std::isnan(dir_x_[q])) {
-        const uint32_t r = after ? next_b_[q] : next_a_[q];
-        if (off(a, n, r) > tol || off(r, q, a) > tol) continue;
-      }
-      float even2 = spacing2(n, after ? next_a_[n] : next_b_[n]);
-      if (!std::isnan(dir_x_[q]))
-        even2 = std::max(even2, spacing2(q, after ? next_b_[q] : next_a_[q]));
+      const float even2 = q_line ? std::max(spacing2(n, a), spacing2(q, r)) : spacing2(n, a);
       if (gap2 > kEven * kEven * even2) continue;
       links_.push_back(static_cast<uint32_t>(n));
       links_.push_back(q);
