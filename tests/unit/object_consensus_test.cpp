@@ -423,6 +423,35 @@ TEST(ObjectConsensus, ARingSliceWiderThanTheRingPoolIsDecidedAlone) {
   EXPECT_EQ(components(cc), 6u);
 }
 
+TEST(ObjectConsensus, ASlicesWidthIsItsReturnsNotItsVoxels) {
+  // object.ring_pool (1 m) bounds a slice by its returns' horizontal diagonal. A VLP-16's walker
+  // 16 m ahead, seen on his front and his side (0.62 x 0.62 m, diagonal 0.88 m), whose rings lie
+  // 0.56 m apart: each ring's L of returns falls in 4 x 4 voxels where the grid cuts it so, a
+  // voxel span of 1.27 m that had left his three rings three objects (the default street with a
+  // VLP-16: 23-43 returns a scan lost while he crossed in front of the ego). A slice 0.85 m
+  // square (diagonal 1.2 m) stays alone.
+  const double vlp16_gap = 2.0 * M_PI / 180.0;
+  const auto rings = [](float side) {
+    std::vector<PointXYZI> pts;
+    for (const float z : {-1.0f, -0.44f, 0.12f})  // voxels -4, -2, 0: no two touch
+      for (float t = 0; t <= side + 1e-4f; t += 0.031f) {
+        pts.push_back({16.19f, 0.29f + t, z, 0});  // the front, facing the sensor
+        pts.push_back({16.19f + t, 0.29f, z, 0});  // the side
+      }
+    return pts;
+  };
+  ObjectParams p;  // ring_pool 1 m
+  ObjectComponents cc;
+  const std::vector<PointXYZI> walker = rings(0.62f);
+  groupObjects(walker, std::vector<uint8_t>(walker.size(), 1), p.voxel, cc,
+               ringReach(p, vlp16_gap));
+  ASSERT_EQ(cc.voxels.size(), 3u * 7u);  // each ring's L in 7 voxels spanning 4 x 4
+  EXPECT_EQ(components(cc), 1u);
+  const std::vector<PointXYZI> wide = rings(0.85f);
+  groupObjects(wide, std::vector<uint8_t>(wide.size(), 1), p.voxel, cc, ringReach(p, vlp16_gap));
+  EXPECT_EQ(components(cc), 3u);
+}
+
 TEST(ObjectConsensus, TheSameObjectIsFoundInPlaceOrMovedAndNothingElseIs) {
   // Rule 4's match (matchWholeObject): a car and, 6 m away, a van, objects of one scan. The car
   // 0.1 m on lies in its own voxels; 0.6 m aside it is found moved, with the shift back; 2 m

@@ -302,23 +302,25 @@ void groupObjects(const std::vector<PointXYZI>& points, const std::vector<uint8_
       cc.across.swap(kept);
     }
   }
-  // A sparse lidar's slices (the components so far) at most reach.pool across join those of
-  // their column across rings (RingReach).
+  // A sparse lidar's slices (the components so far) at most reach.pool across (their returns'
+  // horizontal diagonal: the voxels' span reads a 0.6 m walker's slice 0.9-1.2 m across as the
+  // grid falls) join those of their column across rings (RingReach).
   cc.pooled.clear();
   if (reach.active() && !cc.voxels.empty()) {
-    std::vector<Eigen::Vector2i> lo(cc.voxels.size(), Eigen::Vector2i::Constant(INT32_MAX)),
-        hi(cc.voxels.size(), Eigen::Vector2i::Constant(INT32_MIN));
+    std::vector<Eigen::Vector2f> lo(cc.voxels.size(), Eigen::Vector2f::Constant(1e30f)),
+        hi(cc.voxels.size(), Eigen::Vector2f::Constant(-1e30f));
     std::vector<uint32_t> slice(cc.voxels.size());
-    for (uint32_t v = 0; v < cc.voxels.size(); ++v) {
-      slice[v] = uf.find(v);
-      lo[slice[v]] = lo[slice[v]].cwiseMin(cc.voxels[v].head<2>());
-      hi[slice[v]] = hi[slice[v]].cwiseMax(cc.voxels[v].head<2>());
+    for (uint32_t v = 0; v < cc.voxels.size(); ++v) slice[v] = uf.find(v);
+    for (std::size_t i = 0; i < points.size(); ++i) {
+      if (cc.point_voxel[i] == UINT32_MAX) continue;
+      const uint32_t s = slice[cc.point_voxel[i]];
+      const Eigen::Vector2f q(points[i].x, points[i].y);
+      lo[s] = lo[s].cwiseMin(q);
+      hi[s] = hi[s].cwiseMax(q);
     }
     cc.pooled.resize(cc.voxels.size());
-    for (uint32_t v = 0; v < cc.voxels.size(); ++v) {
-      const Eigen::Vector2i span = hi[slice[v]] - lo[slice[v]];  // in voxels, less one
-      cc.pooled[v] = span.cast<double>().norm() * side <= reach.pool;
-    }
+    for (uint32_t v = 0; v < cc.voxels.size(); ++v)
+      cc.pooled[v] = (hi[slice[v]] - lo[slice[v]]).norm() <= reach.pool;
     for (uint32_t v = 0; v < cc.voxels.size(); ++v)
       forEachAcrossRings(cc, v, [&](uint32_t n) { uf.unite(v, n); });
   }

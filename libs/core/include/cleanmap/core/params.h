@@ -149,8 +149,9 @@ struct ObjectParams {
   /// face, goes with it (MoverRoofParams; doc/OBJECTS.md).
   bool roofs = true;
   /// m; rule 1 for sparse lidars (RingReach, doc/OBJECTS.md): a ring's slice of an object at
-  /// most this wide (horizontal diagonal: a walker's) joins the slices of its column up to 1.25
-  /// ring steps above and below it. 0 = off (every lidar's objects are 26-connected voxels).
+  /// most this wide (its returns' horizontal diagonal: a walker's) joins the slices of its column
+  /// up to 1.25 ring steps above and below it. 0 = off (every lidar's objects are 26-connected
+  /// voxels).
   double ring_pool = 1.0;
   /// Rule 1 for coarse columns (doc/OBJECTS.md, "Coarse columns"): returns of one upright surface
   /// in the lidar's neighbouring columns join (GrazingStretches::links: four in a row on parallel
