@@ -263,7 +263,9 @@ void groupObjects(const std::vector<PointXYZI>& points, const std::vector<uint8_
         hi[r] = hi[r].cwiseMax(cc.voxels[v]);
       }
     }
-    std::vector<uint32_t> start(cc.voxels.size() + 1, 0), kept;
+    // Capped, the links kept replace cc.across (CSR); uncapped, all are kept as they are.
+    std::vector<uint32_t> start, kept;
+    if (cap) start.assign(cc.voxels.size() + 1, 0);
     for (uint32_t v = 0; v < cc.voxels.size(); ++v) {
       for (uint32_t j = cc.across_start[v]; j < cc.across_start[v + 1]; ++j) {
         const uint32_t n = cc.across[j], ra = uf.find(v), rb = uf.find(n);
@@ -277,29 +279,30 @@ void groupObjects(const std::vector<PointXYZI>& points, const std::vector<uint8_
         } else {
           uf.unite(v, n);
         }
-        kept.push_back(n);
+        if (cap) kept.push_back(n);
       }
-      start[v + 1] = static_cast<uint32_t>(kept.size());
+      if (cap) start[v + 1] = static_cast<uint32_t>(kept.size());
     }
-    if (split && !kept.empty()) {  // the links kept, first in each voxel's list
+    if (cap && kept.empty()) {
+      cc.across_start.clear();
+      cc.across.clear();
+    } else if (cap) {
+      cc.across_start.swap(start);
+      cc.across.swap(kept);
+    }
+    if (split && !cc.across.empty()) {  // the links kept, first in each voxel's list
       std::vector<uint32_t> after;
-      after.reserve(links.after.size() + kept.size());
+      after.reserve(links.after.size() + cc.across.size());
       for (uint32_t v = 0; v < cc.voxels.size(); ++v) {
         const uint32_t from = static_cast<uint32_t>(after.size());
-        after.insert(after.end(), kept.begin() + start[v], kept.begin() + start[v + 1]);
+        after.insert(after.end(), cc.across.begin() + cc.across_start[v],
+                     cc.across.begin() + cc.across_start[v + 1]);
         after.insert(after.end(), links.after.begin() + links.start[v],
                      links.after.begin() + links.start[v + 1]);
         links.start[v] = from;
       }
       links.start[cc.voxels.size()] = static_cast<uint32_t>(after.size());
       links.after.swap(after);
-    }
-    if (kept.empty()) {
-      cc.across_start.clear();
-      cc.across.clear();
-    } else {
-      cc.across_start.swap(start);
-      cc.across.swap(kept);
     }
   }
   // A sparse lidar's slices (the components so far) at most reach.pool across (their returns'

@@ -1142,11 +1142,11 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
         hi = hi.cwiseMax(s.scan.points[i].xyz());
         q_prev[k] = (prev_pose_inverse_ * w.world[i]).cast<float>();
       }
-      // Or found moved: a car moving about a voxel a scan no longer lies in its previous voxels.
-      // Or found moved by its ends (doc/OBJECTS.md rule 4, "by its ends"): a car that brakes
-      // shows a column more or less of its side (0.4 m at 512 columns), and its centroid steps
-      // by what the columns hold, not by its motion. Only where the scans after it can show it
-      // leave (below): the looser match is not kept on the previous scan's word alone.
+      // The previous scan's object in its voxels, or found moved (a car moving about a voxel a
+      // scan no longer lies in its previous voxels), or by its ends (doc/OBJECTS.md rule 4: a
+      // car that brakes shows a column more or less of its side, 0.4 m at 512 columns, and its
+      // centroid steps by what the columns hold, not by its motion; only where the scans after
+      // it can show it leave, below: the looser match is not kept on the previous scan's word).
       const std::optional<WholeMatch> match =
           matchWholeObjectOrByEnds(q_prev, prev, op.voxel, kMovedMatch);
       if (!match) return false;
