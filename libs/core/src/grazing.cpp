@@ -75,13 +75,8 @@ void GrazingStretches::compute(const std::vector<PointXYZI>& points, const Eigen
       lower_[n] = grid_[static_cast<std::size_t>(c)];
     const uint32_t l = lower_[n];
     if (l == UINT32_MAX) continue;
-    if (rho_[n] > rho_[l] + 1e-3f) {
-      const float rise = (zw_[n] - zw_[l]) / (rho_[n] - rho_[l]);
-      if (std::abs(rise) <= flat_slope) {
-        slope_[n] = rise;
-        continue;
-      }
-    }
+    slope_[n] = flatRise(n, l, flat_slope);
+    if (!std::isnan(slope_[n])) continue;
     // n rises steeply from l: l's cell (every return in it) is the foot of an upright surface
     upright_above_[static_cast<std::size_t>(cell_[l])] = 1;
   }
@@ -203,8 +198,7 @@ void GrazingStretches::sides(const std::vector<PointXYZI>& points,
         for (int e = band_[n] - 1, c = fine_cell_[n] - naz_links;
              e >= std::max(0, band_[n] - kMaxDown) && l == UINT32_MAX; --e, c -= naz_links)
           l = fine_grid_[static_cast<std::size_t>(c)];
-      const bool flat = fine ? l != UINT32_MAX && rho_[n] > rho_[l] + 1e-3f &&
-                                   std::abs((zw_[n] - zw_[l]) / (rho_[n] - rho_[l])) <= flat_slope
+      const bool flat = fine ? l != UINT32_MAX && !std::isnan(flatRise(n, l, flat_slope))
                              : !std::isnan(slope_[n]);
       link_kind_[n] = (flat ? kLinkFlat : 0) | (l == UINT32_MAX && zw_[n] < 0 ? kLinkRoad : 0);
     }
@@ -232,15 +226,21 @@ void GrazingStretches::sides(const std::vector<PointXYZI>& points,
   };
   // How far off a line a return of it may lie: 0.05 m + 0.5 % of its range.
   const auto tolerance = [&](std::size_t n) { return 0.05f + 0.005f * rho_[n]; };
-  // n on the line through a and b (horizontally): its direction (ux, uy) / len.
+  // How far x lies from the line from -> to (horizontally; 0 where the two coincide).
+  const auto off = [&](uint32_t from, uint32_t to, uint32_t x) {
+    const float ux = xw_[to] - xw_[from], uy = yw_[to] - yw_[from];
+    const float len = std::sqrt(ux * ux + uy * uy);
+    return len > 1e-3f ? std::abs((xw_[x] - xw_[from]) * uy - (yw_[x] - yw_[from]) * ux) / len
+                       : 0.f;
+  };
+  // n on the line through a and b (horizontally), between them: its direction (ux, uy) / len.
   const auto online = [&](std::size_t n, uint32_t a, uint32_t b, float& ux, float& uy, float& len) {
     if (a == UINT32_MAX || b == UINT32_MAX) return false;
     ux = xw_[b] - xw_[a], uy = yw_[b] - yw_[a];
     len = std::sqrt(ux * ux + uy * uy);
     if (!(len > 1e-3f)) return false;
-    const float px = xw_[n] - xw_[a], py = yw_[n] - yw_[a];
-    const float along_ab = (px * ux + py * uy) / (len * len);
-    return along_ab > 0 && along_ab < 1 && std::abs(px * uy - py * ux) / len <= tolerance(n);
+    const float along_ab = ((xw_[n] - xw_[a]) * ux + (yw_[n] - yw_[a]) * uy) / (len * len);
+    return along_ab > 0 && along_ab < 1 && off(a, b, uint32_t(n)) <= tolerance(n);
   };
   for (std::size_t n = 0; n < np; ++n) {
     if (cell_[n] < 0 || !(rho_[n] > 0)) continue;
@@ -280,12 +280,6 @@ void GrazingStretches::sides(const std::vector<PointXYZI>& points,
   const auto spacing2 = [&](uint32_t a, uint32_t b) {
     const float ex = xw_[b] - xw_[a], ey = yw_[b] - yw_[a];
     return ex * ex + ey * ey;
-  };
-  const auto off = [&](uint32_t from, uint32_t to, uint32_t x) {  // x from the line from -> to
-    const float ux = xw_[to] - xw_[from], uy = yw_[to] - yw_[from];
-    const float len = std::sqrt(ux * ux + uy * uy);
-    return len > 1e-3f ? std::abs((xw_[x] - xw_[from]) * uy - (yw_[x] - yw_[from]) * ux) / len
-                       : 0.f;
   };
   for (std::size_t n = 0; links && n < np; ++n) {
     if (std::isnan(dir_x_[n])) continue;

@@ -283,12 +283,10 @@ void groupObjects(const std::vector<PointXYZI>& points, const std::vector<uint8_
       }
       if (cap) start[v + 1] = static_cast<uint32_t>(kept.size());
     }
-    if (cap && kept.empty()) {
-      cc.across_start.clear();
-      cc.across.clear();
-    } else if (cap) {
+    if (cap) {
       cc.across_start.swap(start);
       cc.across.swap(kept);
+      if (cc.across.empty()) cc.across_start.clear();
     }
     if (split && !cc.across.empty()) {  // the links kept, first in each voxel's list
       std::vector<uint32_t> after;

@@ -7,6 +7,7 @@
 #include <Eigen/Core>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <vector>
 
 #include "cleanmap/core/types.h"
@@ -58,6 +59,12 @@ class GrazingStretches {
  private:
   void sides(const std::vector<PointXYZI>& points, const std::vector<float>& azimuth, int naz,
              float m, float step, float hit_inflate, bool links, float flat_slope);
+  // n's rise from l below it where at most flat_slope (l nearer horizontally), else NaN.
+  float flatRise(std::size_t n, uint32_t l, double flat_slope) const {
+    if (!(rho_[n] > rho_[l] + 1e-3f)) return std::numeric_limits<float>::quiet_NaN();
+    const float rise = (zw_[n] - zw_[l]) / (rho_[n] - rho_[l]);
+    return std::abs(rise) <= flat_slope ? rise : std::numeric_limits<float>::quiet_NaN();
+  }
   static constexpr float kAzBin = 0.012f;  // rad: the cells' azimuth
   static constexpr int kElBands = 747;     // the cells' bands of elevation
   static constexpr int kMaxDown = 45;      // bands: 4.4 degrees down near the horizon
