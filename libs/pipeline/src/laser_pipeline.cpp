@@ -1837,6 +1837,67 @@ bool sameFace(const Eigen::Vector3f& e, const Eigen::Vector3f& x) {
   return ew >= f * xw && xw >= f * ew && e.z() >= f * x.z() && x.z() >= f * e.z();
 }
 
+// Rule 4 backwards: pieces pooled in a held scan are one object in the scan before (their
+// voxels, boxes and centroids joined), where the grouping of `points` (the objects of `objects`,
+// voxels of 1 / inv) splits them again. `pool` per point: its pool, or UINT32_MAX; `track_of`
+// is then per joined object.
+void joinPooled(const std::vector<PointXYZI>& points, const std::vector<uint32_t>& pool, float inv,
+                WholeObjects& objects, std::vector<uint32_t>& track_of) {
+  const std::size_t n_objects = track_of.size();
+  std::vector<uint32_t> pool_of(n_objects, UINT32_MAX);
+  for (std::size_t k = 0; k < points.size(); ++k)
+    if (pool[k] != UINT32_MAX)
+      if (const uint32_t* o =
+              objects.voxel.find(cellKeyOf(points[k].x, points[k].y, points[k].z, inv)))
+        pool_of[*o] = pool[k];
+  // Each object's joined one: the first object of its pool, numbered in order.
+  std::vector<uint32_t> id(n_objects), kept;
+  for (std::size_t o = 0; o < n_objects; ++o) {
+    std::size_t a = 0;
+    while (a < kept.size() && !(pool_of[o] != UINT32_MAX && pool_of[kept[a]] == pool_of[o])) ++a;
+    id[o] = static_cast<uint32_t>(a);
+    if (a == kept.size()) kept.push_back(static_cast<uint32_t>(o));
+  }
+  if (kept.size() == n_objects) return;
+  std::vector<std::pair<uint64_t, uint32_t>> cells;
+  objects.voxel.forEach([&](uint64_t key, uint32_t o) { cells.emplace_back(key, o); });
+  for (const auto& [key, o] : cells) objects.voxel.get(key) = id[o];
+  const std::size_t n = kept.size();
+  objects.lo.assign(n, Eigen::Vector3f::Constant(std::numeric_limits<float>::max()));
+  objects.hi.assign(n, Eigen::Vector3f::Constant(std::numeric_limits<float>::lowest()));
+  objects.centroid.assign(n, Eigen::Vector3f::Zero());
+  std::vector<std::size_t> count(n, 0);
+  for (const PointXYZI& p : points) {
+    const Eigen::Vector3f x = p.xyz();
+    const uint32_t* o = objects.voxel.find(cellKeyOf(x.x(), x.y(), x.z(), inv));
+    if (!o) continue;
+    objects.lo[*o] = objects.lo[*o].cwiseMin(x);
+    objects.hi[*o] = objects.hi[*o].cwiseMax(x);
+    objects.centroid[*o] += x;
+    ++count[*o];
+  }
+  objects.extent.resize(n);
+  std::vector<uint32_t> tracks(n);
+  for (std::size_t o = 0; o < n; ++o) {
+    objects.extent[o] = objects.hi[o] - objects.lo[o];
+    objects.centroid[o] /= static_cast<float>(std::max<std::size_t>(count[o], 1));
+    tracks[o] = track_of[kept[o]];
+  }
+  track_of = std::move(tracks);
+}
+
+// Whether `face` (its thin horizontal side within a voxel) is a face of `box`: as wide along it
+// and as high, within rule 4's extent tolerance as sizedAs, whatever their depths (a side in view
+// in one and not the other).
+bool faceOf(const Eigen::Vector3f& face, const Eigen::Vector3f& box, double voxel,
+            double tolerance) {
+  int wide = 0;
+  const float thin = face.head<2>().minCoeff(), along = face.head<2>().maxCoeff(&wide);
+  const float f = static_cast<float>(1.0 - tolerance);
+  return thin <= static_cast<float>(voxel) && box[wide] >= f * along && along >= f * box[wide] &&
+         box.z() >= f * face.z() && face.z() >= f * box.z();
+}
+
 // Rule 2's foot (doc/OBJECTS.md), of the points order[k] of `part`: a point less than
 // foot_height above their lowest with none at or above that height in its 3 x 3 column of voxels
 // is a low surface the object touches (from 0.8 m, a sidewalk 0.12 m up), not a part of it.
@@ -1914,6 +1975,7 @@ void LaserPipeline::carryBack() {
   // object as rule 4 finds it): one scan's mistake is not carried back.
   std::vector<PointXYZI> next_whole;
   std::vector<uint32_t> next_track;  // per point of next_whole
+  std::vector<uint32_t> next_pool;   // per point of next_whole: its pooled pieces (or none)
   {
     Held& a = held_results_[n_held - 2];
     Held& b = held_results_[n_held - 1];
@@ -1968,6 +2030,7 @@ void LaserPipeline::carryBack() {
       for (const uint32_t k : members[o]) {
         next_whole.push_back(a.whole[k]);
         next_track.push_back(static_cast<uint32_t>(tracks.size()));
+        next_pool.push_back(UINT32_MAX);
       }
       tracks.push_back(std::move(t));
     }
@@ -1994,20 +2057,28 @@ void LaserPipeline::carryBack() {
     for (std::size_t k = 0; k < next_whole.size(); ++k)
       if (const uint32_t* o = objectOf(next, next_whole[k].xyz()))
         if (track_of[*o] == UINT32_MAX) track_of[*o] = next_track[k];
+    joinPooled(next_whole, next_pool, inv, next, track_of);
     std::vector<uint32_t> turned;  // candidate positions turned moving
     next_whole.clear();            // becomes what this scan turned
     next_track.clear();
+    next_pool.clear();
     std::vector<Eigen::Vector3f> q;
     // The world point as the test had it (Work::world: the pose times the point), in the next
     // scan's sensor frame.
     const Eigen::Isometry3d to_next = next_world_to_sensor * h.r.pose;
+    // The held components that are an object the next scan carried or moved whole.
+    struct Found {
+      WholeMatch m;
+      std::vector<uint32_t> part;  // positions in h.order: its points, or those near the object
+      std::vector<std::size_t> pieces;  // its components (more than one where they are pooled)
+    };
+    std::vector<Found> found;
     std::size_t from = 0;
     for (std::size_t c_at = 0; c_at < h.ends.size(); ++c_at) {
       const std::size_t to = h.ends[c_at];
       const std::size_t n = to - from;
-      Eigen::Vector3f lo = h.lo[c_at], hi = h.hi[c_at];
+      const Eigen::Vector3f &lo = h.lo[c_at], &hi = h.hi[c_at];
       const Eigen::Vector3f& sum = h.sum[c_at];
-      std::optional<WholeMatch> match;
       // Only a component that can reach an object: its box and the object's overlap (the one
       // holding half of its points in the other's voxels, a voxel's quantisation aside), or do
       // once shifted by at most kCarryMatch; two points of overlapping boxes lie at most their
@@ -2036,92 +2107,142 @@ void LaserPipeline::carryBack() {
         }
         q.assign(h.at_next.begin() + static_cast<std::ptrdiff_t>(from),
                  h.at_next.begin() + static_cast<std::ptrdiff_t>(to));
-        match = matchWholeObjectOrByEnds(q, next, op.voxel, kCarryMatch);
-      }
-      if (match && track_of[match->object] != UINT32_MAX) {
-        // Its points turn whole where it is that object's size; where it is larger (it holds
-        // something else too: a car that stood at a kerb, joined with the kerb's stones in one
-        // scan), those in the object's voxels and next to them, once shifted, if they are.
-        const WholeMatch& m = *match;
-        std::vector<uint32_t> part;  // positions in h.order
-        for (std::size_t k = from; k < to; ++k) part.push_back(static_cast<uint32_t>(k));
-        if (!sizedAs(hi - lo, next.extent[m.object], tolerance, true))
-          part = nearObject(q, from, next, m, op.voxel);
-        lo = Eigen::Vector3f::Constant(1e30f);
-        hi = -lo;
-        for (const uint32_t k : part) {
-          lo = lo.cwiseMin(h.points[h.order[k]].xyz());
-          hi = hi.cwiseMax(h.points[h.order[k]].xyz());
-        }
-        // And where it was moving by the labels: more than kMovedDistance between where it was
-        // half a window before this scan and where it is half a window after. After its last
-        // known place the object goes on at the velocity it was found with; before this scan it
-        // stood, unless it moves here (from here to its next known place within half that
-        // velocity of it): then it came at that velocity.
-        Track& track = tracks[track_of[m.object]];
-        // Found by its ends, it is where the object's centroid lies shifted back by them: the
-        // composition its track knows (its side in view or not), not this one.
-        Eigen::Vector3f c = Eigen::Vector3f::Zero();
-        for (const uint32_t k : part) c += h.points[h.order[k]].xyz();
-        const double t = static_cast<double>(h.r.index);
-        const Eigen::Vector2d here =
-            m.by_ends
-                ? Eigen::Vector2d((next_world_to_sensor.inverse() *
-                                   (next.centroid[m.object] - m.shift).cast<double>())
-                                      .head<2>())
-                : worldCentroid(h, c / static_cast<float>(std::max<std::size_t>(part.size(), 1)));
-        // Its motion here: to its last known place within half of the half window after it (a
-        // longer span steadies a slow walker's jittering centroid; a shorter one keeps a car
-        // that starts two scans later standing here).
-        std::size_t j = 0;
-        while (j + 1 < track.at.size() && track.at[j + 1].first <= t + std::ceil(half / 2)) ++j;
-        const auto& [t_next, p_next] = track.at[j];
-        const bool moves_here =
-            t_next > t &&
-            ((p_next - here) / (t_next - t) - track.velocity).norm() <= 0.5 * track.velocity.norm();
-        const Eigen::Vector2d before =
-            moves_here ? Eigen::Vector2d(here - track.velocity * half) : here;
-        const double moved = (track.where(t + half) - before).norm();
-        // Its size: the object's, or as wide and as high within kSeedSize and not longer (its
-        // side out of view here or in the next scan).
-        const auto sized = [&] {
-          const Eigen::Vector3f e = hi - lo, x = next.extent[m.object];
-          return sizedAs(e, x, tolerance, true) ||
-                 (sameFace(e, x) &&
-                  e.head<2>().norm() * static_cast<float>(1.0 - tolerance) <= x.head<2>().norm());
-        };
-        if (!part.empty() && sized() && moved > kMovedDistance) {
-          std::size_t moving = 0;
-          for (std::size_t k = from; k < to; ++k) moving += h.moving[h.order[k]] != 0;
-          h.r.stats.objects_carried_back += moving < n;
-          track.at.push_front({t, here});
-          // Its foot stays (rule 2): it goes on in the chain, as the objects moved whole keep
-          // theirs, but does not turn. Asked only where a point can turn (issue #16: a truck
-          // moving in every point is carried on through every held scan).
-          bool turns = false;
-          for (const uint32_t k : part) {
-            const uint32_t i = h.order[k];
-            turns = turns || (!h.moving[i] && !h.relabelled[i]);
-          }
-          const std::vector<uint32_t> body =
-              turns ? withoutFoot(part, h.order, h.points, op.voxel, op.foot_height)
-                    : std::vector<uint32_t>{};
-          std::vector<uint8_t> in_body(part.size(), 0);
-          for (std::size_t a = 0, b = 0; a < part.size() && b < body.size(); ++a)
-            if (body[b] == part[a]) {
-              in_body[a] = 1;
-              ++b;
-            }
-          for (std::size_t a = 0; a < part.size(); ++a) {
-            const uint32_t i = h.order[part[a]];
-            if (h.relabelled[i]) continue;  // the camera's decision stands (DESIGN §3)
-            next_whole.push_back(h.points[i]);
-            next_track.push_back(track_of[m.object]);
-            if (!h.moving[i] && in_body[a]) turned.push_back(i);
-          }
+        const std::optional<WholeMatch> m =
+            matchWholeObjectOrByEnds(q, next, op.voxel, kCarryMatch);
+        if (m && track_of[m->object] != UINT32_MAX) {
+          // Its points turn whole where it is that object's size; where it is larger (it holds
+          // something else too: a car that stood at a kerb, joined with the kerb's stones in one
+          // scan), those in the object's voxels and next to them, once shifted, if they are.
+          Found f{*m, {}, {c_at}};
+          if (sizedAs(hi - lo, next.extent[m->object], tolerance, true))
+            for (std::size_t k = from; k < to; ++k) f.part.push_back(static_cast<uint32_t>(k));
+          else
+            f.part = nearObject(q, from, next, *m, op.voxel);
+          found.push_back(std::move(f));
         }
       }
       from = to;
+    }
+    const auto boxOf = [&](const std::vector<uint32_t>& part) {
+      Eigen::AlignedBox3f box;
+      for (const uint32_t k : part) box.extend(h.points[h.order[k]].xyz());
+      return box;
+    };
+    // Its size: the object's, or as wide and as high within kSeedSize and not longer (its side
+    // out of view here or in the next scan), or a face of it, or it a face of this (a cyclist's
+    // back, its side in view only while farther ahead).
+    const auto sized = [&](const Eigen::Vector3f& e, const Eigen::Vector3f& x) {
+      return sizedAs(e, x, tolerance, true) ||
+             (sameFace(e, x) &&
+              e.head<2>().norm() * static_cast<float>(1.0 - tolerance) <= x.head<2>().norm()) ||
+             faceOf(x, e, op.voxel, tolerance) || faceOf(e, x, op.voxel, tolerance);
+    };
+    // The object's pieces: the components that are the same object and stacked (their boxes
+    // overlap horizontally) are one where together they are its size: a car's rings apart at 16
+    // rings, its roof's stripe and its body two components, neither its height. Not side by
+    // side: a car and the parked one the next scan joined it with (kitti_city, 956 false
+    // positives in scan 0). The pool goes where its first piece is.
+    std::vector<std::vector<std::size_t>> of_object(next.extent.size());
+    for (std::size_t f = 0; f < found.size(); ++f)
+      if (!found[f].part.empty()) of_object[found[f].m.object].push_back(f);
+    for (const std::vector<std::size_t>& same : of_object) {
+      if (same.size() < 2) continue;
+      Found pool = found[same.front()];
+      // A ring of it spans it: as wide as the object's narrower side, within its tolerance (not
+      // a piece of the road at a truck's wheels, kitti_highway scan 21, 46 false positives).
+      const float width = next.extent[pool.m.object].head<2>().minCoeff();
+      Eigen::AlignedBox3f box = boxOf(pool.part);
+      std::size_t largest = pool.part.size();
+      for (std::size_t k = 1; k < same.size(); ++k) {
+        const Found& piece = found[same[k]];
+        const Eigen::AlignedBox3f b = boxOf(piece.part);
+        if ((box.min().head<2>().array() > b.max().head<2>().array()).any() ||
+            (b.min().head<2>().array() > box.max().head<2>().array()).any() ||
+            b.sizes().head<2>().maxCoeff() < (1.0 - tolerance) * width)
+          continue;
+        if (piece.part.size() > largest) {  // the largest piece's match
+          largest = piece.part.size();
+          pool.m = piece.m;
+        }
+        pool.part.insert(pool.part.end(), piece.part.begin(), piece.part.end());
+        pool.pieces.push_back(piece.pieces.front());
+        box.extend(b);
+      }
+      if (pool.pieces.size() < 2 || !sized(box.sizes(), next.extent[pool.m.object])) continue;
+      pool.m.by_ends = false;  // its place is its own centroid: the object whole
+      for (const std::size_t f : same)
+        if (std::find(pool.pieces.begin(), pool.pieces.end(), found[f].pieces.front()) !=
+            pool.pieces.end())
+          found[f].part.clear();
+      found[same.front()] = std::move(pool);
+    }
+    for (const Found& f : found) {
+      const std::vector<uint32_t>& part = f.part;
+      if (part.empty()) continue;
+      const WholeMatch& m = f.m;
+      const Eigen::AlignedBox3f box = boxOf(part);
+      // And where it was moving by the labels: more than kMovedDistance between where it was
+      // half a window before this scan and where it is half a window after. After its last
+      // known place the object goes on at the velocity it was found with; before this scan it
+      // stood, unless it moves here (from here to its next known place within half that
+      // velocity of it): then it came at that velocity.
+      Track& track = tracks[track_of[m.object]];
+      // Found by its ends, it is where the object's centroid lies shifted back by them: the
+      // composition its track knows (its side in view or not), not this one.
+      Eigen::Vector3f c = Eigen::Vector3f::Zero();
+      for (const uint32_t k : part) c += h.points[h.order[k]].xyz();
+      const double t = static_cast<double>(h.r.index);
+      const Eigen::Vector2d here =
+          m.by_ends ? Eigen::Vector2d((next_world_to_sensor.inverse() *
+                                       (next.centroid[m.object] - m.shift).cast<double>())
+                                          .head<2>())
+                    : worldCentroid(h, c / static_cast<float>(part.size()));
+      // Its motion here: to its last known place within half of the half window after it (a
+      // longer span steadies a slow walker's jittering centroid; a shorter one keeps a car
+      // that starts two scans later standing here).
+      std::size_t j = 0;
+      while (j + 1 < track.at.size() && track.at[j + 1].first <= t + std::ceil(half / 2)) ++j;
+      const auto& [t_next, p_next] = track.at[j];
+      const bool moves_here =
+          t_next > t &&
+          ((p_next - here) / (t_next - t) - track.velocity).norm() <= 0.5 * track.velocity.norm();
+      const Eigen::Vector2d before =
+          moves_here ? Eigen::Vector2d(here - track.velocity * half) : here;
+      const double moved = (track.where(t + half) - before).norm();
+      if (!sized(box.sizes(), next.extent[m.object]) || moved <= kMovedDistance) continue;
+      // Counted where a point of its components was not moving.
+      bool all_moving = true;
+      for (const std::size_t c_at : f.pieces)
+        for (std::size_t k = c_at ? h.ends[c_at - 1] : 0; k < h.ends[c_at] && all_moving; ++k)
+          all_moving = h.moving[h.order[k]] != 0;
+      h.r.stats.objects_carried_back += !all_moving;
+      track.at.push_front({t, here});
+      // Its foot stays (rule 2): it goes on in the chain, as the objects moved whole keep
+      // theirs, but does not turn. Asked only where a point can turn (issue #16: a truck
+      // moving in every point is carried on through every held scan).
+      bool turns = false;
+      for (const uint32_t k : part) {
+        const uint32_t i = h.order[k];
+        turns = turns || (!h.moving[i] && !h.relabelled[i]);
+      }
+      const std::vector<uint32_t> body =
+          turns ? withoutFoot(part, h.order, h.points, op.voxel, op.foot_height)
+                : std::vector<uint32_t>{};
+      std::vector<uint8_t> in_body(part.size(), 0);
+      for (std::size_t a = 0, b = 0; a < part.size() && b < body.size(); ++a)
+        if (body[b] == part[a]) {
+          in_body[a] = 1;
+          ++b;
+        }
+      for (std::size_t a = 0; a < part.size(); ++a) {
+        const uint32_t i = h.order[part[a]];
+        if (h.relabelled[i]) continue;  // the camera's decision stands (DESIGN §3)
+        next_whole.push_back(h.points[i]);
+        next_track.push_back(track_of[m.object]);
+        next_pool.push_back(f.pieces.size() > 1 ? static_cast<uint32_t>(&f - found.data())
+                                                : UINT32_MAX);
+        if (!h.moving[i] && in_body[a]) turned.push_back(i);
+      }
     }
     if (!turned.empty()) {
       // The result as collect() makes it with these points moving.
