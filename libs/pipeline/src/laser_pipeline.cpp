@@ -1845,11 +1845,15 @@ void joinPooled(const std::vector<PointXYZI>& points, const std::vector<uint32_t
                 WholeObjects& objects, std::vector<uint32_t>& track_of) {
   const std::size_t n_objects = track_of.size();
   std::vector<uint32_t> pool_of(n_objects, UINT32_MAX);
+  bool pooled = false;
   for (std::size_t k = 0; k < points.size(); ++k)
     if (pool[k] != UINT32_MAX)
       if (const uint32_t* o =
-              objects.voxel.find(cellKeyOf(points[k].x, points[k].y, points[k].z, inv)))
+              objects.voxel.find(cellKeyOf(points[k].x, points[k].y, points[k].z, inv))) {
         pool_of[*o] = pool[k];
+        pooled = true;
+      }
+  if (!pooled) return;
   // Each object's joined one: the first object of its pool, numbered in order.
   std::vector<uint32_t> id(n_objects), kept;
   for (std::size_t o = 0; o < n_objects; ++o) {
@@ -2071,6 +2075,7 @@ void LaserPipeline::carryBack() {
       WholeMatch m;
       std::vector<uint32_t> part;  // positions in h.order: its points, or those near the object
       std::vector<std::size_t> pieces;  // its components (more than one where they are pooled)
+      Eigen::AlignedBox3f box;          // of its part's points
     };
     std::vector<Found> found;
     std::size_t from = 0;
@@ -2113,21 +2118,17 @@ void LaserPipeline::carryBack() {
           // Its points turn whole where it is that object's size; where it is larger (it holds
           // something else too: a car that stood at a kerb, joined with the kerb's stones in one
           // scan), those in the object's voxels and next to them, once shifted, if they are.
-          Found f{*m, {}, {c_at}};
+          Found f{*m, {}, {c_at}, {}};
           if (sizedAs(hi - lo, next.extent[m->object], tolerance, true))
             for (std::size_t k = from; k < to; ++k) f.part.push_back(static_cast<uint32_t>(k));
           else
             f.part = nearObject(q, from, next, *m, op.voxel);
+          for (const uint32_t k : f.part) f.box.extend(h.points[h.order[k]].xyz());
           found.push_back(std::move(f));
         }
       }
       from = to;
     }
-    const auto boxOf = [&](const std::vector<uint32_t>& part) {
-      Eigen::AlignedBox3f box;
-      for (const uint32_t k : part) box.extend(h.points[h.order[k]].xyz());
-      return box;
-    };
     // Its size: the object's, or as wide and as high within kSeedSize and not longer (its side
     // out of view here or in the next scan), or a face of it, or it a face of this (a cyclist's
     // back, its side in view only while farther ahead).
@@ -2152,17 +2153,17 @@ void LaserPipeline::carryBack() {
       const float width = next.extent[found[same.front()].m.object].head<2>().minCoeff();
       std::vector<std::size_t> rings;
       for (const std::size_t f : same)
-        if (boxOf(found[f].part).sizes().head<2>().maxCoeff() >= (1.0 - tolerance) * width)
+        if (found[f].box.sizes().head<2>().maxCoeff() >= (1.0 - tolerance) * width)
           rings.push_back(f);
       if (rings.size() < 2) continue;
       Found pool = found[rings.front()];
-      Eigen::AlignedBox3f box = boxOf(pool.part);
+      std::vector<std::size_t> taken;  // the pieces pooled after the first
       std::size_t largest = pool.part.size();
       for (std::size_t k = 1; k < rings.size(); ++k) {
         const Found& piece = found[rings[k]];
-        const Eigen::AlignedBox3f b = boxOf(piece.part);
-        if ((box.min().head<2>().array() > b.max().head<2>().array()).any() ||
-            (b.min().head<2>().array() > box.max().head<2>().array()).any())
+        const Eigen::AlignedBox3f &a = pool.box, &b = piece.box;
+        if ((a.min().head<2>().array() > b.max().head<2>().array()).any() ||
+            (b.min().head<2>().array() > a.max().head<2>().array()).any())
           continue;
         if (piece.part.size() > largest) {  // the largest piece's match
           largest = piece.part.size();
@@ -2170,27 +2171,24 @@ void LaserPipeline::carryBack() {
         }
         pool.part.insert(pool.part.end(), piece.part.begin(), piece.part.end());
         pool.pieces.push_back(piece.pieces.front());
-        box.extend(b);
+        pool.box.extend(b);
+        taken.push_back(rings[k]);
       }
       // Together its size and no higher: pieces pooled over a slice (a bush's two rings under
       // the one ring a mistaken track held, kitti_residential at 16 rings, 190 false
       // positives) are not it.
       const Eigen::Vector3f x = next.extent[pool.m.object];
-      if (pool.pieces.size() < 2 || !sized(box.sizes(), x) ||
-          box.sizes().z() * static_cast<float>(1.0 - tolerance) > x.z())
+      if (taken.empty() || !sized(pool.box.sizes(), x) ||
+          pool.box.sizes().z() * static_cast<float>(1.0 - tolerance) > x.z())
         continue;
       pool.m.by_ends = false;  // its place is its own centroid: the object whole
-      for (const std::size_t f : rings)
-        if (std::find(pool.pieces.begin(), pool.pieces.end(), found[f].pieces.front()) !=
-            pool.pieces.end())
-          found[f].part.clear();
+      for (const std::size_t f : taken) found[f].part.clear();
       found[rings.front()] = std::move(pool);
     }
     for (const Found& f : found) {
       const std::vector<uint32_t>& part = f.part;
       if (part.empty()) continue;
       const WholeMatch& m = f.m;
-      const Eigen::AlignedBox3f box = boxOf(part);
       // And where it was moving by the labels: more than kMovedDistance between where it was
       // half a window before this scan and where it is half a window after. After its last
       // known place the object goes on at the velocity it was found with; before this scan it
@@ -2219,7 +2217,7 @@ void LaserPipeline::carryBack() {
       const Eigen::Vector2d before =
           moves_here ? Eigen::Vector2d(here - track.velocity * half) : here;
       const double moved = (track.where(t + half) - before).norm();
-      if (!sized(box.sizes(), next.extent[m.object]) || moved <= kMovedDistance) continue;
+      if (!sized(f.box.sizes(), next.extent[m.object]) || moved <= kMovedDistance) continue;
       // Counted where a point of its components was not moving.
       bool all_moving = true;
       for (const std::size_t c_at : f.pieces)
