@@ -218,6 +218,7 @@ struct LaserPipeline::Held {
   RingReach whole_reach;                      // ... with its rings' reach
   Eigen::Isometry3d world_to_sensor = Eigen::Isometry3d::Identity();
   double density = 1, ring_gap = 0;
+  bool measurable = false;  // rule 7 could measure its objects (Work::measurable)
   // The candidates' components as the object consensus grouped them (grouped again if it did
   // not run): their positions in component order and where each component ends in it.
   std::vector<uint32_t> order, ends;
@@ -272,6 +273,7 @@ struct LaserPipeline::Work {
     tested_as.clear();
     measured.clear();
     grouped = false;
+    measurable = false;
   }
   std::vector<Eigen::Vector3d> world;  // candidates' world coordinates (others left zero)
   std::vector<uint8_t> duplicate;      // DESIGN §2.3
@@ -290,6 +292,7 @@ struct LaserPipeline::Work {
   std::vector<uint8_t> measured;  // per scan point: in an object rule 7 measured moving
   ObjectComponents groups;        // the candidates' components (doc/OBJECTS.md rule 1) ...
   bool grouped = false;           // ... where the object consensus ran
+  bool measurable = false;        // rule 7 had the scans H before and after this one
 };
 
 LaserPipeline::LaserPipeline(const PipelineParams& params, Sink sink)
@@ -1300,7 +1303,8 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
     seen_earlier = windowScan(pos, pos - half);
     seen_later = windowScan(pos, pos + half);
   }
-  if (seen_earlier && seen_later) {
+  w.measurable = seen_earlier && seen_later;
+  if (w.measurable) {
     rules.measured = [&, earlier, later](const std::vector<uint32_t>& idx) {
       if (!columns) {
         columns.emplace();
@@ -1789,6 +1793,7 @@ void LaserPipeline::hold(ScanResult&& r, const Prepared& s, const Work& w) {
   h.world_to_sensor = s.world_to_sensor;
   h.density = s.density;
   h.ring_gap = s.ring_gap;
+  h.measurable = w.measurable;
   if (overlays_ && s.view) {
     h.view = s.view;
     h.all_points = s.scan.points;
@@ -1992,6 +1997,10 @@ void LaserPipeline::carryBack() {
                        *x->whole_objects, x->whole_reach);
       }
     const WholeObjects &oa = *a.whole_objects, &ob = *b.whole_objects;
+    // Rule 7 measured the scans before the older one only where it had their half windows: not
+    // in a run's first and last H scans, which only the chain from here reaches.
+    const bool before_measurable = std::all_of(held_results_.begin(), held_results_.end() - 2,
+                                               [](const Held& h) { return h.measurable; });
     if (oa.empty() || ob.empty()) return;
     std::vector<std::vector<uint32_t>> members(oa.extent.size());
     for (uint32_t k = 0; k < a.whole.size(); ++k)
@@ -2001,11 +2010,12 @@ void LaserPipeline::carryBack() {
     std::vector<Eigen::Vector3f> q;
     for (std::size_t o = 0; o < members.size(); ++o) {
       // Not an object rule 7 measured in the older scan: it measured the half windows around
-      // it (the scans before were measured too), and its component is not what rule 4 takes on
-      // in the next scan (all parts: a standing car's centroid moved 0.6 m with the kerb).
+      // it (the scans before were measured too, where they could be), and its component is not
+      // what rule 4 takes on in the next scan (all parts: a standing car's centroid moved 0.6 m
+      // with the kerb).
       std::size_t measured = 0;
       for (const uint32_t k : members[o]) measured += a.whole_measured[k];
-      if (2 * measured >= members[o].size()) continue;
+      if (2 * measured >= members[o].size() && before_measurable) continue;
       q.clear();
       for (const uint32_t k : members[o])
         q.push_back((a_to_b * a.whole[k].xyz().cast<double>()).cast<float>());
