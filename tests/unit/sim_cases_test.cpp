@@ -232,6 +232,21 @@ TEST(SimCases, AnOncomingCarStaysMovingWhileOnlyItsFrontShowsIt) {
   EXPECT_GE(r.all.precision(), 0.99);
 }
 
+TEST(SimCases, ACarThatStopsIsCarriedBackThroughTheScansItStoodIn) {
+  // doc/OBJECTS.md rule 4 backwards, "Came to a stop": car_stops_5s' oncoming car drives at
+  // 6 m/s from the run's first scan and stops 18 m ahead in scan 5; the labels call it moving
+  // to scan 9. Head-on, only future scans see it in scans 0-4 (its old front inside its later
+  // body), and rule 7 measures scans 8-9 alone (earlier, the shift exceeds its 1.5 m). Carried
+  // back from there, it stood in scans 5-7 by the track then known, and the chain stopped:
+  // scans 3-7 had none of their 3,527 returns moving.
+  const auto r = runCase(scenario("car_stops_5s"));
+  MosCounts stopping;
+  for (std::size_t k = 3; k < 8; ++k) stopping += r.per_frame.at(k);
+  std::printf("  scans 3-7: recall %.3f\n", stopping.recall());
+  EXPECT_GE(stopping.recall(), 0.8);   // measured 0.946 (0 before)
+  EXPECT_GE(r.all.precision(), 0.99);  // measured 0.999
+}
+
 TEST(SimCases, PedestrianWalkingAlongAWall) {
   const auto r = runCase(scenario("pedestrian_wall"));
   EXPECT_GE(r.per_mover.at("walker").recall(), 0.80);  // measured 0.84 (0.86 without scan_conflict)

@@ -1967,6 +1967,7 @@ void LaserPipeline::carryBack() {
   struct Track {
     std::deque<std::pair<double, Eigen::Vector2d>> at;
     Eigen::Vector2d velocity = Eigen::Vector2d::Zero();
+    bool waited = false;  // it stood in a held scan: the scans before it wait too (below)
     Eigen::Vector2d where(double t) const {  // extrapolated after its last known place
       if (t >= at.back().first) return at.back().second + velocity * (t - at.back().first);
       std::size_t j = 1;
@@ -2051,6 +2052,17 @@ void LaserPipeline::carryBack() {
   }
   // The half window after a held scan, in scans (H, as long as it is held).
   const double half = static_cast<double>((k_ + 1) / 2);
+  // A held scan's object that stood by the track known when it was found, or was found after
+  // such a scan: its scan (position in held_results_), time, track, whether it counts as
+  // carried back, and the candidates it would turn.
+  struct Waiting {
+    std::size_t at;
+    double t;
+    uint32_t track;
+    bool counted;
+    std::vector<uint32_t> turns;
+  };
+  std::vector<Waiting> waiting;
   Eigen::Isometry3d next_world_to_sensor = held_results_[n_held - 2].world_to_sensor;
   for (std::size_t at = n_held - 2; at-- > 0 && !next_whole.empty();) {
     Held& h = held_results_[at];
@@ -2227,14 +2239,23 @@ void LaserPipeline::carryBack() {
       const Eigen::Vector2d before =
           moves_here ? Eigen::Vector2d(here - track.velocity * half) : here;
       const double moved = (track.where(t + half) - before).norm();
-      if (!sized(f.box.sizes(), next.extent[m.object]) || moved <= kMovedDistance) continue;
+      if (!sized(f.box.sizes(), next.extent[m.object])) continue;
+      // Where it stood here by what is known so far, it goes on in the chain and waits, and so
+      // do the scans before: whether it came to a stop is told by the whole chain (below).
+      const bool stood = moved <= kMovedDistance || track.waited;
+      track.waited = track.waited || stood;
       // Counted where a point of its components was not moving.
       bool all_moving = true;
       for (const std::size_t c_at : f.pieces)
         for (std::size_t k = c_at ? h.ends[c_at - 1] : 0; k < h.ends[c_at] && all_moving; ++k)
           all_moving = h.moving[h.order[k]] != 0;
-      h.r.stats.objects_carried_back += !all_moving;
+      if (!stood) {
+        h.r.stats.objects_carried_back += !all_moving;
+      } else {
+        waiting.push_back({at, t, track_of[m.object], !all_moving, {}});
+      }
       track.at.push_front({t, here});
+      std::vector<uint32_t>& turning = stood ? waiting.back().turns : turned;
       // Its foot stays (rule 2): it goes on in the chain, as the objects moved whole keep
       // theirs, but does not turn. Asked only where a point can turn (issue #16: a truck
       // moving in every point is carried on through every held scan).
@@ -2259,47 +2280,62 @@ void LaserPipeline::carryBack() {
         next_track.push_back(track_of[m.object]);
         next_pool.push_back(f.pieces.size() > 1 ? static_cast<uint32_t>(&f - found.data())
                                                 : UINT32_MAX);
-        if (!h.moving[i] && in_body[a]) turned.push_back(i);
+        if (!h.moving[i] && in_body[a]) turning.push_back(i);
       }
     }
-    if (!turned.empty()) {
-      // The result as collect() makes it with these points moving.
-      ScanResult& r = h.r;
-      for (const uint32_t k : turned) {
-        h.moving[k] = 1;
-        r.labels[h.original[k]] = kMoving;
-        if (h.view) h.kind[h.at[k]] = 2;
-      }
-      std::size_t kept = 0, compact = 0, compact_kept = 0;
-      for (std::size_t j = 0; j < r.static_full.size(); ++j) {
-        const uint8_t kind = r.static_full_kind[j];
-        const bool turns = (kind == kMapStatic || kind == kMapDuplicate) &&
-                           r.labels[r.static_full_index[j]] == kMoving;
-        if (kind == kMapStatic) {
-          if (!turns) r.static_compact[compact_kept++] = r.static_compact[compact];
-          ++compact;
-        }
-        if (turns) {
-          r.moving.push_back(r.static_full[j]);
-          r.moving_index.push_back(r.static_full_index[j]);
-          continue;
-        }
-        r.static_full[kept] = r.static_full[j];
-        r.static_full_index[kept] = r.static_full_index[j];
-        r.static_full_kind[kept] = kind;
-        ++kept;
-      }
-      r.static_full.resize(kept);
-      r.static_full_index.resize(kept);
-      r.static_full_kind.resize(kept);
-      r.static_compact.resize(compact_kept);
-      r.stats.moving += turned.size();
-      r.stats.static_points -= turned.size();
-      r.stats.carried_back_points += turned.size();
-      if (h.view) r.overlay = vision::drawOverlay(*h.view, h.all_points, r.pose, h.kind);
-    }
+    turnInResult(h, turned);
     next_world_to_sensor = h.world_to_sensor;
   }
+  // A vehicle that came to a stop, by the labels' measure on the whole chain: where it was half
+  // a window before a waiting scan (its earliest known place if later; none extrapolated) lies
+  // more than kMovedDistance from where it is half a window after (`car_stops_5s`: it stops
+  // 18 m ahead, rule 7 measures the scans after, and the scans in which it stood, moving by the
+  // labels' +-0.5 s, broke the chain to the scans it drove in).
+  for (const Waiting& w : waiting) {
+    const Track& track = tracks[w.track];
+    const double t_before = std::max(w.t - half, track.at.front().first);
+    if ((track.where(w.t + half) - track.where(t_before)).norm() <= kMovedDistance) continue;
+    held_results_[w.at].r.stats.objects_carried_back += w.counted;
+    turnInResult(held_results_[w.at], w.turns);
+  }
+}
+
+// The result of a held scan as collect() makes it with the candidates `turned` moving.
+void LaserPipeline::turnInResult(Held& h, const std::vector<uint32_t>& turned) {
+  if (turned.empty()) return;
+  ScanResult& r = h.r;
+  for (const uint32_t k : turned) {
+    h.moving[k] = 1;
+    r.labels[h.original[k]] = kMoving;
+    if (h.view) h.kind[h.at[k]] = 2;
+  }
+  std::size_t kept = 0, compact = 0, compact_kept = 0;
+  for (std::size_t j = 0; j < r.static_full.size(); ++j) {
+    const uint8_t kind = r.static_full_kind[j];
+    const bool turns = (kind == kMapStatic || kind == kMapDuplicate) &&
+                       r.labels[r.static_full_index[j]] == kMoving;
+    if (kind == kMapStatic) {
+      if (!turns) r.static_compact[compact_kept++] = r.static_compact[compact];
+      ++compact;
+    }
+    if (turns) {
+      r.moving.push_back(r.static_full[j]);
+      r.moving_index.push_back(r.static_full_index[j]);
+      continue;
+    }
+    r.static_full[kept] = r.static_full[j];
+    r.static_full_index[kept] = r.static_full_index[j];
+    r.static_full_kind[kept] = kind;
+    ++kept;
+  }
+  r.static_full.resize(kept);
+  r.static_full_index.resize(kept);
+  r.static_full_kind.resize(kept);
+  r.static_compact.resize(compact_kept);
+  r.stats.moving += turned.size();
+  r.stats.static_points -= turned.size();
+  r.stats.carried_back_points += turned.size();
+  if (h.view) r.overlay = vision::drawOverlay(*h.view, h.all_points, r.pose, h.kind);
 }
 
 }  // namespace cleanmap

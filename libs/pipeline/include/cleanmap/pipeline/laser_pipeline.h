@@ -175,6 +175,7 @@ class LaserPipeline {
   std::deque<Held> held_results_;
   void hold(ScanResult&& r, const Prepared& s, const Work& w);
   void carryBack();
+  void turnInResult(Held& h, const std::vector<uint32_t>& turned);
   void handOn(std::size_t keep);  // hands on the oldest held results until `keep` remain
   std::unique_ptr<Work> work_;
   std::unique_ptr<FreeSpaceMap> free_;  // DESIGN §2e, whole sequence
