@@ -1998,11 +1998,11 @@ void LaserPipeline::carryBack() {
                        *x->whole_objects, x->whole_reach);
       }
     const WholeObjects &oa = *a.whole_objects, &ob = *b.whole_objects;
+    if (oa.empty() || ob.empty()) return;
     // Rule 7 measured the scans before the older one only where it had their half windows: not
     // in a run's first and last H scans, which only the chain from here reaches.
     const bool before_measurable = std::all_of(held_results_.begin(), held_results_.end() - 2,
                                                [](const Held& h) { return h.measurable; });
-    if (oa.empty() || ob.empty()) return;
     std::vector<std::vector<uint32_t>> members(oa.extent.size());
     for (uint32_t k = 0; k < a.whole.size(); ++k)
       if (const uint32_t* o = objectOf(oa, a.whole[k].xyz())) members[*o].push_back(k);
@@ -2243,17 +2243,16 @@ void LaserPipeline::carryBack() {
       // Where it stood here by what is known so far, it goes on in the chain and waits, and so
       // do the scans before: whether it came to a stop is told by the whole chain (below).
       const bool stood = moved <= kMovedDistance || track.waited;
-      track.waited = track.waited || stood;
+      track.waited = stood;
       // Counted where a point of its components was not moving.
       bool all_moving = true;
       for (const std::size_t c_at : f.pieces)
         for (std::size_t k = c_at ? h.ends[c_at - 1] : 0; k < h.ends[c_at] && all_moving; ++k)
           all_moving = h.moving[h.order[k]] != 0;
-      if (!stood) {
-        h.r.stats.objects_carried_back += !all_moving;
-      } else {
+      if (stood)
         waiting.push_back({at, t, track_of[m.object], !all_moving, {}});
-      }
+      else
+        h.r.stats.objects_carried_back += !all_moving;
       track.at.push_front({t, here});
       std::vector<uint32_t>& turning = stood ? waiting.back().turns : turned;
       // Its foot stays (rule 2): it goes on in the chain, as the objects moved whole keep
