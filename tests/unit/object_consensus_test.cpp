@@ -1378,11 +1378,12 @@ struct RoofScene {
     moving.push_back(m);
     whole.push_back(m);
   }
-  std::vector<uint32_t> roofs(double ring_gap = kVlp16Gap) const {
+  std::vector<uint32_t> roofs(double ring_gap = kVlp16Gap, bool dense = false) const {
     ObjectComponents cc;
     groupObjects(pts, std::vector<uint8_t>(pts.size(), 1), 0.3, cc);
     MoverRoofParams p;
     p.ring_gap = ring_gap;
+    p.dense = dense;
     return moverRoofs(pts, Eigen::Isometry3d::Identity(), cc, moving, whole,
                       std::vector<uint8_t>(pts.size(), 0), p);
   }
@@ -1461,13 +1462,14 @@ struct SparseCarScene {
     whole.push_back(m);
     ground.push_back(kNotGround);
   }
-  std::vector<uint32_t> roofs() const {
+  std::vector<uint32_t> roofs(bool dense = false) const {
     ObjectComponents cc;
     std::vector<uint8_t> member(pts.size());
     for (std::size_t i = 0; i < pts.size(); ++i) member[i] = ground[i] == kNotGround;
     groupObjects(pts, member, 0.3, cc);
     MoverRoofParams p;
     p.ring_gap = kVlp16Gap;
+    p.dense = dense;
     return moverRoofs(pts, Eigen::Isometry3d::Identity(), cc, moving, whole, ground, p);
   }
 };
@@ -1543,7 +1545,7 @@ TEST(MoverRoofs, SlicesFlaggedInPartStackIntoOneObject) {
   // A VLP-16's car 15 m back, turning: no slice moves whole. Its three rings' slices (-3, -5 and
   // -7 degrees, 0.52 m apart) each have half of their returns flagged; one over another, over
   // the same azimuths and ranges, they are one object and their other returns go.
-  const auto scene = [](float length, float second_x, int flagged_every) {
+  const auto scene = [](float length, float second_x, int flagged_every, bool dense = false) {
     std::vector<PointXYZI> pts;
     std::vector<uint8_t> moving;
     std::vector<uint32_t> rest;
@@ -1562,12 +1564,15 @@ TEST(MoverRoofs, SlicesFlaggedInPartStackIntoOneObject) {
     groupObjects(pts, std::vector<uint8_t>(pts.size(), 1), 0.3, cc);
     MoverRoofParams p;
     p.ring_gap = kVlp16Gap;
+    p.dense = dense;
     const auto out = moverRoofs(pts, Eigen::Isometry3d::Identity(), cc, moving, moving,
                                 std::vector<uint8_t>(pts.size(), kNotGround), p);
     return std::pair(out, rest);
   };
   const auto [car, car_rest] = scene(4.5f, 15.0f, 2);
   EXPECT_EQ(car, car_rest);
+  // A dense lidar's rings do not fall apart so: its slices are left to rule 2.
+  EXPECT_TRUE(scene(4.5f, 15.0f, 2, true).first.empty());
   // A tenth flagged (under rule 2's fifth): rule 2 left them static, and so do the stacks.
   EXPECT_TRUE(scene(4.5f, 15.0f, 10).first.empty());
   // Its middle slice 2 m further (a wall behind it): what remains is no stack of slices, but the
@@ -1590,6 +1595,57 @@ TEST(MoverRoofs, AStripeGrazingTheFacesTopEdgeGoesWithIt) {
       EXPECT_EQ(s.roofs(), s.slice);
     else
       EXPECT_TRUE(s.roofs().empty());
+  }
+}
+
+TEST(MoverRoofs, ADenseLidarsRoofGoesWithItAndNothingElse) {
+  // An HDL-64E's rings 0.33 degrees apart: a 1.5 m car 7.75 m back, its front face's top ring at
+  // -1.55 degrees; the next ring (-1.22) passes over its bonnet and lands on its roof 10.6 m
+  // off, 2.8 m on (following_car): a stripe of its own, taken as at a sparse lidar.
+  constexpr double kGap = 0.333 * M_PI / 180.0;
+  RoofScene dense(true);
+  dense.pts.clear(), dense.moving.clear(), dense.whole.clear(), dense.stripe.clear();
+  for (double el = -1.55; el >= -12.0; el -= 0.333)
+    for (float y = -0.9f; y <= 0.9f + 1e-4f; y += 0.05f)
+      dense.add(-7.75f, y, 7.75f * static_cast<float>(std::tan(el * M_PI / 180.0)), true);
+  for (float y = -0.9f; y <= 0.9f + 1e-4f; y += 0.05f) {
+    dense.stripe.push_back(static_cast<uint32_t>(dense.pts.size()));
+    dense.add(-10.6f, y, -0.226f, false);
+  }
+  EXPECT_EQ(dense.roofs(kGap, true), dense.stripe);
+  // What only a sparse lidar's rings leave apart is not taken at a dense one: the ring under a
+  // moving face (rule 6's feet take what is left of it there) ...
+  SparseCarScene under;
+  under.addSlice(-13.0f, SparseCarScene::at(-7, 13.0f));
+  EXPECT_EQ(under.roofs(), under.slice);
+  EXPECT_TRUE(under.roofs(true).empty());
+  // ... nor slices flagged in part, stacked (SlicesFlaggedInPartStackIntoOneObject).
+}
+
+TEST(MoverRoofs, AStripeUnderTheRingsThatMetATallVehicleStays) {
+  // A dense lidar (0.333 degrees between rings): a van's face 7.7 m back reaching over the
+  // sensor (rings -12 .. +1 degrees). A stripe behind it at 8.5 m lies under its top ring there
+  // (-0.5 degrees): no ring that went over the van met it; it is seen beside or through
+  // something else (kitti_highway: a sign's stripe 4-6 m beyond a truck beside the sensor). A
+  // stripe on the ring over its top (+1.2 degrees, 8.3 m) is its roof.
+  constexpr double kGap = 0.333 * M_PI / 180.0;
+  for (const auto& [el, at] : {std::pair(-0.5, 8.5f), std::pair(1.2, 8.3f)}) {
+    RoofScene s(true);
+    s.pts.clear(), s.moving.clear(), s.whole.clear(), s.stripe.clear();
+    for (double face = 1.0; face >= -12.0; face -= 0.333)
+      for (float y = -0.9f; y <= 0.9f + 1e-4f; y += 0.05f)
+        s.add(-7.7f, y, 7.7f * static_cast<float>(std::tan(face * M_PI / 180.0)), true);
+    for (float y = -0.9f; y <= 0.9f + 1e-4f; y += 0.05f) {
+      s.stripe.push_back(static_cast<uint32_t>(s.pts.size()));
+      s.add(-at, y, at * static_cast<float>(std::tan(el * M_PI / 180.0)), false);
+    }
+    if (el > 0) {
+      EXPECT_EQ(s.roofs(kGap, true), s.stripe);
+    } else {
+      EXPECT_TRUE(s.roofs(kGap, true).empty());
+      // A sparse lidar's vehicle is a few slices, a column's top no ring under the stripe: taken.
+      EXPECT_EQ(s.roofs(kGap, false), s.stripe);
+    }
   }
 }
 

@@ -144,8 +144,13 @@ TEST(SimLidar, ResolutionOfSparseLidarsIsMeasuredInTheScan) {
   EXPECT_DOUBLE_EQ(densityScale(presetResolution(SensorModel::kHdl64)), 1.0);
   sc.sensor.elevations = ringElevations(SensorModel::kHdl64);
   sc.sensor.azimuth_step_deg = 0.18;
-  EXPECT_FALSE(measureResolution(sim::simulateScan(sc, 5, 2).points));
-  EXPECT_FALSE(measureResolution({}));
+  double rings = 0;
+  EXPECT_FALSE(measureResolution(sim::simulateScan(sc, 5, 2).points, &rings));
+  // Its rings' gap all the same, for its roofs (doc/OBJECTS.md rule 6): the upper block's 0.33.
+  EXPECT_NEAR(rings, 10.33 / 31.0, 0.02);
+  rings = -1;
+  EXPECT_FALSE(measureResolution({}, &rings));
+  EXPECT_EQ(rings, -1);  // nothing measured, nothing written
 }
 
 // Every k-th laser of a KITTI HDL-64E scan.

@@ -7,6 +7,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "cleanmap/core/fast_math.h"
 #include "cleanmap/core/median.h"
 
 namespace cleanmap {
@@ -230,13 +231,17 @@ std::vector<uint32_t> moverRoofs(const std::vector<PointXYZI>& points,
     return c.moving > 0 && c.moving < c.n && c.moving >= p.flagged * c.n;
   };
   if (std::none_of(comp.begin(), comp.end(), [&](const Component& c) {
-        return (c.n > 0 && 10 * c.whole >= 9 * c.n) || flaggedInPart(c);
+        return (c.n > 0 && 10 * c.whole >= 9 * c.n) || (!p.dense && flaggedInPart(c));
       }))
     return out;
   for (uint32_t i = 0; i < points.size(); ++i) {
     const uint32_t r = rootOf(i);
     if (r == UINT32_MAX || comp[r].moving == comp[r].n || comp[r].n < 3) continue;
-    const float el = std::atan2(points[i].z, std::hypot(points[i].x, points[i].y));
+    // A dense lidar's many static returns with the fast angle (issue #16; 3e-7 rad off, under a
+    // thousandth of its half ring step); a sparse lidar's as they were.
+    const float el = p.dense ? fast::atan2(points[i].z, std::sqrt(points[i].x * points[i].x +
+                                                                  points[i].y * points[i].y))
+                             : std::atan2(points[i].z, std::hypot(points[i].x, points[i].y));
     comp[r].el_lo = std::min(comp[r].el_lo, el);
     comp[r].el_hi = std::max(comp[r].el_hi, el);
   }
@@ -281,14 +286,44 @@ std::vector<uint32_t> moverRoofs(const std::vector<PointXYZI>& points,
   std::vector<double> mean(vehicles.size());
   for (std::size_t k = 0; k < vehicles.size(); ++k)
     mean[k] = std::atan2(vehicles[k].sy, vehicles[k].sx);
+  // At a dense lidar, per vehicle, the elevation of its highest return in each 0.5-degree bin of
+  // azimuth (relative to its mean): a ring lands on its roof only over its top in that column,
+  // and a stripe behind a vehicle taller than the sensor lies under the rings that met it
+  // (kitti_highway: a truck beside the sensor, its top 0.66 m over it, and a sign's stripe 4-6 m
+  // beyond it at 2 degrees). Its returns' azimuths and elevations are kept from the pass below.
+  struct Column {
+    uint32_t k;
+    float d, el;
+  };
+  std::vector<Column> columns;
   for (uint32_t i = 0; i < points.size(); ++i) {
     const uint32_t r = rootOf(i);
     if (r == UINT32_MAX || vehicle_of[r] < 0) continue;
     const std::size_t k = static_cast<std::size_t>(vehicle_of[r]);
     const Eigen::Vector3d q = R * points[i].xyz().cast<double>();
-    const double d = relative(std::atan2(q.y(), q.x()), mean[k]);
+    const double d = relative(
+        p.dense ? double(fast::atan2(float(q.y()), float(q.x()))) : std::atan2(q.y(), q.x()),
+        mean[k]);
     vehicles[k].az_lo = std::min(vehicles[k].az_lo, d);
     vehicles[k].az_hi = std::max(vehicles[k].az_hi, d);
+    if (p.dense) {
+      const float h = std::sqrt(static_cast<float>(q.x() * q.x() + q.y() * q.y()));
+      columns.push_back({static_cast<uint32_t>(k), static_cast<float>(d),
+                         fast::atan2(static_cast<float>(q.z()), h)});
+    }
+  }
+  constexpr double kAzBin = 0.5 * M_PI / 180;
+  std::vector<std::vector<float>> top_el(p.dense ? vehicles.size() : 0);
+  for (std::size_t k = 0; k < top_el.size(); ++k)
+    top_el[k].assign(static_cast<std::size_t>((vehicles[k].az_hi - vehicles[k].az_lo) / kAzBin) + 1,
+                     -std::numeric_limits<float>::infinity());
+  const auto binOf = [&](std::size_t k, double d) {
+    return std::min(top_el[k].size() - 1,
+                    static_cast<std::size_t>(std::max(0.0, (d - vehicles[k].az_lo) / kAzBin)));
+  };
+  for (const Column& c : columns) {
+    float& t = top_el[c.k][binOf(c.k, c.d)];
+    t = std::max(t, c.el);
   }
   // The stripes' points levelled once: horizontal range, height, azimuth.
   std::vector<Eigen::Vector3d> polar(stripe_points.size());
@@ -369,10 +404,17 @@ std::vector<uint32_t> moverRoofs(const std::vector<PointXYZI>& points,
         if (range < v.r_lo - p.voxel) continue;
         const bool faces = range <= v.r_hi + p.voxel;  // on its faces, not behind them
         const bool roof = range <= v.r_hi + p.length && z >= z_lo && z <= z_hi;
-        const bool under = faces && z < v.bottom && z >= v.bottom - step;  // a ring step under
+        const bool under =
+            !p.dense && faces && z < v.bottom && z >= v.bottom - step;  // a ring step under
         if (!roof && !under) continue;
         const double d = relative(az, mean[k]), margin = p.voxel / range;
         if (d < v.az_lo - margin || d > v.az_hi + margin) continue;
+        // Behind its faces at a dense lidar, a roof: on the ring over its top there (within
+        // half a ring step). A sparse lidar's vehicle is a few slices: a column's top is not
+        // the ring under the stripe (kitti_highway at 16 rings: a car's slice 0.6 m behind its
+        // far end, 1.5 degrees under the top return beside it, is the car's).
+        if (p.dense && !faces && std::atan2(z, range) < top_el[k][binOf(k, d)] - 0.5 * p.ring_gap)
+          continue;
         const uint32_t r = rootOf(stripe_points[j]);
         ++inside[r];
         on_faces[r] += faces;
@@ -400,7 +442,7 @@ std::vector<uint32_t> moverRoofs(const std::vector<PointXYZI>& points,
   // car turning 14 m off: three slices, 49 of 88 returns flagged in each).
   std::vector<const Stripe*> slices;
   for (const Stripe& x : stripes)
-    if (!taken[x.root] && flaggedInPart(comp[x.root])) slices.push_back(&x);
+    if (!p.dense && !taken[x.root] && flaggedInPart(comp[x.root])) slices.push_back(&x);
   std::vector<std::size_t> stack(slices.size());
   for (std::size_t a = 0; a < slices.size(); ++a) stack[a] = a;
   const auto find = [&](std::size_t a) {

@@ -65,7 +65,8 @@ AngularResolution presetResolution(SensorModel m) {
   return {(p.fov_hi_deg - p.fov_lo_deg) / (p.rings - 1), p.azimuth_step_deg};
 }
 
-std::optional<AngularResolution> measureResolution(const std::vector<PointXYZI>& points) {
+std::optional<AngularResolution> measureResolution(const std::vector<PointXYZI>& points,
+                                                   double* rings_deg) {
   constexpr double kBin = 0.05;  // degrees
   constexpr int kBins = static_cast<int>(180 / kBin);
   std::vector<uint32_t> count(kBins, 0);
@@ -156,6 +157,7 @@ std::optional<AngularResolution> measureResolution(const std::vector<PointXYZI>&
   // Rings closer than 0.8 degrees may be the HDL-64E's blurring together (KITTI's do): the scale
   // stays 1 there, unless the columns are clearly coarser than the HDL-64E's 0.17-0.18 degrees
   // (an Ouster at 1024 columns: 0.35), whose rings stand apart.
+  if (rings_deg) *rings_deg = vertical;
   if (vertical < kDenseRingsDeg && !(azimuth > kCoarseColumnsDeg)) return std::nullopt;
   return AngularResolution{vertical, azimuth};
 }

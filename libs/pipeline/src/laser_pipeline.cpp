@@ -187,6 +187,7 @@ struct LaserPipeline::Prepared {
   double density = 1;      // returns per solid angle relative to the HDL-64E (DESIGN §2d)
   double ring_gap = 0;     // rad between rings, where sparse (measured or preset; 0: dense, §2b)
   double column_step = 0;  // rad between columns, where coarse (kCoarseColumnsDeg; 0: not, §2b)
+  double roof_gap = 0;     // rad between rings for the roofs of rule 6: ring_gap, or dense rings'
   Eigen::Isometry3d world_to_sensor;
   PoseInfo pose_info;
   ScanStats stats;
@@ -602,13 +603,16 @@ std::unique_ptr<LaserPipeline::Prepared> LaserPipeline::prepare(Registered&& r,
   const auto& gpts = levelled.empty() ? pts : levelled;
   s->ground_z = groundBelowSensor(*s, gpts);
   std::optional<AngularResolution> res;
+  double rings_deg = 0;  // measured where dense too: a dense lidar's roofs (OBJECTS.md rule 6)
   if (p_.sensor.model != SensorModel::kAuto)
     res = presetResolution(p_.sensor.model);
   else
-    res = measureResolution(pts);
+    res = measureResolution(pts, &rings_deg);
+  s->roof_gap = rings_deg * M_PI / 180.0;
   if (res) {
     s->density = densityScale(*res);
     s->ring_gap = res->vertical_deg * M_PI / 180.0;
+    s->roof_gap = s->ring_gap;
     if (res->azimuth_deg > kCoarseColumnsDeg) s->column_step = res->azimuth_deg * M_PI / 180.0;
   }
   s->ground = segmentGround(gpts, p_.ground, std::max(p_.filter.crop_tau, r_map), s->ground_z);
@@ -1615,12 +1619,13 @@ void LaserPipeline::moverFeet(Prepared& s, Work& w) const {
   s.stats.ms.objects += msSince(t0);
 }
 
-// doc/OBJECTS.md rule 6 at a sparse lidar: the roof stripes behind a vehicle moving whole.
+// doc/OBJECTS.md rule 6, roofs: the roof stripes behind a vehicle moving whole.
 void LaserPipeline::moverRoofs(Prepared& s, Work& w) const {
-  if (!p_.object.enabled || !p_.object.roofs || s.ring_gap <= 0 || !w.grouped) return;
+  if (!p_.object.enabled || !p_.object.roofs || s.roof_gap <= 0 || !w.grouped) return;
   const auto t0 = Clock::now();
   MoverRoofParams rp;
-  rp.ring_gap = s.ring_gap;
+  rp.ring_gap = s.roof_gap;
+  rp.dense = s.ring_gap <= 0;
   rp.voxel = p_.object.voxel;
   rp.flagged = p_.object.moving_fraction;
   rp.max_length = p_.object.max_length;

@@ -47,9 +47,14 @@ std::vector<uint32_t> moverFeet(const std::vector<PointXYZI>& points, const Eige
 /// passes over its top and lands on its roof, metres further on (a car followed 7.7 m back by a
 /// VLP-16: its front face's top ring at 1.33 m, the next one 4.3 m further on its roof's rear
 /// edge): a one-ring stripe, not joined to the face in the grouping's voxels. With the face
-/// moving, the stripe stays static and behind, a trail of roofs in the map.
+/// moving, the stripe stays static and behind, a trail of roofs in the map. A dense lidar's
+/// roofs below the sensor fall apart so too (an HDL-64E's rings 1.3 and 4.3 m apart on a car's
+/// roof 8-12 m off).
 struct MoverRoofParams {
-  double ring_gap = 0;  ///< rad between the lidar's rings (0: dense, no roof falls apart)
+  double ring_gap = 0;  ///< rad between the lidar's rings (0: none taken)
+  /// A dense lidar (rings under kDenseRingsDeg apart, DESIGN §2b): its roofs alone. Its lowest
+  /// ring does not fall apart from a face (rule 6's feet take what it leaves), nor its slices.
+  bool dense = false;
   double voxel = 0.3;   ///< m; the grouping's voxel (ObjectParams::voxel): the margins
   double length = 6.0;  ///< m; how far beyond its near face a roof below the sensor may reach
   /// A slice under the vehicle with this share of it flagged moving is one of its slices however
@@ -72,7 +77,9 @@ struct MoverRoofParams {
 /// taken on its faces extends the vehicle for the next one. And the static points of stacks: two
 /// or more one-ring slices, each with `flagged` of it moving (not all), one over another (within
 /// 1.25 ring steps, over half of the narrower one's azimuths, ranges within a voxel), vehicle-sized
-/// together. Ascending order; empty where `p.ring_gap` is 0.
+/// together. At a dense lidar (`p.dense`) only the roofs, each return behind the faces on the
+/// ring over the vehicle's top in its 0.5-degree bin of azimuth (within half a ring step).
+/// Ascending order; empty where `p.ring_gap` is 0.
 std::vector<uint32_t> moverRoofs(const std::vector<PointXYZI>& points,
                                  const Eigen::Isometry3d& pose, const ObjectComponents& cc,
                                  const std::vector<uint8_t>& moving,

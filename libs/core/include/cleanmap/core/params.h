@@ -145,8 +145,9 @@ struct ObjectParams {
   /// Rule 6: a moving object's returns refined to ground under it, raised over the road around
   /// them (its lowest face, tyres, shoes), go with it (MoverFeetParams; doc/OBJECTS.md).
   bool feet = true;
-  /// Rule 6 at a sparse lidar: a one-ring stripe on a moving vehicle's roof, beyond its near
-  /// face, goes with it (MoverRoofParams; doc/OBJECTS.md).
+  /// Rule 6, roofs: a one-ring stripe on a moving vehicle's roof, beyond its near face, goes with
+  /// it; at a sparse lidar its faces' lowest ring and stacked slices too (MoverRoofParams;
+  /// doc/OBJECTS.md).
   bool roofs = true;
   /// m; rule 1 for sparse lidars (RingReach, doc/OBJECTS.md): a ring's slice of an object at
   /// most this wide (its returns' horizontal diagonal: a walker's) joins the slices of its column

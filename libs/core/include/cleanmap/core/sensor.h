@@ -53,8 +53,11 @@ constexpr double kCoarseColumnsDeg = 0.27;
 /// median over rings of each ring's median gap. nullopt where fewer than 8 rings stand apart, or
 /// they lie less than kDenseRingsDeg apart with columns no coarser than kCoarseColumnsDeg (the
 /// HDL-64E, whose rings blur together, KITTI's included: the reference density). An Ouster at
-/// 1024 columns (0.35 degrees) is measured.
-std::optional<AngularResolution> measureResolution(const std::vector<PointXYZI>& points);
+/// 1024 columns (0.35 degrees) is measured. `rings_deg`, where given, receives the rings' median
+/// gap wherever 8 stand apart, dense or not (the simulated HDL-64E 0.33, KITTI's blurred
+/// 0.50-0.52).
+std::optional<AngularResolution> measureResolution(const std::vector<PointXYZI>& points,
+                                                   double* rings_deg = nullptr);
 /// Returns per solid angle relative to the HDL-64E's (DESIGN §2d): what a point count tuned on it
 /// (object.min_moving) is multiplied by for this sensor.
 double densityScale(const AngularResolution& r);
