@@ -928,7 +928,7 @@ void LaserPipeline::decide(std::size_t pos) {
   objectConsensus(pos, s, w);              // doc/OBJECTS.md
   validateImages(pos, s, w);               // §3
   moverFeet(s, w);                         // doc/OBJECTS.md rule 6
-  moverRoofs(s, w);                        // and a sparse lidar's roofs
+  moverRoofs(s, w);                        // and the roofs' stripes
   ScanResult r = collect(s, w);            // §2.7: labels, static map, dynamic layer
   remember(r, static_cast<long>(s.index), s, w);
   if (source_ == PoseSource::kGicp || source_ == PoseSource::kRefine)  // movers leave GICP's map
