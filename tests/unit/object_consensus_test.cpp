@@ -1363,7 +1363,8 @@ struct RoofScene {
   std::vector<uint32_t> stripe;
   // The face (x = -7.7, rings -11 .. -3 degrees), moving whole where `face_moving`; a stripe of
   // the -1 degree ring at range `at`, `half_width` to either side.
-  RoofScene(bool face_moving, float at = 12.0f, float half_width = 0.9f) {
+  RoofScene() = default;  // empty: the caller adds its own face and stripe
+  explicit RoofScene(bool face_moving, float at = 12.0f, float half_width = 0.9f) {
     for (int el = -11; el <= -3; el += 2)
       for (float y = -0.9f; y <= 0.9f + 1e-4f; y += 0.05f)
         add(-7.7f, y, 7.7f * static_cast<float>(std::tan(el * M_PI / 180.0)), face_moving);
@@ -1603,8 +1604,7 @@ TEST(MoverRoofs, ADenseLidarsRoofGoesWithItAndNothingElse) {
   // -1.55 degrees; the next ring (-1.22) passes over its bonnet and lands on its roof 10.6 m
   // off, 2.8 m on (following_car): a stripe of its own, taken as at a sparse lidar.
   constexpr double kGap = 0.333 * M_PI / 180.0;
-  RoofScene dense(true);
-  dense.pts.clear(), dense.moving.clear(), dense.whole.clear(), dense.stripe.clear();
+  RoofScene dense;
   for (double el = -1.55; el >= -12.0; el -= 0.333)
     for (float y = -0.9f; y <= 0.9f + 1e-4f; y += 0.05f)
       dense.add(-7.75f, y, 7.75f * static_cast<float>(std::tan(el * M_PI / 180.0)), true);
@@ -1630,8 +1630,7 @@ TEST(MoverRoofs, AStripeUnderTheRingsThatMetATallVehicleStays) {
   // stripe on the ring over its top (+1.2 degrees, 8.3 m) is its roof.
   constexpr double kGap = 0.333 * M_PI / 180.0;
   for (const auto& [el, at] : {std::pair(-0.5, 8.5f), std::pair(1.2, 8.3f)}) {
-    RoofScene s(true);
-    s.pts.clear(), s.moving.clear(), s.whole.clear(), s.stripe.clear();
+    RoofScene s;
     for (double face = 1.0; face >= -12.0; face -= 0.333)
       for (float y = -0.9f; y <= 0.9f + 1e-4f; y += 0.05f)
         s.add(-7.7f, y, 7.7f * static_cast<float>(std::tan(face * M_PI / 180.0)), true);

@@ -2068,6 +2068,8 @@ void LaserPipeline::carryBack() {
     std::vector<uint32_t> turns;
   };
   std::vector<Waiting> waiting;
+  // Per held scan, the candidates turned moving: its result is rebuilt once, at the end.
+  std::vector<std::vector<uint32_t>> turned_in(n_held);
   Eigen::Isometry3d next_world_to_sensor = held_results_[n_held - 2].world_to_sensor;
   for (std::size_t at = n_held - 2; at-- > 0 && !next_whole.empty();) {
     Held& h = held_results_[at];
@@ -2089,8 +2091,8 @@ void LaserPipeline::carryBack() {
       if (const uint32_t* o = objectOf(next, next_whole[k].xyz()))
         if (track_of[*o] == UINT32_MAX) track_of[*o] = next_track[k];
     joinPooled(next_whole, next_pool, inv, next, track_of);
-    std::vector<uint32_t> turned;  // candidate positions turned moving
-    next_whole.clear();            // becomes what this scan turned
+    std::vector<uint32_t>& turned = turned_in[at];  // candidate positions turned moving
+    next_whole.clear();                             // becomes what this scan turned
     next_track.clear();
     next_pool.clear();
     std::vector<Eigen::Vector3f> q;
@@ -2287,7 +2289,6 @@ void LaserPipeline::carryBack() {
         if (!h.moving[i] && in_body[a]) turning.push_back(i);
       }
     }
-    turnInResult(h, turned);
     next_world_to_sensor = h.world_to_sensor;
   }
   // A vehicle that came to a stop, by the labels' measure on the whole chain: where it was half
@@ -2300,8 +2301,9 @@ void LaserPipeline::carryBack() {
     const double t_before = std::max(w.t - half, track.at.front().first);
     if ((track.where(w.t + half) - track.where(t_before)).norm() <= kMovedDistance) continue;
     held_results_[w.at].r.stats.objects_carried_back += w.counted;
-    turnInResult(held_results_[w.at], w.turns);
+    turned_in[w.at].insert(turned_in[w.at].end(), w.turns.begin(), w.turns.end());
   }
+  for (std::size_t at = 0; at < n_held; ++at) turnInResult(held_results_[at], turned_in[at]);
 }
 
 // The result of a held scan as collect() makes it with the candidates `turned` moving.
