@@ -745,6 +745,57 @@ TEST(ObjectConsensus, HysteresisKeepsAPartlyMovingObjectThatMovedBefore) {
   EXPECT_EQ(objectConsensus(pts, member, unchanged, off, &near_all).persisted, 0u);
 }
 
+TEST(ObjectConsensus, ThePreviousScansObjectGoesWithAllItsParts) {
+  // doc/OBJECTS.md rule 2, "The previous scan's object": a car's back face receding ahead of a
+  // sparse lidar, whose foot alone (its lowest rows, under foot_height) tested moving, 25 % of
+  // it. Rule 2 turns it moving, but the face above its foot holds no moving point of its own and
+  // stayed static (parked_leaves at 32 rings, 125 of 167 returns in scan 56). Where half of it
+  // lies near the previous scan's moving points and was_whole says it is the object that scan
+  // moved whole (the caller's match), all of it goes.
+  std::vector<PointXYZI> pts;
+  for (float z = 0.0f; z < 1.15f; z += 0.1f)
+    for (float y = -0.9f; y <= 0.9f; y += 0.05f) pts.push_back({15.0f, y, z, 0});
+  std::vector<uint8_t> member(pts.size(), 1), moving(pts.size(), 0);
+  std::size_t foot = 0, raised = 0;
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    if (pts[i].z < 0.25f) moving[i] = 1, ++foot;
+    raised += pts[i].z > 0.35f;
+  }
+  ASSERT_GE(double(foot) / double(pts.size()), 0.2);
+  std::vector<uint8_t> near_all(pts.size(), 1), near_few(pts.size(), 0);
+  for (std::size_t i = 0; i < pts.size(); i += 3) near_few[i] = 1;  // a third: not asked
+  std::size_t asked = 0, given = 0;
+  const auto rulesWith = [&](bool whole) {
+    ConsensusRules r;
+    r.was_whole = [&, whole](const std::vector<uint32_t>& idx) {
+      ++asked;
+      given = idx.size();
+      return whole;
+    };
+    return r;
+  };
+  const auto movedAbove = [&](const std::vector<uint8_t>* near, const ConsensusRules& rules,
+                              const ObjectParams& p = ObjectParams{}) {
+    auto m = moving;
+    EXPECT_EQ(objectConsensus(pts, member, m, p, near, nullptr, rules).moving_objects, 1u);
+    std::size_t above = 0;
+    for (std::size_t i = 0; i < pts.size(); ++i) above += pts[i].z > 0.35f && m[i];
+    return above;
+  };
+  EXPECT_EQ(movedAbove(&near_all, rulesWith(true)), raised);
+  EXPECT_EQ(asked, 1u);
+  EXPECT_EQ(given, pts.size());                            // it is given the whole component
+  EXPECT_EQ(movedAbove(&near_all, rulesWith(false)), 0u);  // another object: its foot alone
+  asked = 0;
+  EXPECT_EQ(movedAbove(&near_few, rulesWith(true)), 0u);
+  EXPECT_EQ(movedAbove(nullptr, rulesWith(true)), 0u);
+  EXPECT_EQ(movedAbove(&near_all, ConsensusRules{}), 0u);
+  ObjectParams off;  // persist_radius 0 turns the previous scan's memory off
+  off.persist_radius = 0;
+  EXPECT_EQ(movedAbove(&near_all, rulesWith(true), off), 0u);
+  EXPECT_EQ(asked, 0u);  // not half of it near, or no memory: not asked
+}
+
 namespace {
 
 // A thin wall of height h from (x0, y0) to (x1, y1), sampled every `step` metres.

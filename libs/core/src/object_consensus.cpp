@@ -627,6 +627,10 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
     groupMembers();
     return rules.has_left(std::vector<uint32_t>(members[v].begin(), members[v].end()));
   };
+  const auto wasWhole = [&](uint32_t v) {
+    groupMembers();
+    return rules.was_whole(std::vector<uint32_t>(members[v].begin(), members[v].end()));
+  };
   const auto measuredMoving = [&](uint32_t v) {
     groupMembers();
     return rules.measured(std::vector<uint32_t>(members[v].begin(), members[v].end()));
@@ -654,6 +658,12 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
     if (partly(p.moving_fraction)) {
       turn[v] = 1;
       ++st.moving_objects;
+      if (rules.was_whole && p.persist_radius > 0 && 2 * c.near_prev >= c.n && wasWhole(v)) {
+        // The object the previous scan moved whole: all of its parts go, as under rules 4 and 5
+        // (doc/OBJECTS.md rule 2, "The previous scan's object").
+        if (all_parts.empty()) all_parts.assign(voxels.size(), 0);
+        all_parts[v] = 1;
+      }
     } else if (p.persist_radius > 0 && partly(p.static_fraction) && 2 * c.near_prev >= c.n) {
       turn[v] = 1;  // hysteresis: it moved in the previous scan and is still partly moving
       ++st.moving_objects;

@@ -1119,54 +1119,68 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
   w.held.assign(s.scan.size(), 0);
   w.measured.assign(s.scan.size(), 0);
   std::function<bool(const std::vector<uint32_t>&)> left_place;
+  // The object the previous scan moved whole that these points are (rule 4's "the same object"):
+  // half of them in its voxels (in that scan's sensor frame, where its consensus found it), as
+  // they are, moved, or by its ends; `e` their extent (this scan's sensor frame).
+  const auto previousObject = [&](const std::vector<uint32_t>& idx, Eigen::Vector3f& e) {
+    if (!prev_built) {
+      // Rule 4 backwards grouped them already where the previous scan is held (the same points).
+      const Held* last = held_results_.empty() ? nullptr : &held_results_.back();
+      if (last && last->r.index + 1 == s.index && last->whole_objects &&
+          last->whole_reach == rules.reach && last->whole.size() == prev_whole_.size())
+        prev_objects = &*last->whole_objects;
+      else
+        wholeObjectsOf(prev_whole_, std::vector<uint8_t>(prev_whole_.size(), 1), op.voxel, prev_own,
+                       rules.reach);
+      prev_built = true;
+    }
+    Eigen::Vector3f lo = Eigen::Vector3f::Constant(1e30f), hi = -lo;
+    q_prev.resize(idx.size());
+    for (std::size_t k = 0; k < idx.size(); ++k) {
+      const uint32_t i = idx[k];
+      lo = lo.cwiseMin(s.scan.points[i].xyz());
+      hi = hi.cwiseMax(s.scan.points[i].xyz());
+      q_prev[k] = (prev_pose_inverse_ * w.world[i]).cast<float>();
+    }
+    e = hi - lo;
+    // The previous scan's object in its voxels, or found moved (a car moving about a voxel a
+    // scan no longer lies in its previous voxels), or by its ends (doc/OBJECTS.md rule 4: a
+    // car that brakes shows a column more or less of its side, 0.4 m at 512 columns, and its
+    // centroid steps by what the columns hold, not by its motion; only where the scans after
+    // it can show it leave, below: the looser match is not kept on the previous scan's word).
+    return matchWholeObjectOrByEnds(q_prev, *prev_objects, op.voxel, kMovedMatch);
+  };
   if (!near_prev.empty()) {
+    // Rule 2, "The previous scan's object": that object itself, not smaller (by its ends: no).
+    rules.was_whole = [&](const std::vector<uint32_t>& idx) {
+      Eigen::Vector3f e;
+      const std::optional<WholeMatch> match = previousObject(idx, e);
+      return match && !match->by_ends &&
+             sizedAs(e, prev_objects->extent[match->object], rules.extent_tolerance, false);
+    };
     left_place = [&](const std::vector<uint32_t>& idx) {
-      // That object: half of its points in the voxels of one object the previous scan moved
-      // whole (in that scan's sensor frame, where its consensus found it), and not smaller than
-      // 1 - extent_tolerance of it (two solids do not share their space; the map's rule 5).
-      if (!prev_built) {
-        // Rule 4 backwards grouped them already where the previous scan is held (the same points).
-        const Held* last = held_results_.empty() ? nullptr : &held_results_.back();
-        if (last && last->r.index + 1 == s.index && last->whole_objects &&
-            last->whole_reach == rules.reach && last->whole.size() == prev_whole_.size())
-          prev_objects = &*last->whole_objects;
-        else
-          wholeObjectsOf(prev_whole_, std::vector<uint8_t>(prev_whole_.size(), 1), op.voxel,
-                         prev_own, rules.reach);
-        prev_built = true;
-      }
+      // That object, and not smaller than 1 - extent_tolerance of it (two solids do not share
+      // their space; the map's rule 5).
+      Eigen::Vector3f e;
+      const std::optional<WholeMatch> match = previousObject(idx, e);
+      if (!match) return false;
       const WholeObjects& prev = *prev_objects;
       const float inv = static_cast<float>(1.0 / op.voxel);
-      Eigen::Vector3f lo = Eigen::Vector3f::Constant(1e30f), hi = -lo;
-      q_prev.resize(idx.size());
       const auto voxelOf = [&](const Eigen::Vector3f& q) {
         return prev.voxel.find(
             cellKey(floorToCell(q.x(), inv), floorToCell(q.y(), inv), floorToCell(q.z(), inv)));
       };
-      for (std::size_t k = 0; k < idx.size(); ++k) {
-        const uint32_t i = idx[k];
-        lo = lo.cwiseMin(s.scan.points[i].xyz());
-        hi = hi.cwiseMax(s.scan.points[i].xyz());
-        q_prev[k] = (prev_pose_inverse_ * w.world[i]).cast<float>();
-      }
-      // The previous scan's object in its voxels, or found moved (a car moving about a voxel a
-      // scan no longer lies in its previous voxels), or by its ends (doc/OBJECTS.md rule 4: a
-      // car that brakes shows a column more or less of its side, 0.4 m at 512 columns, and its
-      // centroid steps by what the columns hold, not by its motion; only where the scans after
-      // it can show it leave, below: the looser match is not kept on the previous scan's word).
-      const std::optional<WholeMatch> match =
-          matchWholeObjectOrByEnds(q_prev, prev, op.voxel, kMovedMatch);
-      if (!match) return false;
       const bool by_ends = match->by_ends;
       const std::size_t a = match->object;
       const Eigen::Vector3f moved_by = match->shift;  // the shift that found it (zero: in place)
-      const Eigen::Vector3f e = hi - lo, x = prev.extent[a];
+      const Eigen::Vector3f x = prev.extent[a];
       // Not smaller (it may have joined its other part).
       const auto as_large = [&](const Eigen::Vector3f& ext) {
         return sizedAs(ext, x, rules.extent_tolerance, false);
       };
       // Fewer than half of the window's later scans (the sequence's last ones, a dropout) cannot
-      // show it leave (below); there it must be that whole object itself.
+      // show it leave (below); there it must be that whole object itself, or that object in
+      // rings (below).
       if (!after) {
         after = windowAround(pos, 1);
         far = windowAround(pos, std::max<std::size_t>(1, k_ / 2));
@@ -1179,7 +1193,11 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
         // off at 11.5 m), more than the grouping's voxel, so the side falls into slices. The
         // pieces of this scan in that object's voxels (moved as this one was found) are as large
         // as it; each piece still has to show itself leaving.
-        if (!can_leave) return false;
+        // Or in rings, where the later scans are too few to show it leave: a sparse lidar's rings
+        // stand apart on a far face (1.33 degrees are 0.37 m at 16 m), the face falls into ring
+        // slices, and those that the windowed test flagged, within its azimuths and a voxel of
+        // that object's voxels, count to its size; at least min_moving of them show it moving
+        // here (doc/OBJECTS.md rule 4, "in rings").
         if (pieces_at.empty()) {  // built on first use
           pieces_at.assign(s.scan.size(), Eigen::Vector3f::Zero());
           for (uint32_t i = 0; i < s.scan.size(); ++i)
@@ -1205,13 +1223,35 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
           az_hi = std::max(az_hi, azimuth(i));
         }
         const double cone = p_.ds.search_lambdas * p_.ds.lambda_theta;
+        // A ring's slice is shifted level (the shift found it by a centroid without the other
+        // rings) and looked for within a voxel (a ring is a thin layer at a voxel's boundary).
+        const Eigen::Vector3f level(moved_by.x(), moved_by.y(), 0.0f);
+        const auto nearObject = [&](const Eigen::Vector3f& q) {
+          for (int dx = -1; dx <= 1; ++dx)
+            for (int dy = -1; dy <= 1; ++dy)
+              for (int dz = -1; dz <= 1; ++dz) {
+                const uint32_t* b = voxelOf(q + Eigen::Vector3f(dx, dy, dz) * float(op.voxel));
+                if (b && *b == a) return true;
+              }
+          return false;
+        };
         Eigen::Vector3f plo = Eigen::Vector3f::Constant(1e30f), phi = -plo;
+        int rings = 0;  // the flagged returns of its other rings
         for (uint32_t i = 0; i < s.scan.size(); ++i) {
-          if (!s.candidate[i] || w.moving[i]) continue;
-          const uint32_t* b = voxelOf(pieces_at[i] + moved_by);
-          if (!b || *b != a) continue;
+          // Unflagged slices beside it where the later scans can show it leave, flagged rings
+          // where they cannot.
+          if (!s.candidate[i] || (w.moving[i] != 0) == can_leave) continue;
           const double az = azimuth(i);
-          if (!((az < az_lo && az >= az_lo - cone) || (az > az_hi && az <= az_hi + cone))) continue;
+          if (can_leave) {  // a grazing side's slice
+            const uint32_t* b = voxelOf(pieces_at[i] + moved_by);
+            if (!b || *b != a) continue;
+            if (!((az < az_lo && az >= az_lo - cone) || (az > az_hi && az <= az_hi + cone)))
+              continue;
+          } else {  // a ring's slice
+            if (az < az_lo - cone || az > az_hi + cone || !nearObject(pieces_at[i] + level))
+              continue;
+            ++rings;
+          }
           plo = plo.cwiseMin(pieces_at[i]);
           phi = phi.cwiseMax(pieces_at[i]);
         }
@@ -1220,6 +1260,7 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
           phi = phi.cwiseMax(q);
         }
         if (!as_large(phi - plo)) return false;
+        if (!can_leave) return rings >= op.min_moving && !by_ends;
       }
       // It left its place: the scans after it alone see it leave, or those just before it see it
       // arrive (below; a vehicle that stopped over half a window ago shows neither). Where the

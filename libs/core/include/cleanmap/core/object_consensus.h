@@ -110,6 +110,12 @@ struct ConsensusRules {
   /// see it leave (at least min_moving of its moving points, or half of all its points for the
   /// far half of them) or are too few to see that. Empty: such an object is static.
   std::function<bool(const std::vector<uint32_t>&)> has_left;
+  /// Rule 2, "The previous scan's object" (doc/OBJECTS.md): a component rule 2 turns moving, at
+  /// least half of its points near the previous scan's moving points, goes with all of its parts
+  /// (those above its foot with no moving point of their own too) if was_whole(its points'
+  /// indices) says it is the object the previous scan moved whole (in its voxels or moved, not
+  /// smaller). Empty: such parts keep their labels.
+  std::function<bool(const std::vector<uint32_t>&)> was_whole;
   /// Rule 7 (doc/OBJECTS.md, "Measured"): a vehicle-sized object not all moving that the rules
   /// above leave moving in none of its points or too few, of at least `measured_points` points,
   /// moves as a whole, all of its parts, if measured(its points' indices) says its outline moved
