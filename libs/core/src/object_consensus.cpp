@@ -627,9 +627,16 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
     groupMembers();
     return rules.has_left(std::vector<uint32_t>(members[v].begin(), members[v].end()));
   };
+  // Rule 2's previous scan's object: per root, 1 to ask was_whole where a part above its foot
+  // has no moving point (asked there, once: a mover moving in every part is not), 2 once it is.
+  std::vector<uint8_t> ask_whole;
   const auto wasWhole = [&](uint32_t v) {
-    groupMembers();
-    return rules.was_whole(std::vector<uint32_t>(members[v].begin(), members[v].end()));
+    if (ask_whole[v] == 1) {
+      groupMembers();
+      ask_whole[v] =
+          rules.was_whole(std::vector<uint32_t>(members[v].begin(), members[v].end())) ? 2 : 0;
+    }
+    return ask_whole[v] == 2;
   };
   const auto measuredMoving = [&](uint32_t v) {
     groupMembers();
@@ -658,11 +665,11 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
     if (partly(p.moving_fraction)) {
       turn[v] = 1;
       ++st.moving_objects;
-      if (rules.was_whole && p.persist_radius > 0 && 2 * c.near_prev >= c.n && wasWhole(v)) {
-        // The object the previous scan moved whole: all of its parts go, as under rules 4 and 5
-        // (doc/OBJECTS.md rule 2, "The previous scan's object").
-        if (all_parts.empty()) all_parts.assign(voxels.size(), 0);
-        all_parts[v] = 1;
+      if (rules.was_whole && p.persist_radius > 0 && 2 * c.near_prev >= c.n) {
+        // If it is the object the previous scan moved whole, all of its parts go, as under
+        // rules 4 and 5 (doc/OBJECTS.md rule 2, "The previous scan's object"; asked below).
+        if (ask_whole.empty()) ask_whole.assign(voxels.size(), 0);
+        ask_whole[v] = 1;
       }
     } else if (p.persist_radius > 0 && partly(p.static_fraction) && 2 * c.near_prev >= c.n) {
       turn[v] = 1;  // hysteresis: it moved in the previous scan and is still partly moving
@@ -809,7 +816,8 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
     spreads.assign(voxels.size(), 0);
     for (uint32_t v = 0; v < voxels.size(); ++v)
       if (part_n[v] > 0)
-        spreads[v] = part_moving[v] > 0 || (!all_parts.empty() && all_parts[root_of[v]]);
+        spreads[v] = part_moving[v] > 0 || (!all_parts.empty() && all_parts[root_of[v]]) ||
+                     (!ask_whole.empty() && wasWhole(root_of[v]));
     for (std::size_t i = 0; i < points.size(); ++i) {
       if (point_voxel[i] == UINT32_MAX) continue;
       const uint32_t root = root_of[point_voxel[i]];
