@@ -622,25 +622,17 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
   std::vector<uint8_t> turn(voxels.size(), 0);  // 1: all moving, 2: all static
   std::vector<uint8_t> whole;                   // vehicle-sized, moving in every point
   if (in_moving_object) whole.assign(voxels.size(), 0);
-  // Component v's points, for rules.has_left.
-  const auto leftItsPlace = [&](uint32_t v) {
+  // A caller's rule (has_left, was_whole, measured) asked of component v's points.
+  const auto ask = [&](const std::function<bool(const std::vector<uint32_t>&)>& rule, uint32_t v) {
     groupMembers();
-    return rules.has_left(std::vector<uint32_t>(members[v].begin(), members[v].end()));
+    return rule(std::vector<uint32_t>(members[v].begin(), members[v].end()));
   };
   // Rule 2's previous scan's object: per root, 1 to ask was_whole where a part above its foot
   // has no moving point (asked there, once: a mover moving in every part is not), 2 once it is.
   std::vector<uint8_t> ask_whole;
   const auto wasWhole = [&](uint32_t v) {
-    if (ask_whole[v] == 1) {
-      groupMembers();
-      ask_whole[v] =
-          rules.was_whole(std::vector<uint32_t>(members[v].begin(), members[v].end())) ? 2 : 0;
-    }
+    if (ask_whole[v] == 1) ask_whole[v] = ask(rules.was_whole, v) ? 2 : 0;
     return ask_whole[v] == 2;
-  };
-  const auto measuredMoving = [&](uint32_t v) {
-    groupMembers();
-    return rules.measured(std::vector<uint32_t>(members[v].begin(), members[v].end()));
   };
   const bool few_are_noise = rules.few_points_are_noise;
   bool body_check = false;  // a component turned static holds enough moving points for a body
@@ -676,7 +668,7 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
       ++st.moving_objects;
       ++st.persisted;
     } else if (rules.has_left && p.persist_radius > 0 && movable && c.moving < c.n &&
-               2 * c.near_prev >= c.n && leftItsPlace(v)) {
+               2 * c.near_prev >= c.n && ask(rules.has_left, v)) {
       // Rule 4 under static_fraction: it moved before and has left where it is now (or the
       // scans after it are too few to tell); has_left says what leaving takes (the caller's).
       // It is the previous scan's object: every part goes, as under rule 5.
@@ -688,7 +680,7 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
       ++st.left_place;
     } else if (rules.measured && movable && c.moving < c.n && c.n >= rules.measured_points &&
                static_cast<double>(c.moving) < p.moving_fraction * static_cast<double>(c.n) &&
-               measuredMoving(v)) {
+               ask(rules.measured, v)) {
       // Rule 7: its outline moved between the scans half a window before and after it.
       turn[v] = 1;
       if (all_parts.empty()) all_parts.assign(voxels.size(), 0);
