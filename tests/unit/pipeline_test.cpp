@@ -216,27 +216,45 @@ TEST(Pipeline, StreamsWithDelayKAndBoundedWindow) {
     max_window = std::max(max_window, r.stats.window);
     stamped.push_back(r.decided_at);
   });
-  for (std::size_t i = 0; i < 12; ++i) {
+  const std::size_t n = 16;
+  for (std::size_t i = 0; i < n; ++i) {
     push_start.push_back(std::chrono::steady_clock::now());
     pl.push(castScene(i, double(i), 10.0, nullptr));
     push_end.push_back(std::chrono::steady_clock::now());
     decided_after_push.push_back(decided);
   }
   // Scan k is decided once scan k + K has arrived, and handed on once ceil(K / 2) + 2 more are
-  // decided (doc/OBJECTS.md, rule 4 backwards): with scan k + 8.
-  for (std::size_t i = 0; i < 12; ++i)
-    EXPECT_EQ(decided_after_push[i], i >= 4 + 4 ? i + 1 - 8 : 0u) << "after scan " << i;
+  // decided (doc/OBJECTS.md, rule 4 backwards): with scan k + 8. A run's first H + 2 scans stay
+  // held until 2 (H + 2) are decided ("Held deeper at a run's start"): the first five go on
+  // together in the push of scan 12, which decides the ninth.
+  for (std::size_t i = 0; i < n; ++i)
+    EXPECT_EQ(decided_after_push[i], i >= 4 + 8 ? i + 1 - 8 : 0u) << "after scan " << i;
   pl.finish();
-  EXPECT_EQ(decided, 12u);
+  EXPECT_EQ(decided, n);
   EXPECT_EQ(max_window, 8u);  // 2K scans, never more
   // Each result carries when it was decided (report.json `interval`), not when it was handed on:
   // in the push of scan k + K.
-  ASSERT_EQ(stamped.size(), 12u);
-  for (std::size_t k = 0; k + 4 < 12; ++k) {
+  ASSERT_EQ(stamped.size(), n);
+  for (std::size_t k = 0; k + 4 < n; ++k) {
     EXPECT_GE(stamped[k], push_start[k + 4]) << "scan " << k;
     EXPECT_LE(stamped[k], push_end[k + 4]) << "scan " << k;
   }
-  for (std::size_t k = 1; k < 12; ++k) EXPECT_LE(stamped[k - 1], stamped[k]) << "scan " << k;
+  for (std::size_t k = 1; k < n; ++k) EXPECT_LE(stamped[k - 1], stamped[k]) << "scan " << k;
+}
+
+// `object.hold_start = 0`: every scan, a run's first too, is handed on once ceil(K / 2) + 2 more
+// are decided (doc/OBJECTS.md rule 4 backwards): scan k with scan k + 8 at K 4.
+TEST(Pipeline, WithoutTheStartsHoldEveryScanIsHandedOnAtTheUsualDepth) {
+  PipelineParams p = testParams();
+  p.object.hold_start = false;
+  std::size_t decided = 0;
+  LaserPipeline pl(p, [&](ScanResult&&) { ++decided; });
+  for (std::size_t i = 0; i < 12; ++i) {
+    pl.push(castScene(i, double(i), 10.0, nullptr));
+    EXPECT_EQ(decided, i >= 4 + 4 ? i + 1 - 8 : 0u) << "after scan " << i;
+  }
+  pl.finish();
+  EXPECT_EQ(decided, 12u);
 }
 
 // DESIGN §2b: an auto K is window_s (1 s) at the rate of the first scans' timestamps; a dropped

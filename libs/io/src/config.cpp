@@ -138,6 +138,8 @@ std::map<std::string, Key> table(PipelineParams& p) {
                                   [&p] { return p.object.column_links ? 1.0 : 0.0; }, true}},
       {"object.measure", Key{[&p](double v) { p.object.measure = v != 0; },
                              [&p] { return p.object.measure ? 1.0 : 0.0; }, true}},
+      {"object.hold_start", Key{[&p](double v) { p.object.hold_start = v != 0; },
+                                [&p] { return p.object.hold_start ? 1.0 : 0.0; }, true}},
       {"registration.min_range", d(p.registration.min_range)},
       {"registration.max_range", d(p.registration.max_range)},
       {"registration.voxel", d(p.registration.voxel)},

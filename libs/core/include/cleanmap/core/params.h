@@ -164,6 +164,11 @@ struct ObjectParams {
   /// moves as a whole where its outline moved more than 0.35 m between the scans half a window
   /// before and after it (ConsensusRules::measured; the pipeline's measure).
   bool measure = true;
+  /// Rule 4 backwards held deeper at a run's start (doc/OBJECTS.md, "Held deeper at a run's
+  /// start"): the run's first H + 2 scans stay held until 2 (H + 2) are decided, so a vehicle
+  /// falling behind the ego that the scans first show moving later is carried back to them.
+  /// H + 2 more results held at the start: peak memory +43 MiB at kitti_highway. false = off.
+  bool hold_start = true;
 };
 
 /// DESIGN §2.1: GICP scan-to-map odometry (used with --poses gicp / refine, or when the input has

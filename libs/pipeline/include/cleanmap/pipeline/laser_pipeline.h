@@ -49,7 +49,8 @@ class LaserPipeline {
   /// The window's stride (ds.window_stride, or auto from K); 1 until K is resolved.
   std::size_t windowStride() const { return stride_; }
   /// Scans pushed but not yet handed to the sink: not decided (at most K until finish(), K + 1
-  /// registering ahead), or decided and held (at most ceil(K / 2) more; push()).
+  /// registering ahead), or decided and held (ceil(K / 2) + 2; a run's first ones until twice
+  /// that many are decided, doc/OBJECTS.md rule 4 backwards).
   std::size_t pending() const;
   /// A deep copy of the whole state (window, duplicate history, odometry map) handing its
   /// results to `sink`: fed the same scans, it decides them exactly as this pipeline would.
@@ -169,14 +170,16 @@ class LaserPipeline {
   std::vector<PointXYZI> prev_whole_;
   std::vector<uint8_t> prev_whole_measured_;  // per point of prev_whole_: rule 7's (carryBack)
   Eigen::Isometry3d prev_pose_inverse_ = Eigen::Isometry3d::Identity();
-  // doc/OBJECTS.md rule 4 backwards: the last ceil(K / 2) decided scans, held so that an object
-  // a later scan moved whole is carried back to them, then handed on in scan order.
+  // doc/OBJECTS.md rule 4 backwards: the last holdDepth() decided scans (a run's first ones
+  // longer), held so that an object a later scan moved whole is carried back to them, then
+  // handed on in scan order.
   struct Held;
   std::deque<Held> held_results_;
   void hold(ScanResult&& r, const Prepared& s, const Work& w);
   void carryBack();
   void turnInResult(Held& h, const std::vector<uint32_t>& turned);
   void handOn(std::size_t keep);  // hands on the oldest held results until `keep` remain
+  std::size_t holdDepth() const { return (k_ + 1) / 2 + 2; }  // H + 2 (doc/OBJECTS.md rule 4)
   std::unique_ptr<Work> work_;
   std::unique_ptr<FreeSpaceMap> free_;  // DESIGN §2e, whole sequence
   // The decided scans' free-space insertions run in scan order on one thread of their own,
