@@ -2292,15 +2292,18 @@ void LaserPipeline::carryBack() {
       // Where it stood here by what is known so far, it goes on in the chain and waits, and so
       // do the scans before: whether it came to a stop is told by the whole chain (below).
       const bool stood = moved <= kMovedDistance || track.waited;
-      // Deeper than the usual hold (a run's first scans), only an object that moves there at
-      // its track's velocity goes on. One that stood there, or starts later, is a vehicle yet to
-      // start, which the labels call moving at most H scans before it does, within the usual
-      // depth; its centroid creeps as the ego drives away (its top and side grazed less), and
-      // the chain takes that for a motion: `default` at 2 m/s2, a car standing 14 m behind in
+      // Deeper than the usual hold (a run's first scans), only an object that moves there goes on:
+      // at its track's velocity, or faster than a voxel a scan to its next known place (a car whose
+      // track was seeded after it stopped, car_stops_5s). One that stood there, or starts later, is
+      // a vehicle yet to start, which the labels call moving at most H scans before it does, within
+      // the usual depth; its centroid creeps as the ego drives away (its top and side grazed less),
+      // and the chain takes that for a motion: `default` at 2 m/s2, a car standing 14 m behind in
       // scans 0-4 (0.08 m a scan, 4,379 false positives), and with the ego at 1.5 x, the car
-      // standing in scan 0 before it drives off (1,092). And only in the first
-      // 2K decided, which no chunk owns (DESIGN §2f; K 1 alone reaches past them).
-      if (at + holdDepth() < n_held && (stood || !moves_here || decided_ - n_held + at >= 2 * k_))
+      // standing in scan 0 before it drives off (1,092). And only in the first 2K decided, which no
+      // chunk owns (DESIGN §2f; K 1 alone reaches past them).
+      const bool steps = t_next > t && (p_next - here).norm() > op.voxel * (t_next - t);
+      if (at + holdDepth() < n_held &&
+          (!(steps || (moves_here && !stood)) || decided_ - n_held + at >= 2 * k_))
         continue;
       track.waited = stood;
       // Counted where a point of its components was not moving.
