@@ -244,12 +244,12 @@ TEST(SimCases, ACarThatStopsIsCarriedBackThroughTheScansItStoodIn) {
   // to scan 9. Head-on, only future scans see it in scans 0-4 (its old front inside its later
   // body), and rule 7 measures scans 8-9 alone (earlier, the shift exceeds its 1.5 m). Carried
   // back from there, it stood in scans 5-7 by the track then known, and the chain stopped:
-  // scans 3-7 had none of their 3,527 returns moving. Its track, seeded as it slowed, barely
-  // moves at its velocity in the run's first scans, held deeper than the usual depth: there it
-  // goes on where it steps more than a voxel a scan to its next known place (63 of scans 0-2's
-  // 1,564 returns moving before; "Held deeper at a run's start").
+  // scans 3-7 had none of their 3,527 returns moving. Its track, seeded standing by the pair
+  // (8, 9), gives it no velocity to move at in the run's first scans, held deeper than the usual
+  // depth: there it goes on where it steps more than a voxel a scan to its next known place (63
+  // of scans 0-2's 1,564 returns moving before; "Held deeper at a run's start").
   const auto r = runCase(scenario("car_stops_5s"));
-  MosCounts first = r.frames(0, 3), stopping = r.frames(3, 8);
+  const MosCounts first = r.frames(0, 3), stopping = r.frames(3, 8);
   std::printf("  scans 0-2: recall %.3f, scans 3-7: recall %.3f\n", first.recall(),
               stopping.recall());
   EXPECT_GE(first.recall(), 0.8);      // measured 0.948 (0.040 before)
