@@ -2282,9 +2282,12 @@ void LaserPipeline::carryBack() {
       std::size_t j = 0;
       while (j + 1 < track.at.size() && track.at[j + 1].first <= t + std::ceil(half / 2)) ++j;
       const auto& [t_next, p_next] = track.at[j];
+      // Its velocity from here to there (m a scan), where it is known later.
+      const bool ahead = t_next > t;
+      const Eigen::Vector2d step =
+          ahead ? Eigen::Vector2d((p_next - here) / (t_next - t)) : Eigen::Vector2d::Zero();
       const bool moves_here =
-          t_next > t &&
-          ((p_next - here) / (t_next - t) - track.velocity).norm() <= 0.5 * track.velocity.norm();
+          ahead && (step - track.velocity).norm() <= 0.5 * track.velocity.norm();
       const Eigen::Vector2d before =
           moves_here ? Eigen::Vector2d(here - track.velocity * half) : here;
       const double moved = (track.where(t + half) - before).norm();
@@ -2301,7 +2304,7 @@ void LaserPipeline::carryBack() {
       // scans 0-4 (0.08 m a scan, 4,379 false positives), and with the ego at 1.5 x, the car
       // standing in scan 0 before it drives off (1,092). And only in the first 2K decided, which no
       // chunk owns (DESIGN §2f; K 1 alone reaches past them).
-      const bool steps = t_next > t && (p_next - here).norm() > op.voxel * (t_next - t);
+      const bool steps = ahead && step.norm() > op.voxel;
       if (at + holdDepth() < n_held &&
           (!(steps || (moves_here && !stood)) || decided_ - n_held + at >= 2 * k_))
         continue;
