@@ -1194,6 +1194,26 @@ TEST(SimSensors, ACarThatStopsKeepsItsSideAtFiveHundredTwelveColumns) {
   EXPECT_EQ(standing.fp, 0u);         // it stands: nothing of it moving
 }
 
+// doc/OBJECTS.md rule 7, "Seen from about the same side": car_stops_5s' oncoming car (stopping
+// 17 m ahead in scan 5, moving by the labels to scan 9) seen by an OS1-64. Rule 7 measures it
+// as it stops, and rule 4 backwards carries it back to the run's start from there. Head-on, its
+// outline is its front and a column or two of its side: 13 cells at 1024 columns (0.35 degrees;
+// an HDL-64E's side gives 30), 9-10 at 512, where 20 were asked; and at 512 it has 83-90
+// returns, under the 100 of an HDL-64E that rule 7 asked. Scans 0-9 had 303 of their 2,136
+// returns moving at 1024 columns (scan 9 alone was measured), 18 of 1,070 at 512.
+TEST(SimSensors, ACarThatStopsHeadOnIsMeasuredByItsFrontAtCoarserColumns) {
+  for (const double columns : {1024.0, 512.0}) {
+    auto sc = seenBy(scenario("car_stops_5s"), SensorModel::kOs1_64);
+    sc.sensor.azimuth_step_deg = 360.0 / columns;
+    const auto r = runCase(sc);
+    const MosCounts driving = r.frames(0, 10);
+    std::printf("  %.0f columns: scans 0-9 recall %.3f, precision %.3f\n", columns,
+                driving.recall(), r.all.precision());
+    EXPECT_GE(driving.recall(), 0.7) << columns;    // measured 0.753 / 0.744 (0.142 / 0.017)
+    EXPECT_GE(r.all.precision(), 0.99) << columns;  // measured 1.000 (1.000)
+  }
+}
+
 // doc/SCAN_CONFLICT.md, "A return at P": queue_stop_go seen by a VLP-16 from its standing ego.
 // The queue's first car stops 2.6 m beside the sensor. Its lowest ring is a bottom edge, so the
 // beams below P are left out, and the cone holds only beams of that ring returning at P's range:

@@ -54,8 +54,9 @@ constexpr ShiftParams kShift{};
 constexpr double kShiftColumn = 2.0;
 constexpr double kShiftAbove = 0.3;
 constexpr std::size_t kShiftMinGain = 5;
-constexpr std::size_t kShiftMinCells = 20;  // outline cells: 3 m of a vertical face
-constexpr std::size_t kShiftEndGain = 2;    // a side's cells matching only shifted: its end, 0.3 m
+constexpr double kShiftMinFace = 1.6;      // m of outline: a car's width, its front or rear alone
+constexpr std::size_t kShiftMinSide = 20;  // cells along the shift: 3 m of a side alone
+constexpr std::size_t kShiftEndGain = 2;   // a side's cells matching only shifted: its end, 0.3 m
 constexpr double kShiftView = 15.0 * M_PI / 180.0;  // rad
 
 // Rule 7's points in vertical columns of kShiftColumn, each column's points in one run in the
@@ -1350,6 +1351,10 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
     seen_later = windowScan(pos, pos + half);
   }
   w.measurable = seen_earlier && seen_later;
+  // Rule 7's least component, an HDL-64E count as min_moving is (DESIGN §2d): car_stops_5s' car
+  // 17 m ahead holds 721 of its returns, 89 of an OS1-64's at 512 columns.
+  rules.measured_points =
+      std::max<std::size_t>(1, std::lround(static_cast<double>(rules.measured_points) * s.density));
   if (w.measurable) {
     rules.measured = [&, earlier, later](const std::vector<uint32_t>& idx) {
       if (!columns) {
@@ -1405,15 +1410,21 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
             });
         const OutlineShift m = outlineShift(outline, target, kShift);
         // Found there (half of its outline matches), and the cells facing the shift match
-        // shifted, not where they are.
-        const bool found = m.cells >= kShiftMinCells && 2 * m.at_shift >= m.cells;
+        // shifted, not where they are. The outline holds at least a car's width of face
+        // (kShiftMinFace) in its cells, or in its columns where the lidar's lie further apart at
+        // its range than a cell (0.21 m at 17 m at 512 columns): a car seen head-on shows its
+        // front and a column or two of its side, fewer at coarser columns (doc/OBJECTS.md rule 7).
+        const double column = (centre - here).head<2>().norm() * s.column_step;
+        const auto min_cells =
+            static_cast<std::size_t>(std::ceil(kShiftMinFace / std::max(kShift.cell, column)));
+        const bool found = m.cells >= min_cells && 2 * m.at_shift >= m.cells;
         const bool faces =
             found && m.facing >= kShiftMinGain &&
             m.facing_at_shift >= m.facing_at_rest + std::max(kShiftMinGain, m.facing / 2);
         // Or, no face across in view, a side along the shift: all but a tenth of the outline
         // matches shifted, and more of it than in place (its ends; a side seen over another
         // stretch matches so too, and its end's place is not seen empty, below).
-        const bool side = found && m.facing < kShiftMinGain && m.along >= kShiftMinCells &&
+        const bool side = found && m.facing < kShiftMinGain && m.along >= kShiftMinSide &&
                           10 * m.at_shift >= 9 * m.cells &&
                           m.along_at_shift >= m.along_at_rest + kShiftEndGain;
         if (!faces && !side) return Eigen::Vector2f(Eigen::Vector2f::Zero());
