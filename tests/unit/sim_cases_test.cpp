@@ -1197,8 +1197,8 @@ TEST(SimSensors, ACarThatStopsKeepsItsSideAtFiveHundredTwelveColumns) {
 // doc/OBJECTS.md rule 7, "Seen from about the same side": car_stops_5s' oncoming car (stopping
 // 17 m ahead in scan 5, moving by the labels to scan 9) seen by an OS1-64. Rule 7 measures it
 // as it stops, and rule 4 backwards carries it back to the run's start from there. Head-on, its
-// outline is its front and a column or two of its side: 13 cells at 1024 columns (0.35 degrees;
-// an HDL-64E's side gives 30), 9-10 at 512, where 20 were asked; and at 512 it has 83-90
+// outline is its front and what its side shows: 30 cells to an HDL-64E (16 of them its side), 13
+// at 1024 columns (0.35 degrees), 9-10 at 512, where 20 were asked; and at 512 it has 83-90
 // returns, under the 100 of an HDL-64E that rule 7 asked. Scans 0-9 had 303 of their 2,136
 // returns moving at 1024 columns (scan 9 alone was measured), 18 of 1,070 at 512.
 TEST(SimSensors, ACarThatStopsHeadOnIsMeasuredByItsFrontAtCoarserColumns) {
