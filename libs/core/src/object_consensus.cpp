@@ -12,6 +12,7 @@
 #include "cleanmap/core/cell_key.h"
 #include "cleanmap/core/cell_map.h"
 #include "cleanmap/core/grouped.h"
+#include "cleanmap/core/sensor.h"
 
 namespace cleanmap {
 
@@ -942,7 +943,7 @@ ObjectConsensusStats MapObjectConsensus::run(Memory& m, bool backward, int64_t s
     rules.overlap_fraction = overlap_;
   }
   ObjectParams op = p_;  // min_moving is an HDL-64E count (§2d)
-  op.min_moving = std::max(1, static_cast<int>(std::lround(op.min_moving * density)));
+  op.min_moving = scaledCount(op.min_moving, density);
   decided_ = removed;
   ObjectConsensusStats st = objectConsensus(points, member, decided_, op,
                                             persist ? &near_ : nullptr, &whole_, rules, grouped);

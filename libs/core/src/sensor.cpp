@@ -169,4 +169,8 @@ double densityScale(const AngularResolution& r) {
                     4.0);
 }
 
+int scaledCount(double n, double density) {
+  return std::max(1, static_cast<int>(std::lround(n * density)));
+}
+
 }  // namespace cleanmap

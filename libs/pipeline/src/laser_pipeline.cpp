@@ -1103,7 +1103,7 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
   // A sparser lidar returns fewer points from the same object (DESIGN §2d): min_moving is an
   // HDL-64E count.
   ObjectParams op = p_.object;
-  op.min_moving = std::max(1, static_cast<int>(std::lround(op.min_moving * s.density)));
+  op.min_moving = scaledCount(op.min_moving, s.density);
   // Rule 4 under static_fraction (doc/OBJECTS.md): the object the previous scan moved whole,
   // still moving.
   ConsensusRules rules;
@@ -1354,7 +1354,7 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
   // Rule 7's least component, an HDL-64E count as min_moving is (DESIGN §2d): car_stops_5s' car
   // 17 m ahead holds 721 of its returns, 89 of an OS1-64's at 512 columns.
   rules.measured_points =
-      std::max<std::size_t>(1, std::lround(static_cast<double>(rules.measured_points) * s.density));
+      static_cast<std::size_t>(scaledCount(static_cast<double>(rules.measured_points), s.density));
   if (w.measurable) {
     rules.measured = [&, earlier, later](const std::vector<uint32_t>& idx) {
       if (!columns) {
@@ -1393,6 +1393,13 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
       for (const Eigen::Vector3f& q : outline) centre += q.cast<double>();
       centre /= static_cast<double>(outline.size());
       const Eigen::Vector3d here = s.world_to_sensor.inverse().translation();
+      // The outline holds at least a car's width of face (kShiftMinFace) in its cells, or in its
+      // columns where the lidar's lie further apart at its range than a cell (0.21 m at 17 m at
+      // 512 columns): a car seen head-on shows its front and a column or two of its side, fewer
+      // at coarser columns (doc/OBJECTS.md rule 7).
+      const double column = (centre - here).head<2>().norm() * s.column_step;
+      const auto min_cells =
+          static_cast<std::size_t>(std::ceil(kShiftMinFace / std::max(kShift.cell, column)));
       const auto shiftIn = [&](const ColumnTable& cols, const WindowScan& seen) {
         // Seen from about the same side: a sensor that drove past sees other faces, and the
         // parts each view holds match best shifted (horizontal bearings within kShiftView).
@@ -1409,14 +1416,8 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
               if (x.z() >= z_from && x.z() <= z_hi + kShiftAbove) target.push_back(x);
             });
         const OutlineShift m = outlineShift(outline, target, kShift);
-        // Found there (half of its outline matches), and the cells facing the shift match
-        // shifted, not where they are. The outline holds at least a car's width of face
-        // (kShiftMinFace) in its cells, or in its columns where the lidar's lie further apart at
-        // its range than a cell (0.21 m at 17 m at 512 columns): a car seen head-on shows its
-        // front and a column or two of its side, fewer at coarser columns (doc/OBJECTS.md rule 7).
-        const double column = (centre - here).head<2>().norm() * s.column_step;
-        const auto min_cells =
-            static_cast<std::size_t>(std::ceil(kShiftMinFace / std::max(kShift.cell, column)));
+        // Found there (half of its outline matches, in min_cells or more), and the cells facing
+        // the shift match shifted, not where they are.
         const bool found = m.cells >= min_cells && 2 * m.at_shift >= m.cells;
         const bool faces =
             found && m.facing >= kShiftMinGain &&
@@ -2011,7 +2012,7 @@ void LaserPipeline::carryBack() {
   const double tolerance = ConsensusRules{}.extent_tolerance;
   const auto paramsOf = [&](const Held& h) {
     ObjectParams op = p_.object;
-    op.min_moving = std::max(1, static_cast<int>(std::lround(op.min_moving * h.density)));
+    op.min_moving = scaledCount(op.min_moving, h.density);
     return std::make_pair(op, ringReach(op, h.ring_gap));
   };
   const std::size_t n_held = held_results_.size();

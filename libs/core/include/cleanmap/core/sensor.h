@@ -61,5 +61,8 @@ std::optional<AngularResolution> measureResolution(const std::vector<PointXYZI>&
 /// Returns per solid angle relative to the HDL-64E's (DESIGN §2d): what a point count tuned on it
 /// (object.min_moving) is multiplied by for this sensor.
 double densityScale(const AngularResolution& r);
+/// An HDL-64E point count (object.min_moving, rule 7's least component) scaled by a scan's
+/// densityScale, at least 1.
+int scaledCount(double n, double density);
 
 }  // namespace cleanmap
