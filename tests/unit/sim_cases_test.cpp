@@ -543,7 +543,7 @@ TEST(SimCases, ATruckCrawlingPastAStandingSensorIsMeasuredByItsSide) {
 }
 
 TEST(SimCases, AWalkerAlongAWallDoesNotMoveTheWall) {
-  // pedestrian_wall with the ego at 0.6 x: the walker, 0.4 m in front of a 30 m wall, is one
+  // pedestrian_wall with the ego at 0.6 x: the walker, his back 5 cm from a 30 m wall, is one
   // component with it in some scans. The walker matches shifted and its old place is empty,
   // but in the middle of the wall's side, not at its end: the wall stays (rule 7's side route
   // first took it whole, precision 0.031).

@@ -153,6 +153,24 @@ TEST(SimLidar, ResolutionOfSparseLidarsIsMeasuredInTheScan) {
   EXPECT_EQ(rings, -1);  // nothing measured, nothing written
 }
 
+// DESIGN §2d: a point count tuned on the HDL-64E (object.min_moving, rule 7's least component of
+// doc/OBJECTS.md) asks as many returns of another lidar as it returns from the same object: the
+// same at the HDL-64E, 41 % at an OS1-64's 1024 columns, a fifth at a VLP-16, and never none
+// (a count of 0 would pass any component).
+TEST(SimLidar, AnHdl64CountScalesByEachLidarsDensityAndNeverToNone) {
+  EXPECT_EQ(scaledCount(100, densityScale(presetResolution(SensorModel::kHdl64))), 100);
+  EXPECT_NEAR(scaledCount(100, densityScale(presetResolution(SensorModel::kOs1_64))), 41, 1);
+  EXPECT_NEAR(scaledCount(100, densityScale(presetResolution(SensorModel::kVlp16))), 19, 1);
+  EXPECT_EQ(scaledCount(20, 0.05), 1);  // the least density densityScale gives
+  EXPECT_EQ(scaledCount(1, 0.3), 1);
+  int last = 0;
+  for (const double d : {0.05, 0.19, 0.41, 0.6, 1.0, 2.0, 4.0}) {
+    EXPECT_GE(scaledCount(20, d), last) << d;  // a denser lidar asks no fewer
+    last = scaledCount(20, d);
+  }
+  EXPECT_EQ(last, 80);
+}
+
 // Every k-th laser of a KITTI HDL-64E scan.
 std::vector<PointXYZI> keepEveryKthRing(const std::vector<PointXYZI>& pts, int k) {
   std::vector<PointXYZI> out;
