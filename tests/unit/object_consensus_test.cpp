@@ -243,6 +243,62 @@ TEST(ObjectConsensus, AFewFalseAlarmsOnAParkedCarAreDropped) {
   for (uint8_t m : moving) ASSERT_EQ(m, 0);
 }
 
+namespace {
+
+// A far walker's returns as an HDL-64E sees him over parked cars: `cols` columns `width` apart in
+// total across his path (y), 4 rings 0.25 m apart, `range` metres ahead. Every point flagged.
+std::vector<PointXYZI> farReturns(float range, float width, int cols) {
+  std::vector<PointXYZI> pts;
+  for (int r = 0; r < 4; ++r)
+    for (int c = 0; c < cols; ++c)
+      pts.push_back({range, width * float(c) / float(cols - 1), 0.25f * float(r), 0});
+  return pts;
+}
+
+// objectConsensus on every point of `pts` flagged but `unflagged` of them; the points it keeps.
+// `far_kept`: the components the far exception kept.
+std::size_t keptOf(const std::vector<PointXYZI>& pts, const ObjectParams& p, bool far_window,
+                   std::size_t unflagged = 0, std::size_t* far_kept = nullptr) {
+  std::vector<uint8_t> member(pts.size(), 1), moving(pts.size(), 1);
+  for (std::size_t i = 0; i < unflagged; ++i) moving[i * 3] = 0;
+  ConsensusRules rules;
+  rules.far_window = far_window;
+  const auto st = objectConsensus(pts, member, moving, p, nullptr, nullptr, rules);
+  if (far_kept) *far_kept = st.far_kept;
+  return static_cast<std::size_t>(std::count(moving.begin(), moving.end(), 1));
+}
+
+}  // namespace
+
+TEST(ObjectConsensus, AFarWalkerOfFewReturnsFlaggedNearlyWholeStaysMoving) {
+  // Rule 2's far exception (doc/OBJECTS.md, "Far and few"): 16 returns, under min_moving (20),
+  // 0.45 m across, 25 m ahead, every one flagged: they stay moving where the window reaches half
+  // of K both ways. A run's end (one side), the rule off, fewer than far_points, a tenth or more
+  // unflagged, a return nearer than 10 m, or a pole thinner than 0.3 m: noise, as before.
+  const ObjectParams p;
+  ASSERT_EQ(p.min_moving, 20);
+  ASSERT_EQ(p.far_points, 12);
+  const auto walker = farReturns(25, 0.45f, 4);
+  std::size_t far_kept = 0;
+  EXPECT_EQ(keptOf(walker, p, true, 0, &far_kept), 16u);
+  EXPECT_EQ(far_kept, 1u);
+  EXPECT_EQ(keptOf(walker, p, true, 1), 15u);  // 15 of 16 flagged: his labels stay
+  EXPECT_EQ(keptOf(walker, p, true, 2), 0u);   // 14 of 16: under nine in ten
+  EXPECT_EQ(keptOf(walker, p, false), 0u);     // one side of the window only
+  ObjectParams off = p;
+  off.far_points = 0;
+  EXPECT_EQ(keptOf(walker, off, true), 0u);
+  ObjectParams more = p;
+  more.far_points = 17;
+  EXPECT_EQ(keptOf(walker, more, true), 0u);
+  EXPECT_EQ(keptOf(farReturns(8, 0.45f, 4), p, true), 0u);    // 8 m: near, and the car's body
+  EXPECT_EQ(keptOf(farReturns(25, 0.08f, 4), p, true), 0u);   // a pole emptied by a pose error
+  EXPECT_EQ(keptOf(farReturns(25, 0.45f, 3), p, true), 12u);  // 12 returns: the least kept
+  // At min_moving or more, rule 2 decides as before (a vehicle-sized object all moving).
+  EXPECT_EQ(keptOf(farReturns(25, 0.45f, 5), p, false, 0, &far_kept), 20u);
+  EXPECT_EQ(far_kept, 0u);
+}
+
 TEST(ObjectConsensus, PedestrianBesideAWallKeepsItsLabels) {
   // A 40 m wall (a structure: the object rules do not apply) with a pedestrian 5 cm in front of
   // it, moving, and a few scattered false alarms on the wall: the pedestrian stays moving, the

@@ -636,6 +636,20 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
     return ask_whole[v] == 2;
   };
   const bool few_are_noise = rules.few_points_are_noise;
+  // Rule 2's far exception (doc/OBJECTS.md, "Far and few"): past 10 m a walker returns fewer than
+  // min_moving points to an HDL-64E, and the windowed test flags nearly all of them. Returns
+  // narrower than 0.3 m are left to the rules: a pose error of a few centimetres empties a thin
+  // pole whole (poles_drift), not a body wider than twice sigma_r. The body of the recording car
+  // (13-49 returns a scan within 2 m, flagged whole as it moves with the sensor) is nearer.
+  constexpr float kFarRange = 10.0f, kFarWidth = 0.3f;
+  std::vector<uint8_t> far_kept;  // per root: moving points kept (not noise for rules 2 and 3)
+  const auto farAndFew = [&](const Comp& c) {
+    if (!few_are_noise || !rules.far_window || p.far_points <= 0 ||
+        static_cast<int>(c.moving) < p.far_points || 10 * c.moving < 9 * c.n ||
+        (c.hi - c.lo).head<2>().norm() < kFarWidth)
+      return false;
+    return (c.sum / static_cast<float>(c.n)).head<2>().norm() >= kFarRange;
+  };
   bool body_check = false;  // a component turned static holds enough moving points for a body
   for (uint32_t v = 0; v < voxels.size(); ++v) {
     const Comp& c = comps[v];
@@ -688,6 +702,10 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
       all_parts[v] = 1;
       ++st.moving_objects;
       ++st.measured;
+    } else if (vehicle_sized && static_cast<int>(c.moving) < p.min_moving && farAndFew(c)) {
+      if (far_kept.empty()) far_kept.assign(voxels.size(), 0);
+      far_kept[v] = 1;  // its labels stay, rule 3's groups too
+      ++st.far_kept;
     } else if (vehicle_sized && c.moving > 0 && (cc.piece.empty() || !cc.piece[v]) &&
                ((few_are_noise && static_cast<int>(c.moving) < p.min_moving) ||
                 static_cast<double>(c.moving) < p.static_fraction * static_cast<double>(c.n))) {
@@ -871,6 +889,7 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
     if (moving_in[v]) group[muf.find(v)] += moving_in[v];
   for (std::size_t i = 0; i < points.size(); ++i) {
     if (point_voxel[i] == UINT32_MAX || !moving[i]) continue;
+    if (!far_kept.empty() && far_kept[root_of[point_voxel[i]]]) continue;
     if (static_cast<int>(group[muf.find(point_voxel[i])]) < p.min_moving) {
       moving[i] = 0;
       ++st.points_removed;

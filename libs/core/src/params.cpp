@@ -49,6 +49,7 @@ void validate(const PipelineParams& p, const std::string& name) {
               p.object.moving_fraction <= 1,
           "need 0 <= object.static_fraction <= object.moving_fraction <= 1");
   require(p.object.min_moving >= 1, "object.min_moving must be >= 1");
+  require(p.object.far_points >= 0, "object.far_points must be >= 0 (0 = off)");
   require(p.object.max_length > 0 && p.object.max_height > 0 && p.object.max_width > 0,
           "object.max_length, max_height and max_width must be > 0");
   require(p.object.ring_pool >= 0 && p.object.ring_pool <= p.object.max_length,

@@ -56,6 +56,7 @@ ScanStats& ScanStats::operator+=(const ScanStats& o) {
   objects_persisted += o.objects_persisted;
   objects_left_place += o.objects_left_place;
   objects_measured += o.objects_measured;
+  objects_far_kept += o.objects_far_kept;
   objects_carried_back += o.objects_carried_back;
   carried_back_points += o.carried_back_points;
   empty += o.empty;

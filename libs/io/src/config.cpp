@@ -124,6 +124,7 @@ std::map<std::string, Key> table(PipelineParams& p) {
       {"object.moving_fraction", d(p.object.moving_fraction)},
       {"object.static_fraction", d(p.object.static_fraction)},
       {"object.min_moving", i(p.object.min_moving)},
+      {"object.far_points", i(p.object.far_points)},
       {"object.max_length", d(p.object.max_length)},
       {"object.max_height", d(p.object.max_height)},
       {"object.max_width", d(p.object.max_width)},

@@ -598,6 +598,7 @@ void OutputWriter::finish(double wall_s, const FreeSpaceMap* free_space) {
                  {"objects_kept_moving_by_hysteresis", total.objects_persisted},
                  {"objects_kept_moving_leaving", total.objects_left_place},
                  {"objects_measured_moving", total.objects_measured},
+                 {"objects_far_kept_moving", total.objects_far_kept},
                  {"objects_carried_back", total.objects_carried_back},
                  {"carried_back_points", total.carried_back_points},
                  {"consensus_points_added", total.consensus_points},

@@ -1108,6 +1108,8 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
   // still moving.
   ConsensusRules rules;
   rules.reach = ringReach(op, s.ring_gap);  // a sparse lidar's rings (sensor frame; OBJECTS.md)
+  // Rule 2's far exception: half a window each side (a run's ends see one side only).
+  rules.far_window = std::min(pos, buf_.size() - 1 - pos) >= std::max<std::size_t>(1, k_ / 2);
   // The previous scan's objects moved whole, built (or found held) on the first call.
   WholeObjects prev_own;
   const WholeObjects* prev_objects = &prev_own;
@@ -1468,6 +1470,7 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
   s.stats.objects_persisted = oc.persisted;
   s.stats.objects_left_place = oc.left_place;
   s.stats.objects_measured = oc.measured;
+  s.stats.objects_far_kept = oc.far_kept;
   s.stats.objects_moving = oc.moving_objects;
   s.stats.consensus_points = oc.points_added;
   s.stats.consensus_removed = oc.points_removed;

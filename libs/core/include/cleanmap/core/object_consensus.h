@@ -34,6 +34,7 @@ struct ObjectConsensusStats {
   /// (ConsensusRules::has_left).
   std::size_t left_place = 0;
   std::size_t measured = 0;  ///< of moving_objects, those rule 7 measured moving
+  std::size_t far_kept = 0;  ///< objects rule 2's far exception kept moving (far_points)
   /// Components of vehicle extent wider than max_width with at least min_moving and
   /// static_fraction of their points moving, not all: rules 2, 4, 5 and 7 do not move them whole.
   std::size_t wide_objects_left = 0;
@@ -122,6 +123,9 @@ struct ConsensusRules {
   /// (the caller's measure). Empty: no such rule.
   std::function<bool(const std::vector<uint32_t>&)> measured;
   std::size_t measured_points = 100;
+  /// Rule 2's far exception (ObjectParams::far_points; the points in the sensor frame): the
+  /// scan's window reaches half of K on both sides. false: no such exception.
+  bool far_window = false;
 };
 
 /// The 26-connected components of a set of member points' voxels (and those a sparse lidar's rings

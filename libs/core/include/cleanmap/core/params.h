@@ -127,6 +127,12 @@ struct ObjectParams {
   double voxel = 0.3;            ///< m; connectivity cell (26-neighbours)
   double moving_fraction = 0.2;  ///< an object with at least this share of moving points moves
   int min_moving = 20;           ///< ... and at least this many moving points
+  /// Rule 2's far exception (doc/OBJECTS.md, "Far and few"): a vehicle-sized object 10 m or more
+  /// from the sensor, wider than 0.3 m, with at least this many returns (at any lidar), nine in
+  /// ten of them moving, keeps its moving points though they are fewer than min_moving, where
+  /// the window reaches half of K on both sides (an HDL-64E returns fewer than 20 points from a
+  /// walker past about 28 m). 0 = off.
+  int far_points = 12;
   double static_fraction = 0.1;  ///< an object with a smaller share of moving points is static
   double max_length = 25.0;      ///< m; larger horizontal extents are structures, left alone
   double max_height = 5.0;       ///< m; taller objects are structures, left alone

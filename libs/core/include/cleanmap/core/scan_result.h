@@ -51,6 +51,7 @@ struct ScanStats {
   /// of objects_persisted, under static_fraction (leaving or arriving)
   std::size_t objects_left_place = 0;
   std::size_t objects_measured = 0;  ///< of objects_moving, those rule 7 measured moving
+  std::size_t objects_far_kept = 0;  ///< far objects rule 2 kept moving, fewer than min_moving
   /// Rule 4 at the start: objects the next scan moved whole, turned moving, and their points
   /// turned moving (doc/OBJECTS.md).
   std::size_t objects_carried_back = 0, carried_back_points = 0;
