@@ -149,8 +149,8 @@ TEST(SimCases, DefaultScenarioIoUAtLeast0_8) {
 TEST(SimCases, AFarWalkerOfFewReturnsIsFoundPast28Metres) {
   // doc/OBJECTS.md rule 2, "Far and few": the default street with the ego at 0.6 x (the sweep's
   // ego_slow). In scans 16-22 the pedestrian crosses 28-30 m ahead, 17-18 returns a scan, fewer
-  // than min_moving (20), and the windowed test flags 15-18 of them. Measured 0.965, and with
-  // 0.875 with object.far_points = 0 (those scans lost whole); precision 1.000 either way.
+  // than min_moving (20), and the windowed test flags 15-18 of them. Measured 0.965, and 0.875
+  // with object.far_points = 0 (those scans lost whole); precision 1.000 either way.
   auto sc = sim::defaultScenario();
   sc.ego_speed *= 0.6;
   const auto r = runCase(sc);
