@@ -644,9 +644,9 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
   constexpr float kFarRange = 10.0f, kFarWidth = 0.3f;
   std::vector<uint8_t> far_kept;  // per root: moving points kept (not noise for rules 2 and 3)
   const auto farAndFew = [&](const Comp& c) {
-    const int moving = static_cast<int>(c.moving);
-    if (!few_are_noise || !rules.far_window || p.far_points <= 0 || moving >= p.min_moving ||
-        moving < p.far_points || 10 * c.moving < 9 * c.n ||
+    const int flagged = static_cast<int>(c.moving);
+    if (!few_are_noise || !rules.far_window || p.far_points <= 0 || flagged >= p.min_moving ||
+        flagged < p.far_points || 10 * c.moving < 9 * c.n ||
         (c.hi - c.lo).head<2>().norm() < kFarWidth)
       return false;
     return (c.sum / static_cast<float>(c.n)).head<2>().norm() >= kFarRange;
