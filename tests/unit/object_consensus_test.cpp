@@ -128,6 +128,83 @@ TEST(ObjectConsensus, AWalkerOnASidewalkDoesNotTakeThePoleAndTheWallAlong) {
   for (std::size_t i = sidewalk; i < walker; ++i) ASSERT_EQ(all[i], 1);
 }
 
+TEST(ObjectConsensus, WhatAMoverStandsOnStaysWhereItIs) {
+  // doc/OBJECTS.md rule 2's foot, "What it stands on": a walker flagged whole on a sidewalk that is
+  // not ground (0.12 m up) turns his component moving. The sidewalk around his feet lies in his
+  // columns of voxels, but nothing of him lies over it: it stays. His lowest returns have his
+  // legs over them and go. A truck's chassis 0.5 m over the road (a patch ground removal left)
+  // and its wheels: the road under the chassis stays, the wheels' lowest returns go.
+  std::vector<PointXYZI> pts;
+  for (float x = 3; x <= 7.5f; x += 0.05f)
+    for (float y = -9; y <= -6; y += 0.05f) pts.push_back({x, y, 0.12f, 0});  // sidewalk
+  const std::size_t sidewalk = pts.size();
+  addBox(pts, 5, 5.5f, -7.6f, -7, 1.75f, 0.05f);
+  for (std::size_t i = sidewalk; i < pts.size(); ++i) pts[i].z += 0.13f;
+  const std::size_t walker_end = pts.size();
+  for (float x = 12; x <= 20; x += 0.05f)  // the road patch, under and beside the truck
+    for (float y = -1.5f; y <= 1.5f; y += 0.05f) pts.push_back({x, y, 0.0f, 0});
+  const std::size_t road_end = pts.size();
+  addBox(pts, 13, 19, -1.2f, 1.2f, 2.5f, 0.05f);  // the body, 0.5 m up
+  for (std::size_t i = road_end; i < pts.size(); ++i) pts[i].z += 0.5f;
+  const std::size_t wheels = pts.size();
+  for (const float wx : {13.5f, 18.5f})
+    for (const float wy : {-1.2f, 1.2f})
+      for (float z = 0.02f; z < 0.5f; z += 0.05f)
+        for (float x = wx - 0.3f; x <= wx + 0.3f; x += 0.05f) pts.push_back({x, wy, z, 0});
+  std::vector<uint8_t> member(pts.size(), 1), moving(pts.size(), 0);
+  for (std::size_t i = sidewalk; i < walker_end; ++i) moving[i] = 1;          // the walker flagged
+  for (std::size_t i = road_end; i < wheels; ++i) moving[i] = pts[i].x > 17;  // the truck's end
+  const auto before = moving;
+  const ObjectParams p;
+  ConsensusRules rules;
+  rules.stand_top = 0.3f;  // the road at 0, foot_height over it
+  const auto st = objectConsensus(pts, member, moving, p, nullptr, nullptr, rules);
+  EXPECT_EQ(st.moving_objects, 2u);
+  const auto nearest = [&](const PointXYZI& q, std::size_t from, std::size_t to) {
+    float d = 1e9f;
+    for (std::size_t k = from; k < to; ++k)
+      if (pts[k].z > q.z + 0.05f) d = std::min(d, std::hypot(pts[k].x - q.x, pts[k].y - q.y));
+    return d;
+  };
+  std::size_t around = 0, under = 0;
+  for (std::size_t i = 0; i < sidewalk; ++i) {
+    const float d = nearest(pts[i], sidewalk, walker_end);
+    if (d > 0.3f && d < 0.6f) {  // in his columns, beyond the reach and its cells
+      ++around;
+      ASSERT_EQ(moving[i], 0) << "sidewalk at " << pts[i].x << " " << pts[i].y;
+    }
+  }
+  for (std::size_t i = walker_end; i < road_end; ++i) {
+    if (std::abs(pts[i].y) < 1.0f && pts[i].x > 14 && pts[i].x < 18) {
+      ++under;
+      ASSERT_EQ(moving[i], 0) << "road under the chassis at " << pts[i].x << " " << pts[i].y;
+    }
+  }
+  EXPECT_GT(around, 300u);
+  EXPECT_GT(under, 1000u);
+  EXPECT_GE(st.surface_points_left, around + under);
+  for (std::size_t i = sidewalk; i < walker_end; ++i) ASSERT_EQ(moving[i], 1);
+  for (std::size_t i = road_end; i < pts.size(); ++i) ASSERT_EQ(moving[i], 1) << "truck " << i;
+  // With foot_reach 0 the columns alone decide: the sidewalk around him and the road under the
+  // chassis went with them.
+  ObjectParams off = p;
+  off.foot_reach = 0;
+  auto all = before;
+  const auto st_off = objectConsensus(pts, member, all, off, nullptr, nullptr, rules);
+  EXPECT_EQ(st_off.surface_points_left, 0u);
+  std::size_t taken = 0;
+  for (std::size_t i = 0; i < road_end; ++i) taken += all[i] && !moving[i];
+  EXPECT_GE(taken, around + under);
+  // Nor where it lies above the road's level (stand_top): a sidewalk on a slope, a car's trunk
+  // in the foot of a sparse lidar's few rings.
+  ConsensusRules low_road = rules;
+  low_road.stand_top = 0.1f;  // under the sidewalk, over the road
+  auto level = before;
+  objectConsensus(pts, member, level, p, nullptr, nullptr, low_road);
+  for (std::size_t i = 0; i < road_end; ++i)
+    ASSERT_EQ(level[i], i < sidewalk ? all[i] : moving[i]) << i;
+}
+
 TEST(ObjectConsensus, ACarPullingOutBesideASidewalkIsNotPartOfTheStreet) {
   // doc/OBJECTS.md rule 1, "Low surfaces": a sidewalk that is not ground (0.12 m up, the curb
   // above the ground stage's step) runs the street's length between a wall and a car pulling out

@@ -370,6 +370,22 @@ std::vector<float> componentWidths(const ObjectComponents& cc, double foot) {
   return width;
 }
 
+bool Overhead::over(const Eigen::Vector3f& x, uint32_t object, float base, float gap) const {
+  const int from = std::max(0, static_cast<int>(std::floor((x.z() + kRise - base) / kCell)));
+  const int to = std::min(31, static_cast<int>(std::floor((x.z() + gap - base) / kCell)));
+  if (from > to) return false;
+  const uint32_t want = (to == 31 ? ~0u : (2u << to) - 1u) & ~((1u << from) - 1u);
+  const int r = reach_;
+  for (int dx = -r; dx <= r; ++dx)
+    for (int dy = -r; dy <= r; ++dy) {
+      const int ax = std::max(0, std::abs(dx) - 1), ay = std::max(0, std::abs(dy) - 1);
+      if (ax * ax + ay * ay >= r * r) continue;  // no part of that cell within reach
+      const uint32_t* s = slices_.find(key(x, object, dx, dy));
+      if (s && (*s & want)) return true;
+    }
+  return false;
+}
+
 namespace {
 
 bool vehicleSized(const Eigen::Vector3f& lo, const Eigen::Vector3f& hi, const ObjectParams& p) {
@@ -799,6 +815,8 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
   // (doc/OBJECTS.md rule 2). (A share of 10 % instead lost kitti_highway 0.0024 of its recall,
   // parts of trucks with few moving points.)
   CellMap<uint8_t> raised;  // (column, component) holding a point of a spreading raised part
+  Overhead overhead(p.foot_reach);  // the points of the components turned moving (rule 2's foot)
+  const bool stands = p.foot_reach > 0 && rules.stand_top > -std::numeric_limits<float>::max();
   const auto low = [&](std::size_t i, uint32_t root) {
     return p.foot_height > 0 && points[i].z < comps[root].lo.z() + p.foot_height;
   };
@@ -833,7 +851,14 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
     for (std::size_t i = 0; i < points.size(); ++i) {
       if (point_voxel[i] == UINT32_MAX) continue;
       const uint32_t root = root_of[point_voxel[i]];
-      if (turn[root] == 1 && !low(i, root) && spreads[part_of[point_voxel[i]]])
+      if (turn[root] != 1) continue;
+      // Only what may lie over a point that may be what it stands on (at_foot below).
+      if (stands && comps[root].lo.z() < rules.stand_top &&
+          points[i].z < comps[root].lo.z() + p.foot_height +
+                            Overhead::gapAt(points[i].xyz(), p.foot_height, rules.reach.ring_gap) +
+                            Overhead::kCell)
+        overhead.add(points[i].xyz(), root, comps[root].lo.z());
+      if (!low(i, root) && spreads[part_of[point_voxel[i]]])
         raised.get(columnKey(point_voxel[i], 0, 0, root)) = 1;
     }
   }
@@ -841,20 +866,27 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
   const auto still_part = [&](std::size_t i, uint32_t root) {
     return !spreads.empty() && !low(i, root) && !spreads[part_of[point_voxel[i]]];
   };
+  // 0: not at the foot; 1: at it, no raised part in its column; 2: in a raised part's column
+  // with nothing of the component over it, a surface the object stands on ("What it stands on").
   const auto at_foot = [&](std::size_t i, uint32_t root) {
-    if (!low(i, root)) return false;
-    for (int dx = -1; dx <= 1; ++dx)
-      for (int dy = -1; dy <= 1; ++dy)
-        if (raised.contains(columnKey(point_voxel[i], dx, dy, root))) return false;
-    return true;
+    if (!low(i, root)) return 0;
+    bool in_column = false;
+    for (int dx = -1; dx <= 1 && !in_column; ++dx)
+      for (int dy = -1; dy <= 1 && !in_column; ++dy)
+        in_column = raised.contains(columnKey(point_voxel[i], dx, dy, root));
+    if (!in_column) return 1;
+    if (!stands || !(points[i].z < rules.stand_top)) return 0;
+    const float gap = Overhead::gapAt(points[i].xyz(), p.foot_height, rules.reach.ring_gap);
+    return overhead.over(points[i].xyz(), root, comps[root].lo.z(), gap) ? 0 : 2;
   };
   for (std::size_t i = 0; i < points.size(); ++i) {
     if (point_voxel[i] == UINT32_MAX) continue;
     const uint32_t root = root_of[point_voxel[i]];
     const uint8_t t = turn[root];
     if (t == 1 && !moving[i]) {
-      if (at_foot(i, root)) {
+      if (const int foot = at_foot(i, root)) {
         ++st.foot_points_left;
+        st.surface_points_left += foot == 2;
         continue;
       }
       if (still_part(i, root)) {

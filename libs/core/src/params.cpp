@@ -58,6 +58,8 @@ void validate(const PipelineParams& p, const std::string& name) {
           "object.persist_radius must be in [0, 10] m (0 = off)");
   require(p.object.foot_height >= 0 && p.object.foot_height <= 2,
           "object.foot_height must be in [0, 2] m (0 = off)");
+  require(p.object.foot_reach >= 0 && p.object.foot_reach <= 1,
+          "object.foot_reach must be in [0, 1] m (0 = off)");
   const auto& r = p.registration;
   require(0 <= r.min_range && r.min_range < r.max_range,
           "need 0 <= registration.min_range < max_range");

@@ -49,6 +49,7 @@ ScanStats& ScanStats::operator+=(const ScanStats& o) {
   consensus_removed += o.consensus_removed;
   consensus_body_kept += o.consensus_body_kept;
   consensus_foot_left += o.consensus_foot_left;
+  consensus_surface_left += o.consensus_surface_left;
   mover_feet += o.mover_feet;
   mover_roofs += o.mover_roofs;
   consensus_still_part_left += o.consensus_still_part_left;

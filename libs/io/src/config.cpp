@@ -130,6 +130,7 @@ std::map<std::string, Key> table(PipelineParams& p) {
       {"object.max_width", d(p.object.max_width)},
       {"object.persist_radius", d(p.object.persist_radius)},
       {"object.foot_height", d(p.object.foot_height)},
+      {"object.foot_reach", d(p.object.foot_reach)},
       {"object.feet", Key{[&p](double v) { p.object.feet = v != 0; },
                           [&p] { return p.object.feet ? 1.0 : 0.0; }, true}},
       {"object.roofs", Key{[&p](double v) { p.object.roofs = v != 0; },

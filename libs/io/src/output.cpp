@@ -605,6 +605,7 @@ void OutputWriter::finish(double wall_s, const FreeSpaceMap* free_space) {
                  {"consensus_points_removed", total.consensus_removed},
                  {"consensus_body_points_kept", total.consensus_body_kept},
                  {"consensus_foot_points_left", total.consensus_foot_left},
+                 {"consensus_surface_points_left", total.consensus_surface_left},
                  {"consensus_still_part_points_left", total.consensus_still_part_left},
                  {"consensus_wide_objects_left", total.consensus_wide_left},
                  {"mover_feet_points", total.mover_feet},

@@ -220,6 +220,7 @@ struct LaserPipeline::Held {
   RingReach whole_reach;                      // ... with its rings' reach
   Eigen::Isometry3d world_to_sensor = Eigen::Isometry3d::Identity();
   double density = 1, ring_gap = 0;
+  double ground_z = 0;      // h_G below the sensor (Prepared::ground_z)
   bool measurable = false;  // rule 7 could measure its objects (Work::measurable)
   // The candidates' components as the object consensus grouped them (grouped again if it did
   // not run): their positions in component order and where each component ends in it.
@@ -1110,6 +1111,8 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
   rules.reach = ringReach(op, s.ring_gap);  // a sparse lidar's rings (sensor frame; OBJECTS.md)
   // Rule 2's far exception: half a window each side (a run's ends see one side only).
   rules.far_window = std::min(pos, buf_.size() - 1 - pos) >= std::max<std::size_t>(1, k_ / 2);
+  // Rule 2's foot, "What it stands on": the road's level (h_G, DESIGN §2a) and foot_height.
+  rules.stand_top = static_cast<float>(s.ground_z + op.foot_height);
   // The previous scan's objects moved whole, built (or found held) on the first call.
   WholeObjects prev_own;
   const WholeObjects* prev_objects = &prev_own;
@@ -1476,6 +1479,7 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
   s.stats.consensus_removed = oc.points_removed;
   s.stats.consensus_body_kept = oc.body_points_kept;
   s.stats.consensus_foot_left = oc.foot_points_left;
+  s.stats.consensus_surface_left = oc.surface_points_left;
   s.stats.consensus_still_part_left = oc.still_part_points_left;
   s.stats.consensus_wide_left = oc.wide_objects_left;
   s.stats.ms.objects = msSince(t0);
@@ -1855,6 +1859,7 @@ void LaserPipeline::hold(ScanResult&& r, const Prepared& s, const Work& w) {
   h.world_to_sensor = s.world_to_sensor;
   h.density = s.density;
   h.ring_gap = s.ring_gap;
+  h.ground_z = s.ground_z;
   h.measurable = w.measurable;
   if (overlays_ && s.view) {
     h.view = s.view;
@@ -1971,10 +1976,13 @@ bool faceOf(const Eigen::Vector3f& face, const Eigen::Vector3f& box, double voxe
 
 // Rule 2's foot (doc/OBJECTS.md), of the points order[k] of `part`: a point less than
 // foot_height above their lowest with none at or above that height in its 3 x 3 column of voxels
-// is a low surface the object touches (from 0.8 m, a sidewalk 0.12 m up), not a part of it.
+// is a low surface the object touches (from 0.8 m, a sidewalk 0.12 m up), not a part of it; so,
+// with `reach` > 0, is one below stand_top with nothing of the part over it (Overhead: "What it
+// stands on", the sidewalk around a walker's feet).
 std::vector<uint32_t> withoutFoot(const std::vector<uint32_t>& part,
                                   const std::vector<uint32_t>& order,
-                                  const std::vector<PointXYZI>& points, double side, double foot) {
+                                  const std::vector<PointXYZI>& points, double side, double foot,
+                                  double reach, double ring_gap, float stand_top) {
   if (foot <= 0 || part.empty()) return part;
   float lowest = std::numeric_limits<float>::max();
   for (const uint32_t k : part) lowest = std::min(lowest, points[order[k]].z);
@@ -1983,14 +1991,23 @@ std::vector<uint32_t> withoutFoot(const std::vector<uint32_t>& part,
     return cellKey(floorToCell(x.x, inv) + dx, floorToCell(x.y, inv) + dy, 0);
   };
   CellMap<uint8_t> raised;
-  for (const uint32_t k : part)
-    if (points[order[k]].z >= top) raised.insert(column(points[order[k]], 0, 0));
+  Overhead overhead(reach);
+  const bool stands = reach > 0 && lowest < stand_top;
+  for (const uint32_t k : part) {
+    const PointXYZI& x = points[order[k]];
+    if (x.z >= top) raised.insert(column(x, 0, 0));
+    if (stands && x.z < top + Overhead::gapAt(x.xyz(), foot, ring_gap) + Overhead::kCell)
+      overhead.add(x.xyz(), 0, lowest);
+  }
   std::vector<uint32_t> kept;
   for (const uint32_t k : part) {
     const PointXYZI& x = points[order[k]];
     bool under = x.z >= top;
     for (int dx = -1; dx <= 1 && !under; ++dx)
       for (int dy = -1; dy <= 1 && !under; ++dy) under = raised.contains(column(x, dx, dy));
+    if (under && x.z < top && x.z < stand_top && stands &&  // "What it stands on"
+        !overhead.over(x.xyz(), 0, lowest, Overhead::gapAt(x.xyz(), foot, ring_gap)))
+      under = false;
     if (under) kept.push_back(k);
   }
   return kept;
@@ -2344,7 +2361,8 @@ void LaserPipeline::carryBack() {
         turns = turns || (!h.moving[i] && !h.relabelled[i]);
       }
       const std::vector<uint32_t> body =
-          turns ? withoutFoot(part, h.order, h.points, op.voxel, op.foot_height)
+          turns ? withoutFoot(part, h.order, h.points, op.voxel, op.foot_height, op.foot_reach,
+                              h.ring_gap, static_cast<float>(h.ground_z + op.foot_height))
                 : std::vector<uint32_t>{};
       std::vector<uint8_t> in_body(part.size(), 0);
       for (std::size_t a = 0, b = 0; a < part.size() && b < body.size(); ++a)

@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdint>
 #include <functional>
+#include <limits>
 #include <optional>
 #include <vector>
 
@@ -27,6 +28,9 @@ struct ObjectConsensusStats {
   std::size_t persisted = 0;         ///< of moving_objects, those kept moving by the hysteresis
   std::size_t body_points_kept = 0;  ///< moving points of a body a static component kept
   std::size_t foot_points_left = 0;  ///< points at a moving component's foot not turned moving
+  /// Of foot_points_left, those in a raised part's columns with nothing of it over them
+  /// (Overhead): a surface it stands on, the sidewalk around a walker's feet.
+  std::size_t surface_points_left = 0;
   /// Points of a moving component's raised parts (joined to it only below the foot) with no
   /// moving point of their own, not turned moving.
   std::size_t still_part_points_left = 0;
@@ -126,6 +130,44 @@ struct ConsensusRules {
   /// Rule 2's far exception (ObjectParams::far_points; the points in the sensor frame): the
   /// scan's window reaches half of K on both sides. false: no such exception.
   bool far_window = false;
+  /// Rule 2's foot, "What it stands on" (Overhead, ObjectParams::foot_reach): only points below
+  /// this height (the points' frame) may be what an object stands on; the pipeline gives the
+  /// road's level under the sensor plus foot_height. -infinity (the map's objects, whose frame
+  /// gives no road level): none, the columns alone decide.
+  float stand_top = -std::numeric_limits<float>::infinity();
+};
+
+/// Rule 2's foot, "What it stands on" (doc/OBJECTS.md): whether an object has some of itself over
+/// a point of its foot, a point kRise to `gap` higher within about `reach` horizontally
+/// (ObjectParams::foot_reach). A walker's shoe and a car's lowest ring have their faces over them;
+/// the sidewalk around the walker's feet and the road under a truck's chassis that ground removal
+/// left do not. Points are added per object (`object`: any tag; tags 2^21 apart share cells),
+/// with heights in slices over `base`, the object's lowest point; the frame's z is up.
+class Overhead {
+ public:
+  static constexpr float kRise = 0.05f;  ///< m
+  static constexpr float kCell = 0.05f;  ///< m: the cells, and the slices of height
+  explicit Overhead(double reach) : reach_(static_cast<int>(std::ceil(reach / kCell - 1e-6))) {}
+  void add(const Eigen::Vector3f& x, uint32_t object, float base) {
+    const int s = static_cast<int>(std::floor((x.z() - base) / kCell));
+    if (s >= 0 && s < 32) slices_.get(key(x, object, 0, 0)) |= 1u << s;
+  }
+  /// Whether a point of `object` (lowest at `base`) lies kRise to `gap` over x within about
+  /// `reach` horizontally (the cells some part of which lies that near x's cell).
+  bool over(const Eigen::Vector3f& x, uint32_t object, float base, float gap) const;
+  /// The gap for a point x (sensor frame): `foot` (ObjectParams::foot_height), or 1.5 ring steps
+  /// at its range where more (ring_gap, rad: a sparse lidar's rings; 0: dense).
+  static float gapAt(const Eigen::Vector3f& x, double foot, double ring_gap) {
+    return static_cast<float>(std::max(foot, 1.5 * x.head<2>().norm() * ring_gap));
+  }
+
+ private:
+  static uint64_t key(const Eigen::Vector3f& x, uint32_t object, int dx, int dy) {
+    return cellKey(floorToCell(x.x(), 1 / kCell) + dx, floorToCell(x.y(), 1 / kCell) + dy,
+                   static_cast<int64_t>(object));
+  }
+  int reach_;                 // cells
+  CellMap<uint32_t> slices_;  // per (cell, object): the slices holding a point
 };
 
 /// The 26-connected components of a set of member points' voxels (and those a sparse lidar's rings

@@ -148,6 +148,11 @@ struct ObjectParams {
   /// point only where some of its points stand at or above it in their column (a car's wheels
   /// under its body, not the sidewalk it touches; doc/OBJECTS.md rule 2). 0 = all of them.
   double foot_height = 0.3;
+  /// m; and only where some of its points lie over them, from 0.05 m to foot_height higher (or
+  /// 1.5 ring steps of a sparse lidar) within this distance horizontally: its faces continue down
+  /// to what it stands on, a sidewalk around a walker does not (Overhead; doc/OBJECTS.md rule 2,
+  /// "What it stands on"). 0 = the columns alone.
+  double foot_reach = 0.15;
   /// Rule 6: a moving object's returns refined to ground under it, raised over the road around
   /// them (its lowest face, tyres, shoes), go with it (MoverFeetParams; doc/OBJECTS.md).
   bool feet = true;
