@@ -57,7 +57,7 @@ struct ScanStats {
   std::size_t objects_carried_back = 0, carried_back_points = 0;
   std::size_t consensus_body_kept = 0;  ///< moving points of bodies a static component kept
   std::size_t consensus_foot_left = 0;  ///< points at a moving component's foot left static
-  /// of consensus_foot_left, on a flat surface at the road's level under the object
+  /// of consensus_foot_left, in a raised part's columns with nothing of it over them (rule 2)
   std::size_t consensus_surface_left = 0;
   std::size_t mover_feet = 0;   ///< ground returns under a moving object taken along (rule 6)
   std::size_t mover_roofs = 0;  ///< a sparse lidar's roof stripes taken along (rule 6)
