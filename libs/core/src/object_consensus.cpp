@@ -815,8 +815,8 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
   // (doc/OBJECTS.md rule 2). (A share of 10 % instead lost kitti_highway 0.0024 of its recall,
   // parts of trucks with few moving points.)
   CellMap<uint8_t> raised;  // (column, component) holding a point of a spreading raised part
-  Overhead overhead(p.foot_reach);  // the points of the components turned moving (rule 2's foot)
-  const bool stands = p.foot_reach > 0 && rules.stand_top > -std::numeric_limits<float>::max();
+  // The points of the components turned moving (rule 2's foot, "What it stands on").
+  Overhead overhead(p.foot_reach, p.foot_height, rules.reach.ring_gap, rules.stand_top);
   const auto low = [&](std::size_t i, uint32_t root) {
     return p.foot_height > 0 && points[i].z < comps[root].lo.z() + p.foot_height;
   };
@@ -852,12 +852,7 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
       if (point_voxel[i] == UINT32_MAX) continue;
       const uint32_t root = root_of[point_voxel[i]];
       if (turn[root] != 1) continue;
-      // Only what may lie over a point that may be what it stands on (at_foot below).
-      if (stands && comps[root].lo.z() < rules.stand_top &&
-          points[i].z < comps[root].lo.z() + p.foot_height +
-                            Overhead::gapAt(points[i].xyz(), p.foot_height, rules.reach.ring_gap) +
-                            Overhead::kCell)
-        overhead.add(points[i].xyz(), root, comps[root].lo.z());
+      overhead.add(points[i].xyz(), root, comps[root].lo.z());
       if (!low(i, root) && spreads[part_of[point_voxel[i]]])
         raised.get(columnKey(point_voxel[i], 0, 0, root)) = 1;
     }
@@ -875,9 +870,7 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
       for (int dy = -1; dy <= 1 && !in_column; ++dy)
         in_column = raised.contains(columnKey(point_voxel[i], dx, dy, root));
     if (!in_column) return 1;
-    if (!stands || !(points[i].z < rules.stand_top)) return 0;
-    const float gap = Overhead::gapAt(points[i].xyz(), p.foot_height, rules.reach.ring_gap);
-    return overhead.over(points[i].xyz(), root, comps[root].lo.z(), gap) ? 0 : 2;
+    return overhead.standsOn(points[i].xyz(), root, comps[root].lo.z()) ? 2 : 0;
   };
   for (std::size_t i = 0; i < points.size(); ++i) {
     if (point_voxel[i] == UINT32_MAX) continue;

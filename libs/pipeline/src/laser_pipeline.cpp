@@ -1991,13 +1991,11 @@ std::vector<uint32_t> withoutFoot(const std::vector<uint32_t>& part,
     return cellKey(floorToCell(x.x, inv) + dx, floorToCell(x.y, inv) + dy, 0);
   };
   CellMap<uint8_t> raised;
-  Overhead overhead(reach);
-  const bool stands = reach > 0 && lowest < stand_top;
+  Overhead overhead(reach, foot, ring_gap, stand_top);
   for (const uint32_t k : part) {
     const PointXYZI& x = points[order[k]];
     if (x.z >= top) raised.insert(column(x, 0, 0));
-    if (stands && x.z < top + Overhead::gapAt(x.xyz(), foot, ring_gap) + Overhead::kCell)
-      overhead.add(x.xyz(), 0, lowest);
+    overhead.add(x.xyz(), 0, lowest);
   }
   std::vector<uint32_t> kept;
   for (const uint32_t k : part) {
@@ -2005,9 +2003,7 @@ std::vector<uint32_t> withoutFoot(const std::vector<uint32_t>& part,
     bool under = x.z >= top;
     for (int dx = -1; dx <= 1 && !under; ++dx)
       for (int dy = -1; dy <= 1 && !under; ++dy) under = raised.contains(column(x, dx, dy));
-    if (under && x.z < top && x.z < stand_top && stands &&  // "What it stands on"
-        !overhead.over(x.xyz(), 0, lowest, Overhead::gapAt(x.xyz(), foot, ring_gap)))
-      under = false;
+    if (under && x.z < top && overhead.standsOn(x.xyz(), 0, lowest)) under = false;
     if (under) kept.push_back(k);
   }
   return kept;

@@ -137,36 +137,52 @@ struct ConsensusRules {
   float stand_top = -std::numeric_limits<float>::infinity();
 };
 
-/// Rule 2's foot, "What it stands on" (doc/OBJECTS.md): whether an object has some of itself over
-/// a point of its foot, a point kRise to `gap` higher within about `reach` horizontally
-/// (ObjectParams::foot_reach). A walker's shoe and a car's lowest ring have their faces over them;
-/// the sidewalk around the walker's feet and the road under a truck's chassis that ground removal
-/// left do not. Points are added per object (`object`: any tag; tags 2^21 apart share cells),
-/// with heights in slices over `base`, the object's lowest point; the frame's z is up.
+/// Rule 2's foot, "What it stands on" (doc/OBJECTS.md): whether a point of an object's foot band
+/// is what it stands on: below `stand_top` (ConsensusRules::stand_top) with no point of the object
+/// kRise to gap higher within about `reach` horizontally (ObjectParams::foot_reach), gap being
+/// `foot` (ObjectParams::foot_height) or 1.5 ring steps at the point's range where more
+/// (`ring_gap`, rad; 0: a dense lidar). A walker's shoe and a car's lowest ring have their faces
+/// over them; the sidewalk around the walker's feet and the road under a truck's chassis that
+/// ground removal left do not. Points are added per object (`object`: any tag; tags 2^21 apart
+/// share cells) with `base`, the object's lowest height; the frame's z is up. Inactive (reach 0,
+/// or stand_top not finite): nothing is what an object stands on.
 class Overhead {
  public:
   static constexpr float kRise = 0.05f;  ///< m
   static constexpr float kCell = 0.05f;  ///< m: the cells, and the slices of height
-  explicit Overhead(double reach) : reach_(static_cast<int>(std::ceil(reach / kCell - 1e-6))) {}
+  Overhead(double reach, double foot, double ring_gap, float stand_top)
+      : reach_(static_cast<int>(std::ceil(reach / kCell - 1e-6))),
+        foot_(foot),
+        ring_gap_(ring_gap),
+        stand_top_(stand_top),
+        active_(reach > 0 && std::isfinite(stand_top)) {}
+  /// Keeps x only where it may lie over a point that may be what the object stands on.
   void add(const Eigen::Vector3f& x, uint32_t object, float base) {
+    if (!active_ || !(base < stand_top_) || !(x.z() < base + foot_ + gapAt(x) + kCell)) return;
     const int s = static_cast<int>(std::floor((x.z() - base) / kCell));
     if (s >= 0 && s < 32) slices_.get(key(x, object, 0, 0)) |= 1u << s;
   }
-  /// Whether a point of `object` (lowest at `base`) lies kRise to `gap` over x within about
-  /// `reach` horizontally (the cells some part of which lies that near x's cell).
-  bool over(const Eigen::Vector3f& x, uint32_t object, float base, float gap) const;
-  /// The gap for a point x (sensor frame): `foot` (ObjectParams::foot_height), or 1.5 ring steps
-  /// at its range where more (ring_gap, rad: a sparse lidar's rings; 0: dense).
-  static float gapAt(const Eigen::Vector3f& x, double foot, double ring_gap) {
-    return static_cast<float>(std::max(foot, 1.5 * x.head<2>().norm() * ring_gap));
+  /// x, a point of the foot band of `object` (lowest at `base`), is what it stands on.
+  bool standsOn(const Eigen::Vector3f& x, uint32_t object, float base) const {
+    return active_ && x.z() < stand_top_ && !over(x, object, base, gapAt(x));
   }
 
  private:
+  float gapAt(const Eigen::Vector3f& x) const {
+    return ring_gap_ > 0 ? static_cast<float>(std::max(foot_, 1.5 * x.head<2>().norm() * ring_gap_))
+                         : static_cast<float>(foot_);
+  }
+  // Whether a point of `object` lies kRise to `gap` over x in the cells some part of which lies
+  // within reach of x's cell.
+  bool over(const Eigen::Vector3f& x, uint32_t object, float base, float gap) const;
   static uint64_t key(const Eigen::Vector3f& x, uint32_t object, int dx, int dy) {
     return cellKey(floorToCell(x.x(), 1 / kCell) + dx, floorToCell(x.y(), 1 / kCell) + dy,
                    static_cast<int64_t>(object));
   }
-  int reach_;                 // cells
+  int reach_;  // cells
+  double foot_, ring_gap_;
+  float stand_top_;
+  bool active_;
   CellMap<uint32_t> slices_;  // per (cell, object): the slices holding a point
 };
 
