@@ -205,6 +205,33 @@ TEST(ObjectConsensus, WhatAMoverStandsOnStaysWhereItIs) {
     ASSERT_EQ(level[i], i < sidewalk ? all[i] : moving[i]) << i;
 }
 
+TEST(ObjectConsensus, AFootIsTouchedStoodOnOrTheObjects) {
+  // doc/OBJECTS.md rule 2's foot, the one Foot both objectConsensus and rule 4 backwards ask: a
+  // walker's column of returns from 0 to 1.7 m at (0, 0) in voxels of 0.3 m, foot 0.3 m.
+  const auto walker = [](Foot& f, uint32_t tag, bool raises) {
+    for (float z = 0; z <= 1.7f; z += 0.05f) f.add({0.05f, 0.05f, z}, tag, 0, raises);
+  };
+  Foot foot(0.3, 0.3, 0.15, 0, 0.3f);
+  walker(foot, 7, true);
+  EXPECT_EQ(foot.at({0.05f, 0.05f, 1.0f}, 7, 0), Foot::kBody);     // over the band
+  EXPECT_EQ(foot.at({0.1f, 0.05f, 0.02f}, 7, 0), Foot::kBody);     // his shoe: his legs over it
+  EXPECT_EQ(foot.at({0.5f, 0.05f, 0.01f}, 7, 0), Foot::kStoodOn);  // the sidewalk beside it
+  EXPECT_EQ(foot.at({2.0f, 0.05f, 0.01f}, 7, 0), Foot::kTouched);  // no raised column near
+  EXPECT_EQ(foot.at({0.5f, 0.05f, 0.01f}, 8, 0), Foot::kTouched);  // another object's column
+  // Over the road's level (stand_top) the columns alone decide, as with no reach.
+  Foot high(0.3, 0.3, 0.15, 0, 0.0f), no_reach(0.3, 0.3, 0, 0, 0.3f);
+  walker(high, 7, true);
+  walker(no_reach, 7, true);
+  EXPECT_EQ(high.at({0.5f, 0.05f, 0.01f}, 7, 0), Foot::kBody);
+  EXPECT_EQ(no_reach.at({0.5f, 0.05f, 0.01f}, 7, 0), Foot::kBody);
+  // A part the spread does not reach raises no column; with no foot height nothing is a foot.
+  Foot unraised(0.3, 0.3, 0.15, 0, 0.3f), none(0.3, 0, 0.15, 0, 0.3f);
+  walker(unraised, 7, false);
+  walker(none, 7, true);
+  EXPECT_EQ(unraised.at({0.1f, 0.05f, 0.02f}, 7, 0), Foot::kTouched);
+  EXPECT_EQ(none.at({2.0f, 0.05f, 0.01f}, 7, 0), Foot::kBody);
+}
+
 TEST(ObjectConsensus, ACarPullingOutBesideASidewalkIsNotPartOfTheStreet) {
   // doc/OBJECTS.md rule 1, "Low surfaces": a sidewalk that is not ground (0.12 m up, the curb
   // above the ground stage's step) runs the street's length between a wall and a car pulling out

@@ -386,6 +386,20 @@ bool Overhead::over(const Eigen::Vector3f& x, uint32_t object, float base, float
   return false;
 }
 
+void Foot::add(const Eigen::Vector3f& x, uint32_t object, float base, bool raises) {
+  overhead_.add(x, object, base);
+  if (raises && !low(x.z(), base)) raised_.insert(column(x, object, 0, 0));
+}
+
+Foot::Kind Foot::at(const Eigen::Vector3f& x, uint32_t object, float base) const {
+  if (!low(x.z(), base)) return kBody;
+  bool under = false;
+  for (int dx = -1; dx <= 1 && !under; ++dx)
+    for (int dy = -1; dy <= 1 && !under; ++dy) under = raised_.contains(column(x, object, dx, dy));
+  if (!under) return kTouched;
+  return overhead_.standsOn(x, object, base) ? kStoodOn : kBody;
+}
+
 namespace {
 
 bool vehicleSized(const Eigen::Vector3f& lo, const Eigen::Vector3f& hi, const ObjectParams& p) {
@@ -814,14 +828,11 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
   // spread turns only the parts that hold a moving point of their own, not the pole and the wall
   // (doc/OBJECTS.md rule 2). (A share of 10 % instead lost kitti_highway 0.0024 of its recall,
   // parts of trucks with few moving points.)
-  CellMap<uint8_t> raised;  // (column, component) holding a point of a spreading raised part
-  // The points of the components turned moving (rule 2's foot, "What it stands on").
-  Overhead overhead(p.foot_reach, p.foot_height, rules.reach.ring_gap, rules.stand_top);
+  // The points of the components turned moving, per component; columns raised by the parts the
+  // spread reaches.
+  Foot foot(cc.side, p.foot_height, p.foot_reach, rules.reach.ring_gap, rules.stand_top);
   const auto low = [&](std::size_t i, uint32_t root) {
-    return p.foot_height > 0 && points[i].z < comps[root].lo.z() + p.foot_height;
-  };
-  const auto columnKey = [&](uint32_t v, int dx, int dy, uint32_t root) {
-    return cellKey(voxels[v].x() + dx, voxels[v].y() + dy, static_cast<int64_t>(root));
+    return foot.low(points[i].z, comps[root].lo.z());
   };
   std::vector<uint8_t> spreads;   // per voxel (a raised part's root): the spread reaches it
   std::vector<uint32_t> part_of;  // per voxel: its raised part's root (UINT32_MAX: none)
@@ -852,34 +863,22 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
       if (point_voxel[i] == UINT32_MAX) continue;
       const uint32_t root = root_of[point_voxel[i]];
       if (turn[root] != 1) continue;
-      overhead.add(points[i].xyz(), root, comps[root].lo.z());
-      if (!low(i, root) && spreads[part_of[point_voxel[i]]])
-        raised.get(columnKey(point_voxel[i], 0, 0, root)) = 1;
+      foot.add(points[i].xyz(), root, comps[root].lo.z(),
+               !low(i, root) && spreads[part_of[point_voxel[i]]]);
     }
   }
   // A raised point of a part the spread does not reach.
   const auto still_part = [&](std::size_t i, uint32_t root) {
     return !spreads.empty() && !low(i, root) && !spreads[part_of[point_voxel[i]]];
   };
-  // 0: not at the foot; 1: at it, no raised part in its column; 2: in a raised part's column
-  // with nothing of the component over it, a surface the object stands on ("What it stands on").
-  const auto at_foot = [&](std::size_t i, uint32_t root) {
-    if (!low(i, root)) return 0;
-    bool in_column = false;
-    for (int dx = -1; dx <= 1 && !in_column; ++dx)
-      for (int dy = -1; dy <= 1 && !in_column; ++dy)
-        in_column = raised.contains(columnKey(point_voxel[i], dx, dy, root));
-    if (!in_column) return 1;
-    return overhead.standsOn(points[i].xyz(), root, comps[root].lo.z()) ? 2 : 0;
-  };
   for (std::size_t i = 0; i < points.size(); ++i) {
     if (point_voxel[i] == UINT32_MAX) continue;
     const uint32_t root = root_of[point_voxel[i]];
     const uint8_t t = turn[root];
     if (t == 1 && !moving[i]) {
-      if (const int foot = at_foot(i, root)) {
+      if (const Foot::Kind kind = foot.at(points[i].xyz(), root, comps[root].lo.z())) {
         ++st.foot_points_left;
-        st.surface_points_left += foot == 2;
+        st.surface_points_left += kind == Foot::kStoodOn;
         continue;
       }
       if (still_part(i, root)) {

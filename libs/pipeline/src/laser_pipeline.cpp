@@ -1974,11 +1974,7 @@ bool faceOf(const Eigen::Vector3f& face, const Eigen::Vector3f& box, double voxe
          box.z() >= f * face.z() && face.z() >= f * box.z();
 }
 
-// Rule 2's foot (doc/OBJECTS.md), of the points order[k] of `part`: a point less than
-// foot_height above their lowest with none at or above that height in its 3 x 3 column of voxels
-// is a low surface the object touches (from 0.8 m, a sidewalk 0.12 m up), not a part of it; so,
-// with `reach` > 0, is one below stand_top with nothing of the part over it (Overhead: "What it
-// stands on", the sidewalk around a walker's feet).
+// Rule 2's foot (doc/OBJECTS.md, Foot) of the points order[k] of `part`: the part without it.
 std::vector<uint32_t> withoutFoot(const std::vector<uint32_t>& part,
                                   const std::vector<uint32_t>& order,
                                   const std::vector<PointXYZI>& points, double side, double foot,
@@ -1986,26 +1982,11 @@ std::vector<uint32_t> withoutFoot(const std::vector<uint32_t>& part,
   if (foot <= 0 || part.empty()) return part;
   float lowest = std::numeric_limits<float>::max();
   for (const uint32_t k : part) lowest = std::min(lowest, points[order[k]].z);
-  const float inv = static_cast<float>(1.0 / side), top = lowest + static_cast<float>(foot);
-  const auto column = [&](const PointXYZI& x, int dx, int dy) {
-    return cellKey(floorToCell(x.x, inv) + dx, floorToCell(x.y, inv) + dy, 0);
-  };
-  CellMap<uint8_t> raised;
-  Overhead overhead(reach, foot, ring_gap, stand_top);
-  for (const uint32_t k : part) {
-    const PointXYZI& x = points[order[k]];
-    if (x.z >= top) raised.insert(column(x, 0, 0));
-    overhead.add(x.xyz(), 0, lowest);
-  }
+  Foot feet(side, foot, reach, ring_gap, stand_top);
+  for (const uint32_t k : part) feet.add(points[order[k]].xyz(), 0, lowest);
   std::vector<uint32_t> kept;
-  for (const uint32_t k : part) {
-    const PointXYZI& x = points[order[k]];
-    bool under = x.z >= top;
-    for (int dx = -1; dx <= 1 && !under; ++dx)
-      for (int dy = -1; dy <= 1 && !under; ++dy) under = raised.contains(column(x, dx, dy));
-    if (under && x.z < top && overhead.standsOn(x.xyz(), 0, lowest)) under = false;
-    if (under) kept.push_back(k);
-  }
+  for (const uint32_t k : part)
+    if (feet.at(points[order[k]].xyz(), 0, lowest) == Foot::kBody) kept.push_back(k);
   return kept;
 }
 

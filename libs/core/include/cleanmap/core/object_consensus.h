@@ -186,6 +186,41 @@ class Overhead {
   CellMap<uint32_t> slices_;  // per (cell, object): the slices holding a point
 };
 
+/// Rule 2's foot (doc/OBJECTS.md): which points of an object's foot band, those less than `foot`
+/// (ObjectParams::foot_height) over its lowest (`base`), belong to it. A band point with no raised
+/// point (at or above base + foot) of its object in its 3 x 3 column of voxels of side `side` is a
+/// low surface the object touches (from 0.8 m, a sidewalk 0.12 m up); so is one it stands on
+/// (Overhead). A vehicle's wheels and sills have its body over them. Points are added per object
+/// (`object`: any tag, as Overhead's), every one of the object's before the first at().
+class Foot {
+ public:
+  enum Kind : uint8_t {
+    kBody = 0,     ///< not in the foot band, or in it under the object: a part of it
+    kTouched = 1,  ///< in the band with no raised point in its column
+    kStoodOn = 2,  ///< in the band under a raised column, but what the object stands on
+  };
+  Foot(double side, double foot, double reach, double ring_gap, float stand_top)
+      : inv_(static_cast<float>(1.0 / side)),
+        foot_(foot),
+        overhead_(reach, foot, ring_gap, stand_top) {}
+  /// Whether height z lies in the foot band of an object whose lowest is at base.
+  bool low(float z, float base) const { return foot_ > 0 && z < base + foot_; }
+  /// A point of `object`; a raised one marks its column only where `raises` (objectConsensus: a
+  /// part the spread reaches).
+  void add(const Eigen::Vector3f& x, uint32_t object, float base, bool raises = true);
+  Kind at(const Eigen::Vector3f& x, uint32_t object, float base) const;
+
+ private:
+  uint64_t column(const Eigen::Vector3f& x, uint32_t object, int dx, int dy) const {
+    return cellKey(floorToCell(x.x(), inv_) + dx, floorToCell(x.y(), inv_) + dy,
+                   static_cast<int64_t>(object));
+  }
+  float inv_;
+  double foot_;
+  CellMap<uint8_t> raised_;  // (column, object) holding a raised point
+  Overhead overhead_;
+};
+
 /// The 26-connected components of a set of member points' voxels (and those a sparse lidar's rings
 /// join, RingReach): objectConsensus's grouping, which depends only on the points, the members,
 /// the voxel side and the reach. groupObjects() computes it
