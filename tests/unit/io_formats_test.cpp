@@ -197,6 +197,18 @@ TEST(Config, BadIniIsAClearError) {
           io::parseParams(std::string("[ds]\nempty_run = ") + bad + "\n", "x.ini", q);
         },
         "x.ini", "ds.empty_run must be in [0, 1] (0 = off)");
+  for (const char* bad : {"-1", "11"})  // DESIGN §2.2, self returns
+    test::expectError(
+        [&] {
+          PipelineParams q;
+          io::parseParams(std::string("[filter]\nself_range = ") + bad + "\n", "x.ini", q);
+        },
+        "x.ini", "filter.self_range must be in [0, 10] m (0 = off)");
+  {  // 0 turns the self returns off
+    PipelineParams q;
+    io::parseParams("[filter]\nself_range = 0\n", "x.ini", q);
+    EXPECT_EQ(q.filter.self_range, 0.0);
+  }
   {  // 0 turns the empty runs off (DESIGN §2b)
     PipelineParams q;
     io::parseParams("[ds]\nempty_run = 0\n", "x.ini", q);

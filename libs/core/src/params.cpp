@@ -19,6 +19,8 @@ void validate(const PipelineParams& p, const std::string& name) {
   // (cell_key.h) rather than fail clearly.
   require(p.filter.crop_tau > 0 && p.filter.crop_tau <= 1000,
           "filter.crop_tau must be in (0, 1000] m");
+  require(p.filter.self_range >= 0 && p.filter.self_range <= 10,
+          "filter.self_range must be in [0, 10] m (0 = off)");
   require(p.filter.dup_window >= 0, "filter.dup_window must be >= 0");
   require(p.filter.dup_distance >= 0.01 && p.filter.dup_distance <= 5,
           "filter.dup_distance must be in [0.01, 5] m");

@@ -34,6 +34,7 @@ ScanStats& ScanStats::operator+=(const ScanStats& o) {
   window_stride = std::max(window_stride, o.window_stride);
   scan_rate_hz = std::max(scan_rate_hz, o.scan_rate_hz);
   map_far += o.map_far;
+  self_returns += o.self_returns;
   deskewed += o.deskewed;
   deskew_max_shift = std::max(deskew_max_shift, o.deskew_max_shift);
   total_conflicts += o.total_conflicts;

@@ -93,6 +93,7 @@ std::map<std::string, Key> table(PipelineParams& p) {
                             true,
                             {"auto", "0", "1"}}},
       {"filter.crop_tau", d(p.filter.crop_tau)},
+      {"filter.self_range", d(p.filter.self_range)},
       {"filter.dup_window", i(p.filter.dup_window)},
       {"filter.dup_distance", d(p.filter.dup_distance)},
       {"ground.cell", d(p.ground.cell)},

@@ -585,6 +585,7 @@ void OutputWriter::finish(double wall_s, const FreeSpaceMap* free_space) {
                  {"invalid_dropped", total.invalid},
                  {"empty_scans", empty},
                  {"in_crop", total.in_crop},
+                 {"self_returns", total.self_returns},
                  {"ground", total.ground},
                  {"duplicates", total.duplicates},
                  {"candidates", total.candidates},

@@ -23,6 +23,7 @@
 #include "cleanmap/core/object_shift.h"
 #include "cleanmap/core/octree_sampling.h"
 #include "cleanmap/core/parallel.h"
+#include "cleanmap/core/self_returns.h"
 #include "cleanmap/core/serial_worker.h"
 #include "cleanmap/core/stopwatch.h"
 #include "cleanmap/registration/odometry.h"
@@ -927,6 +928,7 @@ void LaserPipeline::decide(std::size_t pos) {
   sampleLeaves(s, w);                      // §2c
   classify(window, s, w);                  // §2b
   decideLeaves(s, w);                      // §2c
+  dropSelfReturns(window, s, w);           // §2.2
   objectConsensus(pos, s, w);              // doc/OBJECTS.md
   validateImages(pos, s, w);               // §3
   moverFeet(s, w);                         // doc/OBJECTS.md rule 6
@@ -1086,6 +1088,26 @@ void LaserPipeline::decideLeaves(const Prepared& s, Work& w) const {
   for (std::size_t l = 0; l < w.leaves.size(); ++l)
     if (w.leaf_moving[l])
       for (uint32_t c : w.leaves[l].members) w.moving[w.cand[c]] = 1;
+}
+
+// DESIGN §2.2, "Self returns": the recording vehicle's own returns that the test flagged leave
+// the crop (unclassified, in no map and no object).
+void LaserPipeline::dropSelfReturns(const std::vector<WindowScan>& window, Prepared& s,
+                                    Work& w) const {
+  if (p_.filter.self_range <= 0) return;
+  std::vector<uint8_t> self;
+  const std::size_t n =
+      findSelfReturns(s.scan.points, s.candidate, w.moving, s.scan.pose.translation(), window,
+                      p_.filter.self_range, p_.object.voxel, self);
+  if (n == 0) return;
+  for (uint32_t i = 0; i < s.scan.size(); ++i)
+    if (self[i]) {
+      s.in_crop[i] = 0;
+      s.candidate[i] = 0;
+      w.moving[i] = 0;
+    }
+  s.stats.in_crop -= n;
+  s.stats.self_returns = n;
 }
 
 // doc/OBJECTS.md: connected objects move as a whole; duplicates take part, they belong to the

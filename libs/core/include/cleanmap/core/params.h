@@ -16,6 +16,10 @@ struct FilterParams {
   double crop_tau = 30.0;      ///< m; a point is a candidate iff |x|,|y|,|z| <= tau (sensor frame)
   int dup_window = 10;         ///< W: scans whose static points the duplicate test looks at
   double dup_distance = 0.10;  ///< m; d_dup
+  /// m; DESIGN §2.2 "Self returns": flagged returns within this horizontal range that stay put in
+  /// the sensor frame while it drives are the recording vehicle's own, left unclassified
+  /// (findSelfReturns). 0 = off.
+  double self_range = 3.0;
 };
 
 /// m; the height assumed when sensor.height is auto and a scan's ground cannot be measured

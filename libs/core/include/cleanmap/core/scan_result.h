@@ -26,6 +26,8 @@ struct ScanStats {
   std::size_t points = 0;   ///< original points (invalid included)
   std::size_t invalid = 0;  ///< NaN / inf, dropped on reading
   std::size_t in_crop = 0, ground = 0, duplicates = 0, candidates = 0, tested = 0;
+  /// DESIGN §2.2: the recording vehicle's own returns, taken out of the crop (findSelfReturns)
+  std::size_t self_returns = 0;
   std::size_t moving = 0, static_points = 0;
   std::size_t window = 0;  ///< scans in the window
   /// DESIGN §2b: the window's K and stride, and the scan rate an auto K came from (Hz, 0: none);

@@ -129,6 +129,7 @@ class LaserPipeline {
   void sampleLeaves(Prepared& s, Work& w) const;
   void classify(const std::vector<WindowScan>& window, Prepared& s, Work& w) const;
   void decideLeaves(const Prepared& s, Work& w) const;
+  void dropSelfReturns(const std::vector<WindowScan>& window, Prepared& s, Work& w) const;
   void objectConsensus(std::size_t pos, Prepared& s, Work& w) const;
   void validateImages(std::size_t pos, Prepared& s, Work& w) const;
   void linkToPrevious(const Prepared& prev, Prepared& s, const PinholeCamera& camera) const;
