@@ -11,8 +11,9 @@ namespace cleanmap {
 /// Confusion counts of the moving class over evaluated points.
 struct MosCounts {
   uint64_t tp = 0, fp = 0, fn = 0, tn = 0;
-  uint64_t ignored = 0;       ///< ground truth 0 / 1
-  uint64_t out_of_range = 0;  ///< predicted 0 (not classified: outside the crop, invalid)
+  uint64_t ignored = 0;  ///< ground truth 0 / 1
+  /// predicted 0 (not classified: outside the crop, invalid, the recording vehicle's own)
+  uint64_t out_of_range = 0;
 
   MosCounts& operator+=(const MosCounts& o);
   double precision() const { return tp + fp ? double(tp) / double(tp + fp) : 0.0; }
