@@ -296,7 +296,8 @@ TEST(MrptOutputs, FullDiskIsAClearErrorAndLeavesNoPartialFile) {
 
 // As the app writes them (map_decisions): cleaned.rawlog, the simplemap and the scene hold what
 // the cleaned map holds: every scan minus the points map_labels/ calls moving (the windowed
-// test's and those whose space the sequence saw empty, which are map_removed.ply's points).
+// test's, those whose space the sequence saw empty, which are map_removed.ply's points, and the
+// recording car's own returns).
 TEST(MrptOutputs, WithTheMapsDecisionsTheyHoldWhatTheCleanedMapHolds) {
   CLEANMAP_REQUIRE_DATASET("kitti_city");
   const auto dir = test::scratchDir("decided");
@@ -304,7 +305,7 @@ TEST(MrptOutputs, WithTheMapsDecisionsTheyHoldWhatTheCleanedMapHolds) {
   auto seq = io::KittiSequence::open(test::dataDir() + "/kitti_city");
   const PipelineParams params;
   std::vector<Decided> run;
-  std::size_t map_removed = 0;
+  std::size_t map_removed = 0, self = 0;
   {
     io::OutputWriter writer(dir.string(), "kitti_city", params);
     cleanmap::mrpt::MrptOutputOptions mo;
@@ -312,6 +313,7 @@ TEST(MrptOutputs, WithTheMapsDecisionsTheyHoldWhatTheCleanedMapHolds) {
     cleanmap::mrpt::MrptOutputWriter w(writer.staging(), mo);
     LaserPipeline pl(params, [&](ScanResult&& r) {
       run.push_back({r.index, r.stem, r.pose, r.scan, r.labels, r.moving.size()});
+      self += r.self_index.size();
       writer.write(r, std::nullopt);
       w.write(std::move(r));
     });
@@ -358,8 +360,10 @@ TEST(MrptOutputs, WithTheMapsDecisionsTheyHoldWhatTheCleanedMapHolds) {
     ASSERT_TRUE(spc && spc->pointcloud);
     EXPECT_EQ(spc->pointcloud->size(), expect.size());
   }
-  EXPECT_EQ(windowed_kept - kept, map_removed)
-      << "the cleaned scans lack exactly what the map removed";
+  // And the recording car's own returns (DESIGN §2.2, "Self returns"): its roof, in every scan.
+  EXPECT_GT(self, 100u);
+  EXPECT_EQ(windowed_kept - kept, map_removed + self)
+      << "the cleaned scans lack exactly what the map removed and the car's own returns";
 
   // The scene's static map: points of static_map_full.ply, none of map_removed.ply.
   auto key = [](const PointXYZI& p) { return std::tuple(p.x, p.y, p.z); };

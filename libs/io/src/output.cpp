@@ -255,7 +255,7 @@ struct SpoolHeader {
   int64_t index;
   double x, y, z;  // the sensor's position
   double density, ring_gap;
-  uint64_t points, full, moving;
+  uint64_t points, full, moving, self;
 };
 struct SpoolPoint {
   PointXYZI p;
@@ -282,7 +282,8 @@ void OutputWriter::spoolScan(const ScanResult& r) {
                       r.ring_gap,
                       r.labels.size(),
                       r.static_full.size(),
-                      r.moving.size()};
+                      r.moving.size(),
+                      r.self_index.size()};
   spool_offsets_.push_back(spool_->size());
   spool_->write(&h, sizeof h);
   std::vector<SpoolPoint> pts(r.static_full.size());
@@ -295,6 +296,8 @@ void OutputWriter::spoolScan(const ScanResult& r) {
   for (std::size_t i = 0; i < pts.size(); ++i)
     pts[i] = {r.moving[i], moving_indexed ? r.moving_index[i] : ~uint32_t(0), 0};
   spool_->write(pts.data(), pts.size() * sizeof(SpoolPoint));
+  if (!r.self_index.empty())
+    spool_->write(r.self_index.data(), r.self_index.size() * sizeof(uint32_t));
 }
 
 // DESIGN §2e: every spooled point is decided with the whole sequence's free space: the ground
@@ -317,6 +320,7 @@ void OutputWriter::writeMaps(const FreeSpaceMap* free_space, const MapScanSink& 
   struct Spooled {
     SpoolHeader h;
     std::vector<SpoolPoint> pts, moving;
+    std::vector<uint32_t> self;  // the recording vehicle's own returns (DESIGN §2.2), removed
     std::vector<PointXYZI> objects;
     std::vector<uint8_t> member, gone;
     ObjectComponents groups;           // the objects' grouping, spooled by the forward pass
@@ -357,6 +361,8 @@ void OutputWriter::writeMaps(const FreeSpaceMap* free_space, const MapScanSink& 
     b.moving.resize(b.h.moving);
     spool.read(b.pts.data(), b.pts.size() * sizeof(SpoolPoint));
     spool.read(b.moving.data(), b.moving.size() * sizeof(SpoolPoint));
+    b.self.resize(b.h.self);
+    if (!b.self.empty()) spool.read(b.self.data(), b.self.size() * sizeof(uint32_t));
     if (!decide) return;
     if (by_objects) assemble(b);
     if (!both_ways)
@@ -514,6 +520,8 @@ void OutputWriter::writeMaps(const FreeSpaceMap* free_space, const MapScanSink& 
     }
     for (const auto& q : cur.moving)
       if (q.orig < map_labels.size()) map_labels[q.orig] = kMoving;
+    for (const uint32_t o : cur.self)
+      if (o < map_labels.size()) map_labels[o] = kMoving;
     map_removed_ += removed.size();
     full_->append(full, h.z);
     compact_->append(compact, h.z);

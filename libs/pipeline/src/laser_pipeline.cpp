@@ -264,6 +264,7 @@ struct LaserPipeline::Work {
   void clear() {
     world.clear();
     duplicate.clear();
+    self_index.clear();
     cand.clear();
     cand_world.clear();
     leaves.clear();
@@ -281,6 +282,7 @@ struct LaserPipeline::Work {
   }
   std::vector<Eigen::Vector3d> world;  // candidates' world coordinates (others left zero)
   std::vector<uint8_t> duplicate;      // DESIGN §2.3
+  std::vector<uint32_t> self_index;    // DESIGN §2.2: the self returns' original indices
   std::vector<uint32_t> cand;          // candidates that are not duplicates: what is tested
   std::vector<Eigen::Vector3d> cand_world;
   LeafPlan leaves;                             // DESIGN §2c, over `cand`
@@ -1105,6 +1107,7 @@ void LaserPipeline::dropSelfReturns(const std::vector<WindowScan>& window, Prepa
       s.in_crop[i] = 0;
       s.candidate[i] = 0;
       w.moving[i] = 0;
+      w.self_index.push_back(s.scan.originalIndex(i));
     }
   s.stats.in_crop -= n;
   s.stats.self_returns = n;
@@ -1799,6 +1802,7 @@ ScanResult LaserPipeline::collect(Prepared& s, const Work& w) const {
   if (!w.relabelled.empty())
     for (uint32_t i = 0; i < pts.size(); ++i)
       if (w.relabelled[i]) r.relabelled_index.push_back(s.scan.originalIndex(i));
+  r.self_index = w.self_index;
   if (overlays_ && s.view)
     r.overlay = vision::drawOverlay(*s.view, pts, s.scan.pose, overlayKinds(s, w));
   r.stats = s.stats;

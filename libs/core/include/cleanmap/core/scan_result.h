@@ -140,6 +140,9 @@ struct ScanResult {
   /// point, its original index. The map's cleaning and map_labels/ use them (DESIGN §2e).
   std::vector<uint32_t> static_full_index, moving_index;
   std::vector<uint8_t> static_full_kind;
+  /// Original indices of the recording vehicle's own returns (DESIGN §2.2, "Self returns"):
+  /// labelled 0, and removed by the map (map_labels/ 251), so no cleaned scan holds them.
+  std::vector<uint32_t> self_index;
   /// Original indices of the points the camera check relabelled static (DESIGN §3).
   std::vector<uint32_t> relabelled_index;
   /// With LaserPipeline::saveOverlays: the camera image with the scan's points drawn over it.
