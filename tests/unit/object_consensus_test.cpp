@@ -1956,6 +1956,18 @@ TEST(OutlineShift, ASideSlidingAlongItselfShowsItsEnds) {
   EXPECT_TRUE(still.end_evidence.empty());
 }
 
+TEST(OutlineShift, AStandingCarShowingMoreOfItselfMatchesInPlace) {
+  // Rule 4 backwards, "What a scan saw of it": standing, more of its side in view in the target
+  // (their centroids 0.75 m apart), its outline matches in place as well as anywhere.
+  const auto more = outlineShift(carFaces(0.0f, true, 0.0f, 3.0f), carFaces(0.0f));
+  EXPECT_GE(more.cells, 11u);
+  EXPECT_EQ(more.at_rest, more.at_shift);
+  EXPECT_EQ(more.shift, Eigen::Vector2f::Zero());
+  // 0.3 m on (two cells), it matches better shifted.
+  const auto moved = outlineShift(carFaces(0.0f, true, 0.0f, 3.0f), carFaces(0.3f));
+  EXPECT_LT(moved.at_rest, moved.at_shift);
+}
+
 TEST(OutlineShift, AStandingCarMatchesWhereItIs) {
   auto target = carFaces(0.0f);
   for (std::size_t i = 0; i < target.size(); ++i)  // 2 cm of range noise

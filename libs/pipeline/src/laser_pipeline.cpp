@@ -59,6 +59,9 @@ constexpr double kShiftMinFace = 1.6;      // m of outline: a car's width, its f
 constexpr std::size_t kShiftMinSide = 20;  // cells along the shift: 3 m of a side alone
 constexpr std::size_t kShiftEndGain = 2;   // a side's cells matching only shifted: its end, 0.3 m
 constexpr double kShiftView = 15.0 * M_PI / 180.0;  // rad
+// Rule 4 backwards, "What a scan saw of it" (doc/OBJECTS.md): m, a centroid's step that an
+// object whose outline matches in place (within a cell) did not make (a cell and a half).
+constexpr double kCompositionSlack = 1.5 * kShift.cell;
 
 // Rule 7's points in vertical columns of kShiftColumn, each column's points in one run in the
 // order they were added: one table, not an allocation per column (issue #16).
@@ -2168,8 +2171,10 @@ void LaserPipeline::carryBack() {
       if (const uint32_t* o = objectOf(next, next_whole[k].xyz()))
         if (track_of[*o] == UINT32_MAX) track_of[*o] = next_track[k];
     joinPooled(next_whole, next_pool, inv, next, track_of);
-    std::vector<uint32_t>& turned = turned_in[at];  // candidate positions turned moving
-    next_whole.clear();                             // becomes what this scan turned
+    std::vector<uint32_t>& turned = turned_in[at];      // candidate positions turned moving
+    std::vector<PointXYZI> next_points;                 // the next scan's objects (its frame)
+    next_points.swap(next_whole);                       // next_whole becomes what this scan turned
+    std::vector<std::vector<Eigen::Vector3f>> next_of;  // next_points per object, on first use
     next_track.clear();
     next_pool.clear();
     std::vector<Eigen::Vector3f> q;
@@ -2306,11 +2311,33 @@ void LaserPipeline::carryBack() {
       Eigen::Vector3f c = Eigen::Vector3f::Zero();
       for (const uint32_t k : part) c += h.points[h.order[k]].xyz();
       const double t = static_cast<double>(h.r.index);
-      const Eigen::Vector2d here =
+      Eigen::Vector2d here =
           m.by_ends ? Eigen::Vector2d((next_world_to_sensor.inverse() *
                                        (next.centroid[m.object] - m.shift).cast<double>())
                                           .head<2>())
                     : worldCentroid(h, c / static_cast<float>(part.size()));
+      // What a scan saw of it moves its centroid too: a standing car shows more of itself as
+      // the ego comes nearer (parked_leaves at 128 rings, scan 20: 0.26 m, and it went moving
+      // 0.5 s before it starts). Where its outline, matched against the object in the next scan,
+      // matches in place as well as anywhere (in 1.6 m of outline at least, half of it), it
+      // stands within a cell: a centroid step over kCompositionSlack is what the scans saw, and
+      // it is where the next scan had it. Not a shift otherwise: the outline's is known to a
+      // cell, and its errors would add up along the chain.
+      if (!m.by_ends && track.at.front().first == t + 1 &&
+          (track.at.front().second - here).norm() > kCompositionSlack) {
+        if (next_of.empty()) {
+          next_of.resize(next.extent.size());
+          for (const PointXYZI& x : next_points)
+            if (const uint32_t* o = objectOf(next, x.xyz())) next_of[*o].push_back(x.xyz());
+        }
+        std::vector<Eigen::Vector3f> mine;
+        mine.reserve(part.size());
+        for (const uint32_t k : part) mine.push_back(h.at_next[k]);
+        const OutlineShift os = outlineShift(mine, next_of[m.object], kShift);
+        const auto min_cells = static_cast<std::size_t>(std::ceil(kShiftMinFace / kShift.cell));
+        if (os.cells >= min_cells && os.at_rest == os.at_shift && 2 * os.at_rest >= os.cells)
+          here = track.at.front().second;
+      }
       // Its motion here: to its last known place within half of the half window after it (a
       // longer span steadies a slow walker's jittering centroid; a shorter one keeps a car
       // that starts two scans later standing here).
