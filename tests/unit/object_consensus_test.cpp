@@ -1957,8 +1957,8 @@ TEST(OutlineShift, ASideSlidingAlongItselfShowsItsEnds) {
 }
 
 TEST(OutlineShift, AStandingCarShowingMoreOfItselfMatchesInPlace) {
-  // Rule 4 backwards, "What a scan saw of it": standing, more of its side in view in the target
-  // (their centroids 0.75 m apart), its outline matches in place as well as anywhere.
+  // Rule 4 backwards, "What a scan saw of it": standing, 1.5 m more of its side in view in the
+  // target (its centroid moves with it), its outline matches in place as well as anywhere.
   const auto more = outlineShift(carFaces(0.0f, true, 0.0f, 3.0f), carFaces(0.0f));
   EXPECT_GE(more.cells, 11u);
   EXPECT_EQ(more.at_rest, more.at_shift);
