@@ -517,6 +517,40 @@ TEST(SimCases, AQueueCreepingPastAStandingSensorIsMeasuredMoving) {
   EXPECT_GE(first.recall(), 0.8);  // measured 0.925 (0.475 before)
 }
 
+// Rule 4's arrival, "How far it came" (doc/OBJECTS.md): queue_stop_go with its cars braking at
+// 2 m/s2 (`accel`). The first car stands 3.5 m beside the standing ego from 2.0 s; it came 0.16 m
+// in its last half second, and the labels call scans 21-22 static. The scans before saw a few
+// returns at its leading end empty (the ego's beams passed just beyond it there), and rule 4 held
+// the car as arriving (20,815 and 20,838 false positives, precision 0.965). Each of them saw the
+// place 0.2 m further in occupied: its side. What is left in scan 21 is the windowed test's own
+// flags at that end (scan 20, which came 0.25 m, is held and put none of the car into the
+// duplicate filter).
+// Where the vehicle came further, the place further in was empty, or hidden, in one of those
+// scans: stop_and_go as shipped stops at once from 6 m/s at 1.2 s, and scans 13-14 are held by
+// their arrival alone (recall 0.05 without it); truck_crawl seen by an OS1-64 at 512 columns
+// arrives at its leading end in its last scans, its side seen at 14 degrees, and its old end hid
+// the place further in (asking one scan to see it empty lost scans 74-79 whole).
+TEST(SimCases, ACarBrakingToAStandHasNotArrived) {
+  auto sc = scenario("queue_stop_go");
+  for (auto& m : sc.movers) m.accel = 2;
+  const auto braking = runCase(sc);
+  std::printf("  braking, scans 21-22: %llu false positives; all: precision %.4f, recall %.4f\n",
+              (unsigned long long)braking.frames(21, 23).fp, braking.all.precision(),
+              braking.all.recall());
+  EXPECT_LE(braking.frames(21, 23).fp, 1000u);  // measured 234 (41,653 before)
+  EXPECT_GE(braking.all.precision(), 0.99);     // measured 0.9998 (0.965)
+  EXPECT_GE(braking.all.recall(), 0.99);        // measured 0.9969 (0.9969)
+  const auto at_once = runCase(scenario("stop_and_go"));
+  std::printf("  stop_and_go, scans 13-14: recall %.4f\n", at_once.frames(13, 15).recall());
+  EXPECT_GE(at_once.frames(13, 15).recall(), 0.9);
+  auto truck = seenBy(scenario("truck_crawl"), SensorModel::kOs1_64);
+  truck.sensor.azimuth_step_deg = 360.0 / 512;
+  const auto crawling = runCase(truck);
+  std::printf("  truck_crawl at 512 columns, scans 74-79: recall %.4f\n",
+              crawling.frames(74, 80).recall());
+  EXPECT_GE(crawling.frames(74, 80).recall(), 0.9);
+}
+
 TEST(SimCases, AWaitingCarWhoseSideComesAndGoesIsCarriedBack) {
   // doc/OBJECTS.md rule 4 backwards, "Its side comes and goes": the default street's overtaking
   // car waits 17-20 m behind the ego for half a second and drives off, moving by the labels from

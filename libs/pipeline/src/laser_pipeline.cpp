@@ -48,6 +48,9 @@ constexpr std::size_t kRule4Sample = 2000;
 // Rule 4's arrival at a large object's ends (doc/OBJECTS.md): m along its length from either end,
 // the new space a vehicle at stop-and-go speeds (up to 2 m/s) sweeps in half a window (0.5 s).
 constexpr double kArrivalEnd = 1.0;
+// Rule 4's arrival, "How far it came" (doc/OBJECTS.md): m, the labels' static band (under 0.2 m
+// over +-0.5 s): an object the scans before saw standing this far in from its new place came less.
+constexpr double kArrivalDepth = 0.2;
 // Rule 7's outline match (doc/OBJECTS.md, "Measured"): the grid, the other scans' points in
 // columns of this side (m), up to this far above the object's top (m), and the least gain in
 // matched cells (or 5 % of the outline's) for a shift to count.
@@ -1331,12 +1334,31 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
       // alone (their places were empty less than half a window ago). A vehicle coming
       // towards the sensor shows only its front, which the scans after it see inside it; one that
       // stopped moved within the last K / 2 scans: moving, as the labels' +-0.5 s count it.
+      // How far it came: a point does not count where the place kArrivalDepth further in
+      // (towards its centroid, level) was occupied for all of those scans. A car braking to a
+      // stand came 0.16 m in its last 0.5 s (static by the labels), and the scans before saw the
+      // few returns at its leading end empty.
+      Eigen::Vector2d mid = Eigen::Vector2d::Zero();
+      for (const uint32_t i : idx) mid += w.world[i].head<2>();
+      mid /= static_cast<double>(idx.size());
+      const auto arrivedAt = [&](uint32_t i) {
+        const uint8_t edges = edgeBits(s, i, own);
+        if (!test_.isMoving(w.world[i], *just_before, nullptr, edges)) return 0;
+        const Eigen::Vector2d in = mid - w.world[i].head<2>();
+        const double to_mid = in.norm();
+        if (to_mid <= kArrivalDepth) return 1;  // its middle: the whole object came
+        Eigen::Vector3d deeper = w.world[i];
+        deeper.head<2>() += in * (kArrivalDepth / to_mid);
+        // It stood there throughout where each of those scans alone (DESIGN §2b's mass of that
+        // scan) saw that place occupied. Not "one saw it empty": a vehicle moving along its side
+        // seen at a grazing angle hides its new place behind its old end.
+        for (const WindowScan& by : *just_before)
+          if (!ds::isOccupied(test_.scanMass(deeper, by, nullptr, nullptr, edges))) return 1;
+        return 0;
+      };
       int arrived = 0;
       for (std::size_t k = 0; k < idx.size(); k += stride)  // each asked point stands for stride
-        if ((arrived +=
-             static_cast<int>(stride) * test_.isMoving(w.world[idx[k]], *just_before, nullptr,
-                                                       edgeBits(s, idx[k], own))) >= op.min_moving)
-          return true;
+        if ((arrived += static_cast<int>(stride) * arrivedAt(idx[k])) >= op.min_moving) return true;
       if (stride == 1) return false;
       // A large object arrives at its ends: its leading end's new place is a few columns, which
       // the sample above can step over (a crawling truck's dozen arrivals among 24,000 points).
@@ -1347,9 +1369,7 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
           std::max<std::size_t>(1, (ends.size() + kRule4Sample - 1) / kRule4Sample);
       arrived = 0;
       for (std::size_t j = 0, k = 0; k < ends.size(); ++j, k = j * end_stride + j % end_stride)
-        if ((arrived += static_cast<int>(end_stride) *
-                        test_.isMoving(w.world[ends[k]], *just_before, nullptr,
-                                       edgeBits(s, ends[k], own))) >= op.min_moving)
+        if ((arrived += static_cast<int>(end_stride) * arrivedAt(ends[k])) >= op.min_moving)
           return true;
       return false;
     };

@@ -134,11 +134,16 @@ inline double discreteBelief(double range_p, double range_farthest, const DsPara
   return beliefAtRatio(rangeRatio(range_p, range_farthest), p);
 }
 
+/// Occupied is the largest mass.
+inline bool isOccupied(const Mass& m) {
+  return m.o > m.e && m.o > m.u;
+}
+
 /// Eq. (8)-(10): the prevailing state keeps mass l, the rest goes to unknown.
 inline Mass discretise(const Mass& m, double l) {
   Mass d;
   d.e = (m.e > m.o && m.e > m.u) ? l : 0.0;
-  d.o = (m.o > m.e && m.o > m.u) ? l : 0.0;
+  d.o = isOccupied(m) ? l : 0.0;
   d.u = 1.0 - d.e - d.o;
   return d;
 }
