@@ -1968,6 +1968,52 @@ TEST(OutlineShift, AStandingCarShowingMoreOfItselfMatchesInPlace) {
   EXPECT_LT(moved.at_rest, moved.at_shift);
 }
 
+TEST(OutlineShift, ASideAloneShowsHowFarItsEndsMoved) {
+  // doc/OBJECTS.md rule 7, "A side's ends": a truck's side alone, 0.3 m further on in the target
+  // (two cells; a whole-outline match cannot tell it from a side seen over another stretch).
+  const auto object = carFaces(0.0f, false, 0.0f, 12.0f);
+  const auto target = carFaces(0.3f, false, 0.0f, 12.0f);
+  const auto m = outlineShift(object, target);
+  EXPECT_NEAR(m.side.x(), 1.0f, 1e-4f);
+  EXPECT_NEAR(m.side.y(), 0.0f, 1e-4f);
+  EXPECT_NEAR(m.end_shift[0], 0.3f, 0.02f);  // its rear end
+  EXPECT_NEAR(m.end_shift[1], 0.3f, 0.02f);  // its front end
+  // Where the object's side alone stood (its rear's last 0.15 m) and the target's alone (its
+  // front's), each more than a cell beyond the other's end.
+  ASSERT_FALSE(m.end_object[0].empty());
+  for (const uint32_t i : m.end_object[0]) EXPECT_LT(object[i].x(), 0.16f) << i;
+  ASSERT_FALSE(m.end_target[1].empty());
+  for (const uint32_t i : m.end_target[1]) EXPECT_GT(target[i].x(), 12.14f) << i;
+  EXPECT_TRUE(m.end_object[1].empty());
+  EXPECT_TRUE(m.end_target[0].empty());
+  // Standing: its ends where they were, nothing beyond them.
+  const auto still = outlineShift(object, object);
+  EXPECT_NEAR(still.end_shift[0], 0.0f, 1e-4f);
+  EXPECT_NEAR(still.end_shift[1], 0.0f, 1e-4f);
+  for (int e = 0; e < 2; ++e)
+    EXPECT_TRUE(still.end_object[e].empty() && still.end_target[e].empty());
+}
+
+TEST(OutlineShift, ASideOnAWallOrWithAFaceHasNoEnds) {
+  // A 4.5 m piece of a 20 m wall: the target's runs on past the reach at both ends, which tell
+  // nothing (the pipeline asks the other scan about no place there).
+  const auto piece = carFaces(0.0f, false, 0.0f, 4.5f);
+  const auto wall = outlineShift(piece, carFaces(-8.0f, false, 0.0f, 20.0f));
+  EXPECT_FALSE(wall.side.isZero());
+  EXPECT_TRUE(std::isnan(wall.end_shift[0]));
+  EXPECT_TRUE(std::isnan(wall.end_shift[1]));
+  // A car showing its rear and its side is no straight side.
+  const auto car = outlineShift(carFaces(0.0f), carFaces(0.3f));
+  EXPECT_TRUE(car.side.isZero());
+  // A side the target saw over another stretch 1 m on: both ends differ by 1 m; the places one
+  // saw and the other did not are for the pipeline to ask (not empty there).
+  const auto other = outlineShift(piece, carFaces(1.0f, false, 0.0f, 4.5f));
+  EXPECT_NEAR(other.end_shift[0], 1.0f, 0.02f);
+  EXPECT_NEAR(other.end_shift[1], 1.0f, 0.02f);
+  EXPECT_FALSE(other.end_object[0].empty());
+  EXPECT_FALSE(other.end_target[1].empty());
+}
+
 TEST(OutlineShift, AStandingCarMatchesWhereItIs) {
   auto target = carFaces(0.0f);
   for (std::size_t i = 0; i < target.size(); ++i)  // 2 cm of range noise

@@ -23,6 +23,81 @@ struct Heights {
   bool span(std::size_t c, float min_span) const { return hi[c] - lo[c] >= min_span; }
 };
 
+// OutlineShift::side and its ends (doc/OBJECTS.md rule 7, "A side's ends"). `cells`: the
+// object's outline cells; `mine`, `theirs`: 1 on the object's and the target's outline cells;
+// `at(q, x, y)`: q's cell, false outside the grid (whose margin is the reach and two cells).
+template <class At>
+void sideEnds(const std::vector<Eigen::Vector3f>& object,
+              const std::vector<Eigen::Vector3f>& target, const std::vector<int>& cells,
+              const std::vector<uint8_t>& mine, const std::vector<uint8_t>& theirs, int w,
+              const Eigen::Vector2f& origin, float cell, float reach, At&& at, OutlineShift& out) {
+  if (cells.size() < 3) return;
+  // The line through the cells' centres (cell units): the larger axis of their spread.
+  double sx = 0, sy = 0, sxx = 0, syy = 0, sxy = 0;
+  for (const int c : cells) {
+    const double x = c % w, y = c / w;
+    sx += x, sy += y, sxx += x * x, syy += y * y, sxy += x * y;
+  }
+  const double n = static_cast<double>(cells.size()), mx = sx / n, my = sy / n;
+  const double a = sxx / n - mx * mx, d = syy / n - my * my, b = sxy / n - mx * my;
+  const double mid = 0.5 * (a + d), r = std::sqrt(0.25 * (a - d) * (a - d) + b * b);
+  if (mid - r > 1.0) return;  // spread across over a cell: not one straight side
+  Eigen::Vector2d u = std::abs(b) > 1e-12
+                          ? Eigen::Vector2d(b, mid + r - a)
+                          : (a >= d ? Eigen::Vector2d(1, 0) : Eigen::Vector2d(0, 1));
+  u.normalize();
+  if (u.x() < 0 || (u.x() == 0 && u.y() < 0)) u = -u;
+  out.side = u.cast<float>();
+  // Along and across the line, in metres, of a point in an outline cell of `on`.
+  const Eigen::Vector2f centre = origin + Eigen::Vector2f((static_cast<float>(mx) + 0.5f) * cell,
+                                                          (static_cast<float>(my) + 0.5f) * cell);
+  const float band = 2 * cell, gap = 3 * cell;
+  const auto place = [&](const Eigen::Vector3f& q, const std::vector<uint8_t>& on, float& t) {
+    int x, y;
+    if (!at(q, x, y) || on[static_cast<std::size_t>(y) * w + x] != 1) return false;
+    const Eigen::Vector2f v = q.head<2>() - centre;
+    t = v.dot(out.side);
+    return std::abs(v.x() * out.side.y() - v.y() * out.side.x()) <= band;
+  };
+  float lo = std::numeric_limits<float>::infinity(), hi = -lo;
+  std::vector<float> t_object(object.size(), std::numeric_limits<float>::quiet_NaN());
+  for (std::size_t i = 0; i < object.size(); ++i) {
+    float t;
+    if (!place(object[i], mine, t)) continue;
+    t_object[i] = t;
+    lo = std::min(lo, t), hi = std::max(hi, t);
+  }
+  if (!(lo <= hi)) return;
+  std::vector<std::pair<float, uint32_t>> line;  // the target's points on it, by t
+  for (uint32_t i = 0; i < target.size(); ++i) {
+    float t;
+    if (place(target[i], theirs, t)) line.emplace_back(t, i);
+  }
+  std::sort(line.begin(), line.end());
+  // The target's stretch: from its points beside the object's, on while the gaps are small.
+  std::size_t first = 0;
+  while (first < line.size() && line[first].first < lo) ++first;
+  if (first == line.size() || line[first].first > hi) return;
+  std::size_t last = first;
+  while (last + 1 < line.size() && line[last + 1].first <= hi) ++last;
+  while (last + 1 < line.size() && line[last + 1].first - line[last].first <= gap) ++last;
+  while (first > 0 && line[first].first - line[first - 1].first <= gap) --first;
+  const float ends[2][2] = {{lo, line[first].first}, {hi, line[last].first}};
+  for (int e = 0; e < 2; ++e) {
+    const float mine_end = ends[e][0], theirs_end = ends[e][1], sign = e ? 1.0f : -1.0f;
+    const float beyond = sign * (theirs_end - mine_end);  // > 0: the target's runs on further
+    if (beyond > reach) continue;
+    out.end_shift[e] = theirs_end - mine_end;
+    if (beyond > cell) {
+      for (std::size_t k = first; k <= last; ++k)
+        if (sign * (line[k].first - mine_end) > cell) out.end_target[e].push_back(line[k].second);
+    } else if (-beyond > cell) {
+      for (uint32_t i = 0; i < object.size(); ++i)
+        if (sign * (t_object[i] - theirs_end) > cell) out.end_object[e].push_back(i);
+    }
+  }
+}
+
 }  // namespace
 
 OutlineShift outlineShift(const std::vector<Eigen::Vector3f>& object,
@@ -76,6 +151,8 @@ OutlineShift outlineShift(const std::vector<Eigen::Vector3f>& object,
   }
   std::sort(cells.begin(), cells.end());
   out.cells = cells.size();
+  sideEnds(object, target, cells, mine, theirs, w, origin, cell, static_cast<float>(p.reach), at,
+           out);
   const auto count = [&](int dx, int dy) {
     std::size_t n = 0;
     const int d = dy * w + dx;

@@ -1481,12 +1481,12 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
         const bool side = found && m.facing < kShiftMinGain && m.along >= kShiftMinSide &&
                           10 * m.at_shift >= 9 * m.cells &&
                           m.along_at_shift >= m.along_at_rest + kShiftEndGain;
-        if (!faces && !side) return Eigen::Vector2f(Eigen::Vector2f::Zero());
         // Where it stood in one scan and not in the other, the other scan sees empty space (a
         // static object that scan did not see matches the same way, shifted onto another): a
-        // third of the facing evidence, half of a side's trailing end: this scan's places seen by
-        // the other scan. Or, facing, the other scan's seen by this one: a vehicle driving away
-        // from the sensor hid its new place behind its old one from the earlier scan.
+        // third of the facing evidence, half of a side's trailing end (or of a side's end, below):
+        // this scan's places seen by the other scan. Or, facing, the other scan's seen by this
+        // one: a vehicle driving away from the sensor hid its new place behind its old one from
+        // the earlier scan.
         const auto emptyIn = [&](const std::vector<Eigen::Vector3f>& points,
                                  const std::vector<uint32_t>& ev, const WindowScan& by) {
           std::size_t empty = 0;
@@ -1497,9 +1497,32 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
           return empty >= need;
         };
         const bool gone =
-            emptyIn(outline, faces ? m.evidence : m.end_evidence, seen) ||
-            (faces && seen_now.beams && emptyIn(target, m.old_evidence, seenNow(seen)));
-        return gone ? m.shift : Eigen::Vector2f(Eigen::Vector2f::Zero());
+            (faces || side) &&
+            (emptyIn(outline, faces ? m.evidence : m.end_evidence, seen) ||
+             (faces && seen_now.beams && emptyIn(target, m.old_evidence, seenNow(seen))));
+        if (gone) return m.shift;
+        // A side's ends (doc/OBJECTS.md rule 7): no face in view, the outline one straight side.
+        // Where one scan saw the side beyond the other's end and the other saw that place empty,
+        // that end moved by the difference. The other scan holds both ends (a side it sees run
+        // on is a piece of something longer), and a rigid side's ends move together: they agree
+        // (a side whose seen length changed was cut by its view).
+        if (faces || !found || m.side.isZero() || !std::isfinite(m.end_shift[0]) ||
+            !std::isfinite(m.end_shift[1]) ||
+            std::abs(m.end_shift[0] - m.end_shift[1]) > 2 * kShift.cell)
+          return Eigen::Vector2f(Eigen::Vector2f::Zero());
+        float sum = 0;
+        int told = 0;
+        for (int e = 0; e < 2; ++e) {
+          const bool empty = !m.end_object[e].empty() ? emptyIn(outline, m.end_object[e], seen)
+                             : !m.end_target[e].empty()
+                                 ? seen_now.beams && emptyIn(target, m.end_target[e], seenNow(seen))
+                                 : false;
+          if (!empty) continue;
+          sum += m.end_shift[e];
+          ++told;
+        }
+        if (!told) return Eigen::Vector2f(Eigen::Vector2f::Zero());
+        return Eigen::Vector2f(m.side * (sum / static_cast<float>(told)));
       };
       // Moving by the labels' measure (as rule 4 backwards): more than kMovedDistance between
       // half a window before and half a window after.

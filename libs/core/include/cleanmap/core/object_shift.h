@@ -9,6 +9,7 @@
 #include <Eigen/Core>
 #include <cstddef>
 #include <cstdint>
+#include <limits>
 #include <vector>
 
 namespace cleanmap {
@@ -49,6 +50,19 @@ struct OutlineShift {
   std::vector<uint32_t> evidence, old_evidence;
   std::size_t along = 0, along_at_rest = 0, along_at_shift = 0;
   std::vector<uint32_t> end_evidence;
+  /// A side's ends, found whatever the shift (doc/OBJECTS.md rule 7, "A side's ends"): where the
+  /// object's outline cells lie on one straight line (spread across it at most a cell), `side` is
+  /// its direction (unit; zero otherwise). Per end (0 the lower along `side`, 1 the upper):
+  /// `end_shift`, how far along `side` the target's stretch of that line (its outline within two
+  /// cells of it, unbroken by gaps over three cells) ends beyond the object's (m, signed; NaN
+  /// where the target has none of it or its stretch runs on past `reach`), and the points one
+  /// holds beyond the other's end by more than a cell: `end_object` (indices into the object) or
+  /// `end_target` (into the target). Where one scan saw the side and the other did not; a side
+  /// that slid along itself left the other scan's view of that place empty.
+  Eigen::Vector2f side = Eigen::Vector2f::Zero();
+  float end_shift[2] = {std::numeric_limits<float>::quiet_NaN(),
+                        std::numeric_limits<float>::quiet_NaN()};
+  std::vector<uint32_t> end_object[2], end_target[2];
 };
 
 /// Matches the outline of `object` (its points, any frame with z up) against that of `target`
