@@ -23,6 +23,18 @@ struct Heights {
   bool span(std::size_t c, float min_span) const { return hi[c] - lo[c] >= min_span; }
 };
 
+// The spread of n points from their sums (cell units): the variances a (x), d (y), b (x y), and
+// its eigenvalues, `along` its main axis and `across` it.
+struct Spread {
+  double a, d, b, along, across;
+};
+Spread spreadOf(double n, double sx, double sy, double sxx, double syy, double sxy) {
+  const double a = sxx / n - (sx / n) * (sx / n), d = syy / n - (sy / n) * (sy / n);
+  const double b = sxy / n - (sx / n) * (sy / n);
+  const double mid = 0.5 * (a + d), r = std::sqrt(0.25 * (a - d) * (a - d) + b * b);
+  return {a, d, b, mid + r, mid - r};
+}
+
 // OutlineShift::side and its ends (doc/OBJECTS.md rule 7, "A side's ends"). `cells`: the
 // object's outline cells; `mine`, `theirs`: 1 on the object's and the target's outline cells;
 // `at(q, x, y)`: q's cell, false outside the grid (whose margin is the reach and two cells).
@@ -39,12 +51,11 @@ void sideEnds(const std::vector<Eigen::Vector3f>& object,
     sx += x, sy += y, sxx += x * x, syy += y * y, sxy += x * y;
   }
   const double n = static_cast<double>(cells.size()), mx = sx / n, my = sy / n;
-  const double a = sxx / n - mx * mx, d = syy / n - my * my, b = sxy / n - mx * my;
-  const double mid = 0.5 * (a + d), r = std::sqrt(0.25 * (a - d) * (a - d) + b * b);
-  if (mid - r > 1.0) return;  // spread across over a cell: not one straight side
-  Eigen::Vector2d u = std::abs(b) > 1e-12
-                          ? Eigen::Vector2d(b, mid + r - a)
-                          : (a >= d ? Eigen::Vector2d(1, 0) : Eigen::Vector2d(0, 1));
+  const Spread f = spreadOf(n, sx, sy, sxx, syy, sxy);
+  if (f.across > 1.0) return;  // spread across over a cell: not one straight side
+  Eigen::Vector2d u = std::abs(f.b) > 1e-12
+                          ? Eigen::Vector2d(f.b, f.along - f.a)
+                          : (f.a >= f.d ? Eigen::Vector2d(1, 0) : Eigen::Vector2d(0, 1));
   u.normalize();
   if (u.x() < 0 || (u.x() == 0 && u.y() < 0)) u = -u;
   out.side = u.cast<float>();
@@ -198,15 +209,12 @@ OutlineShift outlineShift(const std::vector<Eigen::Vector3f>& object,
         n += 1, sx += dx, sy += dy, sxx += dx * dx, syy += dy * dy, sxy += dx * dy;
       }
     if (n < 3) continue;
-    const double a = sxx / n - (sx / n) * (sx / n), d = syy / n - (sy / n) * (sy / n);
-    const double b = sxy / n - (sx / n) * (sy / n);
-    const double mid = 0.5 * (a + d), r = std::sqrt(0.25 * (a - d) * (a - d) + b * b);
-    const double along = mid + r, across = mid - r;
-    if (!(across < 0.2 * along)) continue;  // not a line: a roof's fill, a corner, a blob
+    const Spread f = spreadOf(n, sx, sy, sxx, syy, sxy);
+    if (!(f.across < 0.2 * f.along)) continue;  // not a line: a roof's fill, a corner, a blob
     // The line's normal: the eigenvector of the smaller eigenvalue.
-    Eigen::Vector2d nrm = std::abs(b) > 1e-12
-                              ? Eigen::Vector2d(b, across - a)
-                              : (a <= d ? Eigen::Vector2d(1, 0) : Eigen::Vector2d(0, 1));
+    Eigen::Vector2d nrm = std::abs(f.b) > 1e-12
+                              ? Eigen::Vector2d(f.b, f.across - f.a)
+                              : (f.a <= f.d ? Eigen::Vector2d(1, 0) : Eigen::Vector2d(0, 1));
     nrm.normalize();
     if (std::abs(nrm.x() * u.x() + nrm.y() * u.y()) < std::sqrt(0.5)) {
       // A side along the shift: its cells that match only shifted are its ends.

@@ -139,18 +139,18 @@ inline bool isOccupied(const Mass& m) {
   return m.o > m.e && m.o > m.u;
 }
 
-/// Eq. (8)-(10): the prevailing state keeps mass l, the rest goes to unknown.
-inline Mass discretise(const Mass& m, double l) {
-  Mass d;
-  d.e = (m.e > m.o && m.e > m.u) ? l : 0.0;
-  d.o = isOccupied(m) ? l : 0.0;
-  d.u = 1.0 - d.e - d.o;
-  return d;
-}
-
 /// Decision: moving iff empty is the largest mass of the window's combined evidence.
 inline bool isMoving(const Mass& m) {
   return m.e > m.o && m.e > m.u;
+}
+
+/// Eq. (8)-(10): the prevailing state keeps mass l, the rest goes to unknown.
+inline Mass discretise(const Mass& m, double l) {
+  Mass d;
+  d.e = isMoving(m) ? l : 0.0;  // empty prevails
+  d.o = isOccupied(m) ? l : 0.0;
+  d.u = 1.0 - d.e - d.o;
+  return d;
 }
 
 }  // namespace cleanmap::ds
