@@ -204,6 +204,19 @@ TEST(Config, BadIniIsAClearError) {
           io::parseParams(std::string("[filter]\nself_range = ") + bad + "\n", "x.ini", q);
         },
         "x.ini", "filter.self_range must be in [0, 10] m (0 = off)");
+  for (const char* bad : {"-0.05", "2"})  // doc/OBJECTS.md rule 1, "Beside a wall"
+    test::expectError(
+        [&] {
+          PipelineParams q;
+          io::parseParams(std::string("[object]\nwall_gap = ") + bad + "\n", "x.ini", q);
+        },
+        "x.ini", "object.wall_gap must be in [0, 1] m (0 = off)");
+  {  // read as written; 0 turns it off
+    PipelineParams q;
+    EXPECT_EQ(q.object.wall_gap, 0.15);
+    io::parseParams("[object]\nwall_gap = 0\n", "x.ini", q);
+    EXPECT_EQ(q.object.wall_gap, 0.0);
+  }
   {  // 0 turns the self returns off
     PipelineParams q;
     io::parseParams("[filter]\nself_range = 0\n", "x.ini", q);

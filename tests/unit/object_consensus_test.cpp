@@ -338,6 +338,110 @@ TEST(ObjectConsensus, AWalkerAgainstAPieceOfTheStreetKeepsHisMovingPoints) {
   EXPECT_EQ(moving, before);
 }
 
+namespace {
+
+// A 30 m wall's face as the sensor at the origin sees it (y = -6, from the sidewalk 0.12 m over
+// the road at z = -1.73 up to 2.5 m over it), the sidewalk before it (to y = -3.5), and a walker
+// (0.5 x 0.6 x 1.75 m, his back 5 cm from the face) at x 10: his front and his near side.
+struct WalkerAtAWall {
+  std::vector<PointXYZI> pts;
+  std::size_t walker = 0;  // his returns from here on
+  WalkerAtAWall() {
+    const float road = -1.73f, walk = road + 0.12f;
+    for (float x = -10; x <= 20; x += 0.1f) {
+      for (float z = walk; z <= road + 2.5f; z += 0.1f) pts.push_back({x, -6, z, 0});
+      for (float y = 3.55f; y <= 5.95f; y += 0.1f) pts.push_back({x, -y, walk, 0});
+    }
+    walker = pts.size();
+    for (float z = walk; z <= walk + 1.75f; z += 0.05f) {
+      for (float x = 10; x <= 10.5f; x += 0.05f) pts.push_back({x, -5.35f, z, 0});
+      for (float y = 5.4f; y <= 5.95f; y += 0.05f) pts.push_back({10, -y, z, 0});
+    }
+  }
+  std::size_t front() const {  // a return of his front at his waist
+    std::size_t i = walker;
+    while (!(std::abs(pts[i].y) < 5.4f && pts[i].z > -0.8f)) ++i;
+    return i;
+  }
+};
+
+}  // namespace
+
+TEST(ObjectConsensus, AWalkerAgainstAWallIsAnObjectOfHisOwn) {
+  // doc/OBJECTS.md rule 1, "Beside a wall": at any voxel the walker and the wall share voxels,
+  // and the structure took him whole. What stands on the structure's floor more than wall_gap in
+  // front of its plane, of a vehicle's size, is an object of its own; the sidewalk stays.
+  const WalkerAtAWall w;
+  const std::vector<uint8_t> member(w.pts.size(), 1);
+  ObjectParams p;
+  ObjectComponents cc;
+  groupObjects(w.pts, member, p.voxel, cc, ringReach(p, 0.0));
+  const auto rootOf = [&](std::size_t i) { return cc.root_of[cc.point_voxel[i]]; };
+  const std::size_t front = w.front();
+  const uint32_t wall = rootOf(0), him = rootOf(front);
+  EXPECT_NE(him, wall);
+  std::size_t his = 0, in_front = 0;
+  for (std::size_t i = w.walker; i < w.pts.size(); ++i) {
+    his += rootOf(i) == him;
+    in_front += w.pts[i].y > -5.85f + 0.3f;  // more than a voxel in front of the wall
+  }
+  EXPECT_GE(his, in_front);                     // his returns in voxels of their own, and his feet
+  for (std::size_t i = 0; i < w.walker; ++i) {  // but the sidewalk in the voxels of his feet
+    if (std::abs(w.pts[i].x - 10.25f) <= 0.6f) continue;
+    ASSERT_EQ(rootOf(i), wall) << "the wall's or sidewalk's point at " << w.pts[i].x << " "
+                               << w.pts[i].y << " " << w.pts[i].z;
+  }
+  ASSERT_FALSE(cc.piece.empty());
+  EXPECT_EQ(cc.piece[him], 1);  // rule 2 may turn him moving, never static
+  // With his front tested moving (a third of his returns), he moves whole; the wall stays.
+  std::vector<uint8_t> moving(w.pts.size(), 0);
+  for (std::size_t i = w.walker; i < w.pts.size(); ++i) moving[i] = w.pts[i].y > -5.4f;
+  ConsensusRules rules;
+  rules.reach = ringReach(p, 0.0);
+  objectConsensus(w.pts, member, moving, p, nullptr, nullptr, rules, &cc);
+  std::size_t his_moving = 0, wall_moving = 0;
+  for (std::size_t i = 0; i < w.pts.size(); ++i)
+    (i < w.walker ? wall_moving : his_moving) += moving[i];
+  EXPECT_GE(his_moving, his);
+  EXPECT_LE(wall_moving, 40u);  // the sidewalk by his feet at most (rule 2's foot)
+  // wall_gap 0 (off): one structure, as before.
+  ObjectParams off = p;
+  off.wall_gap = 0;
+  ObjectComponents joined;
+  groupObjects(w.pts, member, off.voxel, joined, ringReach(off, 0.0));
+  EXPECT_EQ(joined.root_of[joined.point_voxel[front]], joined.root_of[joined.point_voxel[0]]);
+}
+
+TEST(ObjectConsensus, WhatIsNotABodyBeforeAWallStaysTheWalls) {
+  ObjectParams p;
+  const auto joined = [&](const std::vector<PointXYZI>& pts, std::size_t a, std::size_t b,
+                          const Eigen::Vector2d& sensor = Eigen::Vector2d::Zero()) {
+    ObjectComponents cc;
+    groupObjects(pts, std::vector<uint8_t>(pts.size(), 1), p.voxel, cc, ringReach(p, 0.0, sensor));
+    return cc.root_of[cc.point_voxel[a]] == cc.root_of[cc.point_voxel[b]];
+  };
+  {  // Seen from behind the wall (the sensor on its other side): he is not in front of it.
+    const WalkerAtAWall w;
+    EXPECT_TRUE(joined(w.pts, 0, w.front(), Eigen::Vector2d(5, -12)));
+    EXPECT_FALSE(joined(w.pts, 0, w.front()));  // from the sidewalk's side he is
+  }
+  {  // A balcony 0.6 m deep, 1.2 m over the floor: it reaches no floor.
+    WalkerAtAWall w;
+    w.pts.resize(w.walker);
+    for (float z = -0.4f; z <= 0.5f; z += 0.05f) {
+      for (float x = 10; x <= 12; x += 0.05f) w.pts.push_back({x, -5.35f, z, 0});
+      for (float y = 5.4f; y <= 5.95f; y += 0.05f) w.pts.push_back({10, -y, z, 0});
+    }
+    EXPECT_TRUE(joined(w.pts, 0, w.pts.size() - 1));
+  }
+  {  // A corner: a second wall as long at right angles, no one plane holds the structure.
+    WalkerAtAWall w;
+    for (float y = -6; y <= 24; y += 0.1f)
+      for (float z = -1.61f; z <= 0.77f; z += 0.1f) w.pts.push_back({-10, y, z, 0});
+    EXPECT_TRUE(joined(w.pts, 0, w.front()));
+  }
+}
+
 TEST(ObjectConsensus, AFewFalseAlarmsOnAParkedCarAreDropped) {
   std::vector<PointXYZI> pts;
   addBox(pts, 0, 4.5f, -1, 1, 1.5f);

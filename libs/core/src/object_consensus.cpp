@@ -43,6 +43,31 @@ struct VoxelLinks {
   std::vector<uint32_t> start, after, up;
 };
 
+// Per column of voxels its members' lowest point, and the lowest of its 3 x 3 columns: the
+// floor that rule 1's low surfaces and walls measure heights from.
+class ColumnFloors {
+ public:
+  void add(const Eigen::Vector3i& c, float z) {
+    bool fresh = false;
+    float& low = low_.get(cellKey(c.x(), c.y(), 0), &fresh);
+    low = fresh ? z : std::min(low, z);
+  }
+  float floor(const Eigen::Vector3i& c) {  // after every add()
+    bool fresh = false;
+    float& f = floor_.get(cellKey(c.x(), c.y(), 0), &fresh);
+    if (fresh) {
+      f = 1e30f;
+      for (int dx = -1; dx <= 1; ++dx)
+        for (int dy = -1; dy <= 1; ++dy)
+          if (const float* l = low_.find(cellKey(c.x() + dx, c.y() + dy, 0))) f = std::min(f, *l);
+    }
+    return f;
+  }
+
+ private:
+  CellMap<float> low_, floor_;
+};
+
 // Low surfaces (doc/OBJECTS.md rule 1): a structure (a component larger than an object) joined
 // only through low voxels (a sidewalk that is not ground, 0.12 m up, between a parked car, a pole
 // and a wall) falls apart into the objects standing on them. A voxel is raised if it holds a
@@ -74,29 +99,13 @@ void splitOnLowSurfaces(const std::vector<PointXYZI>& points, ObjectComponents& 
     any = any || structure[v];
   }
   if (!any) return;
-  CellMap<float> column_low, column_floor;  // a column's lowest member; its 3 x 3 columns'
-  for (uint32_t v = 0; v < nv; ++v) {
-    bool fresh = false;
-    float& low = column_low.get(cellKey(cc.voxels[v].x(), cc.voxels[v].y(), 0), &fresh);
-    low = fresh ? z_lo[v] : std::min(low, z_lo[v]);
-  }
+  ColumnFloors columns;
+  for (uint32_t v = 0; v < nv; ++v) columns.add(cc.voxels[v], z_lo[v]);
   // 0: raised, 1: low under a raised voxel, 2: other low voxels.
   std::vector<uint8_t> kind(nv, 2);
   const float f = static_cast<float>(reach.foot);
-  for (uint32_t v = 0; v < nv; ++v) {
-    if (!structure[v]) continue;
-    const Eigen::Vector3i& c = cc.voxels[v];
-    bool fresh = false;
-    float& floor = column_floor.get(cellKey(c.x(), c.y(), 0), &fresh);
-    if (fresh) {
-      floor = 1e30f;
-      for (int dx = -1; dx <= 1; ++dx)
-        for (int dy = -1; dy <= 1; ++dy)
-          if (const float* l = column_low.find(cellKey(c.x() + dx, c.y() + dy, 0)))
-            floor = std::min(floor, *l);
-    }
-    if (z_hi[v] >= floor + f) kind[v] = 0;
-  }
+  for (uint32_t v = 0; v < nv; ++v)
+    if (structure[v] && z_hi[v] >= columns.floor(cc.voxels[v]) + f) kind[v] = 0;
   UnionFind uf(nv);
   for (uint32_t v = 0; v < nv; ++v) {
     if (!structure[v] || kind[v] == 0) continue;
@@ -147,6 +156,219 @@ void splitOnLowSurfaces(const std::vector<PointXYZI>& points, ObjectComponents& 
       cc.root_of[v] = uf.find(v);
       cc.piece[cc.root_of[v]] = 1;
     }
+}
+
+// Beside a wall (doc/OBJECTS.md rule 1): a body standing against an upright plane (a walker
+// with his back 5 cm from a wall) shares voxels with it at any voxel size, and the structure
+// takes him whole, out of the object rules. A structure's raised returns (reach.foot or more
+// over the lowest of their voxel's 3 x 3 columns: not a sidewalk along it) lie on one upright
+// plane where at least kWallShare of them lie within reach.wall_gap of a line fitted to their
+// voxels' columns (its offset then their median; half the columns must lie within wall_gap and
+// half a voxel's diagonal of it before the returns are asked). Its raised voxels most of whose
+// returns lie more than wall_gap in front of the plane (on the sensor's side, reach.origin), with
+// the low voxels right under them that do too, join among themselves; such a group of a vehicle's
+// size that reaches down to the structure's floor (within reach.foot) is a component of its own, a
+// piece (rule 2 may turn it moving, not static). The rest stays one structure as it was: recesses
+// and what lies behind the plane never part.
+void splitFromWalls(const std::vector<PointXYZI>& points, ObjectComponents& cc,
+                    const RingReach& reach, bool after_low_surfaces) {
+  constexpr double kWallShare = 0.75;
+  const std::size_t nv = cc.voxels.size();
+  if (nv == 0 || reach.wall_gap <= 0) return;
+  // The structures and their pieces: after the low surfaces' split, the roots it marked (every
+  // structure's, whether it fell apart or not); without it, the components over a vehicle's size.
+  std::vector<uint8_t> structure(nv, 0);
+  bool any = false;
+  if (after_low_surfaces) {
+    for (uint32_t r = 0; r < cc.piece.size(); ++r)
+      if (cc.root_of[r] == r && cc.piece[r]) structure[r] = 1, any = true;
+  } else {
+    std::vector<Eigen::Vector3f> lo(nv, Eigen::Vector3f::Constant(1e30f)),
+        hi(nv, Eigen::Vector3f::Constant(-1e30f));
+    for (std::size_t i = 0; i < points.size(); ++i) {
+      const uint32_t v = cc.point_voxel[i];
+      if (v == UINT32_MAX) continue;
+      lo[cc.root_of[v]] = lo[cc.root_of[v]].cwiseMin(points[i].xyz());
+      hi[cc.root_of[v]] = hi[cc.root_of[v]].cwiseMax(points[i].xyz());
+    }
+    for (uint32_t r = 0; r < nv; ++r)
+      if (cc.root_of[r] == r && lo[r].x() <= hi[r].x() &&
+          !vehicleSized(lo[r], hi[r], reach.max_length, reach.max_height))
+        structure[r] = 1, any = true;
+  }
+  if (!any) return;
+  // The structures' voxels and points, by root; their columns' lowest returns.
+  std::vector<uint32_t> vox_root, vox_index, pt_root, pt_index;
+  for (uint32_t v = 0; v < nv; ++v)
+    if (structure[cc.root_of[v]]) {
+      vox_root.push_back(cc.root_of[v]);
+      vox_index.push_back(v);
+    }
+  std::vector<float> z_lo(nv, 1e30f), z_hi(nv, -1e30f);
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    const uint32_t v = cc.point_voxel[i];
+    if (v == UINT32_MAX || !structure[cc.root_of[v]]) continue;
+    pt_root.push_back(cc.root_of[v]);
+    pt_index.push_back(static_cast<uint32_t>(i));
+    z_lo[v] = std::min(z_lo[v], points[i].z);
+    z_hi[v] = std::max(z_hi[v], points[i].z);
+  }
+  Grouped vox_of, pts_of;
+  vox_of.assign(vox_root, nv, &vox_index);
+  pts_of.assign(pt_root, nv, &pt_index);
+  ColumnFloors columns;
+  for (const uint32_t v : vox_index) columns.add(cc.voxels[v], z_lo[v]);
+  const float foot = static_cast<float>(reach.foot);
+  std::vector<float> floor(nv, 1e30f);  // per structure voxel: the lowest of its 3 x 3 columns
+  for (const uint32_t v : vox_index) floor[v] = columns.floor(cc.voxels[v]);
+  const auto raised = [&](std::size_t i) { return points[i].z >= floor[cc.point_voxel[i]] + foot; };
+  const double side = cc.side;
+  const float gap = static_cast<float>(reach.wall_gap);
+  std::vector<uint8_t> off(nv, 0);
+  std::vector<uint32_t> in_voxel(nv, 0), off_in_voxel(nv, 0), new_root(nv, UINT32_MAX);
+  std::vector<float> offset;
+  UnionFind uf(nv);  // the groups in front of a plane, and their boxes and floors
+  std::vector<Eigen::Vector3f> glo(nv), ghi(nv);
+  std::vector<float> gfloor(nv);
+  bool split_any = false;
+  for (uint32_t r = 0; r < nv; ++r) {
+    if (!structure[r]) continue;
+    const auto vs = vox_of[r];
+    const auto ps = pts_of[r];
+    // The line: the main axis of the raised voxels' columns, then of those within a voxel of
+    // the line through their median offset.
+    Eigen::Vector2d mean = Eigen::Vector2d::Zero(), n = Eigen::Vector2d::Zero();
+    const auto centre = [&](uint32_t v) {
+      return Eigen::Vector2d((cc.voxels[v].head<2>().cast<double>().array() + 0.5) * side);
+    };
+    const auto fit = [&](auto&& keep) {
+      Eigen::Vector2d m = Eigen::Vector2d::Zero();
+      Eigen::Matrix2d s = Eigen::Matrix2d::Zero();
+      std::size_t k = 0;
+      for (const uint32_t v : vs) {
+        const Eigen::Vector2d c = centre(v);
+        if (z_hi[v] < floor[v] + foot || !keep(c)) continue;
+        m += c;
+        s += c * c.transpose();
+        ++k;
+      }
+      if (k < 2) return false;
+      m /= static_cast<double>(k);
+      s = s / static_cast<double>(k) - m * m.transpose();
+      const double angle = 0.5 * std::atan2(2 * s(0, 1), s(0, 0) - s(1, 1));  // the main axis
+      mean = m;
+      n = Eigen::Vector2d(-std::sin(angle), std::cos(angle));
+      return true;
+    };
+    const auto across = [&](std::size_t i) {
+      return n.dot(Eigen::Vector2d(points[i].x, points[i].y) - mean);
+    };
+    const auto median_offset = [&] {
+      offset.clear();
+      for (const uint32_t i : ps)
+        if (raised(i)) offset.push_back(static_cast<float>(across(i)));
+      if (offset.empty()) return 0.0;  // (a raised voxel holds a raised return)
+      auto mid = offset.begin() + static_cast<std::ptrdiff_t>(offset.size() / 2);
+      std::nth_element(offset.begin(), mid, offset.end());
+      return static_cast<double>(*mid);
+    };
+    const auto voxels_median = [&] {  // the raised voxels' columns' median offset
+      offset.clear();
+      for (const uint32_t v : vs)
+        if (z_hi[v] >= floor[v] + foot)
+          offset.push_back(static_cast<float>(n.dot(centre(v) - mean)));
+      auto mid = offset.begin() + static_cast<std::ptrdiff_t>(offset.size() / 2);
+      std::nth_element(offset.begin(), mid, offset.end());
+      return static_cast<double>(*mid);
+    };
+    if (!fit([](const Eigen::Vector2d&) { return true; })) continue;
+    double c = voxels_median();
+    const Eigen::Vector2d m0 = mean, n0 = n;
+    if (!fit([&](const Eigen::Vector2d& x) { return std::abs(n0.dot(x - m0) - c) <= side; }))
+      continue;
+    // Before the returns are asked: a plane holding 3 in 4 of them holds most raised voxels
+    // within wall_gap and half a voxel's diagonal (a structure of other shapes ends here).
+    c = voxels_median();
+    std::size_t near = 0;
+    for (const float o : offset) near += std::abs(o - c) <= reach.wall_gap + side * M_SQRT1_2;
+    if (2 * near < offset.size()) continue;
+    c = median_offset();
+    const double sensor = n.dot(reach.origin - mean) - c;  // the sensor's side of the plane
+    if (std::abs(sensor) <= reach.wall_gap) continue;
+    const float sign = sensor > 0 ? 1.f : -1.f;
+    std::size_t on_plane = 0, raised_n = 0;
+    for (const uint32_t i : ps) {
+      const float d = sign * static_cast<float>(across(i) - c);
+      if (raised(i)) {
+        ++raised_n;
+        on_plane += std::abs(d) <= gap;
+      }
+      ++in_voxel[cc.point_voxel[i]];
+      off_in_voxel[cc.point_voxel[i]] += d > gap;
+    }
+    if (static_cast<double>(on_plane) < kWallShare * static_cast<double>(raised_n)) continue;
+    bool has_off = false;
+    for (const uint32_t v : vs) {
+      off[v] = 2 * off_in_voxel[v] > in_voxel[v] && z_hi[v] >= floor[v] + foot;
+      has_off = has_off || off[v];
+    }
+    if (!has_off) continue;
+    for (const uint32_t v : vs) {
+      if (off[v] || 2 * off_in_voxel[v] <= in_voxel[v]) continue;
+      const Eigen::Vector3i& x = cc.voxels[v];
+      const uint32_t* up = cc.voxel_of.find(cellKey(x.x(), x.y(), x.z() + 1));
+      if (up && off[*up] == 1 && cc.root_of[*up] == r) off[v] = 2;  // low, under a raised one
+    }
+    // The groups in front of the plane.
+    for (const uint32_t v : vs) {  // (only this structure's voxels take part)
+      uf.parent[v] = v;
+      glo[v] = Eigen::Vector3f::Constant(1e30f);
+      ghi[v] = Eigen::Vector3f::Constant(-1e30f);
+      gfloor[v] = 1e30f;
+    }
+    for (const uint32_t v : vs) {
+      if (!off[v]) continue;
+      forEachLinked(cc, v, [&](uint32_t w) {
+        if (off[w] && cc.root_of[w] == r) uf.unite(v, w);
+      });
+    }
+    for (const uint32_t i : ps) {
+      const uint32_t v = cc.point_voxel[i];
+      if (!off[v]) continue;
+      const uint32_t g = uf.find(v);
+      glo[g] = glo[g].cwiseMin(points[i].xyz());
+      ghi[g] = ghi[g].cwiseMax(points[i].xyz());
+      gfloor[g] = std::min(gfloor[g], floor[v]);
+    }
+    for (const uint32_t v : vs) {
+      if (!off[v]) continue;
+      const uint32_t g = uf.find(v);
+      if (vehicleSized(glo[g], ghi[g], reach.max_length, reach.max_height) &&
+          glo[g].z() <= gfloor[g] + foot) {
+        new_root[v] = g;  // the group's smallest voxel (UnionFind keeps the smaller root)
+        split_any = true;
+      }
+    }
+  }
+  if (!split_any) return;
+  // The rest of each structure is rooted at its smallest voxel left.
+  std::vector<uint32_t> rest(nv, UINT32_MAX);
+  for (uint32_t v = 0; v < nv; ++v)
+    if (new_root[v] == UINT32_MAX && structure[cc.root_of[v]] && rest[cc.root_of[v]] == UINT32_MAX)
+      rest[cc.root_of[v]] = v;
+  if (cc.piece.empty()) cc.piece.assign(nv, 0);
+  const std::vector<uint8_t> was_piece(cc.piece);
+  for (uint32_t v = 0; v < nv; ++v) {
+    const uint32_t r = cc.root_of[v];
+    if (!structure[r]) continue;
+    if (new_root[v] != UINT32_MAX) {
+      cc.root_of[v] = new_root[v];
+      cc.piece[new_root[v]] = 1;
+    } else {
+      cc.root_of[v] = rest[r];
+      cc.piece[rest[r]] = was_piece[r];
+    }
+  }
 }
 
 }  // namespace
@@ -330,6 +552,7 @@ void groupObjects(const std::vector<PointXYZI>& points, const std::vector<uint8_
   for (uint32_t v = 0; v < cc.voxels.size(); ++v) cc.root_of[v] = uf.find(v);
   cc.piece.clear();
   if (split) splitOnLowSurfaces(points, cc, reach, links);
+  splitFromWalls(points, cc, reach, split);
 }
 
 std::vector<float> componentWidths(const ObjectComponents& cc, double foot) {

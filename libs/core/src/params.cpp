@@ -56,6 +56,8 @@ void validate(const PipelineParams& p, const std::string& name) {
           "object.max_length, max_height and max_width must be > 0");
   require(p.object.ring_pool >= 0 && p.object.ring_pool <= p.object.max_length,
           "object.ring_pool must be in [0, object.max_length] m (0 = off)");
+  require(p.object.wall_gap >= 0 && p.object.wall_gap <= 1,
+          "object.wall_gap must be in [0, 1] m (0 = off)");
   require(p.object.persist_radius >= 0 && p.object.persist_radius <= 10,
           "object.persist_radius must be in [0, 10] m (0 = off)");
   require(p.object.foot_height >= 0 && p.object.foot_height <= 2,

@@ -137,6 +137,7 @@ std::map<std::string, Key> table(PipelineParams& p) {
       {"object.roofs", Key{[&p](double v) { p.object.roofs = v != 0; },
                            [&p] { return p.object.roofs ? 1.0 : 0.0; }, true}},
       {"object.ring_pool", d(p.object.ring_pool)},
+      {"object.wall_gap", d(p.object.wall_gap)},
       {"object.column_links", Key{[&p](double v) { p.object.column_links = v != 0; },
                                   [&p] { return p.object.column_links ? 1.0 : 0.0; }, true}},
       {"object.measure", Key{[&p](double v) { p.object.measure = v != 0; },

@@ -71,17 +71,18 @@ struct RingReach {
   double foot = 0;        ///< m (ObjectParams::foot_height)
   double max_length = 0;  ///< m (ObjectParams::max_length)
   double max_height = 0;  ///< m (ObjectParams::max_height)
+  double wall_gap = 0;    ///< m (ObjectParams::wall_gap)
   bool active() const { return ring_gap > 0 && pool > 0; }
   bool operator==(const RingReach& o) const {
     return ring_gap == o.ring_gap && origin == o.origin && pool == o.pool && foot == o.foot &&
-           max_length == o.max_length && max_height == o.max_height;
+           max_length == o.max_length && max_height == o.max_height && wall_gap == o.wall_gap;
   }
 };
 /// A scan's reach under `p` (its ring_pool): `ring_gap` of the scan's lidar (0: dense), `origin`
 /// its sensor in the points' frame.
 inline RingReach ringReach(const ObjectParams& p, double ring_gap,
                            const Eigen::Vector2d& origin = Eigen::Vector2d::Zero()) {
-  return {ring_gap, origin, p.ring_pool, p.foot_height, p.max_length, p.max_height};
+  return {ring_gap, origin, p.ring_pool, p.foot_height, p.max_length, p.max_height, p.wall_gap};
 }
 constexpr double kRingReach = 1.25;  ///< ring steps (uneven spacing and the voxel's rounding)
 

@@ -169,6 +169,10 @@ struct ObjectParams {
   /// up to 1.25 ring steps above and below it. 0 = off (every lidar's objects are 26-connected
   /// voxels).
   double ring_pool = 1.0;
+  /// m; rule 1, "Beside a wall" (doc/OBJECTS.md): where a structure's returns lie on one upright
+  /// plane, what stands on its floor more than this in front of the plane (on the sensor's side)
+  /// and is of a vehicle's size is an object of its own (a walker against a wall). 0 = off.
+  double wall_gap = 0.15;
   /// Rule 1 for coarse columns (doc/OBJECTS.md, "Coarse columns"): returns of one upright surface
   /// in the lidar's neighbouring columns join (GrazingStretches::links: four in a row on parallel
   /// lines, or a line's last return before nothing or a farther one), however far apart a grazing
