@@ -236,8 +236,9 @@ struct ObjectComponents {
   std::vector<Eigen::Vector3i> voxels;  ///< per voxel: its cell
   std::vector<uint32_t> point_voxel;    ///< per point: its voxel; UINT32_MAX: not a member
   std::vector<uint32_t> root_of;        ///< per voxel: its component's root, its smallest voxel
-  /// per voxel: its component is a piece of a structure that low surfaces joined (RingReach);
-  /// empty where none is. Rule 2 may turn such a piece moving, not static (doc/OBJECTS.md).
+  /// per voxel: its component is a piece of a structure that low surfaces joined (RingReach),
+  /// or a body parted from the wall it stands against (RingReach::wall_gap); empty where none
+  /// is. Rule 2 may turn such a piece moving, not static (doc/OBJECTS.md).
   std::vector<uint8_t> piece;
   /// Coarse columns (doc/OBJECTS.md rule 1): per voxel v, the voxels after it that column links
   /// join to it, across[across_start[v] .. across_start[v + 1]); both empty where none were given.
@@ -249,7 +250,9 @@ struct ObjectComponents {
 /// (GrazingStretches::links), whose members' voxels also join (coarse columns, doc/OBJECTS.md
 /// rule 1); the low surfaces' split keeps them. `cap_links`: they join no more than a vehicle's
 /// size (reach.max_length, max_height), as where they were found in a dense lidar's own columns
-/// (GrazingStretches::fineLinks). Deterministic; O(points).
+/// (GrazingStretches::fineLinks). A structure falls apart at low surfaces (reach.foot), and a
+/// body standing against a wall is parted from it (reach.wall_gap, doc/OBJECTS.md rule 1, "Beside
+/// a wall"). Deterministic; O(points).
 void groupObjects(const std::vector<PointXYZI>& points, const std::vector<uint8_t>& member,
                   double side, ObjectComponents& out, const RingReach& reach = {},
                   const std::vector<uint32_t>* column_links = nullptr, bool cap_links = false);
