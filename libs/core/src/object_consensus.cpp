@@ -263,23 +263,23 @@ void splitFromWalls(const std::vector<PointXYZI>& points, ObjectComponents& cc,
     const auto across = [&](std::size_t i) {
       return n.dot(Eigen::Vector2d(points[i].x, points[i].y) - mean);
     };
-    const auto median_offset = [&] {
-      offset.clear();
-      for (const uint32_t i : ps)
-        if (raised(i)) offset.push_back(static_cast<float>(across(i)));
-      if (offset.empty()) return 0.0;  // (a raised voxel holds a raised return)
+    const auto median = [&] {  // of `offset` (a raised voxel holds a raised return: not empty)
       auto mid = offset.begin() + static_cast<std::ptrdiff_t>(offset.size() / 2);
       std::nth_element(offset.begin(), mid, offset.end());
       return static_cast<double>(*mid);
     };
-    const auto voxels_median = [&] {  // the raised voxels' columns' median offset
+    const auto median_offset = [&] {  // the raised returns'
+      offset.clear();
+      for (const uint32_t i : ps)
+        if (raised(i)) offset.push_back(static_cast<float>(across(i)));
+      return median();
+    };
+    const auto voxels_median = [&] {  // the raised voxels' columns'
       offset.clear();
       for (const uint32_t v : vs)
         if (z_hi[v] >= floor[v] + foot)
           offset.push_back(static_cast<float>(n.dot(centre(v) - mean)));
-      auto mid = offset.begin() + static_cast<std::ptrdiff_t>(offset.size() / 2);
-      std::nth_element(offset.begin(), mid, offset.end());
-      return static_cast<double>(*mid);
+      return median();
     };
     if (!fit([](const Eigen::Vector2d&) { return true; })) continue;
     double c = voxels_median();
@@ -356,18 +356,15 @@ void splitFromWalls(const std::vector<PointXYZI>& points, ObjectComponents& cc,
   for (uint32_t v = 0; v < nv; ++v)
     if (new_root[v] == UINT32_MAX && structure[cc.root_of[v]] && rest[cc.root_of[v]] == UINT32_MAX)
       rest[cc.root_of[v]] = v;
+  // The parted groups are pieces; the rest is one as its structure was (the low surfaces' split
+  // marked every structure it saw).
   if (cc.piece.empty()) cc.piece.assign(nv, 0);
-  const std::vector<uint8_t> was_piece(cc.piece);
   for (uint32_t v = 0; v < nv; ++v) {
     const uint32_t r = cc.root_of[v];
     if (!structure[r]) continue;
-    if (new_root[v] != UINT32_MAX) {
-      cc.root_of[v] = new_root[v];
-      cc.piece[new_root[v]] = 1;
-    } else {
-      cc.root_of[v] = rest[r];
-      cc.piece[rest[r]] = was_piece[r];
-    }
+    const bool parted = new_root[v] != UINT32_MAX;
+    cc.root_of[v] = parted ? new_root[v] : rest[r];
+    cc.piece[cc.root_of[v]] = parted || after_low_surfaces;
   }
 }
 
