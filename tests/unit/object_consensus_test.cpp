@@ -412,6 +412,30 @@ TEST(ObjectConsensus, AWalkerAgainstAWallIsAnObjectOfHisOwn) {
   EXPECT_EQ(joined.root_of[joined.point_voxel[front]], joined.root_of[joined.point_voxel[0]]);
 }
 
+TEST(ObjectConsensus, ASparseLidarsWalkerAgainstAWallReachesTheFloorWithinARingStep) {
+  // A VLP-16's rings, 2 degrees apart, lie 0.4 m apart on the walker 11.5 m off: its lowest ring
+  // on him may land 0.5 m over the sidewalk, more than foot_height. His group reaches the floor
+  // within 1.5 ring steps at his range (as rule 2's foot takes it), so he is parted; a dense
+  // lidar (ring_gap 0) would have seen his feet, and without them he stays the wall's.
+  WalkerAtAWall w;
+  const float walk = -1.73f + 0.12f;
+  std::vector<PointXYZI> pts(w.pts.begin(), w.pts.begin() + static_cast<std::ptrdiff_t>(w.walker));
+  for (std::size_t i = w.walker; i < w.pts.size(); ++i)
+    if (w.pts[i].z >= walk + 0.5f) pts.push_back(w.pts[i]);
+  w.pts = pts;
+  const std::vector<uint8_t> member(w.pts.size(), 1);
+  ObjectParams p;
+  ASSERT_LT(p.foot_height, 0.5);
+  const auto parted = [&](double ring_gap) {
+    ObjectComponents cc;
+    groupObjects(w.pts, member, p.voxel, cc, ringReach(p, ring_gap));
+    return cc.root_of[cc.point_voxel[w.front()]] != cc.root_of[cc.point_voxel[0]];
+  };
+  EXPECT_TRUE(parted(2.0 * M_PI / 180));   // 1.5 ring steps at 11.5 m: 0.60 m
+  EXPECT_FALSE(parted(0.0));               // foot_height: 0.3 m
+  EXPECT_FALSE(parted(1.0 * M_PI / 180));  // 0.30 m: his group floats 0.5 m over the floor
+}
+
 TEST(ObjectConsensus, WhatIsNotABodyBeforeAWallStaysTheWalls) {
   ObjectParams p;
   const auto joined = [&](const std::vector<PointXYZI>& pts, std::size_t a, std::size_t b,

@@ -167,9 +167,9 @@ void splitOnLowSurfaces(const std::vector<PointXYZI>& points, ObjectComponents& 
 // half a voxel's diagonal of it before the returns are asked). Its raised voxels most of whose
 // returns lie more than wall_gap in front of the plane (on the sensor's side, reach.origin), with
 // the low voxels right under them that do too, join among themselves; such a group of a vehicle's
-// size that reaches down to the structure's floor (within reach.foot) is a component of its own, a
-// piece (rule 2 may turn it moving, not static). The rest stays one structure as it was: recesses
-// and what lies behind the plane never part.
+// size that reaches down to the structure's floor (within reach.foot, or 1.5 ring steps at its
+// range where more) is a component of its own, a piece (rule 2 may turn it moving, not static).
+// The rest stays one structure as it was: recesses and what lies behind the plane never part.
 void splitFromWalls(const std::vector<PointXYZI>& points, ObjectComponents& cc,
                     const RingReach& reach, bool after_low_surfaces) {
   constexpr double kWallShare = 0.75;
@@ -222,6 +222,12 @@ void splitFromWalls(const std::vector<PointXYZI>& points, ObjectComponents& cc,
   std::vector<float> floor(nv, 1e30f);  // per structure voxel: the lowest of its 3 x 3 columns
   for (const uint32_t v : vox_index) floor[v] = columns.floor(cc.voxels[v]);
   const auto raised = [&](std::size_t i) { return points[i].z >= floor[cc.point_voxel[i]] + foot; };
+  // A group reaches its floor within foot, or 1.5 ring steps at its range where more (Overhead):
+  // a VLP-16's lowest ring on a walker 15 m off lands 0.5 m over the sidewalk.
+  const auto floorGap = [&](const Eigen::Vector3f& lo, const Eigen::Vector3f& hi) {
+    const double d = (0.5 * (lo + hi).head<2>().cast<double>() - reach.origin).norm();
+    return static_cast<float>(std::max(reach.foot, 1.5 * d * reach.ring_gap));
+  };
   const double side = cc.side;
   const float gap = static_cast<float>(reach.wall_gap);
   std::vector<uint8_t> off(nv, 0);
@@ -344,7 +350,7 @@ void splitFromWalls(const std::vector<PointXYZI>& points, ObjectComponents& cc,
       if (!off[v]) continue;
       const uint32_t g = uf.find(v);
       if (vehicleSized(glo[g], ghi[g], reach.max_length, reach.max_height) &&
-          glo[g].z() <= gfloor[g] + foot) {
+          glo[g].z() <= gfloor[g] + floorGap(glo[g], ghi[g])) {
         new_root[v] = g;  // the group's smallest voxel (UnionFind keeps the smaller root)
         split_any = true;
       }
