@@ -412,6 +412,43 @@ TEST(ObjectConsensus, AWalkerAgainstAWallIsAnObjectOfHisOwn) {
   EXPECT_EQ(joined.root_of[joined.point_voxel[front]], joined.root_of[joined.point_voxel[0]]);
 }
 
+TEST(ObjectConsensus, AWalkersSideByTheWallIsHisNotTheWalls) {
+  // His sides' returns within wall_gap of the wall (5-15 cm in front of it) lie in the wall's
+  // voxels: those further in front than the wall's own scatter (3 sigma), beside his voxels and
+  // within his extent, are his. The wall's returns, scattered 0-2 cm in front of its face (in
+  // the same voxels), are not: the same of them are his (in his feet's voxels) as without it.
+  const WalkerAtAWall flat;
+  WalkerAtAWall rough = flat;
+  for (std::size_t i = 0; i < rough.walker; ++i)
+    if (rough.pts[i].y == -6) rough.pts[i].y += 0.001f * static_cast<float>(i * 7919 % 21);
+  const float walk = -1.73f + 0.12f;
+  ObjectParams p;
+  const auto his = [&](const WalkerAtAWall& w) {  // per return: his
+    ObjectComponents cc;
+    groupObjects(w.pts, std::vector<uint8_t>(w.pts.size(), 1), p.voxel, cc, ringReach(p, 0.0));
+    std::vector<uint8_t> out(w.pts.size());
+    for (std::size_t i = 0; i < w.pts.size(); ++i)
+      out[i] = cc.root_of[cc.point_voxel[i]] == cc.root_of[cc.point_voxel[w.front()]];
+    return out;
+  };
+  for (const WalkerAtAWall* w : {&flat, static_cast<const WalkerAtAWall*>(&rough)}) {
+    const auto mine = his(*w);
+    std::size_t band = 0, band_his = 0;
+    for (std::size_t i = w->walker; i < w->pts.size(); ++i)
+      if (w->pts[i].y < -6 + static_cast<float>(p.wall_gap) &&
+          w->pts[i].z >= walk + p.foot_height) {
+        ++band;
+        band_his += mine[i];
+      }
+    EXPECT_GE(band, 50u);  // his side's last 10 cm, from his knees up
+    EXPECT_EQ(band_his, band);
+  }
+  const auto flat_his = his(flat), rough_his = his(rough);
+  for (std::size_t i = 0; i < flat.walker; ++i)
+    ASSERT_EQ(rough_his[i], flat_his[i]) << "the wall's return at " << rough.pts[i].x << " "
+                                         << rough.pts[i].y << " " << rough.pts[i].z;
+}
+
 TEST(ObjectConsensus, ASparseLidarsWalkerAgainstAWallReachesTheFloorWithinARingStep) {
   // A VLP-16's rings, 2 degrees apart, lie 0.4 m apart on the walker 11.5 m off: its lowest ring
   // on him may land 0.5 m over the sidewalk, more than foot_height. His group reaches the floor

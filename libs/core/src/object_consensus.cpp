@@ -236,6 +236,8 @@ void splitFromWalls(const std::vector<PointXYZI>& points, ObjectComponents& cc,
   UnionFind uf(nv);  // the groups in front of a plane, and their boxes and floors
   std::vector<Eigen::Vector3f> glo(nv), ghi(nv);
   std::vector<float> gfloor(nv);
+  std::vector<Eigen::Vector2f> galong(nv, Eigen::Vector2f(1e30f, -1e30f));  // along the plane
+  std::vector<std::pair<uint32_t, uint32_t>> handed;  // (return, voxel of the body it joins)
   bool split_any = false;
   for (uint32_t r = 0; r < nv; ++r) {
     if (!structure[r]) continue;
@@ -346,15 +348,67 @@ void splitFromWalls(const std::vector<PointXYZI>& points, ObjectComponents& cc,
       ghi[g] = ghi[g].cwiseMax(points[i].xyz());
       gfloor[g] = std::min(gfloor[g], floor[v]);
     }
+    bool parted = false;
     for (const uint32_t v : vs) {
       if (!off[v]) continue;
       const uint32_t g = uf.find(v);
       if (vehicleSized(glo[g], ghi[g], reach.max_length, reach.max_height) &&
           glo[g].z() <= gfloor[g] + floorGap(glo[g], ghi[g])) {
         new_root[v] = g;  // the group's smallest voxel (UnionFind keeps the smaller root)
-        split_any = true;
+        parted = true;
       }
     }
+    if (!parted) continue;
+    split_any = true;
+    // A parted body's band within wall_gap of the plane (a walker's sides by his back) lies in
+    // the wall's voxels. Its raised returns further in front than the wall's own scatter (3
+    // sigma, from the median |offset| of the raised returns within wall_gap), in a voxel beside
+    // one of the body's, within wall_gap of the body's extent along the plane (his side is its
+    // end) and within its heights, go to that voxel (the nearest such).
+    offset.clear();
+    for (const uint32_t i : ps)
+      if (raised(i) && std::abs(across(i) - c) <= reach.wall_gap)
+        offset.push_back(static_cast<float>(std::abs(across(i) - c)));
+    const double scatter = offset.empty() ? 0.0 : 3 * 1.4826 * median();
+    const Eigen::Vector2d along(n.y(), -n.x());
+    const auto alongOf = [&](std::size_t i) {
+      return along.dot(Eigen::Vector2d(points[i].x, points[i].y) - mean);
+    };
+    for (const uint32_t i : ps) {  // the bodies' extents along the plane (raised returns)
+      const uint32_t v = cc.point_voxel[i];
+      if (new_root[v] == UINT32_MAX || !raised(i)) continue;
+      const float a = static_cast<float>(alongOf(i));
+      galong[new_root[v]] = {std::min(galong[new_root[v]].x(), a),
+                             std::max(galong[new_root[v]].y(), a)};
+    }
+    handed.clear();
+    for (const uint32_t i : ps) {
+      const uint32_t v = cc.point_voxel[i];
+      const double d = sign * (across(i) - c);
+      if (new_root[v] != UINT32_MAX || !raised(i) || !(d > scatter) || d > reach.wall_gap) continue;
+      const Eigen::Vector3i& x = cc.voxels[v];
+      const float a = static_cast<float>(alongOf(i));
+      uint32_t best = UINT32_MAX;
+      float best_d2 = 1e30f;
+      for (int dx = -1; dx <= 1; ++dx)
+        for (int dy = -1; dy <= 1; ++dy)
+          for (int dz = -1; dz <= 1; ++dz) {
+            const uint32_t* w = cc.voxel_of.find(cellKey(x.x() + dx, x.y() + dy, x.z() + dz));
+            if (!w || cc.root_of[*w] != r || new_root[*w] == UINT32_MAX) continue;
+            const uint32_t g = new_root[*w];
+            if (a < galong[g].x() - gap || a > galong[g].y() + gap || points[i].z < glo[g].z() ||
+                points[i].z > ghi[g].z())
+              continue;
+            const float d2 =
+                ((cc.voxels[*w].cast<float>().array() + 0.5f) * static_cast<float>(side) -
+                 points[i].xyz().array())
+                    .matrix()
+                    .squaredNorm();
+            if (d2 < best_d2 || (d2 == best_d2 && *w < best)) best = *w, best_d2 = d2;
+          }
+      if (best != UINT32_MAX) handed.emplace_back(i, best);
+    }
+    for (const auto& [i, w] : handed) cc.point_voxel[i] = w;
   }
   if (!split_any) return;
   // The rest of each structure is rooted at its smallest voxel left.

@@ -234,8 +234,10 @@ struct ObjectComponents {
   std::vector<uint8_t> pooled;
   CellMap<uint32_t> voxel_of;           ///< voxel key -> voxel
   std::vector<Eigen::Vector3i> voxels;  ///< per voxel: its cell
-  std::vector<uint32_t> point_voxel;    ///< per point: its voxel; UINT32_MAX: not a member
-  std::vector<uint32_t> root_of;        ///< per voxel: its component's root, its smallest voxel
+  /// per point: its voxel (or, for a body's return in a wall's voxel, the body's voxel beside
+  /// it: doc/OBJECTS.md rule 1, "Beside a wall"); UINT32_MAX: not a member
+  std::vector<uint32_t> point_voxel;
+  std::vector<uint32_t> root_of;  ///< per voxel: its component's root, its smallest voxel
   /// per voxel: its component is a piece of a structure that low surfaces joined (RingReach),
   /// or a body parted from the wall it stands against (RingReach::wall_gap); empty where none
   /// is. Rule 2 may turn such a piece moving, not static (doc/OBJECTS.md).
@@ -251,8 +253,8 @@ struct ObjectComponents {
 /// rule 1); the low surfaces' split keeps them. `cap_links`: they join no more than a vehicle's
 /// size (reach.max_length, max_height), as where they were found in a dense lidar's own columns
 /// (GrazingStretches::fineLinks). A structure falls apart at low surfaces (reach.foot), and a
-/// body standing against a wall is parted from it (reach.wall_gap, doc/OBJECTS.md rule 1, "Beside
-/// a wall"). Deterministic; O(points).
+/// body standing against a wall is parted from it with its returns in the wall's voxels
+/// (reach.wall_gap, doc/OBJECTS.md rule 1, "Beside a wall"). Deterministic; O(points).
 void groupObjects(const std::vector<PointXYZI>& points, const std::vector<uint8_t>& member,
                   double side, ObjectComponents& out, const RingReach& reach = {},
                   const std::vector<uint32_t>* column_links = nullptr, bool cap_links = false);
