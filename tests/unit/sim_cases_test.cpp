@@ -1405,8 +1405,8 @@ TEST(SimSensors, SparseLidarsFindSmallMoversBetweenTheirRings) {
   EXPECT_GE(poles.per_mover.at("walker").recall(), poles_off.per_mover.at("walker").recall());
   EXPECT_GE(poles.all.precision(), 0.97);  // measured 1.000
   const auto wall = runCase(hdl32("pedestrian_wall"), no_pool);
-  // The walkers: measured 0.87 and 0.82 since rule 1 parts him from the wall (0.73 and 0.68
-  // before; 0.63 and 0.42 without the ring vote then), precision 0.97 and 0.99.
+  // The walkers: measured 0.87 and 0.82, precision 0.97 and 0.99 (hundred-and-thirteenth
+  // session; when first measured 0.73 and 0.68, and 0.63 and 0.42 without the ring vote).
   EXPECT_GE(wall.per_mover.at("walker").recall(), 0.68);
   EXPECT_GE(wall.all.precision(), 0.95);
   const auto wall16 = runCase(seen_by("pedestrian_wall", SensorModel::kVlp16), no_pool);

@@ -384,8 +384,9 @@ void splitFromWalls(const std::vector<PointXYZI>& points, ObjectComponents& cc,
     handed.clear();
     for (const uint32_t i : ps) {
       const uint32_t v = cc.point_voxel[i];
+      if (new_root[v] != UINT32_MAX || !raised(i)) continue;
       const double d = sign * (across(i) - c);
-      if (new_root[v] != UINT32_MAX || !raised(i) || !(d > scatter) || d > reach.wall_gap) continue;
+      if (!(d > scatter) || d > reach.wall_gap) continue;
       const Eigen::Vector3i& x = cc.voxels[v];
       const float a = static_cast<float>(alongOf(i));
       uint32_t best = UINT32_MAX;
