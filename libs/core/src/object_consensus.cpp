@@ -12,6 +12,7 @@
 #include "cleanmap/core/cell_key.h"
 #include "cleanmap/core/cell_map.h"
 #include "cleanmap/core/grouped.h"
+#include "cleanmap/core/median.h"
 #include "cleanmap/core/sensor.h"
 
 namespace cleanmap {
@@ -271,23 +272,19 @@ void splitFromWalls(const std::vector<PointXYZI>& points, ObjectComponents& cc,
     const auto across = [&](std::size_t i) {
       return n.dot(Eigen::Vector2d(points[i].x, points[i].y) - mean);
     };
-    const auto median = [&] {  // of `offset` (a raised voxel holds a raised return: not empty)
-      auto mid = offset.begin() + static_cast<std::ptrdiff_t>(offset.size() / 2);
-      std::nth_element(offset.begin(), mid, offset.end());
-      return static_cast<double>(*mid);
-    };
+    // (`offset` is never empty where its median is asked: a raised voxel holds a raised return)
     const auto median_offset = [&] {  // the raised returns'
       offset.clear();
       for (const uint32_t i : ps)
         if (raised(i)) offset.push_back(static_cast<float>(across(i)));
-      return median();
+      return static_cast<double>(median(offset));
     };
     const auto voxels_median = [&] {  // the raised voxels' columns'
       offset.clear();
       for (const uint32_t v : vs)
         if (z_hi[v] >= floor[v] + foot)
           offset.push_back(static_cast<float>(n.dot(centre(v) - mean)));
-      return median();
+      return static_cast<double>(median(offset));
     };
     if (!fit([](const Eigen::Vector2d&) { return true; })) continue;
     double c = voxels_median();
@@ -369,7 +366,7 @@ void splitFromWalls(const std::vector<PointXYZI>& points, ObjectComponents& cc,
     for (const uint32_t i : ps)
       if (raised(i) && std::abs(across(i) - c) <= reach.wall_gap)
         offset.push_back(static_cast<float>(std::abs(across(i) - c)));
-    const double scatter = offset.empty() ? 0.0 : 3 * 1.4826 * median();
+    const double scatter = offset.empty() ? 0.0 : 3 * 1.4826 * static_cast<double>(median(offset));
     const Eigen::Vector2d along(n.y(), -n.x());
     const auto alongOf = [&](std::size_t i) {
       return along.dot(Eigen::Vector2d(points[i].x, points[i].y) - mean);
@@ -391,22 +388,19 @@ void splitFromWalls(const std::vector<PointXYZI>& points, ObjectComponents& cc,
       const float a = static_cast<float>(alongOf(i));
       uint32_t best = UINT32_MAX;
       float best_d2 = 1e30f;
-      for (int dx = -1; dx <= 1; ++dx)
-        for (int dy = -1; dy <= 1; ++dy)
-          for (int dz = -1; dz <= 1; ++dz) {
-            const uint32_t* w = cc.voxel_of.find(cellKey(x.x() + dx, x.y() + dy, x.z() + dz));
-            if (!w || cc.root_of[*w] != r || new_root[*w] == UINT32_MAX) continue;
-            const uint32_t g = new_root[*w];
-            if (a < galong[g].x() - gap || a > galong[g].y() + gap || points[i].z < glo[g].z() ||
-                points[i].z > ghi[g].z())
-              continue;
-            const float d2 =
-                ((cc.voxels[*w].cast<float>().array() + 0.5f) * static_cast<float>(side) -
-                 points[i].xyz().array())
-                    .matrix()
-                    .squaredNorm();
-            if (d2 < best_d2 || (d2 == best_d2 && *w < best)) best = *w, best_d2 = d2;
-          }
+      forEachNeighbour27([&](int dx, int dy, int dz) {
+        const uint32_t* w = cc.voxel_of.find(cellKey(x.x() + dx, x.y() + dy, x.z() + dz));
+        if (!w || cc.root_of[*w] != r || new_root[*w] == UINT32_MAX) return;
+        const uint32_t g = new_root[*w];
+        if (a < galong[g].x() - gap || a > galong[g].y() + gap || points[i].z < glo[g].z() ||
+            points[i].z > ghi[g].z())
+          return;
+        const float d2 = ((cc.voxels[*w].cast<float>().array() + 0.5f) * static_cast<float>(side) -
+                          points[i].xyz().array())
+                             .matrix()
+                             .squaredNorm();
+        if (d2 < best_d2 || (d2 == best_d2 && *w < best)) best = *w, best_d2 = d2;
+      });
       if (best != UINT32_MAX) handed.emplace_back(i, best);
     }
     for (const auto& [i, w] : handed) cc.point_voxel[i] = w;
