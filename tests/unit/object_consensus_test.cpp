@@ -723,6 +723,19 @@ TEST(ObjectConsensus, ASparseLidarsRingsAtRangeJoinIntoOneObject) {
   moving = w.moving;
   EXPECT_THROW(objectConsensus(w.pts, w.member, moving, p, nullptr, nullptr, rules, &alone),
                std::invalid_argument);
+  // So is one whose reach differs in wall_gap alone, and the error says so.
+  RingReach walled = reach;
+  walled.wall_gap = reach.wall_gap + 0.1;
+  ObjectComponents by_wall;
+  groupObjects(w.pts, w.member, p.voxel, by_wall, walled);
+  try {
+    objectConsensus(w.pts, w.member, moving, p, nullptr, nullptr, rules, &by_wall);
+    ADD_FAILURE() << "a grouping with another wall_gap was taken";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("wall_gap " + std::to_string(walled.wall_gap)),
+              std::string::npos)
+        << e.what();
+  }
 }
 
 TEST(ObjectConsensus, ARingSliceWiderThanTheRingPoolIsDecidedAlone) {

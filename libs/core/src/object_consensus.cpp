@@ -25,6 +25,15 @@ bool vehicleSized(const Eigen::Vector3f& lo, const Eigen::Vector3f& hi, double m
 
 namespace {
 
+// Every field RingReach::operator== compares, for objectConsensus' error on a foreign grouping.
+std::string describe(const RingReach& r) {
+  return "rings " + std::to_string(r.ring_gap) + " rad apart from (" +
+         std::to_string(r.origin.x()) + ", " + std::to_string(r.origin.y()) + "), pool " +
+         std::to_string(r.pool) + " m, foot " + std::to_string(r.foot) + " m, max_length " +
+         std::to_string(r.max_length) + " m, max_height " + std::to_string(r.max_height) +
+         " m, wall_gap " + std::to_string(r.wall_gap) + " m";
+}
+
 struct UnionFind {
   std::vector<uint32_t> parent;
   explicit UnionFind(std::size_t n) : parent(n) { std::iota(parent.begin(), parent.end(), 0u); }
@@ -843,10 +852,9 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
                   !(grouped->reach == rules.reach)))
     throw std::invalid_argument(
         "objectConsensus: a grouping of " + std::to_string(grouped->point_voxel.size()) +
-        " points in voxels of " + std::to_string(grouped->side) + " m (rings " +
-        std::to_string(grouped->reach.ring_gap) + " rad apart) given for " +
-        std::to_string(points.size()) + " points in voxels of " + std::to_string(p.voxel) +
-        " m (rings " + std::to_string(rules.reach.ring_gap) + " rad apart)");
+        " points in voxels of " + std::to_string(grouped->side) + " m (" +
+        describe(grouped->reach) + ") given for " + std::to_string(points.size()) +
+        " points in voxels of " + std::to_string(p.voxel) + " m (" + describe(rules.reach) + ")");
   if (!grouped) groupObjects(points, member, p.voxel, own, rules.reach);
   const ObjectComponents& cc = grouped ? *grouped : own;
   const std::vector<Eigen::Vector3i>& voxels = cc.voxels;
