@@ -962,6 +962,17 @@ std::vector<PointXYZI> roofAhead(bool roof) {
   return pts;
 }
 
+// The beam index of a scan at the origin, with its grazing stretches (the clean map's defaults)
+// where `graze`.
+BeamIndex beamIndexOf(const std::vector<PointXYZI>& pts, const MovingTest& t, bool graze) {
+  const MapParams m;
+  std::vector<float> azimuth(pts.size());
+  for (std::size_t n = 0; n < pts.size(); ++n) azimuth[n] = std::atan2(pts[n].y, pts[n].x);
+  GrazingStretches g;
+  g.compute(pts, Eigen::Matrix3f::Identity(), azimuth, m.flat_slope, m.margin, m.graze_reach);
+  return BeamIndex(pts, t.searchRadius(), BeamIndex::Binning::kFast, graze ? &g : nullptr);
+}
+
 }  // namespace
 
 TEST(MovingTest, BeamsGrazingAFlatSurfaceDoNotVoteEmpty) {
@@ -977,15 +988,8 @@ TEST(MovingTest, BeamsGrazingAFlatSurfaceDoNotVoteEmpty) {
   const MovingTest t(p);
   const MapParams m;
   const Eigen::Vector3d P(11.5, 0.1, -0.25);
-  const auto index = [&](const std::vector<PointXYZI>& pts, bool graze) {
-    std::vector<float> azimuth(pts.size());
-    for (std::size_t n = 0; n < pts.size(); ++n) azimuth[n] = std::atan2(pts[n].y, pts[n].x);
-    GrazingStretches g;
-    g.compute(pts, Eigen::Matrix3f::Identity(), azimuth, m.flat_slope, m.margin, m.graze_reach);
-    return BeamIndex(pts, t.searchRadius(), BeamIndex::Binning::kFast, graze ? &g : nullptr);
-  };
   const auto parked = roofAhead(true), left = roofAhead(false);
-  const BeamIndex plain = index(parked, false), grazed = index(parked, true);
+  const BeamIndex plain = beamIndexOf(parked, t, false), grazed = beamIndexOf(parked, t, true);
   ASSERT_EQ(grazed.grazing().size(), grazed.size());
   EXPECT_TRUE(plain.grazing().empty());
   const auto vote = [&](const MovingTest& test, const BeamIndex& idx, uint8_t edges) {
@@ -999,7 +1003,7 @@ TEST(MovingTest, BeamsGrazingAFlatSurfaceDoNotVoteEmpty) {
   EXPECT_TRUE(t.isMoving(P, w_grazed, nullptr));
   EXPECT_FALSE(t.isMoving(P, w_grazed, nullptr, kFlatSurface));
   // The car gone: every ring passes P to the wall; the stretches change nothing.
-  const BeamIndex gone = index(left, true);
+  const BeamIndex gone = beamIndexOf(left, t, true);
   EXPECT_GT(vote(t, gone, kFlatSurface), 0.5);
   EXPECT_TRUE(t.isMoving(P, {{&gone, Eigen::Isometry3d::Identity()}}, nullptr, kFlatSurface));
   // The reference beam math applies the stretches too.
@@ -1027,6 +1031,39 @@ TEST(MovingTest, BeamsGrazingAFlatSurfaceDoNotVoteEmpty) {
   EXPECT_EQ(roof_flat, roof);
   EXPECT_GT(face, 100u);
   EXPECT_EQ(face_flat, 0u);
+}
+
+TEST(MovingTest, ABeamMeetingTheRoofJustBeyondPDoesNotVoteEmptyEither) {
+  // DESIGN §2b, grazing beams. P on the roof 0.2 m short of where the ring just above it meets
+  // the roof (x = 11.94 m): that ring's beams around P return 0.2-0.25 m beyond it, within 2
+  // sigma of P's range (sigma = 0.158 m) yet each near 0.97 empty (Eq. 3: Phi(0.24 / sigma)).
+  // In their own scan they end on the flat roof (GrazingStretches): they vote nothing, as the
+  // beams passing P further do. An OS1-64 passing a parked car (ground_curb_ramp) had the scan
+  // 0.3 m on vote empty at the ring its roof returned in, 87 static returns flagged.
+  const DsParams p;
+  const MovingTest t(p);
+  const Eigen::Vector3d P(11.72, 0.05, -0.25);
+  const BeamIndex grazed = beamIndexOf(roofAhead(true), t, true);
+  const BeamIndex gone = beamIndexOf(roofAhead(false), t, true);
+  const auto mass = [&](const MovingTest& test, const BeamIndex& idx, uint8_t edges) {
+    double d = 0;
+    return test.scanMass(P, {&idx, Eigen::Isometry3d::Identity()}, &d, nullptr, edges);
+  };
+  // The beams there: the nearest passes P by less than 2 sigma (the stretches took only those
+  // passing by more), and they lean empty.
+  std::size_t near_beyond = 0;
+  const Eigen::Vector3f dir = P.normalized().cast<float>();
+  grazed.forEachNear(dir, t.searchRadius(), [&](const BeamIndex::Beam& q) {
+    const float r = float(P.norm()) - q.range;
+    near_beyond += dir.cross(q.dir).norm() <= t.searchRadius() && r < -0.05f && r > -2 * 0.158f;
+  });
+  EXPECT_GT(near_beyond, 0u);
+  EXPECT_GT(mass(t, grazed, 0).e, 0.5);  // P not on a flat surface: every beam votes
+  const MovingTest ref(p, BeamMath::kReference);
+  for (const MovingTest* test : {&t, &ref}) {
+    EXPECT_LT(mass(*test, grazed, kFlatSurface).e, 0.05);
+    EXPECT_GT(mass(*test, gone, kFlatSurface).e, 0.5);  // the car gone: still seen empty
+  }
 }
 
 namespace {

@@ -284,14 +284,15 @@ ds::Mass MovingTest::scanMassAt(const Eigen::Vector3d& pl, double d, const Windo
     n = 0;
   };
   // DESIGN §2b, grazing beams: where P lies on a flat surface of its own scan (kFlatSurface), a
-  // beam that passes P (r < -band) within the stretch where it runs within margin of a flat
-  // surface of its own scan (GrazingStretches) votes nothing: it may pass over or meet, at a
-  // grazing angle, the surface P lies on, as the clean map's free space (§2e) has it.
+  // beam that passes P (by more than sigma_m, as `passed`) within the stretch where it runs
+  // within margin of a flat surface of its own scan (GrazingStretches) votes nothing: it may pass
+  // over or meet, at a grazing angle, the surface P lies on, as the clean map's free space (§2e)
+  // has it. Those meeting it within 2 sigma beyond P too: each leans empty (Eq. 3).
   const BeamIndex& index = *s.beams;
   const uint32_t* graze = on_flat && !index.grazing().empty() ? index.grazing().data() : nullptr;
   const float inv_unit = 1.0f / index.rangeUnit();
   auto grazes = [&](const BeamIndex::PackedBeam* q, float r) {
-    if (!graze || !(r < -band)) return false;
+    if (!graze || !(r < past)) return false;
     const uint32_t g = graze[q - index.beams().data()];
     const float t = r * inv_unit + static_cast<float>(q->range);  // |OP'|, in range units
     return t >= static_cast<float>(g & 0xFFFFu) && t <= static_cast<float>(g >> 16);
