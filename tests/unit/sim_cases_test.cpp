@@ -275,8 +275,8 @@ TEST(SimCases, ACarThatStopsIsCarriedBackThroughTheScansItStoodIn) {
   // The parked car 12 m ahead: the ring that meets its roof (0.23 m under the sensor) met it
   // 0.1-0.3 m further in the next scans, within 2 sigma of P's range, and voted empty at the
   // roof's returns of scans 0-3, whose windows are one-sided (137 static returns flagged until
-  // session 114). Beams meeting a flat surface within their grazing stretch now vote nothing
-  // there (DESIGN §2b, grazing beams): none flagged.
+  // the hundred-and-fourteenth session). Beams meeting a flat surface within their grazing
+  // stretch now vote nothing there (DESIGN §2b, grazing beams): none flagged.
   EXPECT_LT(r.all.fp, 14u);  // measured 0
 }
 
@@ -1318,7 +1318,7 @@ TEST(SimSensors, AParkedCarsRoofRingIsStaticToAnOusterInAShortRun) {
   const auto r = runCase(seenBy(scenario("ground_curb_ramp"), SensorModel::kOs1_64));
   std::printf("  static returns flagged: %llu of %llu\n", static_cast<unsigned long long>(r.all.fp),
               static_cast<unsigned long long>(r.all.evaluated()));
-  EXPECT_LT(r.all.fp, 9u);  // measured 0 (87 until session 114)
+  EXPECT_LT(r.all.fp, 9u);  // measured 0 (87 before the hundred-and-fourteenth session)
 }
 
 // doc/SCAN_CONFLICT.md, "A return at P": queue_stop_go seen by a VLP-16 from its standing ego.
