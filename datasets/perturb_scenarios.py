@@ -14,6 +14,8 @@ each moving object's points labelled moving. Variants:
   os1_64, os1_128  an Ouster OS1-64 / OS1-128 instead (1024 columns; not in the default list)
   accel     movers pull away and brake at 2 m/s2 instead of changing speed at once (not in the
             default list; only scenes whose movers wait or stop change)
+Variants compose with '+', applied left to right: mov_slow+vlp16 is a VLP-16 seeing every mover at
+half speed (at most one lidar in a composition; each variant once).
 The bars the named tests check are for the shipped scenes; this looks around them. A run's
 folders are removed once scored (about 100 MB each); --keep keeps them.
 
@@ -85,6 +87,29 @@ def perturb(text, variant):
     return text
 
 
+def parts_of(variant):
+    """The variants a composition (a+b) applies, or a one-line reason it is refused."""
+    parts = variant.split("+")
+    for p in parts:
+        if p not in VARIANTS + OPTIONAL:
+            return None, f"{p}: unknown variant (known: {', '.join(VARIANTS + OPTIONAL)})"
+    if len(set(parts)) != len(parts):
+        return None, f"{variant}: a variant twice"
+    if sum(p in SENSORS for p in parts) > 1:
+        return None, f"{variant}: more than one lidar"
+    return parts, None
+
+
+def perturbed(text, variant):
+    """The scenario ini rewritten for a variant or a composition of them (a+b: a, then b)."""
+    parts, why = parts_of(variant)
+    if why:
+        raise ValueError(why)
+    for p in parts:
+        text = perturb(text, p)
+    return text
+
+
 def run(cmd, what):
     r = subprocess.run(cmd, capture_output=True, text=True)
     if r.returncode != 0:
@@ -115,8 +140,9 @@ def main():
             fail(f"{s}: no such scenario in {scen_dir}")
     variants = [v for v in a.variants.split(",") if v]
     for v in variants:
-        if v not in VARIANTS + OPTIONAL:
-            fail(f"{v}: unknown variant (known: {', '.join(VARIANTS + OPTIONAL)})")
+        why = parts_of(v)[1]
+        if why:
+            fail(why)
     if a.config and not os.path.isfile(a.config):
         fail(f"{a.config}: no such configuration file")
     os.makedirs(a.output, exist_ok=True)
@@ -128,7 +154,7 @@ def main():
             base = os.path.join(a.output, f"{s}_{v}")
             gt, out = base + "_gt", base + "_out"
             with open(base + ".ini", "w") as f:
-                f.write(perturb(text, v))
+                f.write(perturbed(text, v))
             try:
                 run([tools["cleanmap-sim"], base + ".ini", "-o", gt, "--no-images", "--no-rawlog",
                      "--threads", str(a.threads)], "cleanmap-sim")

@@ -53,5 +53,17 @@ expect_error 1 "write failed (disk full?)" full_disk 64 "$bin/cleanmap-sim" -o "
 diff -r "$scratch/a" "$scratch/a.before" >/dev/null || fail "a failed generation touched the earlier sequence"
 [[ $(ls -A "$scratch" | grep -c staging) -eq 0 ]] || fail "a failed generation left its staging folder"
 
+# datasets/perturb_scenarios.py composes variants with '+' (a, then b): a 3-scan scene as an
+# OS1-64 with another noise draw is simulated, run and scored; two lidars at once are refused.
+perturb=$(dirname "$0")/../../datasets/perturb_scenarios.py
+line=$(python3 "$perturb" --apps "$bin" -o "$scratch/perturb" --scenarios ground_curb_ramp \
+  --variants os1_64+seed 2>&1) || fail "perturb_scenarios.py os1_64+seed: $line"
+[[ $line == "ground_curb_ramp "*" os1_64+seed P "*" SA "* ]] || fail "perturb_scenarios.py printed '$line'"
+ini=$scratch/perturb/ground_curb_ramp_os1_64+seed.ini
+{ grep -q "^model = os1-64" "$ini" && grep -q "^seed = 11" "$ini"; } ||
+  fail "os1_64+seed did not apply both: $(grep -E 'model|seed' "$ini" | tr '\n' ' ')"
+expect_error 1 "vlp16+hdl32: more than one lidar" python3 "$perturb" --apps "$bin" \
+  -o "$scratch/perturb" --variants vlp16+hdl32
+
 [[ $fails -eq 0 ]] && echo "sim_test: all checks passed"
 finish
