@@ -1470,10 +1470,16 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
             });
         const OutlineShift m = outlineShift(outline, target, kShift);
         // Found there (half of its outline matches, in min_cells or more), and the cells facing
-        // the shift match shifted, not where they are.
+        // the shift match shifted, not where they are. Not an outline that is one straight side
+        // shifted along itself: its cells facing the shift are its end, where the view or the
+        // lidar's columns cut it (a wall 24 m long at 512 columns, ended where they part 1.5 m
+        // apart: 6 facing cells of 107); the side path below asks what such a side needs.
         const bool found = m.cells >= min_cells && 2 * m.at_shift >= m.cells;
+        const bool along_side =
+            !m.side.isZero() && std::abs(m.shift.dot(m.side)) >
+                                    std::abs(m.shift.dot(Eigen::Vector2f(-m.side.y(), m.side.x())));
         const bool faces =
-            found && m.facing >= kShiftMinGain &&
+            found && !along_side && m.facing >= kShiftMinGain &&
             m.facing_at_shift >= m.facing_at_rest + std::max(kShiftMinGain, m.facing / 2);
         // Or, no face across in view, a side along the shift: all but a tenth of the outline
         // matches shifted, and more of it than in place (its ends; a side seen over another
