@@ -146,6 +146,7 @@ def main():
     if a.config and not os.path.isfile(a.config):
         fail(f"{a.config}: no such configuration file")
     os.makedirs(a.output, exist_ok=True)
+    width = max(9, *(len(v) for v in variants))  # the variant column, composed names included
     failed = 0
     for s in names:
         with open(os.path.join(scen_dir, s + ".ini")) as f:
@@ -163,7 +164,7 @@ def main():
                 run(cmd + (["-c", a.config] if a.config else []), "cleanmap")
                 j = json.loads(run([tools["cleanmap-eval"], gt, out, "--json"], "cleanmap-eval"))
             except RuntimeError as e:
-                print(f"{s:18} {v:9} FAILED {e}", flush=True)
+                print(f"{s:18} {v:{width}} FAILED {e}", flush=True)
                 failed += 1
                 continue
             finally:
@@ -171,7 +172,7 @@ def main():
                     shutil.rmtree(gt, ignore_errors=True)
                     shutil.rmtree(out, ignore_errors=True)
             objs = " ".join(f"{o['name']}:{o['fraction']:.2f}" for o in j["objects"].get("list", []))
-            print(f"{s:18} {v:9} P {j['precision']:.3f} R {j['recall']:.3f} IoU {j['iou']:.3f} "
+            print(f"{s:18} {v:{width}} P {j['precision']:.3f} R {j['recall']:.3f} IoU {j['iou']:.3f} "
                   f"SA {j['SA']:.4f} DA {j['DA']:.4f} AA {j['AA']:.4f} | {objs}", flush=True)
     if failed:
         fail(f"{failed} run(s) failed")

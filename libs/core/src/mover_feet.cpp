@@ -190,7 +190,7 @@ std::vector<uint32_t> moverFeet(const std::vector<PointXYZI>& points, const Eige
       if (zs.size() >= 5) {
         const float mid = median(zs);
         for (auto& z : zs) z = std::abs(z - mid);
-        const double scatter = 1.4826 * median(zs);
+        const double scatter = kMadToSigma * median(zs);
         level[cu] = static_cast<float>(mid + std::max(p.rise, 3.0 * scatter));
       }
     }

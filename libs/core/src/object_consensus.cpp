@@ -243,7 +243,8 @@ void splitFromWalls(const std::vector<PointXYZI>& points, ObjectComponents& cc,
   std::vector<uint8_t> off(nv, 0);
   std::vector<uint32_t> in_voxel(nv, 0), off_in_voxel(nv, 0), new_root(nv, UINT32_MAX);
   std::vector<float> offset;
-  UnionFind uf(nv);  // the groups in front of a plane, and their boxes and floors
+  std::vector<double> across_of;  // per return of the structure (ps), its offset across the line
+  UnionFind uf(nv);               // the groups in front of a plane, and their boxes and floors
   std::vector<Eigen::Vector3f> glo(nv), ghi(nv);
   std::vector<float> gfloor(nv);
   std::vector<Eigen::Vector2f> galong(nv, Eigen::Vector2f(1e30f, -1e30f));  // along the plane
@@ -282,10 +283,13 @@ void splitFromWalls(const std::vector<PointXYZI>& points, ObjectComponents& cc,
       return n.dot(Eigen::Vector2d(points[i].x, points[i].y) - mean);
     };
     // (`offset` is never empty where its median is asked: a raised voxel holds a raised return)
-    const auto median_offset = [&] {  // the raised returns'
+    const auto median_offset = [&] {  // the raised returns', each return's offset kept once
       offset.clear();
-      for (const uint32_t i : ps)
-        if (raised(i)) offset.push_back(static_cast<float>(across(i)));
+      across_of.resize(ps.size());
+      for (std::size_t k = 0; k < ps.size(); ++k) {
+        across_of[k] = across(ps[k]);
+        if (raised(ps[k])) offset.push_back(static_cast<float>(across_of[k]));
+      }
       return static_cast<double>(median(offset));
     };
     const auto voxels_median = [&] {  // the raised voxels' columns'
@@ -311,8 +315,9 @@ void splitFromWalls(const std::vector<PointXYZI>& points, ObjectComponents& cc,
     if (std::abs(sensor) <= reach.wall_gap) continue;
     const float sign = sensor > 0 ? 1.f : -1.f;
     std::size_t on_plane = 0, raised_n = 0;
-    for (const uint32_t i : ps) {
-      const float d = sign * static_cast<float>(across(i) - c);
+    for (std::size_t k = 0; k < ps.size(); ++k) {
+      const uint32_t i = ps[k];
+      const float d = sign * static_cast<float>(across_of[k] - c);
       if (raised(i)) {
         ++raised_n;
         on_plane += std::abs(d) <= gap;
@@ -372,10 +377,11 @@ void splitFromWalls(const std::vector<PointXYZI>& points, ObjectComponents& cc,
     // one of the body's, within wall_gap of the body's extent along the plane (his side is its
     // end) and within its heights, go to that voxel (the nearest such).
     offset.clear();
-    for (const uint32_t i : ps)
-      if (raised(i) && std::abs(across(i) - c) <= reach.wall_gap)
-        offset.push_back(static_cast<float>(std::abs(across(i) - c)));
-    const double scatter = offset.empty() ? 0.0 : 3 * 1.4826 * static_cast<double>(median(offset));
+    for (std::size_t k = 0; k < ps.size(); ++k)
+      if (raised(ps[k]) && std::abs(across_of[k] - c) <= reach.wall_gap)
+        offset.push_back(static_cast<float>(std::abs(across_of[k] - c)));
+    const double scatter =
+        offset.empty() ? 0.0 : 3 * kMadToSigma * static_cast<double>(median(offset));
     const Eigen::Vector2d along(n.y(), -n.x());
     const auto alongOf = [&](std::size_t i) {
       return along.dot(Eigen::Vector2d(points[i].x, points[i].y) - mean);
@@ -388,10 +394,11 @@ void splitFromWalls(const std::vector<PointXYZI>& points, ObjectComponents& cc,
                              std::max(galong[new_root[v]].y(), a)};
     }
     handed.clear();
-    for (const uint32_t i : ps) {
+    for (std::size_t k = 0; k < ps.size(); ++k) {
+      const uint32_t i = ps[k];
       const uint32_t v = cc.point_voxel[i];
       if (new_root[v] != UINT32_MAX || !raised(i)) continue;
-      const double d = sign * (across(i) - c);
+      const double d = sign * (across_of[k] - c);
       if (!(d > scatter) || d > reach.wall_gap) continue;
       const Eigen::Vector3i& x = cc.voxels[v];
       const float a = static_cast<float>(alongOf(i));

@@ -6,6 +6,9 @@
 
 namespace cleanmap {
 
+/// A normal distribution's sigma per median absolute deviation: sigma = kMadToSigma * MAD.
+constexpr double kMadToSigma = 1.4826;
+
 /// The median of `v` (the upper one of an even count: element size/2 in sorted order), by
 /// partial sort of the copy. `v` must not be empty.
 template <class T>
