@@ -64,6 +64,20 @@ ini=$scratch/perturb/ground_curb_ramp_os1_64+seed.ini
   fail "os1_64+seed did not apply both: $(grep -E 'model|seed' "$ini" | tr '\n' ' ')"
 expect_error 1 "vlp16+hdl32: more than one lidar" python3 "$perturb" --apps "$bin" \
   -o "$scratch/perturb" --variants vlp16+hdl32
+# Two ways compared on one simulated line: a build against itself gives byte-identical labels
+# and clean map; a crop of 10 m instead of 30 leaves the points between unclassified (label 0;
+# the clean map reaches static_map.radius either way).
+line=$(python3 "$perturb" --apps "$bin" --against "$bin" -o "$scratch/perturb" \
+  --scenarios ground_curb_ramp --variants os1_64 2>&1) || fail "perturb_scenarios.py --against: $line"
+grep -q "^ground_curb_ramp .* | same$" <<<"$line" && grep -q "^1 lines compared, 0 differ$" <<<"$line" ||
+  fail "a build against itself: '$line'"
+sed 's/^filter.crop_tau *=.*/filter.crop_tau = 10/' "$(dirname "$0")/../../config/cleanmap.ini" \
+  >"$scratch/crop10.ini"
+line=$(python3 "$perturb" --apps "$bin" --against-config "$scratch/crop10.ini" \
+  -o "$scratch/perturb" --scenarios ground_curb_ramp --variants os1_64 2>&1) ||
+  fail "perturb_scenarios.py --against-config: $line"
+grep -Eq "^ground_curb_ramp .* \| labels (and map )?differ$" <<<"$line" &&
+  grep -q "^1 lines compared, 1 differ$" <<<"$line" || fail "a 10 m crop against 30 m: '$line'"
 
 [[ $fails -eq 0 ]] && echo "sim_test: all checks passed"
 finish
