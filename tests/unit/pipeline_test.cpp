@@ -1033,6 +1033,62 @@ TEST(MovingTest, BeamsGrazingAFlatSurfaceDoNotVoteEmpty) {
   EXPECT_EQ(face_flat, 0u);
 }
 
+namespace {
+
+// A lidar at the origin, 29 columns `step_deg` apart centred on azimuth 0, rings at 0 and
+// +-1.5 degrees, before a wall at x = 40; with `face`, a crate's face at x = 19.5 up to y = 0.2212
+// (its edge at azimuth 0.65 degrees), |z| <= 1.
+std::vector<PointXYZI> crateEdge(double step_deg, bool face) {
+  std::vector<PointXYZI> pts;
+  for (const double el_deg : {-1.5, 0.0, 1.5})
+    for (int k = -14; k <= 14; ++k) {
+      const double el = el_deg * M_PI / 180, az = k * step_deg * M_PI / 180;
+      const Eigen::Vector3d d(std::cos(el) * std::cos(az), std::cos(el) * std::sin(az),
+                              std::sin(el));
+      double t = 40 / d.x();
+      const Eigen::Vector3d q = 19.5 / d.x() * d;
+      if (face && q.y() <= 0.2212 && std::abs(q.z()) <= 1) t = 19.5 / d.x();
+      const Eigen::Vector3d x = t * d;
+      pts.push_back({float(x.x()), float(x.y()), float(x.z()), 0.f});
+    }
+  return pts;
+}
+
+}  // namespace
+
+TEST(MovingTest, ACoarseScansBeamsSpreadOverItsColumnStep) {
+  // DESIGN §2b, "Coarse columns". P on a crate's face just inside its edge (azimuth 0.64
+  // degrees). An Ouster at 512 columns (0.70 degrees apart) returns from the face at azimuth 0
+  // and passes beside the edge at 0.70, 0.06 degrees from P, to a wall 20 m on: its nearest
+  // column beside the edge. With lambda_theta's cone (0.60 degrees) the face's column is not in
+  // it and the scan votes empty; spread over kColumnSpread of its step (a cone of 0.84 degrees)
+  // it returns at P's range beside the passing beam: a return at P, no empty vote (the
+  // OS1-64 at 512 columns flagged a static crate's corner, 84 returns). With the crate gone the
+  // coarse scan still votes empty, both beam maths.
+  const DsParams p;
+  const MovingTest t(p);
+  const MovingTest ref(p, BeamMath::kReference);
+  constexpr double kStep = 360.0 / 512;
+  const Eigen::Vector3d P(19.5, 19.5 * std::tan(0.64 * M_PI / 180), 0.0);
+  const auto crate = crateEdge(kStep, true), gone = crateEdge(kStep, false);
+  const BeamIndex with(crate, t.searchRadius()), without(gone, t.searchRadius());
+  const auto mass = [&](const MovingTest& test, const BeamIndex& idx, double column_step) {
+    double d = 0;
+    const WindowScan s{&idx, Eigen::Isometry3d::Identity(), 0.0, 0.0, 0, column_step};
+    return test.scanMass(P, s, &d, nullptr, 0);
+  };
+  const double coarse = kStep * M_PI / 180;
+  ASSERT_GT(kStep * M_PI / 180 * MovingTest::kColumnSpread, p.lambda_theta);
+  for (const MovingTest* test : {&t, &ref}) {
+    EXPECT_GT(mass(*test, with, 0.0).e, 0.5);  // the cone of lambda_theta: the passing beam alone
+    EXPECT_LT(mass(*test, with, coarse).e, 0.05);
+    EXPECT_GT(mass(*test, without, coarse).e, 0.5);
+  }
+  // A column step whose spread is below lambda_theta (1024 columns) changes nothing.
+  const double fine = 360.0 / 1024 * M_PI / 180;
+  EXPECT_EQ(mass(t, with, fine).e, mass(t, with, 0.0).e);
+}
+
 TEST(MovingTest, ABeamMeetingTheRoofJustBeyondPDoesNotVoteEmptyEither) {
   // DESIGN §2b, grazing beams. P on the roof 0.2 m short of where the ring just above it meets
   // the roof (x = 11.94 m): that ring's beams around P return 0.2-0.25 m beyond it, within 2

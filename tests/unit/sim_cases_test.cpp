@@ -1338,6 +1338,28 @@ TEST(SimSensors, AParkedCarsRoofRingIsStaticToAnOusterInAShortRun) {
   EXPECT_LT(r.all.fp, 9u);  // measured 0 (87 before the hundred-and-fourteenth session)
 }
 
+// DESIGN §2b, "Coarse columns' beams spread over their step": an OS1-64 at 512 columns (0.70
+// degrees; the cone of lambda_theta 0.60). ground_curb_ramp: the crate on the ramp 19.5 m
+// ahead, whose edge column's neighbour passes beside its corner, the column returning from it
+// outside the cone (84 static returns flagged before). poles_drift with its walkers at half speed:
+// P between two of a walker's columns weighed each by exp(-1.5) or less (recall 0.727 before).
+TEST(SimSensors, AnOusterAt512ColumnsSpreadsItsBeamsOverItsColumnStep) {
+  auto ramp = seenBy(scenario("ground_curb_ramp"), SensorModel::kOs1_64);
+  ramp.sensor.azimuth_step_deg = 360.0 / 512;
+  const auto crate = runCase(ramp);
+  std::printf("  ground_curb_ramp: %llu static returns flagged\n",
+              static_cast<unsigned long long>(crate.all.fp));
+  EXPECT_LT(crate.all.fp, 9u);  // measured 0 (84)
+  auto walkers = seenBy(scenario("poles_drift"), SensorModel::kOs1_64);
+  walkers.sensor.azimuth_step_deg = 360.0 / 512;
+  for (auto& m : walkers.movers) m.speed *= 0.5;
+  const auto slow = runCase(walkers);
+  std::printf("  poles_drift, walkers at half speed: precision %.4f, recall %.4f\n",
+              slow.all.precision(), slow.all.recall());
+  EXPECT_GE(slow.all.recall(), 0.85);     // measured 0.920 (0.727)
+  EXPECT_GE(slow.all.precision(), 0.99);  // measured 1.000 (1.000)
+}
+
 // doc/SCAN_CONFLICT.md, "A return at P": queue_stop_go seen by a VLP-16 from its standing ego.
 // The queue's first car stops 2.6 m beside the sensor. Its lowest ring is a bottom edge, so the
 // beams below P are left out, and the cone holds only beams of that ring returning at P's range:

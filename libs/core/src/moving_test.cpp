@@ -236,7 +236,19 @@ ds::Mass MovingTest::scanMassAt(const Eigen::Vector3d& pl, double d, const Windo
     const float el = q_dir.dot(up_e);
     return (drop_above && el > 0.0f) || (drop_below && el < 0.0f);
   };
-  const double radius = radius_;  // the cone: search_lambdas * lambda_theta
+  // The cone: search_lambdas * lambda_theta. DESIGN §2b, "Coarse columns": a scan whose columns
+  // lie further apart than the cone (an Ouster at 512 columns, 0.70 degrees) has its nearest
+  // beams up to half a column step from P's direction; its beams spread over kColumnSpread of a
+  // column step, so that the nearest weigh as a dense lidar's do (f_theta of Eq. 3).
+  const double lambda = kColumnSpread * s.column_step;
+  std::optional<ds::BeamModel> coarse;
+  if (lambda > p_.lambda_theta) {
+    coarse = model_;
+    coarse->inv_two_lambda2 = 1.0 / (2.0 * lambda * lambda);
+    coarse->f_inv_two_lambda2 = static_cast<float>(coarse->inv_two_lambda2);
+  }
+  const ds::BeamModel& model = coarse ? *coarse : model_;
+  const double radius = coarse ? p_.search_lambdas * lambda : radius_;
   const float r2max = static_cast<float>(radius * radius);
   const float df = static_cast<float>(d), r_far = static_cast<float>(r_far_);
   // Dempster's rule over the beams (Eq. 6) in product form: on {empty, occupied} the
@@ -257,9 +269,9 @@ ds::Mass MovingTest::scanMassAt(const Eigen::Vector3d& pl, double d, const Windo
   int n = 0;
   auto flush = [&] {
     if (math_ == BeamMath::kFast)
-      model_.massesFast(r_b, t2_b, n, e_b, o_b);
+      model.massesFast(r_b, t2_b, n, e_b, o_b);
     else
-      model_.massesReference(r_b, t2_b, n, e_b, o_b);
+      model.massesReference(r_b, t2_b, n, e_b, o_b);
     // In registers: the products are chains from beam to beam, and through memory (the
     // captures) each step waited for a store (issue #16). Same order, same bits.
     double pe = qe, po = qo, pu = qu;

@@ -991,8 +991,8 @@ std::vector<WindowScan> LaserPipeline::windowAround(std::size_t pos, std::size_t
       window.push_back(
           {&buf_[j]->beams,
            corrected[j] ? Eigen::Isometry3d(corrected[j]->inverse()) : buf_[j]->world_to_sensor,
-           (e * path) * (e * path), buf_[j]->ring_gap,
-           static_cast<int>(j) - static_cast<int>(pos)});
+           (e * path) * (e * path), buf_[j]->ring_gap, static_cast<int>(j) - static_cast<int>(pos),
+           buf_[j]->column_step});
     }
   return window;
 }

@@ -28,8 +28,9 @@ struct WindowScan {
   /// (DsParams::empty_run) reads each side of the window from its far end; 0 = not known.
   int offset = 0;
   /// rad; the azimuth step between this scan's columns where it is clearly coarser than the
-  /// HDL-64E's (kCoarseColumnsDeg: an Ouster at 1024 columns), 0 otherwise. Read only of P's own
-  /// scan (MovingTest::edgesOf, kColumnIsolated).
+  /// HDL-64E's (kCoarseColumnsDeg: an Ouster at 1024 columns), 0 otherwise. Of P's own scan:
+  /// MovingTest::edgesOf, kColumnIsolated; of the others: their beams' spread, at least
+  /// MovingTest::kColumnSpread of it (DESIGN §2b, "Coarse columns").
   double column_step = 0.0;
 };
 
@@ -97,6 +98,11 @@ class MovingTest {
   /// seen obliquely recedes on one side as far as it approaches on the other), or are missing.
   uint8_t edgesOf(const Eigen::Vector3f& p, const WindowScan& own) const;
   double searchRadius() const { return radius_; }
+  /// A window scan's beam spread is at least this share of its column step where its columns
+  /// are coarse (WindowScan::column_step): an Ouster at 512 columns (0.70 degrees) spreads over
+  /// 0.0049 rad instead of lambda_theta's 0.0035, its nearest beams half a column step (1.25 of
+  /// that spread) from P's direction at most; at 1024 columns and finer lambda_theta stays.
+  static constexpr double kColumnSpread = 0.4;
   /// The order in which to test points, given in the sensor frame of their scan (issue #16): in
   /// columns of azimuth two beam-index bins wide, bottom to top in each (ties by index), so that
   /// consecutive tests look up the same few bins of every window scan while they are in cache.
