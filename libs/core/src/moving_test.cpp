@@ -236,10 +236,11 @@ ds::Mass MovingTest::scanMassAt(const Eigen::Vector3d& pl, double d, const Windo
     const float el = q_dir.dot(up_e);
     return (drop_above && el > 0.0f) || (drop_below && el < 0.0f);
   };
-  // The cone: search_lambdas * lambda_theta. DESIGN §2b, "Coarse columns": a scan whose columns
-  // lie further apart than the cone (an Ouster at 512 columns, 0.70 degrees) has its nearest
-  // beams up to half a column step from P's direction; its beams spread over kColumnSpread of a
-  // column step, so that the nearest weigh as a dense lidar's do (f_theta of Eq. 3).
+  // The cone: search_lambdas * lambda_theta. DESIGN §2b, "Coarse columns' beams spread over their
+  // step": a scan whose columns lie further apart than the cone (an Ouster at 512 columns, 0.70
+  // degrees) has its nearest beams up to half a column step from P's direction; its beams spread
+  // over kColumnSpread of a column step, so that the nearest weigh as a dense lidar's do
+  // (f_theta of Eq. 3).
   const double lambda = kColumnSpread * s.column_step;
   std::optional<ds::BeamModel> coarse;
   if (lambda > p_.lambda_theta) {
@@ -392,12 +393,13 @@ ds::Mass MovingTest::scanMassAt(const Eigen::Vector3d& pl, double d, const Windo
   // Issue #11: where the scan's pose relative to P's is uncertain (estimated poses), a return at
   // P's range within that error is the surface P lies on, displaced by it (a pole 5 m away is
   // missed by 2 cm of error): the check looks for returns within search_lambdas *
-  // sqrt(lambda_theta^2 + (noise / d)^2), a cone that widens only near the sensor. The masses
-  // keep the beam cone, so this only takes empty votes away.
+  // sqrt(lambda^2 + (noise / d)^2), lambda the masses' spread (lambda_theta, or a coarse scan's),
+  // a cone that widens only near the sensor. The masses keep their cone, so this only takes
+  // empty votes away.
   if (!ring && p_.scan_conflict < 1.0 && s.pose_noise2 > 0 && m.e > m.o && m.e > m.u &&
       static_cast<double>(e_max) * o_max < p_.scan_conflict) {
-    const double wide =
-        p_.search_lambdas * std::sqrt(p_.lambda_theta * p_.lambda_theta + s.pose_noise2 / (d * d));
+    const double spread = coarse ? lambda : p_.lambda_theta;  // the masses' (coarse columns)
+    const double wide = p_.search_lambdas * std::sqrt(spread * spread + s.pose_noise2 / (d * d));
     const float r2w = static_cast<float>(wide * wide);
     if (math_ == BeamMath::kFast) {
       // The same beams through filterBeams (r <= band there, r >= -band here), until the

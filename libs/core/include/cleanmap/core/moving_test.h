@@ -30,7 +30,8 @@ struct WindowScan {
   /// rad; the azimuth step between this scan's columns where it is clearly coarser than the
   /// HDL-64E's (kCoarseColumnsDeg: an Ouster at 1024 columns), 0 otherwise. Of P's own scan:
   /// MovingTest::edgesOf, kColumnIsolated; of the others: their beams' spread, at least
-  /// MovingTest::kColumnSpread of it (DESIGN §2b, "Coarse columns").
+  /// MovingTest::kColumnSpread of it (DESIGN §2b, "Coarse columns' beams spread over their
+  /// step").
   double column_step = 0.0;
 };
 
