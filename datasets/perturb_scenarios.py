@@ -176,6 +176,8 @@ def main():
         if s not in shipped:
             fail(f"{s}: no such scenario in {scen_dir}")
     variants = STANDING if a.variants == "standing" else [v for v in a.variants.split(",") if v]
+    if not variants:
+        fail("--variants names none (comma-separated names, a+b, or 'standing')")
     for v in variants:
         why = parts_of(v)[1]
         if why:
