@@ -241,15 +241,15 @@ ds::Mass MovingTest::scanMassAt(const Eigen::Vector3d& pl, double d, const Windo
   // degrees) has its nearest beams up to half a column step from P's direction; its beams spread
   // over kColumnSpread of a column step, so that the nearest weigh as a dense lidar's do
   // (f_theta of Eq. 3).
-  const double lambda = kColumnSpread * s.column_step;
+  const double spread = std::max(p_.lambda_theta, kColumnSpread * s.column_step);
   std::optional<ds::BeamModel> coarse;
-  if (lambda > p_.lambda_theta) {
+  if (spread > p_.lambda_theta) {
     coarse = model_;
-    coarse->inv_two_lambda2 = 1.0 / (2.0 * lambda * lambda);
+    coarse->inv_two_lambda2 = 1.0 / (2.0 * spread * spread);
     coarse->f_inv_two_lambda2 = static_cast<float>(coarse->inv_two_lambda2);
   }
   const ds::BeamModel& model = coarse ? *coarse : model_;
-  const double radius = coarse ? p_.search_lambdas * lambda : radius_;
+  const double radius = p_.search_lambdas * spread;  // radius_ where the columns are dense
   const float r2max = static_cast<float>(radius * radius);
   const float df = static_cast<float>(d), r_far = static_cast<float>(r_far_);
   // Dempster's rule over the beams (Eq. 6) in product form: on {empty, occupied} the
@@ -393,12 +393,11 @@ ds::Mass MovingTest::scanMassAt(const Eigen::Vector3d& pl, double d, const Windo
   // Issue #11: where the scan's pose relative to P's is uncertain (estimated poses), a return at
   // P's range within that error is the surface P lies on, displaced by it (a pole 5 m away is
   // missed by 2 cm of error): the check looks for returns within search_lambdas *
-  // sqrt(lambda^2 + (noise / d)^2), lambda the masses' spread (lambda_theta, or a coarse scan's),
-  // a cone that widens only near the sensor. The masses keep their cone, so this only takes
-  // empty votes away.
+  // sqrt(spread^2 + (noise / d)^2), spread the masses' (lambda_theta, or a coarse scan's), a
+  // cone that widens only near the sensor; its returns weigh as the masses' (`model`). The masses
+  // keep their cone, so this only takes empty votes away.
   if (!ring && p_.scan_conflict < 1.0 && s.pose_noise2 > 0 && m.e > m.o && m.e > m.u &&
       static_cast<double>(e_max) * o_max < p_.scan_conflict) {
-    const double spread = coarse ? lambda : p_.lambda_theta;  // the masses' (coarse columns)
     const double wide = p_.search_lambdas * std::sqrt(spread * spread + s.pose_noise2 / (d * d));
     const float r2w = static_cast<float>(wide * wide);
     if (math_ == BeamMath::kFast) {
@@ -410,8 +409,7 @@ ds::Mass MovingTest::scanMassAt(const Eigen::Vector3d& pl, double d, const Windo
               const int32_t* keep_run) {
             for (int k = 0; k < run; ++k)
               if (keep_run[k] && r_run[k] >= -band)
-                o_max =
-                    std::max(o_max, static_cast<float>(model_.beamFloat(r_run[k], t2_run[k]).o));
+                o_max = std::max(o_max, static_cast<float>(model.beamFloat(r_run[k], t2_run[k]).o));
             return static_cast<double>(e_max) * o_max < p_.scan_conflict;
           });
     } else {
@@ -419,7 +417,7 @@ ds::Mass MovingTest::scanMassAt(const Eigen::Vector3d& pl, double d, const Windo
         float theta2, r;
         geometry(q, theta2, r);
         if (theta2 <= r2w && dir.dot(q.dir) > 0.0f && std::abs(r) <= band)
-          o_max = std::max(o_max, static_cast<float>(model_.beamFloat(r, theta2).o));
+          o_max = std::max(o_max, static_cast<float>(model.beamFloat(r, theta2).o));
       });
     }
   }
@@ -438,7 +436,7 @@ ds::Mass MovingTest::scanMassAt(const Eigen::Vector3d& pl, double d, const Windo
                       float theta2, r;
                       geometry(q, theta2, r);
                       if (std::abs(r) <= band)
-                        o_max = std::max(o_max, static_cast<float>(model_.beamFloat(r, theta2).o));
+                        o_max = std::max(o_max, static_cast<float>(model.beamFloat(r, theta2).o));
                     });
   }
   if (!ring && p_.scan_conflict < 1.0 && m.e > m.o && m.e > m.u &&

@@ -283,13 +283,10 @@ void splitFromWalls(const std::vector<PointXYZI>& points, ObjectComponents& cc,
       return n.dot(Eigen::Vector2d(points[i].x, points[i].y) - mean);
     };
     // (`offset` is never empty where its median is asked: a raised voxel holds a raised return)
-    const auto median_offset = [&] {  // the raised returns', each return's offset kept once
+    const auto returns_median = [&] {  // the raised returns' offsets (across_of, filled first)
       offset.clear();
-      across_of.resize(ps.size());
-      for (std::size_t k = 0; k < ps.size(); ++k) {
-        across_of[k] = across(ps[k]);
+      for (std::size_t k = 0; k < ps.size(); ++k)
         if (raised(ps[k])) offset.push_back(static_cast<float>(across_of[k]));
-      }
       return static_cast<double>(median(offset));
     };
     const auto voxels_median = [&] {  // the raised voxels' columns'
@@ -310,7 +307,9 @@ void splitFromWalls(const std::vector<PointXYZI>& points, ObjectComponents& cc,
     std::size_t near = 0;
     for (const float o : offset) near += std::abs(o - c) <= reach.wall_gap + side * M_SQRT1_2;
     if (2 * near < offset.size()) continue;
-    c = median_offset();
+    across_of.resize(ps.size());  // each return's offset from the final line, kept once
+    for (std::size_t k = 0; k < ps.size(); ++k) across_of[k] = across(ps[k]);
+    c = returns_median();
     const double sensor = n.dot(reach.origin - mean) - c;  // the sensor's side of the plane
     if (std::abs(sensor) <= reach.wall_gap) continue;
     const float sign = sensor > 0 ? 1.f : -1.f;
