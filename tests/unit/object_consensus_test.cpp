@@ -128,6 +128,66 @@ TEST(ObjectConsensus, AWalkerOnASidewalkDoesNotTakeThePoleAndTheWallAlong) {
   for (std::size_t i = sidewalk; i < walker; ++i) ASSERT_EQ(all[i], 1);
 }
 
+TEST(ObjectConsensus, AFootPointLevelWithTheSurfaceAroundIsThatSurface) {
+  // doc/OBJECTS.md rule 2, "Level with the surface around it": the walker of
+  // AFootIsTouchedStoodOnOrTheObjects stands on a sidewalk at 0; its returns within his reach
+  // (0.15 m) lie under his face and were his. The scan's other points around him (the sidewalk
+  // beyond, parted from him) show the surface: returns level with it are it; his shoe, 0.08 m up,
+  // is not. A wall's foot alone, or too few columns, shows no surface.
+  const auto walker = [](Foot& f) {
+    for (float z = 0; z <= 1.7f; z += 0.05f) f.add({0.05f, 0.05f, z}, 7, 0);
+  };
+  const auto sidewalk = [](Foot& f, float x0, float x1, float y0, float y1) {
+    for (float x = x0; x <= x1; x += 0.05f)
+      for (float y = y0; y <= y1; y += 0.05f) f.addAround({x, y, 0.005f * std::sin(40 * x + y)});
+  };
+  const Eigen::Vector3f front{0.15f, 0.05f, 0.01f}, shoe{0.12f, 0.05f, 0.08f};
+  Foot bare(0.3, 0.3, 0.15, 0, 0.3f);
+  walker(bare);
+  bare.settle();
+  EXPECT_EQ(bare.at(front, 7, 0), Foot::kBody);  // no surface around: his
+  Foot around(0.3, 0.3, 0.15, 0, 0.3f);
+  walker(around);
+  sidewalk(around, 0.35f, 0.65f, -0.55f, 0.65f);  // in front of him, beyond his reach
+  sidewalk(around, -0.55f, 0.3f, -0.3f, -0.2f);   // and beside him
+  around.settle();
+  EXPECT_EQ(around.at(front, 7, 0), Foot::kLevel);
+  EXPECT_EQ(around.at(shoe, 7, 0), Foot::kBody);
+  EXPECT_EQ(around.at({0.05f, 0.05f, 1.0f}, 7, 0), Foot::kBody);  // over the band
+  // Over the road's level (stand_top), or with no reach (foot_reach 0), as Overhead: the columns
+  // decide.
+  Foot high(0.3, 0.3, 0.15, 0, 0.0f), no_reach(0.3, 0.3, 0, 0, 0.3f);
+  for (Foot* f : {&high, &no_reach}) {
+    walker(*f);
+    sidewalk(*f, 0.35f, 0.65f, -0.55f, 0.65f);
+    f->settle();
+    EXPECT_EQ(f->at(front, 7, 0), Foot::kBody);
+  }
+  // A wall 0.4 m in front of him, its foot on the floor and its returns up the band: the lowest
+  // sample of each column is the floor's, so the floor beside it still shows. Its face alone,
+  // cut off 0.2 m up (no floor seen), shows none.
+  Foot wall(0.3, 0.3, 0.15, 0, 0.3f), face(0.3, 0.3, 0.15, 0, 0.3f);
+  walker(wall);
+  walker(face);
+  for (float y = -0.55f; y <= 0.65f; y += 0.05f)
+    for (float z = 0.0f; z <= 0.3f; z += 0.02f) {
+      wall.addAround({0.45f, y, z});
+      wall.addAround({0.5f, y, z});
+      if (z >= 0.2f) face.addAround({0.45f, y, z});
+    }
+  sidewalk(wall, 0.35f, 0.4f, -0.55f, 0.65f);
+  wall.settle();
+  face.settle();
+  EXPECT_EQ(wall.at(front, 7, 0), Foot::kLevel);
+  EXPECT_EQ(face.at(front, 7, 0), Foot::kBody);
+  // Two columns of surface are too few.
+  Foot few(0.3, 0.3, 0.15, 0, 0.3f);
+  walker(few);
+  sidewalk(few, 0.35f, 0.55f, 0.0f, 0.4f);
+  few.settle();
+  EXPECT_EQ(few.at(front, 7, 0), Foot::kBody);
+}
+
 TEST(ObjectConsensus, WhatAMoverStandsOnStaysWhereItIs) {
   // doc/OBJECTS.md rule 2's foot, "What it stands on": a walker flagged whole on a sidewalk that is
   // not ground (0.12 m up) turns his component moving. The sidewalk around his feet lies in his

@@ -280,10 +280,18 @@ TEST(SimCases, ACarThatStopsIsCarriedBackThroughTheScansItStoodIn) {
   EXPECT_LT(r.all.fp, 14u);  // measured 0
 }
 
+// doc/OBJECTS.md rule 2, "Level with the surface around it": the walker stands on a sidewalk
+// 0.12 m up (not ground); parted from the wall and from the sidewalk beyond him, his component
+// holds the sidewalk's returns just in front of his face, within foot_reach of it, and took them
+// (20-50 a scan in scans 22-29, 254 false positives in all). The sidewalk around him, in the
+// other components, shows that they are level with it.
 TEST(SimCases, PedestrianWalkingAlongAWall) {
   const auto r = runCase(scenario("pedestrian_wall"));
-  EXPECT_GE(r.per_mover.at("walker").recall(), 0.80);  // measured 0.982 (0.851 without wall_gap)
+  std::printf("  false positives %zu, walker recall %.4f\n", static_cast<std::size_t>(r.all.fp),
+              r.per_mover.at("walker").recall());
+  EXPECT_GE(r.per_mover.at("walker").recall(), 0.97);  // measured 0.980 (0.851 without wall_gap)
   EXPECT_GE(r.all.precision(), 0.95);                  // the wall behind must stay static
+  EXPECT_LT(r.all.fp, 130u);  // the sidewalk in front of his face: measured 66 (254 before)
 }
 
 // doc/OBJECTS.md rule 1, "Beside a wall": the walker, his back 5 cm from the wall, shared its

@@ -678,16 +678,56 @@ bool Overhead::over(const Eigen::Vector3f& x, uint32_t object, float base, float
 
 void Foot::add(const Eigen::Vector3f& x, uint32_t object, float base, bool raises) {
   overhead_.add(x, object, base);
-  if (raises && !low(x.z(), base)) raised_.insert(column(x, object, 0, 0));
+  if (!low(x.z(), base)) {
+    if (raises) raised_.insert(column(x, object, 0, 0));
+  } else if (levels_ && x.z() < stand_top_ && band_.insert(column(x, kAround, 0, 0))) {
+    for (int dx = -1; dx <= 1; ++dx)  // only where level() may ask
+      for (int dy = -1; dy <= 1; ++dy) near_band_.insert(column(x, kAround, dx, dy));
+  }
 }
-
+void Foot::addAround(const Eigen::Vector3f& x) {
+  const uint64_t key = column(x, kAround, 0, 0);
+  if (near_band_.contains(key)) around_.emplace_back(key, x.z());
+}
+void Foot::settle() {
+  std::sort(around_.begin(), around_.end());
+}
+// doc/OBJECTS.md rule 2, "Level with the surface around it": in each column of x's 3 x 3 the
+// lowest sample around the objects within the foot band's height of the object's lowest
+// (`base`): a floor's, or a wall's foot on it. At least kLevelColumns of them, most within
+// kLevelBand of their median, and x within kLevelBand of it. Only where Overhead applies
+// (foot_reach > 0, below stand_top).
+bool Foot::level(const Eigen::Vector3f& x, float base) const {
+  if (!levels_ || around_.empty() || !(x.z() < stand_top_)) return false;
+  float lowest[9];
+  int n = 0;
+  for (int dx = -1; dx <= 1; ++dx)
+    for (int dy = -1; dy <= 1; ++dy) {
+      const uint64_t key = column(x, kAround, dx, dy);
+      auto it = std::lower_bound(around_.begin(), around_.end(),
+                                 std::make_pair(key, -std::numeric_limits<float>::infinity()));
+      for (; it != around_.end() && it->first == key; ++it)  // heights ascending
+        if (std::abs(it->second - base) < foot_) {
+          lowest[n++] = it->second;
+          break;
+        }
+    }
+  if (n < static_cast<int>(kLevelColumns)) return false;
+  std::nth_element(lowest, lowest + n / 2, lowest + n);
+  const float m = lowest[n / 2];
+  const auto near =
+      std::count_if(lowest, lowest + n, [&](float z) { return std::abs(z - m) <= kLevelBand; });
+  return 2 * near > n && near >= static_cast<std::ptrdiff_t>(kLevelColumns) &&
+         std::abs(x.z() - m) <= kLevelBand;
+}
 Foot::Kind Foot::at(const Eigen::Vector3f& x, uint32_t object, float base) const {
   if (!low(x.z(), base)) return kBody;
   bool under = false;
   for (int dx = -1; dx <= 1 && !under; ++dx)
     for (int dy = -1; dy <= 1 && !under; ++dy) under = raised_.contains(column(x, object, dx, dy));
   if (!under) return kTouched;
-  return overhead_.standsOn(x, object, base) ? kStoodOn : kBody;
+  if (overhead_.standsOn(x, object, base)) return kStoodOn;
+  return level(x, base) ? kLevel : kBody;
 }
 
 namespace {
@@ -1155,6 +1195,21 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
       foot.add(points[i].xyz(), root, comps[root].lo.z(),
                !low(i, root) && spreads[part_of[point_voxel[i]]]);
     }
+    // "Level with the surface around it": the other components' points in the heights of the
+    // turned ones' foot bands (Foot::level reads no others).
+    if (foot.levels()) {
+      float band_lo = std::numeric_limits<float>::max(), band_hi = -band_lo;
+      for (uint32_t v = 0; v < voxels.size(); ++v)
+        if (turn[v] == 1 && comps[v].n > 0) {
+          band_lo = std::min(band_lo, comps[v].lo.z() - static_cast<float>(p.foot_height));
+          band_hi = std::max(band_hi, comps[v].lo.z() + static_cast<float>(p.foot_height));
+        }
+      for (std::size_t i = 0; i < points.size(); ++i)
+        if (point_voxel[i] != UINT32_MAX && points[i].z > band_lo && points[i].z < band_hi &&
+            turn[root_of[point_voxel[i]]] != 1)
+          foot.addAround(points[i].xyz());
+    }
+    foot.settle();
   }
   // A raised point of a part the spread does not reach.
   const auto still_part = [&](std::size_t i, uint32_t root) {
@@ -1167,7 +1222,7 @@ ObjectConsensusStats objectConsensus(const std::vector<PointXYZI>& points,
     if (t == 1 && !moving[i]) {
       if (const Foot::Kind kind = foot.at(points[i].xyz(), root, comps[root].lo.z())) {
         ++st.foot_points_left;
-        st.surface_points_left += kind == Foot::kStoodOn;
+        st.surface_points_left += kind >= Foot::kStoodOn;
         continue;
       }
       if (still_part(i, root)) {

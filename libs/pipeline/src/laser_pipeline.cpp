@@ -2053,15 +2053,44 @@ bool faceOf(const Eigen::Vector3f& face, const Eigen::Vector3f& box, double voxe
 }
 
 // Rule 2's foot (doc/OBJECTS.md, Foot) of the points order[k] of `part`: the part without it.
+// The scan's other points around it show the surface it stands on (Foot::addAround): those of
+// the components (order[ends[c - 1] .. ends[c]), boxes lo[c] .. hi[c]) that reach the foot band's
+// heights within two voxels of the part.
 std::vector<uint32_t> withoutFoot(const std::vector<uint32_t>& part,
                                   const std::vector<uint32_t>& order,
+                                  const std::vector<uint32_t>& ends,
+                                  const std::vector<Eigen::Vector3f>& lo,
+                                  const std::vector<Eigen::Vector3f>& hi,
                                   const std::vector<PointXYZI>& points, double side, double foot,
                                   double reach, double ring_gap, float stand_top) {
   if (foot <= 0 || part.empty()) return part;
-  float lowest = std::numeric_limits<float>::max();
-  for (const uint32_t k : part) lowest = std::min(lowest, points[order[k]].z);
+  Eigen::Vector3f p_lo = Eigen::Vector3f::Constant(std::numeric_limits<float>::max());
+  Eigen::Vector3f p_hi = -p_lo;
+  for (const uint32_t k : part) {
+    p_lo = p_lo.cwiseMin(points[order[k]].xyz());
+    p_hi = p_hi.cwiseMax(points[order[k]].xyz());
+  }
+  std::vector<uint32_t> sorted = part;
+  std::sort(sorted.begin(), sorted.end());
+  const float lowest = p_lo.z();
   Foot feet(side, foot, reach, ring_gap, stand_top);
   for (const uint32_t k : part) feet.add(points[order[k]].xyz(), 0, lowest);
+  const float margin = 2.0f * static_cast<float>(side);  // beyond it no column is near the band
+  for (std::size_t c = 0, from = 0; c < ends.size() && feet.levels(); from = ends[c++]) {
+    if (lo[c].z() >= lowest + static_cast<float>(foot) || lo[c].x() > p_hi.x() + margin ||
+        hi[c].x() < p_lo.x() - margin || lo[c].y() > p_hi.y() + margin ||
+        hi[c].y() < p_lo.y() - margin)
+      continue;
+    auto next = std::lower_bound(sorted.begin(), sorted.end(), static_cast<uint32_t>(from));
+    for (std::size_t k = from; k < ends[c]; ++k) {
+      if (next != sorted.end() && *next == k) {  // the part's own
+        ++next;
+        continue;
+      }
+      feet.addAround(points[order[k]].xyz());
+    }
+  }
+  feet.settle();
   std::vector<uint32_t> kept;
   for (const uint32_t k : part)
     if (feet.at(points[order[k]].xyz(), 0, lowest) == Foot::kBody) kept.push_back(k);
@@ -2440,8 +2469,9 @@ void LaserPipeline::carryBack() {
         turns = turns || (!h.moving[i] && !h.relabelled[i]);
       }
       const std::vector<uint32_t> body =
-          turns ? withoutFoot(part, h.order, h.points, op.voxel, op.foot_height, op.foot_reach,
-                              h.ring_gap, static_cast<float>(h.ground_z + op.foot_height))
+          turns ? withoutFoot(part, h.order, h.ends, h.lo, h.hi, h.points, op.voxel, op.foot_height,
+                              op.foot_reach, h.ring_gap,
+                              static_cast<float>(h.ground_z + op.foot_height))
                 : std::vector<uint32_t>{};
       std::vector<uint8_t> in_body(part.size(), 0);
       for (std::size_t a = 0, b = 0; a < part.size() && b < body.size(); ++a)

@@ -191,35 +191,60 @@ class Overhead {
 /// (ObjectParams::foot_height) over its lowest (`base`), belong to it. A band point with no raised
 /// point (at or above base + foot) of its object in its 3 x 3 column of voxels of side `side` is a
 /// low surface the object touches (from 0.8 m, a sidewalk 0.12 m up); so is one it stands on
-/// (Overhead). A vehicle's wheels and sills have its body over them. Points are added per object
-/// (`object`: any tag, as Overhead's), every one of the object's before the first at().
+/// (Overhead), and one level with the surface around it (kLevel; where Overhead applies). A
+/// vehicle's wheels and sills
+/// have its body over them. Points are added per object (`object`: any tag but kAround, as
+/// Overhead's), then the scan's points around the objects (addAround), then settle(), every one
+/// before the first at().
 class Foot {
  public:
   enum Kind : uint8_t {
     kBody = 0,     ///< not in the foot band, or in it under the object: a part of it
     kTouched = 1,  ///< in the band with no raised point in its column
     kStoodOn = 2,  ///< in the band under a raised column, but what the object stands on
+    /// in the band under the object, but level with the surface the scan shows around it (the
+    /// sidewalk in front of a walker's shoes, which his face reaches over; doc/OBJECTS.md rule
+    /// 2, "Level with the surface around it")
+    kLevel = 3,
   };
+  /// m; kLevel: within this height of the surface around it (rule 6's least rise over the road,
+  /// MoverFeetParams::rise)
+  static constexpr float kLevelBand = 0.03f;
+  static constexpr std::size_t kLevelColumns = 3;  ///< kLevel: columns showing that surface
   Foot(double side, double foot, double reach, double ring_gap, float stand_top)
       : inv_(static_cast<float>(1.0 / side)),
         foot_(foot),
+        stand_top_(stand_top),
+        levels_(reach > 0 && std::isfinite(stand_top)),
         overhead_(reach, foot, ring_gap, stand_top) {}
   /// Whether height z lies in the foot band of an object whose lowest is at base.
   bool low(float z, float base) const { return foot_ > 0 && z < base + foot_; }
   /// A point of `object`; a raised one marks its column only where `raises` (objectConsensus: a
   /// part the spread reaches).
   void add(const Eigen::Vector3f& x, uint32_t object, float base, bool raises = true);
+  /// A point of the scan in none of the objects: a sample of the surface around them where it
+  /// lies in the 3 x 3 column of an object's band point.
+  void addAround(const Eigen::Vector3f& x);
+  void settle();                           ///< after the last add() and addAround()
+  bool levels() const { return levels_; }  ///< whether kLevel may be found (as Overhead)
   Kind at(const Eigen::Vector3f& x, uint32_t object, float base) const;
 
  private:
+  static constexpr uint32_t kAround = UINT32_MAX;  // the tag of the columns around the objects
   uint64_t column(const Eigen::Vector3f& x, uint32_t object, int dx, int dy) const {
     return cellKey(floorToCell(x.x(), inv_) + dx, floorToCell(x.y(), inv_) + dy,
                    static_cast<int64_t>(object));
   }
+  bool level(const Eigen::Vector3f& x, float base) const;
   float inv_;
   double foot_;
+  float stand_top_;
+  bool levels_;              // kLevel as Overhead: reach > 0, stand_top finite
   CellMap<uint8_t> raised_;  // (column, object) holding a raised point
   Overhead overhead_;
+  CellMap<uint8_t> band_;       // columns holding a band point (tag kAround)
+  CellMap<uint8_t> near_band_;  // columns in the 3 x 3 column of a band point (tag kAround)
+  std::vector<std::pair<uint64_t, float>> around_;  // (column, height) of addAround's samples
 };
 
 /// The 26-connected components of a set of member points' voxels (and those a sparse lidar's rings
