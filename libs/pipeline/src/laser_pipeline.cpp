@@ -2083,11 +2083,9 @@ std::vector<uint32_t> withoutFoot(const std::vector<uint32_t>& part,
       continue;
     auto next = std::lower_bound(sorted.begin(), sorted.end(), static_cast<uint32_t>(from));
     for (std::size_t k = from; k < ends[c]; ++k) {
-      if (next != sorted.end() && *next == k) {  // the part's own
-        ++next;
-        continue;
-      }
-      feet.addAround(points[order[k]].xyz());
+      while (next != sorted.end() && *next < k) ++next;
+      if (next == sorted.end() || *next != k)
+        feet.addAround(points[order[k]].xyz());  // not its own
     }
   }
   feet.settle();

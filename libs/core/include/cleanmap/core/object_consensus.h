@@ -192,10 +192,9 @@ class Overhead {
 /// point (at or above base + foot) of its object in its 3 x 3 column of voxels of side `side` is a
 /// low surface the object touches (from 0.8 m, a sidewalk 0.12 m up); so is one it stands on
 /// (Overhead), and one level with the surface around it (kLevel; where Overhead applies). A
-/// vehicle's wheels and sills
-/// have its body over them. Points are added per object (`object`: any tag but kAround, as
-/// Overhead's), then the scan's points around the objects (addAround), then settle(), every one
-/// before the first at().
+/// vehicle's wheels and sills have its body over them. Points are added per object (`object`: any
+/// tag, as Overhead's), then the scan's points around the objects (addAround), then settle(),
+/// every one before the first at().
 class Foot {
  public:
   enum Kind : uint8_t {
@@ -230,7 +229,8 @@ class Foot {
   Kind at(const Eigen::Vector3f& x, uint32_t object, float base) const;
 
  private:
-  static constexpr uint32_t kAround = UINT32_MAX;  // the tag of the columns around the objects
+  // The tag of the columns around the objects (band_, near_band_, around_: apart from raised_).
+  static constexpr uint32_t kAround = 0;
   uint64_t column(const Eigen::Vector3f& x, uint32_t object, int dx, int dy) const {
     return cellKey(floorToCell(x.x(), inv_) + dx, floorToCell(x.y(), inv_) + dy,
                    static_cast<int64_t>(object));
