@@ -472,6 +472,49 @@ TEST(ObjectConsensus, AWalkerAgainstAWallIsAnObjectOfHisOwn) {
   EXPECT_EQ(joined.root_of[joined.point_voxel[front]], joined.root_of[joined.point_voxel[0]]);
 }
 
+TEST(ObjectConsensus, AWallsStretchOfAVehiclesSizeLeavesTheWalkerAnObjectOfHisOwn) {
+  // doc/OBJECTS.md rule 1, "Beside a wall", "A stretch of a wall": a walker's shadow cuts the wall
+  // into stretches under max_length, of a vehicle's size, and the one behind him (14 m here) took
+  // him whole. It is asked as a structure is where it is over kPlaneLength (3 m) long; what parts
+  // from it is a component like any other (rule 2 may turn it static too).
+  const WalkerAtAWall whole;
+  std::vector<PointXYZI> pts;
+  std::size_t walker = 0;
+  for (std::size_t i = 0; i < whole.pts.size(); ++i) {
+    if (i == whole.walker) walker = pts.size();
+    if (i < whole.walker && (whole.pts[i].x < 4 || whole.pts[i].x > 18)) continue;
+    pts.push_back(whole.pts[i]);
+  }
+  std::size_t front = walker;  // a return of his front at his waist
+  while (!(std::abs(pts[front].y) < 5.4f && pts[front].z > -0.8f)) ++front;
+  ObjectParams p;
+  ASSERT_LT(14.5, p.max_length);  // the stretch is of a vehicle's size
+  const std::vector<uint8_t> member(pts.size(), 1);
+  ObjectComponents cc;
+  groupObjects(pts, member, p.voxel, cc, ringReach(p, 0.0));
+  const auto rootOf = [&](std::size_t i) { return cc.root_of[cc.point_voxel[i]]; };
+  const uint32_t him = rootOf(front);
+  EXPECT_NE(him, rootOf(0));
+  EXPECT_TRUE(cc.piece.empty() || cc.piece[him] == 0);
+  std::size_t his = 0;
+  for (std::size_t i = walker; i < pts.size(); ++i) his += rootOf(i) == him;
+  EXPECT_GE(his, (pts.size() - walker) * 3 / 4);
+  // A truck seen from behind, 6 m ahead on a road that is ground: its rear face 2.5 m wide and
+  // its bumper 0.3 m in front of it, down to its lowest. Not convex, but no wider than a vehicle:
+  // not asked, one object.
+  std::vector<PointXYZI> truck;
+  for (float y = -1.25f; y <= 1.25f; y += 0.05f) {
+    for (float z = -1.2f; z <= 1.8f; z += 0.05f) truck.push_back({6.1f, y, z, 0});
+    for (float z = -1.25f; z <= -0.85f; z += 0.05f)
+      if (std::abs(y) <= 1.0f) truck.push_back({5.8f, y, z, 0});
+  }
+  ObjectComponents tc;
+  groupObjects(truck, std::vector<uint8_t>(truck.size(), 1), p.voxel, tc, ringReach(p, 0.0));
+  for (std::size_t i = 1; i < truck.size(); ++i)
+    ASSERT_EQ(tc.root_of[tc.point_voxel[i]], tc.root_of[tc.point_voxel[0]])
+        << "the truck's return at " << truck[i].x << " " << truck[i].y << " " << truck[i].z;
+}
+
 TEST(ObjectConsensus, AWalkersSideByTheWallIsHisNotTheWalls) {
   // His sides' returns within wall_gap of the wall (5-15 cm in front of it) lie in the wall's
   // voxels: those further in front than the wall's own scatter (3 sigma), beside his voxels and

@@ -1184,13 +1184,19 @@ TEST(SimSensors, Os1_128At0_8And1_73And2_5m) {
 // empty. A point its own scan shows narrower than a column gets no vote (kColumnIsolated).
 // Measured: walker recall 0.890 / 0.903 (OS1-64 / OS1-128), precision 0.995 / 0.967; poles
 // precision 1.000 / 1.000, walker 0.962 / 0.970.
+// doc/OBJECTS.md rule 1, "A stretch of a wall": an Ouster's rings break the wall at the walker's
+// shadow into a stretch under max_length, which took him whole in scans 0-6 (none of his returns
+// found there, recall 0.890 / 0.901); asked as a structure is, it parts him. Measured: walker
+// recall 0.970 / 0.980, scans 0-7 with the OS1-64 0.874 (0.126 before).
 TEST(SimSensors, AnOusterFindsTheWalkerAlongTheWallAndKeepsTheThinPoles) {
   for (const SensorModel m : {SensorModel::kOs1_64, SensorModel::kOs1_128}) {
     const std::string lidar = sensorPreset(m).name;
     const auto wall = runCase(seenBy(scenario("pedestrian_wall"), m));
-    std::printf("  %s pedestrian_wall: walker recall %.3f, precision %.3f\n", lidar.c_str(),
-                wall.per_mover.at("walker").recall(), wall.all.precision());
-    EXPECT_GE(wall.per_mover.at("walker").recall(), 0.80) << lidar;
+    std::printf("  %s pedestrian_wall: walker recall %.3f (scans 0-7 %.3f), precision %.3f\n",
+                lidar.c_str(), wall.per_mover.at("walker").recall(), wall.frames(0, 8).recall(),
+                wall.all.precision());
+    EXPECT_GE(wall.per_mover.at("walker").recall(), 0.94) << lidar;
+    EXPECT_GE(wall.frames(0, 8).recall(), 0.75) << lidar;
     EXPECT_GE(wall.all.precision(), 0.95) << lidar;
     const auto poles = runCase(seenBy(scenario("poles_drift"), m));
     std::printf("  %s poles_drift: walker recall %.3f, precision %.3f\n", lidar.c_str(),

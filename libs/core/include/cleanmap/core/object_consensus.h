@@ -278,8 +278,9 @@ struct ObjectComponents {
 /// rule 1); the low surfaces' split keeps them. `cap_links`: they join no more than a vehicle's
 /// size (reach.max_length, max_height), as where they were found in a dense lidar's own columns
 /// (GrazingStretches::fineLinks). A structure falls apart at low surfaces (reach.foot), and a
-/// body standing against a wall is parted from it with its returns in the wall's voxels
-/// (reach.wall_gap, doc/OBJECTS.md rule 1, "Beside a wall"). Deterministic; O(points).
+/// body standing against a wall (or a stretch of one of a vehicle's size) is parted from it with
+/// its returns in the wall's voxels (reach.wall_gap, doc/OBJECTS.md rule 1, "Beside a wall").
+/// Deterministic; O(points).
 void groupObjects(const std::vector<PointXYZI>& points, const std::vector<uint8_t>& member,
                   double side, ObjectComponents& out, const RingReach& reach = {},
                   const std::vector<uint32_t>* column_links = nullptr, bool cap_links = false);
