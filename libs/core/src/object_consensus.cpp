@@ -385,9 +385,8 @@ void splitFromWalls(const std::vector<PointXYZI>& points, ObjectComponents& cc,
       // a parked car's wheels or bumper in front of its side (kitti_residential: 0.15-0.6 m high
       // under sides 2 m high, dozens a run).
       const bool behind =
-          !vehicle_sized[r] ||
-          (plane_lo <= glo[g].z() + foot && plane_hi >= ghi[g].z() - foot &&
-           2 * (ghi[g].z() - glo[g].z()) >= plane_hi - plane_lo);
+          !vehicle_sized[r] || (plane_lo <= glo[g].z() + foot && plane_hi >= ghi[g].z() - foot &&
+                                2 * (ghi[g].z() - glo[g].z()) >= plane_hi - plane_lo);
       if (behind && vehicleSized(glo[g], ghi[g], reach.max_length, reach.max_height) &&
           glo[g].z() <= gfloor[g] + floorGap(glo[g], ghi[g])) {
         new_root[v] = g;  // the group's smallest voxel (UnionFind keeps the smaller root)
