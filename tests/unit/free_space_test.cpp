@@ -613,3 +613,63 @@ TEST(FreeSpace, TheVoxelsLiveInPagesOfTheirOwnNotInMallocsHeap) {
   EXPECT_GT(checked, 100u);
 #endif
 }
+
+TEST(FreeSpace, AnArrivalOverASurfaceThatStoodIsItsTopSeenThroughFromAfar) {
+  // DESIGN §2e, "Decision": a voxel seen empty by arrived_scans scans before its first return
+  // goes (something came and stood), unless the voxel right under it was returned from without
+  // such a lead: a surface stood there from its first return on, and the voxel over it is its
+  // top, seen through at a grazing angle before the rings came close enough to meet it
+  // (kitti_residential: a low bush's top, 35 m ahead in scans 0-11).
+  MapParams p = params();
+  p.policy = MapPolicy::kTransient;
+  p.free_ratio = 10;    // neither this ratio ...
+  p.vacated_scans = 0;  // ... nor a run after the last return decides: the arrival alone
+  p.between_scans = 0;
+  p.flat_slope = 0;  // no grazing stretches: the beams below mark what they cross
+  const Eigen::Isometry3d pose(Eigen::Translation3d(0, 0, 0.3));  // the sensor 0.3 m up
+  // World z 0.3 is voxel layer 1 (the top, V), z 0.1 layer 0 (under it, B); x 10.1: cell 50.
+  const PointXYZI top{10.1f, 0.f, 0.f, 0.f}, under{10.1f, 0.f, -0.2f, 0.f};
+  // A cone of beams 0.4 m down at 20 m: the one at azimuth 0 crosses B at x = 10 (a lone beam
+  // would start far out: the walk's levels take every azimuth bin to hold one, DESIGN §2e).
+  const auto past_under = [] {
+    std::vector<PointXYZI> c;
+    for (const auto& q : ring(20.f)) c.push_back({q.x, q.y, -0.4f, 0.f});
+    return c;
+  }();
+  const auto with = [](std::vector<PointXYZI> a, const std::vector<PointXYZI>& more) {
+    a.insert(a.end(), more.begin(), more.end());
+    return a;
+  };
+  const Eigen::Vector3f v(10.1f, 0.f, 0.3f), b(10.1f, 0.f, 0.1f);
+  FreeSpaceMap surface(p), box(p);
+  for (int k = 0; k < 11; ++k) {
+    // The surface: B returned from in scan 0, V seen empty in scans 1-6, returned from after.
+    surface.insertScan(k == 0   ? ring(20.f, {under})
+                       : k <= 6 ? ring(20.f)
+                                : ring(20.f, {top}),
+                       pose, k);
+    // A box that comes in scan 7: V and B both seen empty in scans 0-6, returned from after.
+    box.insertScan(k <= 6 ? with(ring(20.f), past_under) : ring(20.f, {top, under}), pose, k);
+  }
+  const FreeEvidence sv = surface.evidence(v), sb = surface.evidence(b);
+  EXPECT_EQ(sv.lead, 6);
+  EXPECT_EQ(sv.hits, 4);
+  EXPECT_EQ(sb.hits, 1);
+  EXPECT_EQ(sb.lead, 0);
+  const FreeEvidence bv = box.evidence(v), bb = box.evidence(b);
+  EXPECT_EQ(bv.lead, 7);
+  EXPECT_EQ(bb.lead, 7);
+  // One voxel alone reads both as arrivals; with the voxel under it, only the box came.
+  EXPECT_TRUE(removedByPolicy(sv, 8, p));
+  EXPECT_EQ(policyVerdict(sv, 8, p), PolicyVerdict::kIfArrived);
+  EXPECT_FALSE(surface.removed(v, 8, p));
+  EXPECT_TRUE(box.removed(v, 8, p));
+  FreeSpaceMap::Lookup in_a_row(box);
+  EXPECT_TRUE(in_a_row.removed(v, 8, p));
+  // B itself stands on nothing the map has seen: its own arrival stands.
+  EXPECT_TRUE(box.removed(b, 8, p));
+  // Without the arrival rule the ratio keeps both.
+  p.arrived_scans = 0;
+  EXPECT_FALSE(box.removed(v, 8, p));
+  EXPECT_EQ(policyVerdict(bv, 8, p), PolicyVerdict::kKept);
+}

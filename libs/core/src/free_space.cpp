@@ -192,8 +192,8 @@ inline FreeSpaceMap::Voxel& FreeSpaceMap::voxel(Block& b, int li) {
   return subs_[s - 1].v[Block::innerOf(li)];
 }
 
-bool removedByPolicy(const FreeEvidence& e, int64_t scan, const MapParams& p) {
-  if (!p.clean || e.count < p.min_free_scans) return false;
+PolicyVerdict policyVerdict(const FreeEvidence& e, int64_t scan, const MapParams& p) {
+  if (!p.clean || e.count < p.min_free_scans) return PolicyVerdict::kKept;
   // Seen empty by fewer scans than return from it (times free_ratio): see-through (foliage,
   // fences, windows) or grazing beams past a surface, not a place something left.
   // Unless only empty for vacated_scans after its last return: it stood there, then left (every
@@ -201,14 +201,18 @@ bool removedByPolicy(const FreeEvidence& e, int64_t scan, const MapParams& p) {
   // Or a run of between_scans scans saw it empty between two of its returns: a queue's cars, a
   // body that left and another that came. Or, under `transient`, arrived_scans saw it empty
   // before its first return: something came and stood (a static surface is not seen through
-  // before it is seen; `moving` keeps what came and stayed; DESIGN §2e).
-  const bool came_or_left = (p.vacated_scans > 0 && e.last - e.last_hit >= p.vacated_scans) ||
-                            (p.between_scans > 0 && e.emptied_between) ||
-                            (p.policy == MapPolicy::kTransient && p.arrived_scans > 0 &&
-                             e.hits > 0 && e.lead >= p.arrived_scans);
-  if (!came_or_left && double(e.count) < p.free_ratio * double(e.hits)) return false;
-  if (p.policy == MapPolicy::kTransient) return true;
-  return e.first < scan && e.last > scan;  // kMoving: empty before and after (it came and went)
+  // before it is seen, but for its top: arrivalStands; `moving` keeps what came and stayed;
+  // DESIGN §2e).
+  const bool left = (p.vacated_scans > 0 && e.last - e.last_hit >= p.vacated_scans) ||
+                    (p.between_scans > 0 && e.emptied_between);
+  const bool arrived = p.policy == MapPolicy::kTransient && p.arrived_scans > 0 && e.hits > 0 &&
+                       e.lead >= p.arrived_scans;
+  const bool seen_through = double(e.count) < p.free_ratio * double(e.hits);
+  if (!left && !arrived && seen_through) return PolicyVerdict::kKept;
+  if (p.policy == MapPolicy::kTransient)
+    return !left && seen_through ? PolicyVerdict::kIfArrived : PolicyVerdict::kRemoved;
+  // kMoving: empty before and after (it came and went)
+  return e.first < scan && e.last > scan ? PolicyVerdict::kRemoved : PolicyVerdict::kKept;
 }
 
 namespace {
@@ -590,10 +594,26 @@ FreeEvidence FreeSpaceMap::evidence(const Eigen::Vector3f& p) const {
   return Lookup(*this)(p);
 }
 
-FreeEvidence FreeSpaceMap::Lookup::operator()(const Eigen::Vector3f& p) {
+bool FreeSpaceMap::removed(const Eigen::Vector3f& p, int64_t scan, const MapParams& mp) const {
+  return Lookup(*this).removed(p, scan, mp);
+}
+
+bool FreeSpaceMap::Lookup::removed(const Eigen::Vector3f& p, int64_t scan, const MapParams& mp) {
   const double inv = m_.inv_;
   const int64_t x = floorToCell(double(p.x()), inv), y = floorToCell(double(p.y()), inv),
                 z = floorToCell(double(p.z()), inv);
+  const PolicyVerdict v = policyVerdict(at(x, y, z), scan, mp);
+  if (v != PolicyVerdict::kIfArrived) return v == PolicyVerdict::kRemoved;
+  return arrivalStands(at(x, y, z - 1), mp);  // the voxel right under p's
+}
+
+FreeEvidence FreeSpaceMap::Lookup::operator()(const Eigen::Vector3f& p) {
+  const double inv = m_.inv_;
+  return at(floorToCell(double(p.x()), inv), floorToCell(double(p.y()), inv),
+            floorToCell(double(p.z()), inv));
+}
+
+FreeEvidence FreeSpaceMap::Lookup::at(int64_t x, int64_t y, int64_t z) {
   const uint64_t k = blockKey(x, y, z);
   if (k != key_) {
     key_ = k;

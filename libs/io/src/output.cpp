@@ -350,8 +350,7 @@ void OutputWriter::writeMaps(const FreeSpaceMap* free_space, const MapScanSink& 
     b.gone.clear();
     for (const auto& q : b.pts) {
       const bool ground = isGroundKind(static_cast<uint8_t>(q.kind));
-      b.gone.push_back(free_space && !ground &&
-                       removedByPolicy((*lookup)(q.p.xyz()), b.h.index, params_.map));
+      b.gone.push_back(free_space && !ground && lookup->removed(q.p.xyz(), b.h.index, params_.map));
     }
     if (by_objects) b.gone.resize(b.objects.size(), 1);
   };

@@ -330,7 +330,7 @@ void CMovingObjectsMap::decideScan(cleanmap::MapObjectConsensus& consensus,
   const std::vector<uint8_t> member(pts.size(), 1);
   gone.assign(pts.size(), 1);
   for (std::size_t i = 0; i < os.fixed_from; ++i)
-    gone[i] = cleanmap::removedByPolicy(fs.evidence(os.points[i]), os.index, params_.map);
+    gone[i] = fs.removed(os.points[i], os.index, params_.map);
   consensus.decide(os.index, os.density, os.reach, pts, member, gone, os.fixed_from);
 }
 
@@ -411,9 +411,7 @@ std::vector<cleanmap::PointXYZI> CMovingObjectsMap::cleanedStatic(bool removed) 
       uint8_t ob = kFreeSpace;
       if (by_object)
         if (const auto f = by_object->find(key); f != by_object->end()) ob = f->second;
-      gone = ob == kFreeSpace
-                 ? cleanmap::removedByPolicy(fs->evidence(p.xyz()), it->second, params_.map)
-                 : ob == kObjectGone;
+      gone = ob == kFreeSpace ? fs->removed(p.xyz(), it->second, params_.map) : ob == kObjectGone;
     }
     if (gone == removed) out.emplace(key, p);
   }

@@ -39,8 +39,26 @@ inline bool operator==(const FreeEvidence& a, const FreeEvidence& b) {
          a.last_hit == b.last_hit && a.lead == b.lead && a.emptied_between == b.emptied_between;
 }
 
-/// Is a map point (non-ground) of scan `scan` removed, given its voxel's evidence?
-bool removedByPolicy(const FreeEvidence& e, int64_t scan, const MapParams& p);
+/// How the policy decides a map point (non-ground) of scan `scan` from its voxel's evidence
+/// (DESIGN §2e, "Decision"): kept, removed, or removed only by the arrival rule, which stands
+/// unless the voxel under it says otherwise (arrivalStands).
+enum class PolicyVerdict { kKept, kRemoved, kIfArrived };
+PolicyVerdict policyVerdict(const FreeEvidence& e, int64_t scan, const MapParams& p);
+
+/// policyVerdict of one voxel alone, an arrival taken as it stands (FreeSpaceMap::removed asks
+/// the voxel under it too).
+inline bool removedByPolicy(const FreeEvidence& e, int64_t scan, const MapParams& p) {
+  return policyVerdict(e, scan, p) != PolicyVerdict::kKept;
+}
+
+/// The arrival rule's second look (DESIGN §2e, "Decision"): given the evidence of the voxel right
+/// under the arriving one, whether something came there. Not where that voxel was returned from
+/// with a lead under arrived_scans: a surface stood under it from its first return on, and the
+/// voxel over it is that surface's top, seen through at a grazing angle from afar before the
+/// rings came close enough to meet it.
+inline bool arrivalStands(const FreeEvidence& below, const MapParams& p) {
+  return !(below.hits > 0 && below.lead < p.arrived_scans);
+}
 
 /// DESIGN §2e: the azimuth bin of the free-space walk's levels for one scan (sensor frame): the
 /// configured `spacing` (static_map.beam_spacing), or wider where the lidar's returns are
@@ -84,6 +102,9 @@ class FreeSpaceMap {
   static constexpr int64_t kMaxScan = (int64_t(1) << 24) - 2;
   /// The evidence of the voxel holding world point p.
   FreeEvidence evidence(const Eigen::Vector3f& p) const;
+  /// Whether the policy `mp` removes world point p (non-ground) of scan `scan`: policyVerdict,
+  /// and where only the arrival rule removes it, arrivalStands on the voxel under p's.
+  bool removed(const Eigen::Vector3f& p, int64_t scan, const MapParams& mp) const;
   /// evidence() for many points in a row (below).
   class Lookup;
   /// Adds another accumulator of the same parameters (another chunk of the sequence, whose scans
@@ -114,8 +135,11 @@ class FreeSpaceMap {
    public:
     explicit Lookup(const FreeSpaceMap& m) : m_(m) {}
     FreeEvidence operator()(const Eigen::Vector3f& p);
+    /// FreeSpaceMap::removed() for many points in a row.
+    bool removed(const Eigen::Vector3f& p, int64_t scan, const MapParams& mp);
 
    private:
+    FreeEvidence at(int64_t x, int64_t y, int64_t z);  // the voxel of cell indices x, y, z
     const FreeSpaceMap& m_;
     uint64_t key_ = ~uint64_t(0);
     const Block* block_ = nullptr;

@@ -265,8 +265,9 @@ struct MapParams {
   int vacated_scans = 5;
   /// ... or at least this many scans saw it empty before its first return (0 = off; policy
   /// transient only): something came and stood (the space a slow truck's front pushes into, a
-  /// queue car that arrives); a static surface is not seen through before it is first seen
-  /// (DESIGN §2e).
+  /// queue car that arrives); a static surface is not seen through before it is first seen,
+  /// but for its top seen from afar: not over a voxel returned from with a shorter lead
+  /// (arrivalStands, DESIGN §2e).
   int arrived_scans = 5;
   /// ... or a run of at least this many scans saw it empty between two of its returns (0 = off):
   /// the gap between two cars of a queue passing a standing sensor. A gap of g metres at v m/s is
