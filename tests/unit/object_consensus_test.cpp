@@ -515,6 +515,53 @@ TEST(ObjectConsensus, AWallsStretchOfAVehiclesSizeLeavesTheWalkerAnObjectOfHisOw
         << "the truck's return at " << truck[i].x << " " << truck[i].y << " " << truck[i].z;
 }
 
+TEST(ObjectConsensus, ASparseLidarsWalkerAtAWallPartsFromItRingByRing) {
+  // doc/OBJECTS.md rule 1, "Beside a wall", "A sparse lidar's rings": a walker 16 m off along a
+  // wall, seen by 2-degree rings (0.56 m apart there), is a slice a ring, each two voxels over the
+  // one below: his feet's in the foot band, the others each in the wall's component. Only the
+  // lowest of those reached the floor and parted; his waist, chest and head stayed the wall's.
+  // The slices in front of the plane join across rings as rule 1's slices do, and what stands on
+  // the floor is as high as from it (a 14 m stretch of a vehicle's size asks the group to stand
+  // half as high as the wall: his rings span 1.1 m of the wall's 2.4, his top 1.7 m over it).
+  const float road = -1.73f, walk = road + 0.12f;
+  for (const float from : {-10.f, 4.f}) {  // a structure; a stretch of a vehicle's size
+    std::vector<PointXYZI> pts;
+    for (float x = from; x <= 18; x += 0.1f) {
+      for (float z = walk; z <= road + 2.5f; z += 0.1f) pts.push_back({x, -6, z, 0});
+      for (float y = 3.55f; y <= 5.95f; y += 0.1f) pts.push_back({x, -y, walk, 0});
+    }
+    std::vector<std::size_t> front;  // a return of his front face in each slice over his feet
+    for (const float up : {0.05f, 0.6f, 1.15f, 1.7f}) {
+      const float z = walk + up;
+      for (float x = 15; x <= 15.5f; x += 0.05f) {
+        if (up > 0.1f && std::abs(x - 15.25f) < 0.03f) front.push_back(pts.size());
+        pts.push_back({x, -5.35f, z, 0});
+      }
+      for (float y = 5.4f; y <= 5.95f; y += 0.05f) pts.push_back({15, -y, z, 0});
+    }
+    ASSERT_EQ(front.size(), 3u);
+    ObjectParams p;
+    const std::vector<uint8_t> member(pts.size(), 1);
+    const double vlp16 = 2.0 * M_PI / 180.0;
+    const auto roots = [&](double ring_gap) {
+      ObjectComponents cc;
+      groupObjects(pts, member, p.voxel, cc, ringReach(p, ring_gap));
+      std::vector<uint32_t> r;
+      for (const std::size_t i : front) r.push_back(cc.root_of[cc.point_voxel[i]]);
+      r.push_back(cc.root_of[cc.point_voxel[0]]);  // the wall's
+      return r;
+    };
+    const auto sparse = roots(vlp16);
+    EXPECT_NE(sparse[0], sparse[3]) << "from " << from;
+    EXPECT_EQ(sparse[1], sparse[0]) << "from " << from;  // his chest and head are his
+    EXPECT_EQ(sparse[2], sparse[0]) << "from " << from;
+    // Slices two voxels apart join only across a sparse lidar's rings: a dense lidar's return
+    // there would lie between them.
+    const auto dense = roots(0.0);
+    EXPECT_EQ(dense[2], dense[3]) << "from " << from;
+  }
+}
+
 TEST(ObjectConsensus, AWalkersSideByTheWallIsHisNotTheWalls) {
   // His sides' returns within wall_gap of the wall (5-15 cm in front of it) lie in the wall's
   // voxels: those further in front than the wall's own scatter (3 sigma), beside his voxels and
@@ -1908,6 +1955,47 @@ TEST(MoverRoofs, ARoofStripeBehindAMovingFaceGoesWithIt) {
   EXPECT_EQ(s.roofs(), s.stripe);
   // A dense lidar's rings lie within a voxel there: nothing falls apart, nothing to do.
   EXPECT_TRUE(s.roofs(0.0).empty());
+}
+
+TEST(MoverRoofs, AWalkerHasNoRoofButAVehiclesSliceHasOne) {
+  // A walker 16 m back, 0.5 m across, moving whole on the -5 and -3 degree rings (one component,
+  // his rings joined as RingReach joins them): the -1 degree ring passes over his head and lands
+  // on the wall he walks along, 1-2.5 m behind him within his azimuths (`pedestrian_wall` with a
+  // VLP-16, 8-11 false positives a scan). A mover at most `narrow` across on two rings or more
+  // has no roof beyond its faces. One ring of that width moving whole is a piece of a vehicle
+  // (`curved_path`'s turning car): its roof goes.
+  const auto ring = [](int el, float range) {
+    return range * static_cast<float>(std::tan(el * M_PI / 180.0));
+  };
+  const auto scene = [&](std::initializer_list<int> rings, std::vector<uint32_t>& wall) {
+    RoofScene s;
+    for (const int el : rings)
+      for (float y = -0.25f; y <= 0.25f + 1e-4f; y += 0.05f)
+        s.add(-16.0f, y, ring(el, 16.0f), true);
+    wall.clear();
+    for (float t = 0; t <= 1.0f + 1e-4f; t += 0.05f) {  // the wall's stripe, seen along it
+      const float x = -17.0f - 1.5f * t, y = 0.2f - 0.4f * t;
+      wall.push_back(static_cast<uint32_t>(s.pts.size()));
+      s.add(x, y, ring(-1, std::hypot(x, y)), false);
+    }
+    return s;
+  };
+  const auto roofs = [&](const RoofScene& s, double narrow) {
+    ObjectComponents cc;
+    groupObjects(s.pts, std::vector<uint8_t>(s.pts.size(), 1), 0.3, cc,
+                 ringReach(ObjectParams{}, kVlp16Gap));
+    MoverRoofParams p;
+    p.ring_gap = kVlp16Gap;
+    p.narrow = narrow;
+    return moverRoofs(s.pts, Eigen::Isometry3d::Identity(), cc, s.moving, s.whole,
+                      std::vector<uint8_t>(s.pts.size(), 0), p);
+  };
+  std::vector<uint32_t> wall;
+  const RoofScene walker = scene({-5, -3}, wall);
+  EXPECT_EQ(roofs(walker, 0.0), wall);  // every mover may have a roof: the wall's stripe was his
+  EXPECT_TRUE(roofs(walker, 1.0).empty());
+  const RoofScene slice = scene({-3}, wall);
+  EXPECT_EQ(roofs(slice, 1.0), wall);
 }
 
 TEST(MoverRoofs, AStripeTheTestFlaggedInPartGoesWithIt) {

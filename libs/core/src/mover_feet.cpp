@@ -249,6 +249,7 @@ std::vector<uint32_t> moverRoofs(const std::vector<PointXYZI>& points,
   struct Vehicle {
     double sx = 0, sy = 0, r_lo = 1e30, r_hi = 0, top = -1e30, bottom = 1e30, az_lo = 1e30,
            az_hi = -1e30;
+    Eigen::Vector2d lo = Eigen::Vector2d::Constant(1e30), hi = Eigen::Vector2d::Constant(-1e30);
   };
   std::vector<int32_t> vehicle_of(cc.voxels.size(), -1);
   std::vector<Vehicle> vehicles;
@@ -275,6 +276,8 @@ std::vector<uint32_t> moverRoofs(const std::vector<PointXYZI>& points,
     v.r_hi = std::max(v.r_hi, range);
     v.top = std::max(v.top, q.z());
     v.bottom = std::min(v.bottom, q.z());
+    v.lo = v.lo.cwiseMin(q.head<2>());
+    v.hi = v.hi.cwiseMax(q.head<2>());
   }
   if (stripe_points.empty()) return out;
   const auto relative = [](double az, double mean) {
@@ -393,6 +396,14 @@ std::vector<uint32_t> moverRoofs(const std::vector<PointXYZI>& points,
   for (std::size_t k = 0; k < vehicles.size(); ++k) {
     Vehicle v = vehicles[k];
     const double step = kRingReach * v.r_hi * p.ring_gap;  // a ring step at its far end
+    // A walker has no roof: the ring over his head lands on what stands behind him (a wall's
+    // ring 0.6 m over the head of a walker along it, 1.4 m of it in his shadow: `pedestrian_wall`
+    // with a VLP-16, 8-11 false positives a scan). Only the slices on his faces are his. He
+    // spans two rings or more; a vehicle's one-ring slice moving whole is a piece of something
+    // that may have a roof (`curved_path`'s turning car with a VLP-16: 3 returns).
+    const bool walker =
+        (v.hi - v.lo).norm() <= p.narrow && v.top - v.bottom >= 0.5 * p.ring_gap * v.r_hi;
+    const double reach = walker ? p.voxel : p.length;
     for (bool grew = true; grew;) {
       grew = false;
       const double z_hi = v.top + step, z_lo = v.top - p.voxel;
@@ -403,7 +414,7 @@ std::vector<uint32_t> moverRoofs(const std::vector<PointXYZI>& points,
         const double range = polar[j].x(), z = polar[j].y(), az = polar[j].z();
         if (range < v.r_lo - p.voxel) continue;
         const bool faces = range <= v.r_hi + p.voxel;  // on its faces, not behind them
-        const bool roof = range <= v.r_hi + p.length && z >= z_lo && z <= z_hi;
+        const bool roof = range <= v.r_hi + reach && z >= z_lo && z <= z_hi;
         const bool under =
             !p.dense && faces && z < v.bottom && z >= v.bottom - step;  // a ring step under
         if (!roof && !under) continue;

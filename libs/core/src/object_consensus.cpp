@@ -258,6 +258,7 @@ void splitFromWalls(const std::vector<PointXYZI>& points, ObjectComponents& cc,
   UnionFind uf(nv);               // the groups in front of a plane, and their boxes and floors
   std::vector<Eigen::Vector3f> glo(nv), ghi(nv);
   std::vector<float> gfloor(nv);
+  std::vector<uint8_t> narrow(nv, 0);  // a sparse lidar's slice in front of the plane
   std::vector<Eigen::Vector2f> galong(nv, Eigen::Vector2f(1e30f, -1e30f));  // along the plane
   std::vector<std::pair<uint32_t, uint32_t>> handed;  // (return, voxel of the body it joins)
   bool split_any = false;
@@ -354,26 +355,45 @@ void splitFromWalls(const std::vector<PointXYZI>& points, ObjectComponents& cc,
       if (up && off[*up] == 1 && cc.root_of[*up] == r) off[v] = 2;  // low, under a raised one
     }
     // The groups in front of the plane.
-    for (const uint32_t v : vs) {  // (only this structure's voxels take part)
-      uf.parent[v] = v;
-      glo[v] = Eigen::Vector3f::Constant(1e30f);
-      ghi[v] = Eigen::Vector3f::Constant(-1e30f);
-      gfloor[v] = 1e30f;
-    }
+    for (const uint32_t v : vs) uf.parent[v] = v;  // (only this structure's voxels take part)
+    const auto boxes = [&] {                       // each group's box of returns and its floor
+      for (const uint32_t v : vs) {
+        glo[v] = Eigen::Vector3f::Constant(1e30f);
+        ghi[v] = Eigen::Vector3f::Constant(-1e30f);
+        gfloor[v] = 1e30f;
+      }
+      for (const uint32_t i : ps) {
+        const uint32_t v = cc.point_voxel[i];
+        if (!off[v]) continue;
+        const uint32_t g = uf.find(v);
+        glo[g] = glo[g].cwiseMin(points[i].xyz());
+        ghi[g] = ghi[g].cwiseMax(points[i].xyz());
+        gfloor[g] = std::min(gfloor[g], floor[v]);
+      }
+    };
     for (const uint32_t v : vs) {
       if (!off[v]) continue;
       forEachLinked(cc, v, [&](uint32_t w) {
         if (off[w] && cc.root_of[w] == r) uf.unite(v, w);
       });
     }
-    for (const uint32_t i : ps) {
-      const uint32_t v = cc.point_voxel[i];
-      if (!off[v]) continue;
-      const uint32_t g = uf.find(v);
-      glo[g] = glo[g].cwiseMin(points[i].xyz());
-      ghi[g] = ghi[g].cwiseMax(points[i].xyz());
-      gfloor[g] = std::min(gfloor[g], floor[v]);
+    // A sparse lidar's slices in front of the plane join across rings as rule 1's slices do
+    // (RingReach): those at most reach.pool across (their returns' horizontal diagonal), in a
+    // 3 x 3 column within kRingReach ring steps. A walker by a wall seen by an HDL-32E 16-20 m
+    // off is a slice a ring, 0.46 m apart: only his lowest reached the floor and parted, the
+    // rest stayed the wall's (`pedestrian_wall`, scans 0-6: none of him found).
+    if (reach.active()) {
+      boxes();
+      for (const uint32_t v : vs)
+        narrow[v] = off[v] && (ghi[uf.find(v)] - glo[uf.find(v)]).head<2>().norm() <= reach.pool;
+      for (const uint32_t v : vs) {
+        if (!narrow[v]) continue;
+        forEachRingAbove(cc, v, [&](uint32_t w) {
+          if (narrow[w] && cc.root_of[w] == r) uf.unite(v, w);
+        });
+      }
     }
+    boxes();
     bool parted = false;
     for (const uint32_t v : vs) {
       if (!off[v]) continue;
@@ -381,12 +401,14 @@ void splitFromWalls(const std::vector<PointXYZI>& points, ObjectComponents& cc,
       // In a component of a vehicle's size, the plane must stand behind the group over its
       // heights (within foot): a wall, not a car's roof seen as a line from above (the follower
       // of `following_car` 1.8 m behind the sensor: its front's corner parted, 40 returns lost).
-      // And the group must stand at least half as high as the plane: a body before a wall, not
-      // a parked car's wheels or bumper in front of its side (kitti_residential: 0.15-0.6 m high
-      // under sides 2 m high, dozens a run).
+      // And the group must stand at least half as high as the plane, from its floor up: a body
+      // before a wall, not a parked car's wheels or bumper in front of its side
+      // (kitti_residential: 0.15-0.6 m high under sides 2 m high, dozens a run). From its floor:
+      // a sparse lidar's ring at a walker's feet lies in the foot band, outside the group.
       const bool behind =
-          !vehicle_sized[r] || (plane_lo <= glo[g].z() + foot && plane_hi >= ghi[g].z() - foot &&
-                                2 * (ghi[g].z() - glo[g].z()) >= plane_hi - plane_lo);
+          !vehicle_sized[r] ||
+          (plane_lo <= glo[g].z() + foot && plane_hi >= ghi[g].z() - foot &&
+           2 * (ghi[g].z() - std::min(glo[g].z(), gfloor[g])) >= plane_hi - plane_lo);
       if (behind && vehicleSized(glo[g], ghi[g], reach.max_length, reach.max_height) &&
           glo[g].z() <= gfloor[g] + floorGap(glo[g], ghi[g])) {
         new_root[v] = g;  // the group's smallest voxel (UnionFind keeps the smaller root)

@@ -57,6 +57,10 @@ struct MoverRoofParams {
   bool dense = false;
   double voxel = 0.3;   ///< m; the grouping's voxel (ObjectParams::voxel): the margins
   double length = 6.0;  ///< m; how far beyond its near face a roof below the sensor may reach
+  /// m; a mover at most this wide (its returns' horizontal diagonal) on two rings or more (a
+  /// walker) has no roof beyond its faces, only slices on them (ObjectParams::ring_pool; 0: every
+  /// mover may)
+  double narrow = 0;
   /// A slice under the vehicle with this share of it flagged moving is one of its slices however
   /// high over the road, and slices so flagged stack (ObjectParams::moving_fraction, rule 2's).
   double flagged = 0.2;
@@ -69,11 +73,12 @@ struct MoverRoofParams {
 /// half a ring step), at least 3 of them, all within the shadow of a moving vehicle, a component
 /// moving whole (`whole` and `moving` for nine in ten of its points): within its azimuths (and a
 /// voxel), no nearer than a voxel before its nearest return (a ring grazing its face's top edge)
-/// and at most `length` beyond its farthest, and at most a voxel below its top and 1.25 ring
-/// steps (at its farthest return) above it, under the next ring over its top; or, its lowest
-/// ring's slice, on its faces (at most a voxel beyond its farthest return), under its lowest
-/// return by at most those 1.25 ring steps and within them of the road (the median height of the
-/// `ground` returns before it and under it, at least 5) unless `flagged` of it is moving. A stripe
+/// and at most `length` beyond its farthest (a voxel for a mover at most `narrow` across and as
+/// high), and at most a voxel below its top and 1.25 ring steps (at its farthest return) above it,
+/// under the next ring over its top; or, its lowest ring's slice, on its faces (at most a voxel
+/// beyond its farthest return), under its lowest return by at most those 1.25 ring steps and within
+/// them of the road (the median height of the `ground` returns before it and under it, at least 5)
+/// unless `flagged` of it is moving. A stripe
 /// taken on its faces extends the vehicle for the next one. And the static points of stacks: two
 /// or more one-ring slices, each with `flagged` of it moving (not all), one over another (within
 /// 1.25 ring steps, over half of the narrower one's azimuths, ranges within a voxel), vehicle-sized

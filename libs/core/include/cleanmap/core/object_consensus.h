@@ -292,13 +292,14 @@ void groupObjects(const std::vector<PointXYZI>& points, const std::vector<uint8_
 /// lowest count (all where it has none there): not the sidewalk a car touches.
 std::vector<float> componentWidths(const ObjectComponents& cc, double foot);
 
-/// Calls f(voxel) for the voxels of `cc` that voxel v's slice joins across rings (RingReach):
-/// where both are pooled, those of v's 3 x 3 column 2 to the reach's voxels above it (at most
-/// kMaxReachVoxels). Visiting every voxel meets each such pair once.
+/// The most voxels above a voxel that the ring reach spans (forEachRingAbove).
 constexpr int kMaxReachVoxels = 8;
+/// The geometry alone: f(voxel) for each voxel of v's 3 x 3 column 2 to the reach's voxels above
+/// it (cc.reach's ring step at the column's distance; at most kMaxReachVoxels), pooled or not.
+/// The wall split joins a sparse lidar's groups in front of a plane with it (doc/OBJECTS.md rule
+/// 1).
 template <class F>
-void forEachAcrossRings(const ObjectComponents& cc, uint32_t v, F&& f) {
-  if (cc.pooled.empty() || !cc.pooled[v]) return;
+void forEachRingAbove(const ObjectComponents& cc, uint32_t v, F&& f) {
   const Eigen::Vector3i& c = cc.voxels[v];
   const double x = (c.x() + 0.5) * cc.side - cc.reach.origin.x();
   const double y = (c.y() + 0.5) * cc.side - cc.reach.origin.y();
@@ -308,7 +309,16 @@ void forEachAcrossRings(const ObjectComponents& cc, uint32_t v, F&& f) {
     for (int dx = -1; dx <= 1; ++dx)
       for (int dy = -1; dy <= 1; ++dy)
         if (const uint32_t* n = cc.voxel_of.find(cellKey(c.x() + dx, c.y() + dy, c.z() + dz)))
-          if (cc.pooled[*n]) f(*n);
+          f(*n);
+}
+/// Calls f(voxel) for the voxels of `cc` that voxel v's slice joins across rings (RingReach):
+/// where both are pooled, forEachRingAbove's. Visiting every voxel meets each such pair once.
+template <class F>
+void forEachAcrossRings(const ObjectComponents& cc, uint32_t v, F&& f) {
+  if (cc.pooled.empty() || !cc.pooled[v]) return;
+  forEachRingAbove(cc, v, [&](uint32_t n) {
+    if (cc.pooled[n]) f(n);
+  });
 }
 
 /// Calls f(voxel) for the voxels of `cc` linked to voxel v and coming after it: its forward
