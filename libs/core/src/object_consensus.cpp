@@ -923,6 +923,19 @@ std::optional<WholeMatch> matchWholeObjectByEnds(const std::vector<Eigen::Vector
   return std::nullopt;
 }
 
+Eigen::Vector3f ringLifted(Eigen::Vector3f e, const Eigen::Vector3f& x, float step) {
+  if (e.z() >= 0.5f * step) e.z() = std::max(e.z(), std::min(x.z(), e.z() + step));
+  return e;
+}
+
+bool sizedAs(const Eigen::Vector3f& e, const Eigen::Vector3f& x, double tolerance, bool at_most,
+             float step) {
+  const Eigen::Vector3f l = ringLifted(e, x, step);
+  const float eh = l.head<2>().norm(), xh = x.head<2>().norm();
+  const double f = 1.0 - tolerance;
+  return eh >= f * xh && l.z() >= f * x.z() && (!at_most || xh >= f * eh);
+}
+
 std::optional<WholeMatch> matchWholeObjectOrByEnds(const std::vector<Eigen::Vector3f>& q,
                                                    const WholeObjects& objects, double side,
                                                    float max_shift) {

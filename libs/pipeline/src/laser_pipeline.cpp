@@ -116,14 +116,6 @@ class ColumnTable {
   std::vector<Eigen::Vector3f> points_, at_;
 };
 
-// Rule 4's "not smaller than 1 - tolerance of it" (horizontal diagonal, height) of an extent e
-// against an object's extent x, and with `at_most`, not larger than x / (1 - tolerance) across.
-bool sizedAs(const Eigen::Vector3f& e, const Eigen::Vector3f& x, double tolerance, bool at_most) {
-  const float eh = e.head<2>().norm(), xh = x.head<2>().norm();
-  const double f = 1.0 - tolerance;
-  return eh >= f * xh && e.z() >= f * x.z() && (!at_most || xh >= f * eh);
-}
-
 // Rule 4's arrival (doc/OBJECTS.md): the object's points (idx, world frame) within kArrivalEnd
 // of either end along its horizontal principal axis, in idx's order.
 void arrivalEnds(const std::vector<uint32_t>& idx, const std::vector<Eigen::Vector3d>& world,
@@ -1159,8 +1151,13 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
   std::function<bool(const std::vector<uint32_t>&)> left_place;
   // The object the previous scan moved whole that these points are (rule 4's "the same object"):
   // half of them in its voxels (in that scan's sensor frame, where its consensus found it), as
-  // they are, moved, or by its ends; `e` their extent (this scan's sensor frame).
-  const auto previousObject = [&](const std::vector<uint32_t>& idx, Eigen::Vector3f& e) {
+  // they are, moved, or by its ends; `e` their extent (this scan's sensor frame), `step` a ring
+  // gap at their range (sizedAs: a sparse lidar sees a height to a ring step).
+  const auto ringStep = [&](const Eigen::Vector3f& lo, const Eigen::Vector3f& hi) {
+    return static_cast<float>(s.ring_gap) * (0.5f * (lo + hi)).head<2>().norm();
+  };
+  const auto previousObject = [&](const std::vector<uint32_t>& idx, Eigen::Vector3f& e,
+                                  float& step) {
     if (!prev_built) {
       // Rule 4 backwards grouped them already where the previous scan is held (the same points).
       const Held* last = held_results_.empty() ? nullptr : &held_results_.back();
@@ -1181,6 +1178,7 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
       q_prev[k] = (prev_pose_inverse_ * w.world[i]).cast<float>();
     }
     e = hi - lo;
+    step = ringStep(lo, hi);
     // The previous scan's object in its voxels, or found moved (a car moving about a voxel a
     // scan no longer lies in its previous voxels), or by its ends (doc/OBJECTS.md rule 4: a
     // car that brakes shows a column more or less of its side, 0.4 m at 512 columns, and its
@@ -1192,15 +1190,17 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
     // Rule 2, "The previous scan's object": that object itself, not smaller (by its ends: no).
     rules.was_whole = [&](const std::vector<uint32_t>& idx) {
       Eigen::Vector3f e;
-      const std::optional<WholeMatch> match = previousObject(idx, e);
+      float step = 0.0f;
+      const std::optional<WholeMatch> match = previousObject(idx, e, step);
       return match && !match->by_ends &&
-             sizedAs(e, prev_objects->extent[match->object], rules.extent_tolerance, false);
+             sizedAs(e, prev_objects->extent[match->object], rules.extent_tolerance, false, step);
     };
     left_place = [&](const std::vector<uint32_t>& idx) {
       // That object, and not smaller than 1 - extent_tolerance of it (two solids do not share
       // their space; the map's rule 5).
       Eigen::Vector3f e;
-      const std::optional<WholeMatch> match = previousObject(idx, e);
+      float step = 0.0f;
+      const std::optional<WholeMatch> match = previousObject(idx, e, step);
       if (!match) return false;
       const WholeObjects& prev = *prev_objects;
       const float inv = static_cast<float>(1.0 / op.voxel);
@@ -1213,8 +1213,8 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
       const Eigen::Vector3f moved_by = match->shift;  // the shift that found it (zero: in place)
       const Eigen::Vector3f x = prev.extent[a];
       // Not smaller (it may have joined its other part).
-      const auto as_large = [&](const Eigen::Vector3f& ext) {
-        return sizedAs(ext, x, rules.extent_tolerance, false);
+      const auto as_large = [&](const Eigen::Vector3f& ext, float at) {
+        return sizedAs(ext, x, rules.extent_tolerance, false, at);
       };
       // Fewer than half of the window's later scans (the sequence's last ones, a dropout) cannot
       // show it leave (below); there it must be that whole object itself, or that object in
@@ -1225,7 +1225,7 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
         just_before = windowAround(pos, 0, std::max<std::size_t>(1, k_ / 2));
       }
       const bool can_leave = 2 * after->size() >= k_ / stride_;
-      if (!as_large(e)) {
+      if (!as_large(e, step)) {
         // Or that object in pieces (doc/OBJECTS.md rule 4): a side seen grazing has its returns
         // a column step apart (an HDL-64E's 0.18 degrees are 0.35 m along a cyclist's side 1.2 m
         // off at 11.5 m), more than the grouping's voxel, so the side falls into slices. The
@@ -1297,7 +1297,7 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
           plo = plo.cwiseMin(q);
           phi = phi.cwiseMax(q);
         }
-        if (!as_large(phi - plo)) return false;
+        if (!as_large(phi - plo, ringStep(plo, phi))) return false;
         if (!can_leave) return rings >= op.min_moving && !by_ends;
       }
       // It left its place: the scans after it alone see it leave, or those just before it see it
@@ -2307,7 +2307,8 @@ void LaserPipeline::carryBack() {
           // something else too: a car that stood at a kerb, joined with the kerb's stones in one
           // scan), those in the object's voxels and next to them, once shifted, if they are.
           Found f{*m, {}, {c_at}, {}};
-          if (sizedAs(hi - lo, next.extent[m->object], tolerance, true))
+          if (sizedAs(hi - lo, next.extent[m->object], tolerance, true,
+                      static_cast<float>(h.ring_gap) * (0.5f * (lo + hi)).head<2>().norm()))
             for (std::size_t k = from; k < to; ++k) f.part.push_back(static_cast<uint32_t>(k));
           else
             f.part = nearObject(q, from, next, *m, op.voxel);
@@ -2320,15 +2321,12 @@ void LaserPipeline::carryBack() {
     // Its size: the object's, or as wide and as high within kSeedSize and not longer (its side
     // out of view here or in the next scan), or a face of it, or it a face of this (a cyclist's
     // back, its side in view only while farther ahead).
-    // A sparse lidar sees a height to a ring step: its rings slide over a body from scan to
-    // scan, and a part seen one ring shorter than the object is that object (`pedestrian_wall`
-    // with an HDL-32E: the walker 0.82 m high in scan 6 against 1.20 m in scan 7, 16 m off, a
-    // step 0.37 m). The part's height counts up to one step at its range more, not over the
-    // object's (h.ring_gap 0 for dense lidars: unchanged).
+    // A sparse lidar sees a height to a ring step (ringLifted): a part seen one ring shorter
+    // than the object is that object (`pedestrian_wall` with an HDL-32E: the walker 0.82 m high
+    // in scan 6 against 1.20 m in scan 7, 16 m off, a step 0.37 m), as a face of it is.
     const auto sized = [&](const Eigen::AlignedBox3f& box, const Eigen::Vector3f& x) {
-      Eigen::Vector3f e = box.sizes();
       const float step = static_cast<float>(h.ring_gap) * box.center().head<2>().norm();
-      e.z() = std::max(e.z(), std::min(x.z(), e.z() + step));
+      const Eigen::Vector3f e = ringLifted(box.sizes(), x, step);
       return sizedAs(e, x, tolerance, true) ||
              (sameFace(e, x) &&
               e.head<2>().norm() * static_cast<float>(1.0 - tolerance) <= x.head<2>().norm()) ||

@@ -393,6 +393,18 @@ std::optional<WholeMatch> matchWholeObjectOrByEnds(const std::vector<Eigen::Vect
                                                    const WholeObjects& objects, double side,
                                                    float max_shift);
 
+/// Rule 4's "not smaller than 1 - tolerance of it" (doc/OBJECTS.md; horizontal diagonal, height)
+/// of an extent `e` against an object's extent `x`, and with `at_most`, not larger than
+/// x / (1 - tolerance) across. `step`: a sparse lidar's ring gap at e's range (m; 0 for dense
+/// lidars), e's height taken as ringLifted.
+bool sizedAs(const Eigen::Vector3f& e, const Eigen::Vector3f& x, double tolerance, bool at_most,
+             float step = 0.0f);
+/// A sparse lidar sees a height to a ring step (doc/OBJECTS.md rule 4, "A ring step"): its rings
+/// slide over a body from scan to scan, so a part on two rings or more (at least half a `step`
+/// high) counts up to one step higher, not over x's height. A slice of one ring has no height to
+/// compare (a kerb's ring and a car's are alike): as it is.
+Eigen::Vector3f ringLifted(Eigen::Vector3f e, const Eigen::Vector3f& x, float step);
+
 /// Per point: a member of a vehicle-sized component (as objectConsensus groups them). Under
 /// ConsensusRules{few_points_are_noise = false} no other point's decision can change, and
 /// objectConsensus on these points alone decides each of them as on the whole set (same
