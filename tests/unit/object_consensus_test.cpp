@@ -562,6 +562,41 @@ TEST(ObjectConsensus, ASparseLidarsWalkerAtAWallPartsFromItRingByRing) {
   }
 }
 
+TEST(ObjectConsensus, ASparseLidarsWalkerAtAWallTakesHisRingLevelWithTheWallsLowest) {
+  // doc/OBJECTS.md rule 1, "His lowest ring": a wall seen by a VLP-16 (2-degree rings, the
+  // sidewalk's returns the ground's) returns only on its rings, so around a walker 16 m off its
+  // lowest ring (0.3 m over the road) is the structure's floor and his ring level with it is no
+  // raised voxel; the raised one over it lies a ring step (0.56 m) up, not a voxel
+  // (`pedestrian_wall`, scans 3-12: his upper rings parted, his lowest stayed the wall's). A low
+  // voxel in front of the plane goes with a raised one of it within 1.25 ring steps above.
+  const float road = -1.73f, top = road + 2.5f;
+  std::vector<PointXYZI> pts;
+  const auto ring = [](float x, float y, int k) {  // VLP-16's ring k at (x, y), sensor at 0
+    return std::hypot(x, y) * std::tan(static_cast<float>((2 * k - 15) * M_PI / 180.0));
+  };
+  for (float x = -10; x <= 18; x += 0.1f)
+    for (int k = 0; k < 16; ++k)
+      if (const float z = ring(x, -6, k); z > road + 0.12f && z < top) pts.push_back({x, -6, z, 0});
+  std::vector<std::size_t> front;  // a return of his front face on each of his rings
+  for (int k = 0; k < 16; ++k) {
+    if (ring(15, -5.35f, k) <= road + 0.12f || ring(15, -5.35f, k) >= road + 1.75f) continue;
+    for (float x = 15; x <= 15.5f; x += 0.05f) {
+      if (std::abs(x - 15.25f) < 0.03f) front.push_back(pts.size());
+      pts.push_back({x, -5.35f, ring(x, -5.35f, k), 0});
+    }
+    for (float y = 5.4f; y <= 5.95f; y += 0.05f) pts.push_back({15, -y, ring(15, -y, k), 0});
+  }
+  ASSERT_EQ(front.size(), 3u);  // 0.35, 0.90 and 1.45 m over the road
+  ObjectParams p;
+  ObjectComponents cc;
+  groupObjects(pts, std::vector<uint8_t>(pts.size(), 1), p.voxel, cc,
+               ringReach(p, 2.0 * M_PI / 180.0));
+  const auto root = [&](std::size_t i) { return cc.root_of[cc.point_voxel[i]]; };
+  EXPECT_NE(root(front[1]), root(0));         // his waist parted from the wall
+  EXPECT_EQ(root(front[2]), root(front[1]));  // his chest with it
+  EXPECT_EQ(root(front[0]), root(front[1]));  // and his lowest ring, level with the wall's
+}
+
 TEST(ObjectConsensus, AWalkersSideByTheWallIsHisNotTheWalls) {
   // His sides' returns within wall_gap of the wall (5-15 cm in front of it) lie in the wall's
   // voxels: those further in front than the wall's own scatter (3 sigma), beside his voxels and

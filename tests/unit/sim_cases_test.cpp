@@ -1213,19 +1213,21 @@ TEST(SimSensors, AnOusterFindsTheWalkerAlongTheWallAndKeepsTheThinPoles) {
 // as high as from its floor, and a held part one ring step shorter than the object is it:
 // measured recall 0.944, scans 0-6 0.838. A VLP-16's walker then went with the wall's ring over
 // his head (rule 6's roof; 117 false positives): a walker has no roof (MoverRoofParams::narrow):
-// measured recall 0.868 (0.824), 28 false positives (38).
+// measured recall 0.868 (0.824), 28 false positives (38). His lowest ring, level with the wall's,
+// goes with the raised one a ring step over it (doc/OBJECTS.md rule 1, "His lowest ring"):
+// measured VLP-16 0.920 (28 false positives), HDL-32E 0.957 (scans 0-6 0.965).
 TEST(SimSensors, ASparseLidarFindsTheWalkerAlongTheWall) {
   const auto hdl32 = runCase(seenBy(scenario("pedestrian_wall"), SensorModel::kHdl32));
   std::printf("  HDL-32E: walker recall %.3f (scans 0-6 %.3f), precision %.3f\n",
               hdl32.per_mover.at("walker").recall(), hdl32.frames(0, 7).recall(),
               hdl32.all.precision());
-  EXPECT_GE(hdl32.per_mover.at("walker").recall(), 0.92);
-  EXPECT_GE(hdl32.frames(0, 7).recall(), 0.7);
+  EXPECT_GE(hdl32.per_mover.at("walker").recall(), 0.94);
+  EXPECT_GE(hdl32.frames(0, 7).recall(), 0.9);
   EXPECT_GE(hdl32.all.precision(), 0.96);
   const auto vlp16 = runCase(seenBy(scenario("pedestrian_wall"), SensorModel::kVlp16));
   std::printf("  VLP-16: walker recall %.3f, precision %.3f\n",
               vlp16.per_mover.at("walker").recall(), vlp16.all.precision());
-  EXPECT_GE(vlp16.per_mover.at("walker").recall(), 0.85);
+  EXPECT_GE(vlp16.per_mover.at("walker").recall(), 0.9);
   EXPECT_GE(vlp16.all.precision(), 0.98);
 }
 

@@ -352,7 +352,13 @@ void splitFromWalls(const std::vector<PointXYZI>& points, ObjectComponents& cc,
       if (off[v] || 2 * off_in_voxel[v] <= in_voxel[v]) continue;
       const Eigen::Vector3i& x = cc.voxels[v];
       const uint32_t* up = cc.voxel_of.find(cellKey(x.x(), x.y(), x.z() + 1));
-      if (up && off[*up] == 1 && cc.root_of[*up] == r) off[v] = 2;  // low, under a raised one
+      bool under = up && off[*up] == 1 && cc.root_of[*up] == r;  // low, under a raised one
+      // Or a ring step under it (doc/OBJECTS.md rule 1, "His lowest ring"): a sparse lidar's
+      // lowest ring on the wall is its floor, and a walker's beside it is level with it.
+      if (!under && reach.active())
+        forEachRingAbove(cc, v,
+                         [&](uint32_t w) { under = under || (off[w] == 1 && cc.root_of[w] == r); });
+      if (under) off[v] = 2;
     }
     // The groups in front of the plane.
     for (const uint32_t v : vs) uf.parent[v] = v;  // (only this structure's voxels take part)
