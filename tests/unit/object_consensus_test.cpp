@@ -1168,6 +1168,24 @@ TEST(ObjectConsensus, ASparsePartARingStepShorterIsItsObjectsSizeButNotAOneRingS
   EXPECT_FALSE(sizedAs({8.0f, 1.8f, 1.2f}, car, tol, true, 0.48f));
 }
 
+TEST(ObjectConsensus, ARingStepIsTheRingGapTimesTheRangeFromTheSensor) {
+  // An HDL-32E's rings (1.33 degrees) 25 m off lie 0.58 m apart, wherever the sensor stands.
+  const double gap = 1.33 * M_PI / 180.0;
+  const RingReach at_origin = ringReach(ObjectParams{}, gap);
+  const RingReach moved = ringReach(ObjectParams{}, gap, Eigen::Vector2d(100.0, -50.0));
+  EXPECT_NEAR(at_origin.stepAt(Eigen::Vector2d(15.0, 20.0)), 0.580, 0.001);
+  EXPECT_NEAR(moved.stepAt(Eigen::Vector2d(115.0, -30.0)), 0.580, 0.001);
+  // A box's step at its centre (heights do not count), in float as the rules' extents.
+  const Eigen::Vector3f lo(14.0f, 19.0f, -1.5f), hi(16.0f, 21.0f, 0.5f);
+  EXPECT_NEAR(at_origin.stepAt(lo, hi), 0.580f, 0.001f);
+  EXPECT_FLOAT_EQ(at_origin.stepAt(lo, hi), static_cast<float>(gap) * 25.0f);
+  EXPECT_NEAR(
+      moved.stepAt(Eigen::Vector3f(114.0f, -31.0f, 0.0f), Eigen::Vector3f(116.0f, -29.0f, 2.0f)),
+      0.580f, 0.001f);
+  // A dense lidar (ring gap 0): no step.
+  EXPECT_EQ(ringReach(ObjectParams{}, 0.0).stepAt(lo, hi), 0.0f);
+}
+
 TEST(ObjectConsensus, TheMatchStopsEarlyAndSkipsFarObjectsWithoutChangingIt) {
   // Issue #16: matchWholeObject stops once half is reached or out of reach, and asks no voxel
   // where no object's box lies within a voxel of the points'. Against every point asked, on

@@ -246,8 +246,8 @@ void splitFromWalls(const std::vector<PointXYZI>& points, ObjectComponents& cc,
   // A group reaches its floor within foot, or 1.5 ring steps at its range where more (Overhead):
   // a VLP-16's lowest ring on a walker 15 m off lands 0.5 m over the sidewalk.
   const auto floorGap = [&](const Eigen::Vector3f& lo, const Eigen::Vector3f& hi) {
-    const double d = (0.5 * (lo + hi).head<2>().cast<double>() - reach.origin).norm();
-    return static_cast<float>(std::max(reach.foot, 1.5 * d * reach.ring_gap));
+    const Eigen::Vector2d at = 0.5 * (lo + hi).head<2>().cast<double>();
+    return static_cast<float>(std::max(reach.foot, 1.5 * reach.stepAt(at)));
   };
   const double side = cc.side;
   const float gap = static_cast<float>(reach.wall_gap);

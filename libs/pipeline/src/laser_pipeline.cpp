@@ -1153,9 +1153,6 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
   // half of them in its voxels (in that scan's sensor frame, where its consensus found it), as
   // they are, moved, or by its ends; `e` their extent (this scan's sensor frame), `step` a ring
   // gap at their range (sizedAs: a sparse lidar sees a height to a ring step).
-  const auto ringStep = [&](const Eigen::Vector3f& lo, const Eigen::Vector3f& hi) {
-    return static_cast<float>(s.ring_gap) * (0.5f * (lo + hi)).head<2>().norm();
-  };
   const auto previousObject = [&](const std::vector<uint32_t>& idx, Eigen::Vector3f& e,
                                   float& step) {
     if (!prev_built) {
@@ -1178,7 +1175,7 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
       q_prev[k] = (prev_pose_inverse_ * w.world[i]).cast<float>();
     }
     e = hi - lo;
-    step = ringStep(lo, hi);
+    step = rules.reach.stepAt(lo, hi);
     // The previous scan's object in its voxels, or found moved (a car moving about a voxel a
     // scan no longer lies in its previous voxels), or by its ends (doc/OBJECTS.md rule 4: a
     // car that brakes shows a column more or less of its side, 0.4 m at 512 columns, and its
@@ -1297,7 +1294,7 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
           plo = plo.cwiseMin(q);
           phi = phi.cwiseMax(q);
         }
-        if (!as_large(phi - plo, ringStep(plo, phi))) return false;
+        if (!as_large(phi - plo, rules.reach.stepAt(plo, phi))) return false;
         if (!can_leave) return rings >= op.min_moving && !by_ends;
       }
       // It left its place: the scans after it alone see it leave, or those just before it see it
@@ -2307,8 +2304,7 @@ void LaserPipeline::carryBack() {
           // something else too: a car that stood at a kerb, joined with the kerb's stones in one
           // scan), those in the object's voxels and next to them, once shifted, if they are.
           Found f{*m, {}, {c_at}, {}};
-          if (sizedAs(hi - lo, next.extent[m->object], tolerance, true,
-                      static_cast<float>(h.ring_gap) * (0.5f * (lo + hi)).head<2>().norm()))
+          if (sizedAs(hi - lo, next.extent[m->object], tolerance, true, reach.stepAt(lo, hi)))
             for (std::size_t k = from; k < to; ++k) f.part.push_back(static_cast<uint32_t>(k));
           else
             f.part = nearObject(q, from, next, *m, op.voxel);
@@ -2325,8 +2321,7 @@ void LaserPipeline::carryBack() {
     // than the object is that object (`pedestrian_wall` with an HDL-32E: the walker 0.82 m high
     // in scan 6 against 1.20 m in scan 7, 16 m off, a step 0.37 m), as a face of it is.
     const auto sized = [&](const Eigen::AlignedBox3f& box, const Eigen::Vector3f& x) {
-      const float step = static_cast<float>(h.ring_gap) * box.center().head<2>().norm();
-      const Eigen::Vector3f e = ringLifted(box.sizes(), x, step);
+      const Eigen::Vector3f e = ringLifted(box.sizes(), x, reach.stepAt(box.min(), box.max()));
       return sizedAs(e, x, tolerance, true) ||
              (sameFace(e, x) &&
               e.head<2>().norm() * static_cast<float>(1.0 - tolerance) <= x.head<2>().norm()) ||

@@ -73,6 +73,13 @@ struct RingReach {
   double max_height = 0;  ///< m (ObjectParams::max_height)
   double wall_gap = 0;    ///< m (ObjectParams::wall_gap)
   bool active() const { return ring_gap > 0 && pool > 0; }
+  /// A ring step (m) at `at` (the points' frame): its horizontal distance from origin x ring_gap.
+  double stepAt(const Eigen::Vector2d& at) const { return ring_gap * (at - origin).norm(); }
+  /// ... at the centre of the box lo .. hi, in float as the rules' extents (sizedAs, ringLifted).
+  float stepAt(const Eigen::Vector3f& lo, const Eigen::Vector3f& hi) const {
+    return static_cast<float>(ring_gap) *
+           ((0.5f * (lo + hi)).head<2>() - origin.cast<float>()).norm();
+  }
   bool operator==(const RingReach& o) const {
     return ring_gap == o.ring_gap && origin == o.origin && pool == o.pool && foot == o.foot &&
            max_length == o.max_length && max_height == o.max_height && wall_gap == o.wall_gap;
@@ -301,9 +308,8 @@ constexpr int kMaxReachVoxels = 8;
 template <class F>
 void forEachRingAbove(const ObjectComponents& cc, uint32_t v, F&& f) {
   const Eigen::Vector3i& c = cc.voxels[v];
-  const double x = (c.x() + 0.5) * cc.side - cc.reach.origin.x();
-  const double y = (c.y() + 0.5) * cc.side - cc.reach.origin.y();
-  const double up = std::ceil(kRingReach * std::hypot(x, y) * cc.reach.ring_gap / cc.side);
+  const Eigen::Vector2d at((c.x() + 0.5) * cc.side, (c.y() + 0.5) * cc.side);
+  const double up = std::ceil(kRingReach * cc.reach.stepAt(at) / cc.side);
   const int top = static_cast<int>(std::min<double>(kMaxReachVoxels, up));
   for (int dz = 2; dz <= top; ++dz)
     for (int dx = -1; dx <= 1; ++dx)
