@@ -1837,6 +1837,7 @@ struct FeetScene {
     moving.push_back(m);
     in_crop.push_back(1);
   }
+  FeetScene() = default;  // empty: the caller adds its own
   explicit FeetScene(bool face_moving, float face_y0 = -0.9f, float face_y1 = 0.9f) {
     for (int i = 0; i <= 80; ++i)
       for (int j = -30; j <= 30; ++j) {
@@ -1956,6 +1957,50 @@ TEST(MoverFeet, OutsideTheCropOrWithoutRoadNothingIsTaken) {
         !contains(bare.low, static_cast<uint32_t>(i)))
       bare.in_crop[i] = bare.ground[i] = 0;
   EXPECT_TRUE(bare.feet().empty());
+}
+
+TEST(MoverFeet, ASparseLidarsCarFaceFindsItsRoadARingAway) {
+  // A VLP-16 (2 degrees between rings, 1.73 m over the road): a car's face 17.2 m ahead, 1.8 m
+  // wide; its lowest ring (-5 degrees) meets it 0.22 m over the road, refined to ground under the
+  // moving rings above. No road return lies within a ground cell of it: the -5 degree ring meets
+  // the road beside the car 19.8 m off, the -7 degree ring 14.1 m off, 2.5-3.1 m away. Those are
+  // the road around it, out to where the next ring down lands (4.9 m here).
+  const auto scene = [](float road) {
+    FeetScene s;
+    const double face_x = 17.2, half = 0.9;
+    for (double az = -30.0; az <= 30.0; az += 0.2) {
+      const double c = std::cos(az * M_PI / 180.0), sn = std::sin(az * M_PI / 180.0);
+      for (const double el : {-15.0, -13.0, -11.0, -9.0, -7.0, -5.0, -3.0, -1.0}) {
+        const double t = std::tan(-el * M_PI / 180.0);
+        const double to_road = (0.0 - road) / t;  // along the ground
+        const double to_face = face_x / c;
+        if (std::abs(face_x * sn / c) <= half && to_face < to_road) {
+          const double z = -to_face * t;
+          if (z > road + 1.5) continue;  // over the car
+          const bool lowest = z < road + 0.3;
+          if (lowest) s.foot.push_back(static_cast<uint32_t>(s.pts.size()));
+          s.add(static_cast<float>(face_x), static_cast<float>(to_face * sn), static_cast<float>(z),
+                lowest ? kGroundRefined : 0, lowest ? 0 : 1);
+        } else if (el < -1.0 && to_road < 40.0) {
+          s.add(static_cast<float>(to_road * c), static_cast<float>(to_road * sn), road,
+                kGroundCell, 0);
+        }
+      }
+    }
+    return s;
+  };
+  const FeetScene flat = scene(kRoad);
+  ASSERT_GE(flat.foot.size(), 25u);  // 0.2 degrees between columns: 29
+  MoverFeetParams vlp16;
+  vlp16.ring_gap = 2.0 * M_PI / 180.0;
+  const auto feet = flat.feet(vlp16);
+  for (uint32_t i : flat.foot) EXPECT_TRUE(contains(feet, i)) << "lowest ring " << i;
+  EXPECT_EQ(feet.size(), flat.foot.size());
+  // A dense lidar's next ring lands 1.3 m nearer: no road return within that, nothing to rise
+  // over, and it stays ground.
+  EXPECT_TRUE(flat.feet().empty());
+  // The road level with that ring (a ramp up to it): it is that surface, and stays ground.
+  EXPECT_TRUE(scene(kRoad + 0.22f).feet(vlp16).empty());
 }
 
 TEST(MoverFeet, AWallsFootBehindAWalkerStaysGround) {

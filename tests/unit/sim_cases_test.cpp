@@ -149,17 +149,18 @@ TEST(SimCases, DefaultScenarioIoUAtLeast0_8) {
 TEST(SimCases, AFarWalkerOfFewReturnsIsFoundPast28Metres) {
   // doc/OBJECTS.md rule 2, "Far and few": the default street with the ego at 0.6 x (the sweep's
   // ego_slow). In scans 16-22 the pedestrian crosses 28-30 m ahead, 17-18 returns a scan, fewer
-  // than min_moving (20), and the windowed test flags 15-18 of them. Measured 0.965, and 0.875
-  // with object.far_points = 0 (those scans lost whole); precision 1.000 either way.
+  // than min_moving (20), and the windowed test flags 15-18 of them. Measured 0.9985, and 0.908
+  // with object.far_points = 0 (those scans lost whole); precision 1.000 either way. (0.965 and
+  // 0.875 before rule 6's feet looked for the road a ring away, doc/OBJECTS.md.)
   auto sc = sim::defaultScenario();
   sc.ego_speed *= 0.6;
   const auto r = runCase(sc);
-  EXPECT_GE(r.per_mover.at("pedestrian").recall(), 0.93);
+  EXPECT_GE(r.per_mover.at("pedestrian").recall(), 0.97);
   EXPECT_GE(r.all.precision(), 0.999);
   PipelineParams off;
   off.object.far_points = 0;
   const auto r_off = runCase(sc, off);
-  EXPECT_LE(r_off.per_mover.at("pedestrian").recall(), 0.9);
+  EXPECT_LE(r_off.per_mover.at("pedestrian").recall(), 0.93);
   EXPECT_GE(r_off.all.precision(), 0.999);
 }
 

@@ -14,6 +14,7 @@ namespace cleanmap {
 namespace {
 
 constexpr uint32_t kNone = UINT32_MAX;
+constexpr double kMaxRoadReach = 6.0;  // m; how far a foot's road is looked for (rule 6)
 
 // Items in square horizontal cells over a box of the world's xy plane, a flat array of list
 // heads threaded through `next` (a scan's few thousand movers or road returns: no hashing).
@@ -50,6 +51,17 @@ class FlatLists {
         for (uint32_t k = head_[static_cast<std::size_t>(a * ny_ + b)]; k != kNone && f(k);
              k = next[k]) {
         }
+  }
+  // Calls f(item) for the items of the cells k cells from cell c (the square ring of them).
+  template <class F>
+  void ring(int64_t c, int64_t k, F&& f) const {
+    const int64_t i = c / ny_, j = c % ny_;
+    const auto cell = [&](int64_t a, int64_t b) {
+      if (a < 0 || b < 0 || a >= nx_ || b >= ny_) return;
+      for (uint32_t m = head_[static_cast<std::size_t>(a * ny_ + b)]; m != kNone; m = next[m]) f(m);
+    };
+    for (int64_t b = j - k; b <= j + k; ++b) cell(i - k, b), cell(i + k, b);
+    for (int64_t a = i - k + 1; a < i + k; ++a) cell(a, j - k), cell(a, j + k);
   }
   std::vector<uint32_t> next;
 
@@ -155,10 +167,20 @@ std::vector<uint32_t> moverFeet(const std::vector<PointXYZI>& points, const Eige
   }
   if (under.empty()) return {};
 
-  // The road around each: the other ground returns in the 3 x 3 ground cells around it.
+  // The road around each: the other ground returns in the 3 x 3 ground cells around it; where
+  // they hold too few, those in the cells out to where the lidar's next ring down meets a flat
+  // road (a VLP-16's rings 17 m off land 4.5 m apart: a car's lowest ring over the road has no
+  // road return within a cell of it), at most kMaxRoadReach.
+  const double grow = kMaxRoadReach + p.cell;
   FlatLists road(
-      Eigen::AlignedBox2d(under_box.min().array() - p.cell, under_box.max().array() + p.cell),
-      p.cell);
+      Eigen::AlignedBox2d(under_box.min().array() - grow, under_box.max().array() + grow), p.cell);
+  const Eigen::Vector3d sensor = pose.translation();
+  const auto roadReach = [&](uint32_t i, const Eigen::Vector3d& q) {
+    const double d = std::hypot(double(points[i].x), double(points[i].y));
+    const double h = sensor.z() - q.z(), down = std::atan2(h, d) + p.ring_gap;
+    if (h <= 0 || down >= 0.5 * M_PI) return 0.0;
+    return std::min(kMaxRoadReach, d - h / std::tan(down));
+  };
   std::vector<uint8_t> is_under(n, 0);
   for (uint32_t i : under) is_under[i] = 1;
   std::vector<float> road_z;
@@ -186,6 +208,9 @@ std::vector<uint32_t> moverFeet(const std::vector<PointXYZI>& points, const Eige
         zs.push_back(road_z[j]);
         return true;
       });
+      const auto far = static_cast<int64_t>(std::ceil(roadReach(under[u], under_w[u]) / p.cell));
+      for (int64_t k = 2; zs.size() < 5 && k <= far; ++k)
+        road.ring(c, k, [&](uint32_t j) { zs.push_back(road_z[j]); });
       level[cu] = std::numeric_limits<float>::infinity();
       if (zs.size() >= 5) {
         const float mid = median(zs);

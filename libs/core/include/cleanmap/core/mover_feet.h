@@ -19,8 +19,10 @@ struct MoverFeetParams {
   /// continues down to the road, with the range noise of a return and a bumper's slant.
   double radius = 0.15;
   /// m; the least rise over the road around it, the median of the scan's other ground returns
-  /// in the 3 x 3 ground cells (`cell`) around the foot; three times their scatter (1.4826 MAD)
-  /// where that is larger, so a rough or noisy road's own returns are not raised.
+  /// in the 3 x 3 ground cells (`cell`) around the foot (where fewer than 5, in the cells out to
+  /// where the next ring down, `ring_gap`, meets a flat road, at most 6 m); three times their
+  /// scatter (1.4826 MAD) where that is larger, so a rough or noisy road's own returns are not
+  /// raised.
   double rise = 0.03;
   double cell = 0.4;  ///< m; the ground grid's cell (GroundParams::cell)
   /// rad; the lidar's angle between rings: that return must lie within two ring steps at the
