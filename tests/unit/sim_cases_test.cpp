@@ -1287,6 +1287,24 @@ TEST(SimSensors, ACyclistsBackAndACarsRingsAreCarriedBackAtSixteenRings) {
   EXPECT_GE(r.all.precision(), 0.99);             // measured 1.000
 }
 
+// Rule 4 backwards, "A slow seed" (doc/OBJECTS.md): `default` at half speed seen by a VLP-16.
+// Its cyclist rides at 2 m/s 19-23 m ahead, 9-19 returns a scan: the windowed test flags 0-4 of
+// them in scans 0-10, rule 4 backwards must carry him back. Each scan sees his back alone or his
+// back and a piece of his side, so no two neighbours are the same size, and his ends move 0.2 m
+// a scan, under the voxel a seed of two sizes needs: no track until scans 18-19, when scans 0-10
+// had been handed on (0 of 130 returns). Over two scans his ends move 0.4 m.
+TEST(SimSensors, ASlowCyclistsTrackIsSeededOverALongerSpanAtSixteenRings) {
+  auto sc = seenBy(scenario("default"), SensorModel::kVlp16);
+  for (auto& m : sc.movers) m.speed *= 0.5;
+  const auto r = runCase(sc);
+  MosCounts early;
+  for (std::size_t k = 0; k <= 10; ++k) early += r.per_mover_frame.at("cyclist").at(k);
+  std::printf("  cyclist in scans 0-10: recall %.3f of %llu\n", early.recall(),
+              (unsigned long long)(early.tp + early.fn));
+  EXPECT_GE(early.recall(), 0.6);      // measured 0.762 (0 before)
+  EXPECT_GE(r.all.precision(), 0.99);  // measured 0.999 (6 returns of a parked car he rides out of)
+}
+
 // Rule 4 and rule 6 at a sparse lidar (doc/OBJECTS.md): stop_and_go seen by a VLP-16. Its car's
 // rings come apart 10-17 m ahead. The ring over its top lands on its roof and runs along its side,
 // a stripe the test flags in part (13-25 of 60-70 returns), all of it its own foot for rule 2:

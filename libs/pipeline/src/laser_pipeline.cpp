@@ -2149,14 +2149,16 @@ void LaserPipeline::carryBack() {
     Held& a = held_results_[n_held - 2];
     Held& b = held_results_[n_held - 1];
     const ObjectParams op = paramsOf(a).first;
-    for (Held* x : {&a, &b})
-      if (!x->whole_objects) {
-        x->whole_objects.emplace();
-        x->whole_reach = paramsOf(*x).second;
-        wholeObjectsOf(x->whole, std::vector<uint8_t>(x->whole.size(), 1), op.voxel,
-                       *x->whole_objects, x->whole_reach);
+    const auto wholeOf = [&](Held& x) -> const WholeObjects& {
+      if (!x.whole_objects) {
+        x.whole_objects.emplace();
+        x.whole_reach = paramsOf(x).second;
+        wholeObjectsOf(x.whole, std::vector<uint8_t>(x.whole.size(), 1), op.voxel, *x.whole_objects,
+                       x.whole_reach);
       }
-    const WholeObjects &oa = *a.whole_objects, &ob = *b.whole_objects;
+      return *x.whole_objects;
+    };
+    const WholeObjects &oa = wholeOf(a), &ob = wholeOf(b);
     if (oa.empty() || ob.empty()) return;
     // Rule 7 measured the scans before the older one only where it had their half windows: not
     // in a run's first and last H scans, which only the chain from here reaches.
@@ -2168,6 +2170,46 @@ void LaserPipeline::carryBack() {
     const Eigen::Isometry3d a_to_b = b.world_to_sensor * a.r.pose;
     const double dt = static_cast<double>(b.r.index) - static_cast<double>(a.r.index);
     std::vector<Eigen::Vector3f> q;
+    // A seed of two sizes whose ends moved a voxel or less between the two scans, what a box's
+    // face is known to ("A slow seed", doc/OBJECTS.md rule 4 backwards): its velocity (per scan,
+    // b's frame) over a longer span, from the nearest older held scan, within half a window,
+    // where its ends lie more than a voxel from b's, each scan between moving it whole too;
+    // nullopt where the span breaks or the newest step `ab` is not that velocity within half of
+    // it (a standing object's ends come and go with its rings; a cyclist's move on).
+    const auto spanVelocity = [&](std::size_t object_b,
+                                  const Eigen::Vector3f& ab) -> std::optional<Eigen::Vector3f> {
+      const std::size_t span = std::min<std::size_t>((k_ + 1) / 2, n_held - 1);
+      std::vector<Eigen::Vector3f> qc;
+      for (std::size_t j = 2; j <= span; ++j) {
+        Held& c = held_results_[n_held - 1 - j];
+        const WholeObjects& oc = wholeOf(c);
+        std::vector<std::vector<uint32_t>> of(oc.extent.size());
+        for (uint32_t k = 0; k < c.whole.size(); ++k)
+          if (const uint32_t* o = objectOf(oc, c.whole[k].xyz())) of[*o].push_back(k);
+        const Eigen::Isometry3d c_to_b = b.world_to_sensor * c.r.pose;
+        std::optional<WholeMatch> best;
+        std::size_t best_n = 0;
+        for (const std::vector<uint32_t>& members_c : of) {
+          if (members_c.size() <= best_n) continue;
+          qc.clear();
+          for (const uint32_t k : members_c)
+            qc.push_back((c_to_b * c.whole[k].xyz().cast<double>()).cast<float>());
+          const std::optional<WholeMatch> mc =
+              matchWholeObjectByEnds(qc, ob, op.voxel, kCarryMatch);
+          if (mc && mc->object == object_b) {
+            best = mc;
+            best_n = members_c.size();
+          }
+        }
+        if (!best) return std::nullopt;
+        if (best->shift.head<2>().norm() <= op.voxel) continue;
+        const Eigen::Vector3f v =
+            best->shift / static_cast<float>(double(b.r.index) - double(c.r.index));
+        if ((ab - v).head<2>().norm() > 0.5f * v.head<2>().norm()) return std::nullopt;
+        return v;
+      }
+      return std::nullopt;
+    };
     for (std::size_t o = 0; o < members.size(); ++o) {
       // Not an object rule 7 measured in the older scan: it measured the half windows around
       // it (the scans before were measured too, where they could be), and its component is not
@@ -2187,15 +2229,22 @@ void LaserPipeline::carryBack() {
       // Where they differ, its ends say how far it moved ("Its side comes and goes"): b's place
       // is then a's centroid shifted by them, the same composition in both. Only more than a
       // voxel, what a box's face is known to: a standing truck's side at 16 rings, its ends
-      // coming and going with the rings, "moved" 0.07-0.14 m a scan.
+      // coming and going with the rings, "moved" 0.07-0.14 m a scan. Under that, over a longer
+      // span (spanVelocity): a cyclist at 2 m/s, his side in view every other scan.
       const float ea = oa.extent[o].head<2>().norm(), eb = ob.extent[m->object].head<2>().norm();
       Eigen::Vector3f at_b = ob.centroid[m->object];
       if (std::abs(ea - eb) > kSeedSize * std::max(ea, eb)) {
         if (!m->by_ends) m = matchWholeObjectByEnds(q, ob, op.voxel, kCarryMatch);
-        if (!m || m->shift.head<2>().norm() <= op.voxel) continue;
+        if (!m) continue;
+        Eigen::Vector3f shift = m->shift;
+        if (shift.head<2>().norm() <= op.voxel) {
+          const std::optional<Eigen::Vector3f> v = spanVelocity(m->object, shift);
+          if (!v) continue;
+          shift = *v * static_cast<float>(dt);
+        }
         at_b = std::accumulate(q.begin(), q.end(), Eigen::Vector3f(Eigen::Vector3f::Zero())) /
                    static_cast<float>(q.size()) +
-               m->shift;
+               shift;
       }
       Track t;
       t.at.push_back({double(a.r.index), worldCentroid(a, oa.centroid[o])});
