@@ -432,8 +432,8 @@ TEST(Regression, SixteenRingBars) {
 // Rule 4 backwards, "A slow seed" (doc/OBJECTS.md): kitti_residential at 16 rings (lasers 0 +
 // 4k). A static object 27 m behind, 1.2-1.8 m across as its rings come and go, is moved whole by
 // mistake in scans 2-4; between two of them its ends "moved" 0.10 m, then 0.05 m back. Seeded
-// with that as its velocity, it was carried back to scans 0-1 (30 false positives more): over
-// two scans its ends move no more than a voxel, and it seeds no track.
+// with that as its velocity, it was carried back to scans 0-1 (30 false positives more). Over
+// scans 2-4 its ends moved 0.06 m, and scan 1 did not move it whole: no span, no track.
 TEST(Regression, AStandingObjectsRingsSeedNoTrackAtSixteenRings) {
   CLEANMAP_REQUIRE_DATASET("kitti_residential");
   const MosCounts r = runSetSixteenRings("kitti_residential", 0);
