@@ -158,6 +158,18 @@ void orderByComponent(const std::vector<uint32_t>& root, std::vector<uint32_t>& 
     if (k == order.size() || root[order[k]] != root[order[k - 1]])
       ends.push_back(static_cast<uint32_t>(k));
 }
+
+// Whether `face` (its thin horizontal side within a voxel) is a face of `box`: as wide along it
+// and as high, within rule 4's extent tolerance as sizedAs, whatever their depths (a side in view
+// in one and not the other).
+bool faceOf(const Eigen::Vector3f& face, const Eigen::Vector3f& box, double voxel,
+            double tolerance) {
+  int wide = 0;
+  const float thin = face.head<2>().minCoeff(), along = face.head<2>().maxCoeff(&wide);
+  const float f = static_cast<float>(1.0 - tolerance);
+  return thin <= static_cast<float>(voxel) && box[wide] >= f * along && along >= f * box[wide] &&
+         box.z() >= f * face.z() && face.z() >= f * box.z();
+}
 }  // namespace
 
 struct LaserPipeline::Prepared {
@@ -1209,9 +1221,13 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
       const std::size_t a = match->object;
       const Eigen::Vector3f moved_by = match->shift;  // the shift that found it (zero: in place)
       const Eigen::Vector3f x = prev.extent[a];
-      // Not smaller (it may have joined its other part).
+      // Not smaller (it may have joined its other part), or a face of it: a body receding along
+      // its length shows its back face alone once its side falls a column beyond (a cyclist the
+      // ego overtakes, at 512 columns), as rule 4 backwards takes a face (doc/OBJECTS.md rule 4,
+      // "the same object").
       const auto as_large = [&](const Eigen::Vector3f& ext, float at) {
-        return sizedAs(ext, x, rules.extent_tolerance, false, at);
+        return sizedAs(ext, x, rules.extent_tolerance, false, at) ||
+               faceOf(ringLifted(ext, x, at), x, op.voxel, rules.extent_tolerance);
       };
       // Fewer than half of the window's later scans (the sequence's last ones, a dropout) cannot
       // show it leave (below); there it must be that whole object itself, or that object in
@@ -2036,18 +2052,6 @@ void joinPooled(const std::vector<PointXYZI>& points, const std::vector<uint32_t
     tracks[o] = track_of[kept[o]];
   }
   track_of = std::move(tracks);
-}
-
-// Whether `face` (its thin horizontal side within a voxel) is a face of `box`: as wide along it
-// and as high, within rule 4's extent tolerance as sizedAs, whatever their depths (a side in view
-// in one and not the other).
-bool faceOf(const Eigen::Vector3f& face, const Eigen::Vector3f& box, double voxel,
-            double tolerance) {
-  int wide = 0;
-  const float thin = face.head<2>().minCoeff(), along = face.head<2>().maxCoeff(&wide);
-  const float f = static_cast<float>(1.0 - tolerance);
-  return thin <= static_cast<float>(voxel) && box[wide] >= f * along && along >= f * box[wide] &&
-         box.z() >= f * face.z() && face.z() >= f * box.z();
 }
 
 // Rule 2's foot (doc/OBJECTS.md, Foot) of the points order[k] of `part`: the part without it.
