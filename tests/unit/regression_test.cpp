@@ -417,6 +417,12 @@ TEST(Regression, SixteenRingBars) {
     const MosCounts r = runSetSixteenRings("kitti_residential", offset);
     EXPECT_LE(r.flaggedRate(), 0.002) << "lasers " << offset << " + 4k";
     EXPECT_LE(r.flaggedRate(), 0.0018) << "lasers " << offset << " + 4k";  // regression bound
+    // Rule 4 backwards, "A slow seed" (doc/OBJECTS.md): at offset 0 a static object 27 m behind,
+    // 1.2-1.8 m across as its rings come and go, is moved whole by mistake in scans 2-4; between
+    // two of them its ends "moved" 0.10 m, then 0.05 m back. Seeded with that as its velocity,
+    // it was carried back to scans 0-1 (30 false positives more). Over scans 2-4 its ends moved
+    // 0.06 m, and scan 1 did not move it whole: no span, no track.
+    if (offset == 0) EXPECT_LE(r.fp, 340u);  // measured 330 (360 seeded with any step of its ends)
     const MosCounts h = runSetSixteenRings("kitti_highway", offset);
     EXPECT_GE(h.recall(), 0.975 - 0.05) << "lasers " << offset << " + 4k";
     EXPECT_GE(h.precision(), 0.92) << "lasers " << offset << " + 4k";
@@ -427,18 +433,6 @@ TEST(Regression, SixteenRingBars) {
   EXPECT_GE(c.recall(), 0.999 - 0.05);
   EXPECT_GE(c.precision(), 0.5);
   EXPECT_GE(c.precision(), 0.55);  // regression bound: measured 0.575
-}
-
-// Rule 4 backwards, "A slow seed" (doc/OBJECTS.md): kitti_residential at 16 rings (lasers 0 +
-// 4k). A static object 27 m behind, 1.2-1.8 m across as its rings come and go, is moved whole by
-// mistake in scans 2-4; between two of them its ends "moved" 0.10 m, then 0.05 m back. Seeded
-// with that as its velocity, it was carried back to scans 0-1 (30 false positives more). Over
-// scans 2-4 its ends moved 0.06 m, and scan 1 did not move it whole: no span, no track.
-TEST(Regression, AStandingObjectsRingsSeedNoTrackAtSixteenRings) {
-  CLEANMAP_REQUIRE_DATASET("kitti_residential");
-  const MosCounts r = runSetSixteenRings("kitti_residential", 0);
-  std::printf("  false positives %llu, recall %.4f\n", (unsigned long long)r.fp, r.recall());
-  EXPECT_LE(r.fp, 340u);  // measured 330 (360 seeded with any step of its ends)
 }
 
 // DESIGN §2b "Coarse columns", §2d: the labelled sets with every other column, as an Ouster at

@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <initializer_list>
 #include <map>
@@ -61,6 +62,14 @@ struct CaseResult {
   MosCounts frames(std::size_t from, std::size_t to) const {  // scans from..to-1
     MosCounts c;
     for (std::size_t k = from; k < to; ++k) c += per_frame.at(k);
+    return c;
+  }
+  // `mover`'s points in scans from..to-1, printed with their number.
+  MosCounts moverScans(const std::string& mover, std::size_t from, std::size_t to) const {
+    MosCounts c;
+    for (std::size_t k = from; k < to; ++k) c += per_mover_frame.at(mover).at(k);
+    std::printf("  %s in scans %zu-%zu: recall %.3f of %llu\n", mover.c_str(), from, to - 1,
+                c.recall(), static_cast<unsigned long long>(c.tp + c.fn));
     return c;
   }
 };
@@ -1276,15 +1285,9 @@ TEST(SimSensors, AFollowingCarsRoofStripeGoesWithItAtSixteenRings) {
 //   carried back.
 TEST(SimSensors, ACyclistsBackAndACarsRingsAreCarriedBackAtSixteenRings) {
   const auto r = runCase(seenBy(scenario("default"), SensorModel::kVlp16));
-  const auto scans = [&](const char* mover, std::size_t from, std::size_t to) {
-    MosCounts c;
-    for (std::size_t k = from; k < to; ++k) c += r.per_mover_frame.at(mover).at(k);
-    std::printf("  %s in scans %zu-%zu: recall %.3f\n", mover, from, to - 1, c.recall());
-    return c.recall();
-  };
-  EXPECT_GE(scans("cyclist", 0, 4), 0.6);         // measured 0.795
-  EXPECT_GE(scans("overtaking_car", 1, 5), 0.6);  // measured 0.927
-  EXPECT_GE(r.all.precision(), 0.99);             // measured 1.000
+  EXPECT_GE(r.moverScans("cyclist", 0, 4).recall(), 0.6);         // measured 0.795
+  EXPECT_GE(r.moverScans("overtaking_car", 1, 5).recall(), 0.6);  // measured 0.934
+  EXPECT_GE(r.all.precision(), 0.99);                             // measured 1.000
 }
 
 // Rule 4 backwards, "A slow seed" (doc/OBJECTS.md): `default` at half speed seen by a VLP-16.
@@ -1297,11 +1300,7 @@ TEST(SimSensors, ASlowCyclistsTrackIsSeededOverALongerSpanAtSixteenRings) {
   auto sc = seenBy(scenario("default"), SensorModel::kVlp16);
   for (auto& m : sc.movers) m.speed *= 0.5;
   const auto r = runCase(sc);
-  MosCounts early;
-  for (std::size_t k = 0; k <= 10; ++k) early += r.per_mover_frame.at("cyclist").at(k);
-  std::printf("  cyclist in scans 0-10: recall %.3f of %llu\n", early.recall(),
-              (unsigned long long)(early.tp + early.fn));
-  EXPECT_GE(early.recall(), 0.6);      // measured 0.762 (0 before)
+  EXPECT_GE(r.moverScans("cyclist", 0, 11).recall(), 0.6);  // measured 0.762 (0 before)
   EXPECT_GE(r.all.precision(), 0.99);  // measured 0.999 (6 returns of a parked car he rides out of)
 }
 
@@ -1359,12 +1358,8 @@ TEST(SimSensors, ACyclistTheEgoOvertakesIsHeldByHisBackFaceAtFiveHundredTwelveCo
   sc.sensor.azimuth_step_deg = 360.0 / 512;
   for (auto& m : sc.movers) m.speed *= 0.5;
   const auto r = runCase(sc);
-  MosCounts overtaken;
-  for (std::size_t k = 34; k <= 38; ++k) overtaken += r.per_mover_frame.at("cyclist").at(k);
-  std::printf("  cyclist in scans 34-38: recall %.3f of %llu\n", overtaken.recall(),
-              (unsigned long long)(overtaken.tp + overtaken.fn));
-  EXPECT_GE(overtaken.recall(), 0.8);  // measured 0.939 of 743 (0.079 before)
-  EXPECT_GE(r.all.precision(), 0.98);  // measured 0.986 (0.984 before)
+  EXPECT_GE(r.moverScans("cyclist", 34, 39).recall(), 0.8);  // measured 0.939 of 743 (0.079 before)
+  EXPECT_GE(r.all.precision(), 0.98);                        // measured 0.986 (0.984 before)
 }
 
 // doc/OBJECTS.md rule 7, "Seen from about the same side": car_stops_5s' oncoming car (stopping

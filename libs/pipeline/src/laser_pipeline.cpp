@@ -2162,15 +2162,20 @@ void LaserPipeline::carryBack() {
       }
       return *x.whole_objects;
     };
+    // A held scan's whole points (indices into x.whole) per object of `o`.
+    const auto membersOf = [&](const Held& x, const WholeObjects& o) {
+      std::vector<std::vector<uint32_t>> of(o.extent.size());
+      for (uint32_t k = 0; k < x.whole.size(); ++k)
+        if (const uint32_t* m = objectOf(o, x.whole[k].xyz())) of[*m].push_back(k);
+      return of;
+    };
     const WholeObjects &oa = wholeOf(a), &ob = wholeOf(b);
     if (oa.empty() || ob.empty()) return;
     // Rule 7 measured the scans before the older one only where it had their half windows: not
     // in a run's first and last H scans, which only the chain from here reaches.
     const bool before_measurable = std::all_of(held_results_.begin(), held_results_.end() - 2,
                                                [](const Held& h) { return h.measurable; });
-    std::vector<std::vector<uint32_t>> members(oa.extent.size());
-    for (uint32_t k = 0; k < a.whole.size(); ++k)
-      if (const uint32_t* o = objectOf(oa, a.whole[k].xyz())) members[*o].push_back(k);
+    std::vector<std::vector<uint32_t>> members = membersOf(a, oa);
     const Eigen::Isometry3d a_to_b = b.world_to_sensor * a.r.pose;
     const double dt = static_cast<double>(b.r.index) - static_cast<double>(a.r.index);
     std::vector<Eigen::Vector3f> q;
@@ -2186,10 +2191,7 @@ void LaserPipeline::carryBack() {
       std::vector<Eigen::Vector3f> qc;
       for (std::size_t j = 2; j <= span; ++j) {
         Held& c = held_results_[n_held - 1 - j];
-        const WholeObjects& oc = wholeOf(c);
-        std::vector<std::vector<uint32_t>> of(oc.extent.size());
-        for (uint32_t k = 0; k < c.whole.size(); ++k)
-          if (const uint32_t* o = objectOf(oc, c.whole[k].xyz())) of[*o].push_back(k);
+        const std::vector<std::vector<uint32_t>> of = membersOf(c, wholeOf(c));
         const Eigen::Isometry3d c_to_b = b.world_to_sensor * c.r.pose;
         std::optional<WholeMatch> best;
         std::size_t best_n = 0;
