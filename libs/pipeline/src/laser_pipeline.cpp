@@ -1317,8 +1317,13 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
       // arrive (below; a vehicle that stopped over half a window ago shows neither). Where the
       // scans after it are too few to tell, a vehicle in stop-and-go traffic (0.5-1 m/s) moves
       // less than a voxel and the beam model's margin in half a window (0.5 s): it stays as the
-      // previous scan had it.
-      if (!can_leave) return !by_ends;
+      // previous scan had it. Found by its ends, only where that object was a face of this one
+      // and this one is more than a voxel deep: its side came into view, its face's end where the
+      // face was (a cyclist the ego draws alongside in the run's last scan; doc/OBJECTS.md rule
+      // 4, "by its ends"). A pole or a kerb's ring does not grow so.
+      if (!can_leave)
+        return !by_ends || (faceOf(x, e, op.voxel, rules.extent_tolerance) &&
+                            e.head<2>().minCoeff() > static_cast<float>(op.voxel));
       // Leaving: min_moving of its moving points are moving for the later scans (its rear, the
       // gaps between its parts: a long vehicle driving on with its ends out of view), or half of
       // all its points are for the far half of them: a car pulling away at 0.8 m/s moves 0.08 m
