@@ -587,6 +587,14 @@ bool MovingTest::isMoving(const Eigen::Vector3d& p_world, const std::vector<Wind
   return run;
 }
 
+bool MovingTest::hasEmptyRun(const Eigen::Vector3d& p_world, const std::vector<WindowScan>& window,
+                             MovingTestStats* stats, uint8_t edges) const {
+  if (p_.empty_run <= 0) return false;
+  SmallBuffer<int8_t> votes(window.size());
+  std::fill(votes.data(), votes.data() + window.size(), kNotCast);
+  return emptyRun(p_world, window, votes.data(), stats, edges);
+}
+
 int8_t MovingTest::vote(const Eigen::Vector3d& p_world, const WindowScan& s, MovingTestStats* stats,
                         uint8_t edges) const {
   const ScanView v = view(p_world, s);

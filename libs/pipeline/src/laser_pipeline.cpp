@@ -1152,8 +1152,9 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
   WholeObjects prev_own;
   const WholeObjects* prev_objects = &prev_own;
   bool prev_built = false;
-  // The scans after it, the far half of them and the near half before it, built on first use.
-  std::optional<std::vector<WindowScan>> after, far, just_before;
+  // The scans after it, the far half of them, those before it and the near half of those, built
+  // on first use.
+  std::optional<std::vector<WindowScan>> after, far, before, just_before;
   std::vector<Eigen::Vector3f> q_prev;     // an object's points in the previous frame
   std::vector<Eigen::Vector3f> pieces_at;  // the scan's grouped points in the previous frame
   std::vector<uint32_t> ends;              // a large object's points at its ends (arrivalEnds)
@@ -1235,6 +1236,7 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
       if (!after) {
         after = windowAround(pos, 1);
         far = windowAround(pos, std::max<std::size_t>(1, k_ / 2));
+        before = windowAround(pos, 0, k_);
         just_before = windowAround(pos, 0, std::max<std::size_t>(1, k_ / 2));
       }
       const bool can_leave = 2 * after->size() >= k_ / stride_;
@@ -1317,13 +1319,17 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
       // arrive (below; a vehicle that stopped over half a window ago shows neither). Where the
       // scans after it are too few to tell, a vehicle in stop-and-go traffic (0.5-1 m/s) moves
       // less than a voxel and the beam model's margin in half a window (0.5 s): it stays as the
-      // previous scan had it. Found by its ends, only where that object was a face of this one
-      // and this one is more than a voxel deep: its side came into view, its face's end where the
-      // face was (a cyclist the ego draws alongside in the run's last scan; doc/OBJECTS.md rule
-      // 4, "by its ends"). A pole or a kerb's ring does not grow so.
-      if (!can_leave)
-        return !by_ends || (faceOf(x, e, op.voxel, rules.extent_tolerance) &&
-                            e.head<2>().minCoeff() > static_cast<float>(op.voxel));
+      // previous scan had it. Found by its ends, only where one of the two is a face of the other,
+      // which is more than a voxel deep: its side came into view, its face's end where the face
+      // was (a cyclist the ego draws alongside in the run's last scan), or went out of view, its
+      // face where the object's end was (a car receding at 512 columns, a column of its side
+      // joined to its back in one scan and not in the next; doc/OBJECTS.md rule 4, "by its
+      // ends"). A pole or a kerb's ring is no deeper than its face.
+      const auto faceOfDeeper = [&](const Eigen::Vector3f& face, const Eigen::Vector3f& body) {
+        return faceOf(face, body, op.voxel, rules.extent_tolerance) &&
+               body.head<2>().minCoeff() > static_cast<float>(op.voxel);
+      };
+      if (!can_leave) return !by_ends || faceOfDeeper(x, e) || faceOfDeeper(e, x);
       // Leaving: min_moving of its moving points are moving for the later scans (its rear, the
       // gaps between its parts: a long vehicle driving on with its ends out of view), or half of
       // all its points are for the far half of them: a car pulling away at 0.8 m/s moves 0.08 m
@@ -1349,19 +1355,23 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
         if (2 * (gone + n - asked) < n) break;  // half can no longer be reached
       }
       // Or it has just arrived: min_moving of its points are moving for the K / 2 scans before it
-      // alone (their places were empty less than half a window ago). A vehicle coming
-      // towards the sensor shows only its front, which the scans after it see inside it; one that
-      // stopped moved within the last K / 2 scans: moving, as the labels' +-0.5 s count it.
-      // How far it came: a point does not count where the place kArrivalDepth further in
-      // (towards its centroid, level) was occupied for all of those scans. A car braking to a
-      // stand came 0.16 m in its last 0.5 s (static by the labels), and the scans before saw the
-      // few returns at its leading end empty.
+      // alone, or read empty from the window's far end in the scans before it (DESIGN §2b's empty
+      // run): their places were empty less than half a window ago. A vehicle coming towards the
+      // sensor shows only its front, which the scans after it see inside it. The K / 2 scans'
+      // votes tip where it came K / 4 scans ago; the run holds a car that stopped at once from 6
+      // m/s two scans ago, its leading 0.6 m alone moving by those votes (doc/OBJECTS.md rule 4,
+      // "Half a window ago"). How far it came: a point does not count where the place
+      // kArrivalDepth further in (towards its centroid, level) was occupied for all of the K / 2
+      // scans before it. A car braking to a stand came 0.16 m in its last 0.5 s (static by the
+      // labels), and the scans before saw the few returns at its leading end empty.
       Eigen::Vector2d mid = Eigen::Vector2d::Zero();
       for (const uint32_t i : idx) mid += w.world[i].head<2>();
       mid /= static_cast<double>(idx.size());
       const auto arrivedAt = [&](uint32_t i) {
         const uint8_t edges = edgeBits(s, i, own);
-        if (!test_.isMoving(w.world[i], *just_before, nullptr, edges)) return 0;
+        if (!test_.isMoving(w.world[i], *just_before, nullptr, edges) &&
+            !test_.hasEmptyRun(w.world[i], *before, nullptr, edges))
+          return 0;
         const Eigen::Vector2d in = mid - w.world[i].head<2>();
         const double to_mid = in.norm();
         if (to_mid <= kArrivalDepth) return 1;  // its middle: the whole object came

@@ -86,6 +86,10 @@ class MovingTest {
   bool isMoving(const Eigen::Vector3d& p_world, const std::vector<WindowScan>& window,
                 MovingTestStats* stats, uint8_t edges = 0, bool empty_run = false,
                 bool* by_run = nullptr) const;
+  /// Whether one side of the window votes empty from its far end (DsParams::empty_run, DESIGN
+  /// §2b, "Empty runs"), whatever the votes of the whole window say; false where that is off.
+  bool hasEmptyRun(const Eigen::Vector3d& p_world, const std::vector<WindowScan>& window,
+                   MovingTestStats* stats, uint8_t edges = 0) const;
   /// EdgeBits of P (`p`, in the sensor frame of its own scan `own`) where that scan's rings lie
   /// further apart than the beam cone (own.ring_gap); 0 for dense lidars. A ring continues P's
   /// surface if it returns within the cone in azimuth, one ring step (0.5-1.5 gaps) away in
