@@ -795,27 +795,45 @@ std::vector<PointXYZI> sparseScan(double el0, double step, double x0, double x1,
 
 }  // namespace
 
-TEST(MovingTest, ASparseScanFindsTheEdgesOfItsSurfaces) {
-  // Issue #15, MovingTest::edgesOf: rings 2 degrees apart, a trailer's side 8 m ahead (z from
-  // -1.0 to -0.1). A point on its top ring has the ring above passing over it to the wall (top
-  // edge); one on its bottom ring has the ring below passing under it to the road 13.7 m away
-  // (bottom edge); one in between has the side on both (no edge). A dense lidar (ring step
-  // within the beam cone) has no edges.
-  constexpr double kDeg = M_PI / 180.0;
+// A trailer's side 8 m ahead (z from -1.0 to -0.1) seen by rings 2 degrees apart (from -1.2
+// degrees down), and the same scan taken for a dense lidar's (ring step within the beam cone).
+class TrailerSide : public ::testing::Test {
+ protected:
+  static constexpr double kDeg = M_PI / 180.0;
   const DsParams p;
-  const MovingTest t(p);
-  const auto scan = sparseScan(-1.2, 2.0, 8.0, 8.0, -0.1, true, -1.0);
-  const BeamIndex idx(scan, t.searchRadius());
-  const WindowScan own{&idx, Eigen::Isometry3d::Identity(), 0.0, 2.0 * kDeg};
-  auto on_ring = [&](double el_deg) {
-    const double el = el_deg * kDeg;
-    return Eigen::Vector3f(8.0f, 0.0f, float(8.0 * std::tan(el)));
-  };
-  EXPECT_EQ(t.edgesOf(on_ring(-1.2), own), kTopEdge);     // z = -0.17
-  EXPECT_EQ(t.edgesOf(on_ring(-3.2), own), 0);            // z = -0.45
-  EXPECT_EQ(t.edgesOf(on_ring(-5.2), own), kBottomEdge);  // z = -0.73; -7.2 degrees: -1.01
+  const MovingTest t{p};
+  const std::vector<PointXYZI> scan = sparseScan(-1.2, 2.0, 8.0, 8.0, -0.1, true, -1.0);
+  const BeamIndex idx{scan, t.searchRadius()};
+  const WindowScan sparse{&idx, Eigen::Isometry3d::Identity(), 0.0, 2.0 * kDeg};
   const WindowScan dense{&idx, Eigen::Isometry3d::Identity(), 0.0, 0.4 * kDeg};
+  // The point at x m ahead, el_deg degrees down.
+  static Eigen::Vector3d at(double x, double el_deg) {
+    return Eigen::Vector3d(x, 0.0, x * std::tan(el_deg * kDeg));
+  }
+};
+
+TEST_F(TrailerSide, ASparseScanFindsTheEdgesOfItsSurfaces) {
+  // Issue #15, MovingTest::edgesOf. A point on the side's top ring has the ring above passing
+  // over it to the wall (top edge); one on its bottom ring has the ring below passing under it
+  // to the road 13.7 m away (bottom edge); one in between has the side on both (no edge). A
+  // dense lidar has no edges.
+  const auto on_ring = [&](double el_deg) { return at(8.0, el_deg).cast<float>().eval(); };
+  EXPECT_EQ(t.edgesOf(on_ring(-1.2), sparse), kTopEdge);     // z = -0.17
+  EXPECT_EQ(t.edgesOf(on_ring(-3.2), sparse), 0);            // z = -0.45
+  EXPECT_EQ(t.edgesOf(on_ring(-5.2), sparse), kBottomEdge);  // z = -0.73; -7.2 degrees: -1.01
   EXPECT_EQ(t.edgesOf(on_ring(-1.2), dense), 0);
+}
+
+TEST_F(TrailerSide, ASparseScanReturnsAtAPlaceBetweenItsRings) {
+  // doc/OBJECTS.md rule 4, "Between two rings" (MovingTest::ringsReturnAt). Halfway between two
+  // rings that meet the side (-4.2 degrees, z = -0.59) the cone holds no beam: the scan's mass
+  // there is unknown, yet the rings around it return at its range. 1 m in front of the side
+  // they return beyond it; a dense lidar is left to its cone.
+  const ds::Mass m = t.scanMass(at(8.0, -4.2), sparse, nullptr, nullptr);
+  EXPECT_DOUBLE_EQ(m.u, 1.0);
+  EXPECT_TRUE(t.ringsReturnAt(at(8.0, -4.2), sparse));
+  EXPECT_FALSE(t.ringsReturnAt(at(7.0, -4.2), sparse));
+  EXPECT_FALSE(t.ringsReturnAt(at(8.0, -4.2), dense));
 }
 
 TEST(MovingTest, BeamsPassingOverAnEdgeDoNotVote) {

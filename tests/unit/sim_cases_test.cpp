@@ -1489,6 +1489,24 @@ TEST(SimSensors, AQueuesStoppedCarBesideAStandingSixteenRingLidarIsStatic) {
   EXPECT_LE(stopped.fp, 100u);  // measured 0 (2,755-2,772 a scan in 28-36 before)
 }
 
+// Rule 4's arrival, "Between two rings" (doc/OBJECTS.md): queue_stop_go seen by an HDL-32E, its
+// cars crawling at 0.5 m/s. The first stands 3.5 m beside the standing ego from scan 20 (static
+// by the labels from scan 23). A few returns on the edges of its side were moving for the scans
+// before it, and the place 0.2 m further in along the side lay between two rings (1.33 degrees
+// apart, the cone 0.6): no beam there, an unknown mass, which counted as not occupied, and rule 4
+// held the car as arriving in scans 23-24 (7,665 false positives in scan 24). The rings around
+// that place return at its range: it was occupied.
+TEST(SimSensors, ACrawlingCarStoppedBesideAThirtyTwoRingLidarHasNotArrived) {
+  auto sc = seenBy(scenario("queue_stop_go"), SensorModel::kHdl32);
+  for (auto& m : sc.movers) m.speed *= 0.5;
+  const auto r = runCase(sc);
+  std::printf("  scan 24: %llu false positives; all: precision %.4f, recall %.4f\n",
+              (unsigned long long)r.frames(24, 25).fp, r.all.precision(), r.all.recall());
+  EXPECT_LE(r.frames(24, 25).fp, 1000u);  // measured 312, the van 13 m back (7,977 before)
+  EXPECT_GE(r.all.precision(), 0.99);     // measured 0.9954 (0.9796)
+  EXPECT_GE(r.all.recall(), 0.98);        // measured 0.9915 (0.9915)
+}
+
 // Rule 4's arrival at a large object's ends (doc/OBJECTS.md): truck_crawl seen by an HDL-32E.
 // In its last 6 scans too few scans follow to see the truck leave; its new place at the leading
 // end, 12-13 of its 23,600 points in two columns, shows it arriving. Every 12th point of the

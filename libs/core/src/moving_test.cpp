@@ -139,6 +139,23 @@ uint8_t MovingTest::edgesOf(const Eigen::Vector3f& p, const WindowScan& own) con
   return bits;
 }
 
+bool MovingTest::ringsReturnAt(const Eigen::Vector3d& p_world, const WindowScan& s) const {
+  if (!s.beams || !(s.ring_gap > radius_)) return false;
+  const Eigen::Vector3f p = (s.world_to_sensor * p_world).cast<float>();
+  const float d = p.norm();
+  Eigen::Vector3f east, up;
+  if (!(d > 1e-3f)) return false;
+  const Eigen::Vector3f dir = p / d;
+  if (!acrossAxes(dir, east, up)) return false;
+  const auto gap = static_cast<float>(s.ring_gap);
+  const float tol = std::max(static_cast<float>(2.0 * model_.sigma), d * gap);
+  bool hit = false;
+  forEachInBand(
+      *s.beams, dir, east, up, static_cast<float>(radius_), 0.0f, gap,
+      [&](const BeamIndex::Beam& q, float) { hit = hit || std::abs(q.range - d) <= tol; });
+  return hit;
+}
+
 // DESIGN §2b, "Coarse columns": the nearest return of P's ring 0.5-1.5 column steps to either
 // side of P's direction (within half a ring step in elevation, or half a column step where the
 // rings are not measured); P is isolated where both lie beyond it, or are missing.

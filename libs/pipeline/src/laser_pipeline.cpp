@@ -1379,9 +1379,14 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
         deeper.head<2>() += in * (kArrivalDepth / to_mid);
         // It stood there throughout where each of those scans alone (DESIGN §2b's mass of that
         // scan) saw that place occupied. Not "one saw it empty": a vehicle moving along its side
-        // seen at a grazing angle hides its new place behind its old end.
-        for (const WindowScan& by : *just_before)
-          if (!ds::isOccupied(test_.scanMass(deeper, by, nullptr, nullptr, edges))) return 1;
+        // seen at a grazing angle hides its new place behind its old end. A sparse scan whose
+        // cone holds no beam there (between two rings) saw it occupied where the rings around
+        // it return at its range (MovingTest::ringsReturnAt; doc/OBJECTS.md rule 4, "Between
+        // two rings").
+        for (const WindowScan& by : *just_before) {
+          const ds::Mass m = test_.scanMass(deeper, by, nullptr, nullptr, edges);
+          if (!ds::isOccupied(m) && (m.e > m.u || !test_.ringsReturnAt(deeper, by))) return 1;
+        }
         return 0;
       };
       int arrived = 0;

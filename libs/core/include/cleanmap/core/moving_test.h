@@ -90,6 +90,12 @@ class MovingTest {
   /// §2b, "Empty runs"), whatever the votes of the whole window say; false where that is off.
   bool hasEmptyRun(const Eigen::Vector3d& p_world, const std::vector<WindowScan>& window,
                    MovingTestStats* stats, uint8_t edges = 0) const;
+  /// Whether a sparse scan (s.ring_gap wider than the cone) returns at P's range from the rings
+  /// around P: a beam within the cone in azimuth and one ring step in elevation whose return
+  /// lies within max(2 sigma, d * gap) of P's range d, as edgesOf's. A place between two rings
+  /// that scanMass leaves unknown (no beam in its cone) on a surface those rings meet. False for
+  /// dense scans.
+  bool ringsReturnAt(const Eigen::Vector3d& p_world, const WindowScan& s) const;
   /// EdgeBits of P (`p`, in the sensor frame of its own scan `own`) where that scan's rings lie
   /// further apart than the beam cone (own.ring_gap); 0 for dense lidars. A ring continues P's
   /// surface if it returns within the cone in azimuth, one ring step (0.5-1.5 gaps) away in
