@@ -806,7 +806,7 @@ class TrailerSide : public ::testing::Test {
   const BeamIndex idx{scan, t.searchRadius()};
   const WindowScan sparse{&idx, Eigen::Isometry3d::Identity(), 0.0, 2.0 * kDeg};
   const WindowScan dense{&idx, Eigen::Isometry3d::Identity(), 0.0, 0.4 * kDeg};
-  // The point at x m ahead, el_deg degrees down.
+  // The point x m ahead at el_deg degrees of elevation (negative: below the sensor).
   static Eigen::Vector3d at(double x, double el_deg) {
     return Eigen::Vector3d(x, 0.0, x * std::tan(el_deg * kDeg));
   }

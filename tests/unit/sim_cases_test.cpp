@@ -1490,12 +1490,12 @@ TEST(SimSensors, AQueuesStoppedCarBesideAStandingSixteenRingLidarIsStatic) {
 }
 
 // Rule 4's arrival, "Between two rings" (doc/OBJECTS.md): queue_stop_go seen by an HDL-32E, its
-// cars crawling at 0.5 m/s. The first stands 3.5 m beside the standing ego from scan 20 (static
-// by the labels from scan 23). A few returns on the edges of its side were moving for the scans
-// before it, and the place 0.2 m further in along the side lay between two rings (1.33 degrees
-// apart, the cone 0.6): no beam there, an unknown mass, which counted as not occupied, and rule 4
-// held the car as arriving in scans 23-24 (7,665 false positives in scan 24). The rings around
-// that place return at its range: it was occupied.
+// cars crawling at half speed (1 m/s). The first stands 3.5 m beside the standing ego from scan 20
+// (static by the labels from scan 23). A few returns on the edges of its side were moving for the
+// scans before it, and the place 0.2 m further in along the side lay between two rings (1.33
+// degrees apart, the cone 0.6): no beam there, an unknown mass, which counted as not occupied, and
+// rule 4 held the car as arriving in scans 23-24 (7,665 false positives in scan 24). The rings
+// around that place return at its range: it was occupied.
 TEST(SimSensors, ACrawlingCarStoppedBesideAThirtyTwoRingLidarHasNotArrived) {
   auto sc = seenBy(scenario("queue_stop_go"), SensorModel::kHdl32);
   for (auto& m : sc.movers) m.speed *= 0.5;
