@@ -800,7 +800,7 @@ std::vector<PointXYZI> sparseScan(double el0, double step, double x0, double x1,
 class TrailerSide : public ::testing::Test {
  protected:
   static constexpr double kDeg = M_PI / 180.0;
-  const DsParams p;
+  const DsParams p{};
   const MovingTest t{p};
   const std::vector<PointXYZI> scan = sparseScan(-1.2, 2.0, 8.0, 8.0, -0.1, true, -1.0);
   const BeamIndex idx{scan, t.searchRadius()};
