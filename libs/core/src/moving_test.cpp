@@ -127,13 +127,9 @@ uint8_t MovingTest::edgesOf(const Eigen::Vector3f& p, const WindowScan& own) con
   uint8_t bits = 0;
   if (rings) {
     const auto gap = static_cast<float>(own.ring_gap);
-    const float tol = std::max(static_cast<float>(2.0 * model_.sigma), d * gap);
-    bool above = false, below = false;
-    forEachInBand(*own.beams, dir, east, up, static_cast<float>(radius_), 0.5f * gap, 1.5f * gap,
-                  [&](const BeamIndex::Beam& q, float el) {
-                    if (std::abs(q.range - d) <= tol) (el > 0.0f ? above : below) = true;
-                  });
-    bits |= static_cast<uint8_t>((above ? 0 : kTopEdge) | (below ? 0 : kBottomEdge));
+    const uint8_t at = ringsAtRange(dir, d, east, up, own, 0.5f * gap, 1.5f * gap);
+    bits |=
+        static_cast<uint8_t>(((at & kAbove) ? 0 : kTopEdge) | ((at & kBelow) ? 0 : kBottomEdge));
   }
   if (columns) bits |= columnIsolated(dir, d, east, up, own) ? kColumnIsolated : 0;
   return bits;
@@ -147,13 +143,24 @@ bool MovingTest::ringsReturnAt(const Eigen::Vector3d& p_world, const WindowScan&
   if (!(d > 1e-3f)) return false;
   const Eigen::Vector3f dir = p / d;
   if (!acrossAxes(dir, east, up)) return false;
-  const auto gap = static_cast<float>(s.ring_gap);
-  const float tol = std::max(static_cast<float>(2.0 * model_.sigma), d * gap);
-  bool hit = false;
-  forEachInBand(
-      *s.beams, dir, east, up, static_cast<float>(radius_), 0.0f, gap,
-      [&](const BeamIndex::Beam& q, float) { hit = hit || std::abs(q.range - d) <= tol; });
-  return hit;
+  return ringsAtRange(dir, d, east, up, s, 0.0f, static_cast<float>(s.ring_gap)) != 0;
+}
+
+// The rings of sparse scan s around P (direction `dir`, range d, axes east / up): beams within
+// the cone in azimuth and lo..hi off P's direction in elevation whose return lies within
+// max(2 sigma, d * gap) of d, a surface at most 45 degrees from facing the ray (edgesOf's and
+// ringsReturnAt's reach). kAbove where one lies above P's direction, kBelow where one lies below.
+uint8_t MovingTest::ringsAtRange(const Eigen::Vector3f& dir, float d, const Eigen::Vector3f& east,
+                                 const Eigen::Vector3f& up, const WindowScan& s, float lo,
+                                 float hi) const {
+  const float tol =
+      std::max(static_cast<float>(2.0 * model_.sigma), d * static_cast<float>(s.ring_gap));
+  uint8_t at = 0;
+  forEachInBand(*s.beams, dir, east, up, static_cast<float>(radius_), lo, hi,
+                [&](const BeamIndex::Beam& q, float el) {
+                  if (std::abs(q.range - d) <= tol) at |= el > 0.0f ? kAbove : kBelow;
+                });
+  return at;
 }
 
 // DESIGN §2b, "Coarse columns": the nearest return of P's ring 0.5-1.5 column steps to either

@@ -158,6 +158,11 @@ class MovingTest {
   // Issue #15: the empty mass a sparse scan's rings around P give it (0: no vote; DESIGN §2b).
   double ringVote(const Eigen::Vector3f& dir, float d, const WindowScan& s) const;
   static constexpr float kRingFront = 1.0f;  // m; see ringVote
+  // Where the rings of sparse scan s around P return at P's range, lo..hi off P's direction in
+  // elevation (edgesOf, ringsReturnAt): kAbove | kBelow.
+  static constexpr uint8_t kAbove = 1, kBelow = 2;
+  uint8_t ringsAtRange(const Eigen::Vector3f& dir, float d, const Eigen::Vector3f& east,
+                       const Eigen::Vector3f& up, const WindowScan& s, float lo, float hi) const;
   // edgesOf's kColumnIsolated of P (direction `dir`, range d, axes east / up) in its own scan.
   bool columnIsolated(const Eigen::Vector3f& dir, float d, const Eigen::Vector3f& east,
                       const Eigen::Vector3f& up, const WindowScan& own) const;
