@@ -1580,12 +1580,76 @@ void LaserPipeline::objectConsensus(std::size_t pos, Prepared& s, Work& w) const
   const auto oc = cleanmap::objectConsensus(s.scan.points, s.candidate, w.moving, op,
                                             near_prev.empty() ? nullptr : &near_prev, &w.whole,
                                             rules, &w.groups);
+  // Rule 2, "A face apart" (doc/OBJECTS.md): a component with no moving point that is a face of
+  // the object the previous scan moved whole, within GrazingStretches::kMaxLink of a component
+  // moving whole here, the two together that object (as they are, moved, or by its ends), is
+  // its face: it goes with it.
+  std::size_t faces_joined = 0, face_points = 0;
+  if (!near_prev.empty() && !prev_whole_.empty()) {
+    const ObjectComponents& g = w.groups;
+    struct Root {
+      uint32_t n = 0, moving = 0, whole = 0, near = 0;
+      Eigen::Vector3f lo = Eigen::Vector3f::Constant(1e30f), hi = -lo;
+      std::vector<uint32_t> idx;
+    };
+    std::vector<Root> roots(g.voxels.size());
+    for (uint32_t i = 0; i < s.scan.size(); ++i) {
+      if (g.point_voxel[i] == UINT32_MAX) continue;
+      Root& r = roots[g.root_of[g.point_voxel[i]]];
+      ++r.n;
+      r.moving += w.moving[i] != 0;
+      r.whole += w.whole[i] != 0;
+      r.near += near_prev[i] != 0;
+      r.lo = r.lo.cwiseMin(s.scan.points[i].xyz());
+      r.hi = r.hi.cwiseMax(s.scan.points[i].xyz());
+    }
+    // Both near the previous scan's moving points (half of theirs), as rule 4's same object.
+    std::vector<uint32_t> movers, faces;
+    for (uint32_t v = 0; v < roots.size(); ++v) {
+      const Root& r = roots[v];
+      if (r.n == 0 || 2 * r.near < r.n) continue;
+      if (2 * r.whole >= r.n)
+        movers.push_back(v);
+      else if (r.moving == 0)
+        faces.push_back(v);
+    }
+    if (faces.empty()) movers.clear();
+    std::vector<uint8_t> asked(roots.size(), 0);
+    for (const auto* list : {&movers, &faces})
+      for (const uint32_t v : *list) asked[v] = 1;
+    if (!movers.empty())
+      for (uint32_t i = 0; i < s.scan.size(); ++i)
+        if (g.point_voxel[i] != UINT32_MAX && asked[g.root_of[g.point_voxel[i]]])
+          roots[g.root_of[g.point_voxel[i]]].idx.push_back(i);
+    for (const uint32_t a : movers)
+      for (const uint32_t b : faces) {
+        Root& rb = roots[b];
+        const Root& ra = roots[a];
+        if (rb.moving > 0) continue;  // joined already
+        const Eigen::Vector3f gap = (rb.lo - ra.hi).cwiseMax(ra.lo - rb.hi).cwiseMax(0.0f);
+        if (gap.norm() > GrazingStretches::kMaxLink) continue;
+        std::vector<uint32_t> both = ra.idx;
+        both.insert(both.end(), rb.idx.begin(), rb.idx.end());
+        Eigen::Vector3f e;
+        float step = 0.0f;
+        const std::optional<WholeMatch> match = previousObject(both, e, step);
+        if (!match) continue;
+        const Eigen::Vector3f& x = prev_objects->extent[match->object];
+        if (!sizedAs(e, x, rules.extent_tolerance, false, step) ||
+            !faceOf(ringLifted(rb.hi - rb.lo, x, step), x, op.voxel, rules.extent_tolerance))
+          continue;
+        for (const uint32_t i : rb.idx) w.moving[i] = w.whole[i] = 1;
+        rb.moving = rb.n;
+        ++faces_joined;
+        face_points += rb.n;
+      }
+  }
   s.stats.objects_persisted = oc.persisted;
   s.stats.objects_left_place = oc.left_place;
   s.stats.objects_measured = oc.measured;
   s.stats.objects_far_kept = oc.far_kept;
-  s.stats.objects_moving = oc.moving_objects;
-  s.stats.consensus_points = oc.points_added;
+  s.stats.objects_moving = oc.moving_objects + faces_joined;
+  s.stats.consensus_points = oc.points_added + face_points;
   s.stats.consensus_removed = oc.points_removed;
   s.stats.consensus_body_kept = oc.body_points_kept;
   s.stats.consensus_foot_left = oc.foot_points_left;
